@@ -1,0 +1,78 @@
+"""The ``droptower`` command: one sub-command per step of the data path.
+
+Sub-commands are imported only when used (numba, pymunk and matplotlib are slow to import),
+so ``droptower --help`` stays instant. Every user error is a :class:`DroptowerError`,
+printed as one line on stderr with exit code 2 and no traceback.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+from droptower.errors import DroptowerError
+
+#: name -> (module, attribute, one-line help). Data flows top to bottom.
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "servo": ("droptower.cli.servo_cmd", "servo", "Drive a coupling on the virtual servo-hydraulic bench."),
+    "simulate": ("droptower.cli.simulate_cmd", "simulate", "Simulate one drop test on the virtual drop tower."),
+    "plan": ("droptower.cli.plan_cmd", "plan", "Predict a test plan: amplitudes, frequencies, double impacts."),
+    "channels": ("droptower.cli.channels_cmd", "channels", "List the channels a log file holds."),
+    "extract": ("droptower.cli.extract_cmd", "extract", "Extract stiffness and damping from drop-test logs."),
+    "campaign": ("droptower.cli.campaign_cmd", "campaign", "Simulate, log and extract a whole test plan."),
+    "map": ("droptower.cli.map_cmd", "map_command", "Fit the characteristic map (seed 004 eq. 19-20)."),
+    "validate": ("droptower.cli.validate_cmd", "validate", "Compare a map with servo-hydraulic sweeps."),
+    "identify": ("droptower.cli.identify_cmd", "identify", "Identify a coupling model from torque-angle data."),
+    "compare-models": ("droptower.cli.identify_cmd", "compare_models", "Fit every model family and rank them."),
+}
+
+
+class LazyGroup(click.Group):
+    """A group whose sub-commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return [name for name, (module, _, _) in COMMANDS.items() if importlib.util.find_spec(module) is not None]
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in COMMANDS:
+            return None
+        module, attr, _ = COMMANDS[name]
+        return getattr(importlib.import_module(module), attr)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, COMMANDS[name][2]) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="droptower")
+def cli() -> None:
+    """droptower: a virtual drop-tower rig and parameter extractor for elastomer couplings.
+
+    SI units inside (rad, N*m, s, kg, m); degrees only at the edges, and every output field
+    names its unit.
+    """
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the console script; returns the exit code."""
+    try:
+        cli.main(args=argv, prog_name="droptower", standalone_mode=False)
+    except DroptowerError as exc:
+        click.echo(f"droptower: error: {exc.message}", err=True)
+        return 2
+    except click.exceptions.Abort:
+        click.echo("droptower: aborted", err=True)
+        return 130
+    except click.ClickException as exc:
+        exc.show()
+        return 2
+    except click.exceptions.Exit as exc:
+        return exc.exit_code
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

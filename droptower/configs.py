@@ -1,0 +1,62 @@
+"""Where the shipped presets live and how a name or path on the command line resolves.
+
+``rig_configs/`` sits at the top of the repository and is installed as the package
+``droptower.rig_configs``, so ``droptower`` finds its presets after any install. A user may
+give a path (``my/coupling.toml``) or the name of a shipped preset (``rapp2022_nr60``).
+"""
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from droptower.errors import DroptowerError
+
+#: Sub-folders of ``rig_configs``: couplings, rigs, test plans (design of experiments).
+KINDS = ("couplings", "rigs", "doe")
+
+DEFAULT_COUPLING = "rapp2022_nr60"
+DEFAULT_RIG = "rapp2022"
+DEFAULT_DOE = "rapp2022_table2"
+
+
+def preset_dir(kind: str) -> Path:
+    """The folder of shipped presets of ``kind`` (``couplings``, ``rigs`` or ``doe``)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown preset kind {kind!r}")
+    return Path(str(resources.files("droptower.rig_configs"))) / kind
+
+
+def list_presets(kind: str) -> list[str]:
+    """Names (file stems) of the shipped presets of ``kind``."""
+    return sorted(p.stem for p in preset_dir(kind).glob("*.toml"))
+
+
+def resolve(name_or_path: str | Path, kind: str) -> Path:
+    """A path to a TOML file: an existing path, or the name of a shipped preset."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    preset = preset_dir(kind) / f"{Path(str(name_or_path)).stem}.toml"
+    if preset.is_file() and path.suffix in ("", ".toml") and len(path.parts) <= 2:
+        return preset
+    raise DroptowerError(
+        f"no such file, and no shipped {kind[:-1] if kind != 'doe' else 'test plan'} preset of that name "
+        f"(presets: {', '.join(list_presets(kind)) or 'none'})",
+        file=name_or_path,
+    )
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; an unreadable or malformed file is a one-line DroptowerError."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise DroptowerError("file not found", file=path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DroptowerError(f"not valid TOML ({exc})", file=path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DroptowerError(f"cannot read file ({exc})", file=path) from None

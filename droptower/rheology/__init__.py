@@ -1,0 +1,11 @@
+"""The rheological core: coupling models of seeds 000-003 as fast, composable elements.
+
+- :mod:`.elements`: the element kinds of a coupling file (validated specs);
+- :mod:`.kernels`: their compiled per-step updates (numba), with energy accounting;
+- :mod:`.coupling`: :class:`Coupling`, explicit state and time step, batch axis first;
+- :mod:`.loader`: TOML files -> :class:`Coupling`.
+"""
+from droptower.rheology.coupling import Coupling, CouplingState, Response
+from droptower.rheology.loader import coupling_to_toml, load_coupling, parse_coupling
+
+__all__ = ["Coupling", "CouplingState", "Response", "load_coupling", "parse_coupling", "coupling_to_toml"]

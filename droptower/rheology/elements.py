@@ -1,0 +1,463 @@
+"""The element kinds a coupling TOML may use, validated, and compiled into kernel elements.
+
+Each ``[[element]]`` table of a coupling file is one of the models below (field ``kind``).
+All values are SI and torsional (rad, N*m, N*m/rad, N*m*s/rad, s); a file that says
+``units = "translational"`` reads the same numbers as m, N, N/m, N*s/m.
+
+Compilation turns an element into one or more kernel elements (:mod:`.kernels`): e.g. a
+``prony`` series becomes a spring and n Maxwell branches, an ``elastoslide`` a spring and a
+bank of rate-dependent sliders, ``mullins`` a spring (or static table) and a Maxwell branch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_validator, model_validator
+
+from droptower.rheology import kernels as K
+from droptower.validation import StrictModel
+
+
+@dataclass(frozen=True)
+class KernelElement:
+    """One compiled element: kernel code, parameter vector, number of internal variables."""
+
+    code: int
+    params: np.ndarray
+    n_internal: int = 0
+    label: str = ""
+
+    @property
+    def n_state(self) -> int:
+        return K.N_HEADER + self.n_internal
+
+
+class ElementSpec(StrictModel):
+    """Common fields: ``kind`` and an optional ``name`` for reports."""
+
+    name: str = ""
+
+    def compile(self) -> list[KernelElement]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def label(self, index: int) -> str:
+        return self.name or f"{self.kind}#{index}"  # type: ignore[attr-defined]
+
+
+def _strictly_increasing(values: list[float], what: str) -> list[float]:
+    if len(values) < 2:
+        raise ValueError(f"{what} needs at least 2 points")
+    if np.any(np.diff(values) <= 0):
+        raise ValueError(f"{what} must be strictly increasing")
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"{what} must be finite")
+    return values
+
+
+# ------------------------------------------------------------------ springs
+class Spring(ElementSpec):
+    """Linear spring, T = stiffness * angle."""
+
+    kind: Literal["spring"]
+    stiffness: NonNegativeFloat  # N*m/rad
+
+    def compile(self):
+        return [KernelElement(K.LINEAR_SPRING, np.array([self.stiffness]))]
+
+
+class SpringTable(ElementSpec):
+    """Static nonlinear curve T(angle), piecewise linear (seed 002's k1 table).
+
+    The curve must pass through (0, 0) and rise monotonically (a passive, stable spring);
+    outside the table it continues with the end slopes.
+    """
+
+    kind: Literal["spring_table"]
+    angle: list[float]   # rad
+    torque: list[float]  # N*m
+
+    @field_validator("angle")
+    @classmethod
+    def _angles(cls, v):
+        return _strictly_increasing(v, "angle")
+
+    @model_validator(mode="after")
+    def _curve(self):
+        if len(self.torque) != len(self.angle):
+            raise ValueError("torque and angle must have the same length")
+        if np.any(np.diff(self.torque) <= 0):
+            raise ValueError("torque must rise with angle (a falling static curve is unstable)")
+        t0 = np.interp(0.0, self.angle, self.torque) if self.angle[0] <= 0 <= self.angle[-1] else None
+        if t0 is None or abs(t0) > 1e-9 * max(1.0, max(abs(x) for x in self.torque)):
+            raise ValueError("the static curve must pass through angle 0 with torque 0")
+        return self
+
+    def compile(self):
+        n = len(self.angle)
+        return [KernelElement(K.TABLE_SPRING, np.concatenate([[n], self.angle, self.torque]))]
+
+
+class CubicSpring(ElementSpec):
+    """T = A*angle^3 + B*angle (seed 003's nonlinear spring)."""
+
+    kind: Literal["cubic_spring"]
+    a: float = Field(description="N*m/rad^3")
+    b: float = Field(description="N*m/rad")
+
+    @model_validator(mode="after")
+    def _stable(self):
+        if self.b < 0 or self.a < 0:
+            raise ValueError("a and b must be >= 0 (a falling spring curve is unstable)")
+        return self
+
+    def compile(self):
+        return [KernelElement(K.CUBIC_SPRING, np.array([self.a, self.b]))]
+
+
+# ------------------------------------------------------------------ viscous
+class Dashpot(ElementSpec):
+    """Linear dashpot, T = damping * rate."""
+
+    kind: Literal["dashpot"]
+    damping: NonNegativeFloat  # N*m*s/rad
+
+    def compile(self):
+        return [KernelElement(K.DASHPOT, np.array([self.damping]))]
+
+
+class Maxwell(ElementSpec):
+    """Spring in series with a dashpot (seed 000 eq. 1); relaxation time damping/stiffness."""
+
+    kind: Literal["maxwell"]
+    stiffness: PositiveFloat  # N*m/rad
+    damping: PositiveFloat    # N*m*s/rad
+
+    def compile(self):
+        return [KernelElement(K.MAXWELL, np.array([self.stiffness, self.damping]), 3)]
+
+
+class PronyTerm(StrictModel):
+    stiffness: PositiveFloat      # N*m/rad
+    relaxation_time: PositiveFloat  # s
+
+
+class Prony(ElementSpec):
+    """Generalized Maxwell: equilibrium stiffness plus Maxwell terms (k_i, tau_i)."""
+
+    kind: Literal["prony"]
+    equilibrium_stiffness: NonNegativeFloat  # N*m/rad
+    terms: list[PronyTerm] = Field(min_length=1)
+
+    def compile(self):
+        out = [KernelElement(K.LINEAR_SPRING, np.array([self.equilibrium_stiffness]))]
+        for t in self.terms:
+            out.append(KernelElement(K.MAXWELL, np.array([t.stiffness, t.stiffness * t.relaxation_time]), 3))
+        return out
+
+
+# ------------------------------------------------------------------ friction
+def _bank(stiffness: np.ndarray, yield_torque: np.ndarray, rate: float = 0.0, exponent: int = 0,
+          constriction: tuple[float, float] = (0.0, 0.0)) -> KernelElement:
+    n = stiffness.size
+    params = np.concatenate([[n, rate, exponent, constriction[0], constriction[1]], stiffness, yield_torque,
+                             stiffness / yield_torque])
+    return KernelElement(K.SLIDER_BANK, params, 2 * n)
+
+
+class Prandtl(ElementSpec):
+    """Jenkins element: spring in series with a Coulomb slider."""
+
+    kind: Literal["prandtl"]
+    stiffness: PositiveFloat     # N*m/rad
+    yield_torque: PositiveFloat  # N*m
+
+    def compile(self):
+        return [_bank(np.array([self.stiffness]), np.array([self.yield_torque]))]
+
+
+class Constriction(StrictModel):
+    """Seed 003's loop-waist scaling S(x) = (|tanh(P x)| + K) / (1 + K)."""
+
+    p: PositiveFloat               # 1/rad
+    k: NonNegativeFloat            # -
+
+
+def masing_yield_torques(max_yield_torque: float, alpha: float, n: int) -> np.ndarray:
+    """Seed 003: R_i = R exp(alpha (eta_i - 1)), eta_i = (i - 1)/(n - 1), i = 1..n."""
+    eta = np.arange(n) / max(n - 1, 1)
+    return max_yield_torque * np.exp(alpha * (eta - 1.0))
+
+
+class Masing(ElementSpec):
+    """n Prandtl elements in parallel, equal stiffness, exponentially distributed limits (seed 003)."""
+
+    kind: Literal["masing"]
+    n: PositiveInt = 7
+    stiffness: PositiveFloat         # N*m/rad, of each Prandtl element
+    max_yield_torque: PositiveFloat  # N*m, R
+    alpha: NonNegativeFloat          # -, spread of the limits
+    constriction: Constriction | None = None
+
+    def compile(self):
+        yields = masing_yield_torques(self.max_yield_torque, self.alpha, self.n)
+        c = (self.constriction.p, self.constriction.k) if self.constriction else (0.0, 0.0)
+        return [_bank(np.full(self.n, self.stiffness), yields, constriction=c)]
+
+
+class YieldDistribution(StrictModel):
+    """A user-supplied yield-force distribution: points f* and their weights (normalised)."""
+
+    yield_torque: list[PositiveFloat]  # N*m (f* per unit of the distribution)
+    weight: list[PositiveFloat]
+
+    @model_validator(mode="after")
+    def _same_length(self):
+        if len(self.weight) != len(self.yield_torque) or not self.weight:
+            raise ValueError("yield_torque and weight must be non-empty lists of the same length")
+        return self
+
+
+def exponential_bins(phi0: float, n: int, f_min: float, f_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """Discretise phi(f*) = phi0 exp(-phi0 f*) into n elements over [f_min, f_max].
+
+    Bin edges are spaced evenly in probability inside [f_min, f_max]; the mass below
+    f_min and above f_max is lumped into the first and last bins. Each element carries its
+    bin's probability as weight and the bin's conditional mean f* as yield force, so the
+    total weight is 1 and the full-slip force (1/phi0) is exact.
+    """
+    cdf_lo = 1.0 - np.exp(-phi0 * f_min)
+    cdf_hi = 1.0 - np.exp(-phi0 * f_max)
+    inner = np.linspace(cdf_lo, cdf_hi, n + 1)
+    inner[0], inner[-1] = 0.0, 1.0
+    edges = -np.log1p(-np.clip(inner, 0.0, 1.0 - 1e-300)) / phi0
+    edges[-1] = np.inf
+    weights = np.diff(inner)
+
+    def partial_mean(f):  # integral of f phi(f) df from 0 to f
+        with np.errstate(invalid="ignore"):
+            val = (1.0 - np.exp(-phi0 * f) * (1.0 + phi0 * f)) / phi0
+        return np.where(np.isinf(f), 1.0 / phi0, val)
+
+    means = np.diff(partial_mean(edges)) / weights
+    return weights, means
+
+
+class Elastoslide(ElementSpec):
+    """Distributed rate-dependent elastoslide model (seed 001, NOTES 2.2).
+
+    A parallel spring k0 plus a continuum of elastoslide elements (leading spring k, slider
+    yield force f* with density phi(f*)), discretised into ``n`` elements. The default
+    density is exponential with parameter ``phi0`` (eq. 25) over the yield range
+    ``[yield_min, yield_max]`` (default: 0 to the 99.9 % quantile); a user distribution may
+    be given instead.
+    """
+
+    kind: Literal["elastoslide"]
+    phi0: PositiveFloat | None = None   # 1/(N*m)
+    k: PositiveFloat                    # N*m/rad, leading spring
+    k0: NonNegativeFloat                # N*m/rad, parallel spring
+    v_r: PositiveFloat                  # rad/s, reference slip rate
+    p: PositiveInt = 7                  # odd exponent
+    n: PositiveInt = 32
+    yield_min: NonNegativeFloat | None = None  # N*m
+    yield_max: PositiveFloat | None = None     # N*m
+    distribution: YieldDistribution | None = None
+
+    @field_validator("p")
+    @classmethod
+    def _odd(cls, v):
+        if v % 2 == 0:
+            raise ValueError("p must be an odd integer (an even p makes the slip rate ignore the force's sign)")
+        return v
+
+    @model_validator(mode="after")
+    def _distribution(self):
+        if self.distribution is None and self.phi0 is None:
+            raise ValueError("give phi0 (exponential distribution) or a distribution")
+        if self.distribution is not None and self.phi0 is not None:
+            raise ValueError("give either phi0 or a distribution, not both")
+        if self.distribution is None:
+            lo = self.yield_min or 0.0
+            hi = self.yield_max if self.yield_max is not None else -np.log(1e-3) / self.phi0
+            if not hi > lo:
+                raise ValueError(f"yield range [{lo}, {hi}] is empty: yield_max must exceed yield_min")
+            if lo * self.phi0 > 5.0:
+                raise ValueError("yield_min lies beyond 99 % of the distribution: the yield range misses it")
+        return self
+
+    def bins(self) -> tuple[np.ndarray, np.ndarray]:
+        """(weights, yield forces f*) of the discrete elements."""
+        if self.distribution is not None:
+            w = np.asarray(self.distribution.weight, float)
+            return w / w.sum(), np.asarray(self.distribution.yield_torque, float)
+        lo = self.yield_min or 0.0
+        hi = self.yield_max if self.yield_max is not None else -np.log(1e-3) / self.phi0
+        return exponential_bins(self.phi0, self.n, lo, hi)
+
+    def compile(self):
+        w, f = self.bins()
+        # element i: spring k w_i, slider limit w_i f*_i, so k e / f* is the same ratio
+        return [KernelElement(K.LINEAR_SPRING, np.array([self.k0])),
+                _bank(self.k * w, w * f, rate=self.v_r, exponent=self.p)]
+
+
+# ------------------------------------------------------------------ seed 000
+class Table(StrictModel):
+    """A lookup table (x, y) with linear interpolation."""
+
+    x: list[float]
+    y: list[PositiveFloat]
+
+    @model_validator(mode="after")
+    def _shape(self):
+        _strictly_increasing(self.x, "x")
+        if len(self.x) != len(self.y):
+            raise ValueError("x and y must have the same length")
+        return self
+
+
+class Mullins(ElementSpec):
+    """Seed 000 eq. 3: the angle split by a first-order low-pass (time constant tau) into a
+    slow part carried by ``slow_stiffness`` (or the static curve ``slow_curve``) and a fast
+    part carried by ``fast_stiffness``.
+
+    T = k1 LP(x) + k2 (x - LP(x)) = k1 x + (k2 - k1) HP(x): a spring k1 in parallel with a
+    Maxwell branch (k2 - k1, tau (k2 - k1)). After a change of mean load the fast stiffness
+    acts first and relaxes to the slow one over tau: the first cycles are stiffer.
+    k2 >= k1 is required (otherwise the element would generate energy).
+    """
+
+    kind: Literal["mullins"]
+    tau: PositiveFloat                        # s
+    slow_stiffness: PositiveFloat | None = None  # N*m/rad
+    slow_curve: SpringTable | None = None
+    fast_stiffness: PositiveFloat             # N*m/rad
+
+    @model_validator(mode="after")
+    def _passive(self):
+        if (self.slow_stiffness is None) == (self.slow_curve is None):
+            raise ValueError("give exactly one of slow_stiffness and slow_curve")
+        if self.fast_stiffness < self.slow_stiffness_at_zero():
+            raise ValueError("fast_stiffness must be >= the slow stiffness at angle 0 (else the element is not passive)")
+        return self
+
+    def slow_stiffness_at_zero(self) -> float:
+        """k1: the slow stiffness, or the slope of the slow curve's segment at angle 0 (N*m/rad)."""
+        if self.slow_curve is None:
+            return float(self.slow_stiffness)
+        a, t = np.asarray(self.slow_curve.angle), np.asarray(self.slow_curve.torque)
+        i = int(np.clip(np.searchsorted(a, 0.0, side="right") - 1, 0, a.size - 2))
+        return float((t[i + 1] - t[i]) / (a[i + 1] - a[i]))
+
+    def compile(self):
+        if self.slow_curve is not None:
+            slow = self.slow_curve.compile()
+        else:
+            slow = [KernelElement(K.LINEAR_SPRING, np.array([self.slow_stiffness]))]
+        dk = self.fast_stiffness - self.slow_stiffness_at_zero()
+        if dk <= 0:
+            return slow
+        return slow + [KernelElement(K.MAXWELL, np.array([dk, dk * self.tau]), 3)]
+
+
+class VariableMaxwell(ElementSpec):
+    """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
+
+    Spring force (k0 + gain |e|) e, e the branch spring's own deformation (so the branch stays
+    passive), or k(e) e from ``stiffness_table`` (x in rad, y in N*m/rad); dashpot force
+    c(|v|) v with c from ``damping_table`` (x in rad/s, y in N*m*s/rad) or constant ``damping``.
+    The six-parameter model uses k0 + gain; the 20-parameter one uses the two 9-point tables.
+    """
+
+    kind: Literal["variable_maxwell"]
+    stiffness: PositiveFloat | None = None       # N*m/rad (k0)
+    stiffness_gain: NonNegativeFloat = 0.0       # N*m/rad^2
+    stiffness_table: Table | None = None
+    damping: PositiveFloat | None = None         # N*m*s/rad
+    damping_table: Table | None = None
+
+    @model_validator(mode="after")
+    def _choice(self):
+        if (self.stiffness is None) == (self.stiffness_table is None):
+            raise ValueError("give exactly one of stiffness and stiffness_table")
+        if (self.damping is None) == (self.damping_table is None):
+            raise ValueError("give exactly one of damping and damping_table")
+        if self.damping_table is not None and self.damping_table.x[0] > 0:
+            raise ValueError("damping_table must start at rate 0")
+        return self
+
+    def compile(self):
+        kt, ct = self.stiffness_table, self.damping_table
+        nk = len(kt.x) if kt else 0
+        nc = len(ct.x) if ct else 0
+        params = [self.stiffness or 0.0, self.stiffness_gain, self.damping or 0.0, nk, nc]
+        if kt:
+            params += list(kt.x) + list(kt.y)
+        if ct:
+            params += list(ct.x) + list(ct.y)
+        return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float), 1)]
+
+
+# ------------------------------------------------------------------ seed 002
+class PfefferFriction(StrictModel):
+    """Amplitude-dependent friction torque F_NL of seed 002, as smoothed Coulomb friction.
+
+    ``n`` Prandtl elements of equal stiffness whose limits are spread log-uniformly between
+    ``min_yield_angle`` and ``max_yield_angle`` (rad, the elongation at which each slips), each
+    carrying ``max_torque / n``: the friction torque then grows logarithmically with amplitude
+    between those angles, as in seed 002's "logarithmic increase of F_NL over amplitude".
+    """
+
+    max_torque: PositiveFloat       # N*m, full-slip friction torque
+    min_yield_angle: PositiveFloat  # rad
+    max_yield_angle: PositiveFloat  # rad
+    n: PositiveInt = 12
+
+    @model_validator(mode="after")
+    def _range(self):
+        if not self.max_yield_angle > self.min_yield_angle:
+            raise ValueError("max_yield_angle must exceed min_yield_angle")
+        return self
+
+    def compile(self) -> KernelElement:
+        yield_angles = np.geomspace(self.min_yield_angle, self.max_yield_angle, self.n)
+        limit = np.full(self.n, self.max_torque / self.n)
+        return _bank(limit / yield_angles, limit)
+
+
+class Pfeffer(ElementSpec):
+    """Pfeffer bushing model, frequency part (seed 002, NOTES 2.3).
+
+    Main spring k1 in parallel with a dashpot c1 in series with (k2 || c2);
+    alpha = k2/k1, beta = c2/c1, gamma = c1/k1 (s). Optional amplitude-dependent friction.
+    """
+
+    kind: Literal["pfeffer"]
+    k1: PositiveFloat          # N*m/rad
+    alpha: PositiveFloat       # -
+    beta: NonNegativeFloat     # -
+    gamma: PositiveFloat       # s
+    friction: PfefferFriction | None = None
+
+    def compile(self):
+        out = [KernelElement(K.PFEFFER, np.array([self.k1, self.alpha, self.beta, self.gamma]), 3)]
+        if self.friction is not None:
+            out.append(self.friction.compile())
+        return out
+
+    def complex_stiffness(self, omega: np.ndarray) -> np.ndarray:
+        """K*(Omega) of NOTES 2.3 (N*m/rad), for the linear part."""
+        iw = 1j * np.asarray(omega, float) * self.gamma
+        return self.k1 * (1.0 + iw * (1.0 - 1.0 / (1.0 + self.beta + self.alpha / iw)))
+
+
+ElementUnion = Annotated[
+    Union[Spring, SpringTable, CubicSpring, Dashpot, Maxwell, Prony, Prandtl, Masing, Elastoslide,
+          Mullins, VariableMaxwell, Pfeffer],
+    Field(discriminator="kind"),
+]
+
+ELEMENT_KINDS = ("spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl",
+                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer")

@@ -1,0 +1,501 @@
+"""Compiled per-step updates of the elementary rheological elements.
+
+Every coupling is compiled (see :mod:`droptower.rheology.elements`) into a flat list of
+*kernel elements*. A kernel element owns a slice of a parameter vector and a slice of a state
+vector; it advances one time step from the committed angle ``x0`` to the trial angle ``x1``
+over ``h`` seconds (the angle varies linearly in between) and returns its torque at the end of
+the step.
+
+State layout of every kernel element (SI units)::
+
+    state[0]  stored energy at the end of the step            (J)
+    state[1]  energy dissipated since the state was created   (J)
+    state[2]  the element's torque at the end of the step     (N*m)
+    state[3:] internal variables (spring elongations)         (rad)
+
+Updates are exact (exponential) for the linear relaxation elements and implicit for the
+stiff ones, so none of them has a stability limit on ``h``. Dissipation is accounted
+physically: the force on each dashpot or slider, averaged over the step (trapezoidal), times
+its stroke in the step. For elements whose torque is a spring force in series with the
+dissipative part, stored + dissipated then equals the trapezoidal work ``½(T0+T1)(x1-x0)``
+exactly, step by step; for the nonlinear springs it holds to O(h^3) per step.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+# kernel codes
+LINEAR_SPRING = 0
+TABLE_SPRING = 1
+CUBIC_SPRING = 2
+DASHPOT = 3
+MAXWELL = 4
+SLIDER_BANK = 5
+VARIABLE_MAXWELL = 6
+PFEFFER = 7
+
+N_HEADER = 3  # stored, dissipated, torque
+
+JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+
+
+# ---------------------------------------------------------------- helpers
+@njit(**JIT)
+def _interp(x, xs, ys, n):
+    """Piecewise-linear interpolation with linear extrapolation by the end segments."""
+    if x <= xs[0]:
+        i = 0
+    elif x >= xs[n - 1]:
+        i = n - 2
+    else:
+        lo = 0
+        hi = n - 1
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if xs[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        i = lo
+    t = (x - xs[i]) / (xs[i + 1] - xs[i])
+    return ys[i] + t * (ys[i + 1] - ys[i])
+
+
+@njit(**JIT)
+def _table_energy(x, xs, ys, n):
+    """Integral of the piecewise-linear curve from 0 to x (exact: trapezoids per segment)."""
+    # integrate from 0 to x in the direction of x; breakpoints between them are added
+    if x == 0.0:
+        return 0.0
+    lo = min(0.0, x)
+    hi = max(0.0, x)
+    total = 0.0
+    a = lo
+    fa = _interp(a, xs, ys, n)
+    for j in range(n):
+        if xs[j] > lo and xs[j] < hi:
+            fb = ys[j]
+            total += 0.5 * (fa + fb) * (xs[j] - a)
+            a = xs[j]
+            fa = fb
+    fb = _interp(hi, xs, ys, n)
+    total += 0.5 * (fa + fb) * (hi - a)
+    return total if x > 0.0 else -total
+
+
+@njit(**JIT)
+def _ipow(u, p):
+    """u**p for a non-negative integer p, by multiplications."""
+    r = 1.0
+    b = u
+    while p > 0:
+        if p & 1:
+            r *= b
+        b *= b
+        p >>= 1
+    return r
+
+
+# ---------------------------------------------------------------- elastic elements
+@njit(**JIT)
+def linear_spring(p, po, s, so, x0, x1, h):
+    """T = k x.  params: [k]."""
+    k = p[po + 0]
+    s[so + 0] = 0.5 * k * x1 * x1
+    s[so + 2] = k * x1
+    return s[so + 2]
+
+
+@njit(**JIT)
+def table_spring(p, po, s, so, x0, x1, h):
+    """T = f(x), piecewise linear through the table (seed 002's k1 table). params: [n, xs.., Ts..]."""
+    n = int(p[po + 0])
+    xs = p[po + 1:po + 1 + n]
+    ys = p[po + 1 + n:po + 1 + 2 * n]
+    s[so + 0] = _table_energy(x1, xs, ys, n)
+    s[so + 2] = _interp(x1, xs, ys, n)
+    return s[so + 2]
+
+
+@njit(**JIT)
+def cubic_spring(p, po, s, so, x0, x1, h):
+    """T = A x^3 + B x (seed 003). params: [A, B]."""
+    a = p[po + 0]
+    b = p[po + 1]
+    s[so + 0] = 0.25 * a * x1 ** 4 + 0.5 * b * x1 * x1
+    s[so + 2] = a * x1 ** 3 + b * x1
+    return s[so + 2]
+
+
+# ---------------------------------------------------------------- dissipative elements
+@njit(**JIT)
+def dashpot(p, po, s, so, x0, x1, h):
+    """T = c dx/dt, the rate of the step. params: [c]."""
+    t1 = p[po + 0] * (x1 - x0) / h
+    s[so + 1] += 0.5 * (s[so + 2] + t1) * (x1 - x0)
+    s[so + 2] = t1
+    return t1
+
+
+@njit(**JIT)
+def maxwell(p, po, s, so, x0, x1, h):
+    """Spring k in series with dashpot c (seed 000 eq. 1), exact for a linear ramp in the step.
+
+    params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), and the time
+    step and decay factor exp(-h k/c) of the last step (a cache).
+    """
+    k = p[po + 0]
+    c = p[po + 1]
+    e0 = s[so + 3]
+    v = (x1 - x0) / h
+    tau = c / k
+    if s[so + 4] != h:  # exp() only when the time step changes
+        s[so + 4] = h
+        s[so + 5] = np.exp(-h / tau)
+    decay = s[so + 5]
+    e1 = e0 * decay + v * tau * (1.0 - decay)
+    t1 = k * e1
+    # dashpot stroke = (x1 - x0) - (e1 - e0), carrying the mean spring force
+    s[so + 1] += 0.5 * (s[so + 2] + t1) * ((x1 - x0) - (e1 - e0))
+    s[so + 0] = 0.5 * k * e1 * e1
+    s[so + 2] = t1
+    s[so + 3] = e1
+    return t1
+
+
+@njit(**JIT)
+def _constriction(x, p_c, k_c):
+    """S(x) = (|tanh(P x)| + K) / (1 + K) (seed 003 constriction of the loop waist)."""
+    return (abs(np.tanh(p_c * x)) + k_c) / (1.0 + k_c)
+
+
+@njit(**JIT)
+def _ipow_small(u, p):
+    """u**p for an integer 0 <= p < 32 without branches (so that loops over it vectorise)."""
+    r = 1.0
+    b = u
+    for bit in range(5):
+        r *= b if (p >> bit) & 1 else 1.0
+        b *= b
+    return r
+
+
+@njit(**JIT)
+def _slide_newton(e0, dx, scale, a, p_exp, tol):
+    """Backward-Euler update of one rate-dependent elastoslide element (seed 001 eq. 13/17).
+
+    de/dt = dx/dt - v_r (k e / f*)^p.  In the normalised elongation u = k e / f* (``scale`` =
+    k / f*) the implicit step reads u + A u^p = B with A = h v_r k / f* and
+    B = k (e0 + dx) / f*; the left side is odd, increasing and convex for u > 0, so Newton's
+    method started at or above the root (the smaller of the upper bounds |B| and
+    (|B|/A)^(1/p)) converges monotonically. Used where the fast fixed-count pass has not
+    converged (sudden large moves).
+    """
+    b = scale * (e0 + dx)
+    bb = abs(b)
+    if bb == 0.0:
+        return 0.0
+    u = min(bb, (bb / a) ** (1.0 / p_exp))
+    for _ in range(200):
+        up = _ipow(u, p_exp - 1)
+        step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
+        u -= step
+        if step <= tol * u:
+            break
+    return u / scale if b > 0.0 else -u / scale
+
+
+NEWTON_FAST_ITERATIONS = 3
+NEWTON_TOL = 1e-11
+
+
+@njit(**JIT)
+def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
+    """All elements of a rate-dependent bank: a branch-free, fixed-count Newton pass that the
+    compiler vectorises (warm-started from the previous elongation, which steady motion
+    changes little), then an exact fallback for the few elements it did not converge."""
+    unconverged = 0
+    for i in range(n):
+        scale = scales[i]  # k_i / f_i
+        e0 = elong[i]
+        b = scale * (e0 + dx)
+        bb = abs(b)
+        a = h * v_r * scale
+        warm = scale * e0 if b > 0.0 else -scale * e0
+        u = warm if (warm > 0.0) and (warm < bb) else bb
+        step = 0.0
+        for _ in range(NEWTON_FAST_ITERATIONS):
+            up = _ipow_small(u, p_exp - 1)
+            step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
+            u -= step
+        ok = abs(step) <= NEWTON_TOL * u
+        unconverged += 0 if ok else 1
+        trial[i] = (u if b > 0.0 else -u) / scale if ok else np.nan
+    if unconverged:
+        for i in range(n):
+            if not (trial[i] == trial[i]):  # NaN: not converged in the fast pass
+                trial[i] = _slide_newton(elong[i], dx, scales[i], h * v_r * scales[i], p_exp, NEWTON_TOL)
+
+
+@njit(**JIT)
+def _bank_coulomb(ks, fs, elong, trial, n, dx):
+    """Return mapping of Coulomb sliders: the elongation is clipped to f_i / k_i."""
+    for i in range(n):
+        lim = fs[i] / ks[i]
+        trial[i] = min(max(elong[i] + dx, -lim), lim)
+
+
+@njit(**JIT)
+def _bank_commit(ks, elong, trial, n, dx):
+    """Commit the trial elongations; return (force, stored energy, slider work of the step)."""
+    force = 0.0
+    energy = 0.0
+    slider_work = 0.0
+    for i in range(n):
+        e0 = elong[i]
+        e1 = trial[i]
+        elong[i] = e1
+        force += ks[i] * e1
+        energy += 0.5 * ks[i] * e1 * e1
+        # slider stroke = dx - (e1 - e0), carrying the mean spring force
+        slider_work += 0.5 * ks[i] * (e0 + e1) * (dx - (e1 - e0))
+    return force, energy, slider_work
+
+
+@njit(**JIT)
+def slider_bank(p, po, s, so, x0, x1, h):
+    """n springs k_i each in series with a slider of limit f_i, in parallel (Iwan / Masing).
+
+    params: [n, v_r, p, P, K, k_1..k_n, f_1..f_n, k_1/f_1..k_n/f_n]
+      p == 0: Coulomb sliders (Prandtl/Jenkins elements, seed 003; return mapping);
+      p odd : rate-dependent elastoslide sliders (seed 001 eq. 13), slip rate v_r (e k/f)^p;
+      P > 0 : the bank's torque is scaled by the constriction S(x) (seed 003), K its floor.
+    internal: elongations e_1..e_n, then n scratch slots for the trial elongations.
+    """
+    n = int(p[po + 0])
+    v_r = p[po + 1]
+    p_exp = int(p[po + 2])
+    p_c = p[po + 3]
+    k_c = p[po + 4]
+    ko = po + 5          # spring stiffnesses k_i
+    fo = po + 5 + n      # slider limits f_i
+    dx = x1 - x0
+    if p_exp == 0:
+        _bank_coulomb(p[ko:ko + n], p[fo:fo + n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], n, dx)
+    else:
+        # slices with offsets from 0 keep the loops free of index checks, so they vectorise
+        _bank_rate_dependent(p[po + 5 + 2 * n:po + 5 + 3 * n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n],
+                             v_r, p_exp, n, dx, h)
+    force, energy, slider_work = _bank_commit(p[ko:ko + n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], n, dx)
+    if p_c > 0.0:
+        # the constriction modulates the bank: its dissipation is work minus stored energy
+        scale = _constriction(x1, p_c, k_c)
+        t1 = scale * force
+        e_new = scale * energy
+        s[so + 1] += 0.5 * (s[so + 2] + t1) * dx - (e_new - s[so + 0])
+        s[so + 0] = e_new
+    else:
+        t1 = force
+        s[so + 1] += slider_work
+        s[so + 0] = energy
+    s[so + 2] = t1
+    return t1
+
+
+@njit(**JIT)
+def _vm_spring(e, p, nk):
+    """Spring force of the variable Maxwell branch: (k0 + g|e|) e, or k(e) e from a table."""
+    if nk > 0:
+        return _interp(e, p[5:5 + nk], p[5 + nk:5 + 2 * nk], nk) * e
+    return (p[0] + p[1] * abs(e)) * e
+
+
+@njit(**JIT)
+def _vm_energy(e, p, nk):
+    """Stored energy of the variable Maxwell spring: integral of its force from 0 to e."""
+    if nk > 0:
+        # k(u) u is quadratic between knots: Simpson per segment is exact
+        xs = p[5:5 + nk]
+        lo = min(0.0, e)
+        hi = max(0.0, e)
+        total = 0.0
+        a = lo
+        for j in range(nk + 1):
+            b = hi
+            if j < nk and xs[j] > lo and xs[j] < hi:
+                b = xs[j]
+            elif j < nk:
+                continue
+            m = 0.5 * (a + b)
+            total += (b - a) / 6.0 * (_vm_spring(a, p, nk) + 4.0 * _vm_spring(m, p, nk) + _vm_spring(b, p, nk))
+            a = b
+        return total if e > 0.0 else -total
+    return 0.5 * p[0] * e * e + p[1] * abs(e) ** 3 / 3.0
+
+
+@njit(**JIT)
+def _vm_dashpot(v, p, nk, nc):
+    """Dashpot force c(|v|) v, with c from a table over the rate or constant c0."""
+    if nc > 0:
+        off = 5 + 2 * nk
+        return _interp(abs(v), p[off:off + nc], p[off + nc:off + 2 * nc], nc) * v
+    return p[2] * v
+
+
+@njit(**JIT)
+def variable_maxwell(p, po, s, so, x0, x1, h):
+    """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
+
+    params: [k0, g, c0, nk, nc, ek_1..ek_nk, k_1..k_nk, v_1..v_nc, c_1..c_nc]
+    The spring force is f(e) = (k0 + g|e|) e (the six-parameter model's K3 linear in
+    deformation) or k(e) e from a lookup table; the dashpot force is c(|v|) v. Backward Euler:
+    f(e1) = d((x1 - x0 - (e1 - e0)) / h); the residual is increasing in e1 and changes sign
+    between 0 and e0 + dx, so a safeguarded Newton/bisection always converges.
+    """
+    pv = p[po:]  # the helpers index the parameters from the element's start
+    nk = int(pv[3])
+    nc = int(pv[4])
+    e0 = s[so + 3]
+    dx = x1 - x0
+    lo = min(0.0, e0 + dx)
+    hi = max(0.0, e0 + dx)
+    e = e0 + dx if abs(e0 + dx) < abs(e0) else e0
+    e = min(max(e, lo), hi)
+    for _ in range(100):
+        r = _vm_spring(e, pv, nk) - _vm_dashpot((dx - (e - e0)) / h, pv, nk, nc)
+        if r > 0.0:
+            hi = e
+        elif r < 0.0:
+            lo = e
+        else:
+            break
+        de = 1e-7 * (abs(e) + 1e-9)
+        r2 = _vm_spring(e + de, pv, nk) - _vm_dashpot((dx - (e + de - e0)) / h, pv, nk, nc)
+        slope = (r2 - r) / de
+        e_new = e - r / slope if slope > 0.0 else 0.5 * (lo + hi)
+        if abs(e_new - e) <= 1e-13 * max(abs(e), 1e-12):  # converged (maybe onto the bracket's edge)
+            e = e_new
+            break
+        if not (lo < e_new < hi):
+            e_new = 0.5 * (lo + hi)
+        e = e_new
+    t1 = _vm_spring(e, pv, nk)
+    s[so + 1] += 0.5 * (s[so + 2] + t1) * (dx - (e - e0))
+    s[so + 0] = _vm_energy(e, pv, nk)
+    s[so + 2] = t1
+    s[so + 3] = e
+    return t1
+
+
+@njit(**JIT)
+def pfeffer(p, po, s, so, x0, x1, h):
+    """Pfeffer frequency part (seed 002, NOTES 2.3): k1 parallel to c1 in series with (k2 || c2).
+
+    params: [k1, alpha, beta, gamma] with k2 = alpha k1, c1 = gamma k1, c2 = beta c1.
+    internal: z, the Kelvin-Voigt deflection, then a cache of (h, exp(-lambda h)); dz/dt = (du/dt - (alpha/gamma) z) / (1 + beta),
+    integrated exactly for the step's constant du/dt. F = k1 [u + gamma (du/dt - dz/dt)].
+    """
+    k1 = p[po + 0]
+    alpha = p[po + 1]
+    beta = p[po + 2]
+    gamma = p[po + 3]
+    z0 = s[so + 3]
+    v = (x1 - x0) / h
+    lam = alpha / (gamma * (1.0 + beta))
+    if s[so + 4] != h:  # exp() only when the time step changes
+        s[so + 4] = h
+        s[so + 5] = np.exp(-lam * h)
+    decay = s[so + 5]
+    z1 = z0 * decay + v / (1.0 + beta) * (1.0 - decay) / lam
+    zdot1 = (v - alpha / gamma * z1) / (1.0 + beta)
+    c1 = gamma * k1
+    k2 = alpha * k1
+    branch1 = c1 * (v - zdot1)
+    t1 = k1 * x1 + branch1
+    branch0 = s[so + 2] - k1 * x0
+    mean_branch = 0.5 * (branch0 + branch1)
+    # c1 stroke (dx - dz) and c2 stroke dz, c2 force = branch force - k2 z
+    s[so + 1] += mean_branch * ((x1 - x0) - (z1 - z0)) + (mean_branch - 0.5 * k2 * (z0 + z1)) * (z1 - z0)
+    s[so + 0] = 0.5 * k1 * x1 * x1 + 0.5 * k2 * z1 * z1
+    s[so + 2] = t1
+    s[so + 3] = z1
+    return t1
+
+
+# ---------------------------------------------------------------- the compiled coupling
+@njit(**JIT)
+def step_element(code, p, po, s, so, x0, x1, h):
+    """Dispatch one kernel element (parameters from p[po], state from s[so])."""
+    if code == LINEAR_SPRING:
+        return linear_spring(p, po, s, so, x0, x1, h)
+    if code == MAXWELL:
+        return maxwell(p, po, s, so, x0, x1, h)
+    if code == SLIDER_BANK:
+        return slider_bank(p, po, s, so, x0, x1, h)
+    if code == DASHPOT:
+        return dashpot(p, po, s, so, x0, x1, h)
+    if code == CUBIC_SPRING:
+        return cubic_spring(p, po, s, so, x0, x1, h)
+    if code == TABLE_SPRING:
+        return table_spring(p, po, s, so, x0, x1, h)
+    if code == VARIABLE_MAXWELL:
+        return variable_maxwell(p, po, s, so, x0, x1, h)
+    if code == PFEFFER:
+        return pfeffer(p, po, s, so, x0, x1, h)
+    return np.nan
+
+
+@njit(inline="always", **JIT)
+def step_instance(codes, p_off, s_off, params, state, x0, x1, h):
+    """Advance every element of one instance; return the coupling torque (N*m)."""
+    torque = 0.0
+    for e in range(codes.size):
+        torque += step_element(codes[e], params, p_off[e], state, s_off[e], x0, x1, h)
+    return torque
+
+
+def _step_batch(codes, p_off, s_off, params, state, x0, x1, h, torque):
+    """One step of a batch: params (B, P) or (1, P), state (B, S), x0, x1, torque (B,)."""
+    nb = state.shape[0]
+    shared = params.shape[0] == 1
+    for b in prange(nb):
+        pb = params[0] if shared else params[b]
+        torque[b] = step_instance(codes, p_off, s_off, pb, state[b], x0[b], x1[b], h)
+
+
+def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque, stored, dissipated,
+                 record_energy):
+    """Drive a batch through angle histories.
+
+    angles (B, N) rad, starting from the committed angles x_start (B,); fills torque and, if
+    ``record_energy``, stored and dissipated (B, N). ``state`` is advanced in place.
+    """
+    nb, nt = angles.shape
+    shared = params.shape[0] == 1
+    n_el = codes.size
+    for b in prange(nb):
+        pb = params[0] if shared else params[b]
+        sb = state[b]
+        x0 = x_start[b]
+        for n in range(nt):
+            x1 = angles[b, n]
+            torque[b, n] = step_instance(codes, p_off, s_off, pb, sb, x0, x1, h)
+            x0 = x1
+            if not record_energy:
+                continue
+            e_sum = 0.0
+            d_sum = 0.0
+            for e in range(n_el):
+                e_sum += sb[s_off[e]]
+                d_sum += sb[s_off[e] + 1]
+            stored[b, n] = e_sum
+            dissipated[b, n] = d_sum
+
+
+# Serial versions for small batches (a thread pool costs more than it gives there) and
+# parallel ones that spread the batch over the cores.
+step_batch = njit(**JIT)(_step_batch)
+step_batch_parallel = njit(parallel=True, **JIT)(_step_batch)
+run_history = njit(**JIT)(_run_history)
+run_history_parallel = njit(parallel=True, **JIT)(_run_history)
