@@ -182,28 +182,24 @@ def _ipow_small(u, p):
 
 
 @njit(**JIT)
-def _slide_newton(e0, dx, scale, a, p_exp, tol):
-    """Backward-Euler update of one rate-dependent elastoslide element (seed 001 eq. 13/17).
+def _slide_newton(u, bb, a, p_exp, tol):
+    """Finish the implicit step u + A u^p = |B| of one elastoslide element by Newton's method.
 
-    de/dt = dx/dt - v_r (k e / f*)^p.  In the normalised elongation u = k e / f* (``scale`` =
-    k / f*) the implicit step reads u + A u^p = B with A = h v_r k / f* and
-    B = k (e0 + dx) / f*; the left side is odd, increasing and convex for u > 0, so Newton's
-    method started at or above the root (the smaller of the upper bounds |B| and
-    (|B|/A)^(1/p)) converges monotonically. Used where the fast fixed-count pass has not
-    converged (sudden large moves).
+    The left side is increasing and convex for u > 0, so Newton's method converges
+    monotonically from any start at or above the root; ``u`` (the fast pass's last iterate,
+    which lies above the root after its first step) is clipped to the upper bound |B|. Should
+    that ever be slow, it restarts from the tighter upper bound (|B|/A)^(1/p).
     """
-    b = scale * (e0 + dx)
-    bb = abs(b)
-    if bb == 0.0:
-        return 0.0
-    u = min(bb, (bb / a) ** (1.0 / p_exp))
-    for _ in range(200):
+    u = min(u, bb)
+    for it in range(200):
+        if it == 20:
+            u = min(u, (bb / a) ** (1.0 / p_exp))
         up = _ipow(u, p_exp - 1)
         step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
         u -= step
-        if step <= tol * u:
+        if abs(step) <= tol * u:
             break
-    return u / scale if b > 0.0 else -u / scale
+    return u
 
 
 NEWTON_FAST_ITERATIONS = 3
@@ -212,12 +208,19 @@ NEWTON_TOL = 1e-11
 
 @njit(**JIT)
 def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
-    """All elements of a rate-dependent bank: a branch-free, fixed-count Newton pass that the
-    compiler vectorises (warm-started from the previous elongation, which steady motion
-    changes little), then an exact fallback for the few elements it did not converge."""
+    """Backward-Euler update of every element of a rate-dependent elastoslide bank.
+
+    Seed 001 eq. 13/17: de/dt = dx/dt - v_r (k e / f*)^p. In the normalised elongation
+    u = k e / f* (``scales`` = k / f*) the implicit step reads u + A u^p = B with
+    A = h v_r k / f* and B = k (e0 + dx) / f*, an odd, increasing function of u, convex for
+    u > 0: one root, found by Newton's method. A branch-free pass of a fixed number of
+    iterations, warm-started from the previous elongation (steady motion changes it little),
+    runs over all elements and vectorises; the few elements it leaves unconverged (at
+    stick-slip transitions) are finished one by one.
+    """
     unconverged = 0
     for i in range(n):
-        scale = scales[i]  # k_i / f_i
+        scale = scales[i]
         e0 = elong[i]
         b = scale * (e0 + dx)
         bb = abs(b)
@@ -229,13 +232,16 @@ def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
             up = _ipow_small(u, p_exp - 1)
             step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
             u -= step
-        ok = abs(step) <= NEWTON_TOL * u
-        unconverged += 0 if ok else 1
-        trial[i] = (u if b > 0.0 else -u) / scale if ok else np.nan
-    if unconverged:
-        for i in range(n):
-            if not (trial[i] == trial[i]):  # NaN: not converged in the fast pass
-                trial[i] = _slide_newton(elong[i], dx, scales[i], h * v_r * scales[i], p_exp, NEWTON_TOL)
+        unconverged += 0 if abs(step) <= NEWTON_TOL * u else 1
+        # the normalised result; a negative value marks it unconverged for the second pass
+        trial[i] = u if abs(step) <= NEWTON_TOL * u else -u
+    for i in range(n):
+        scale = scales[i]
+        b = scale * (elong[i] + dx)
+        u = trial[i]
+        if unconverged and u < 0.0:
+            u = _slide_newton(-u, abs(b), h * v_r * scale, p_exp, NEWTON_TOL)
+        trial[i] = (u if b > 0.0 else -u) / scale
 
 
 @njit(**JIT)
