@@ -147,7 +147,7 @@ class Coupling:
         trial = state.copy()
         x1 = np.broadcast_to(np.asarray(angle_rad, np.float64), (state.batch,)).copy()
         self._check_batch(state.batch)
-        _step_kernel(state.batch)(self.codes, self.p_off, self.s_off, self.params, trial.values, state.angle_rad, x1,
+        K.step_batch(self.codes, self.p_off, self.s_off, self.params, trial.values, state.angle_rad, x1,
                      float(dt_s), trial.torque_nm)
         trial.angle_rad[...] = x1
         state._trial = trial
@@ -160,7 +160,7 @@ class Coupling:
         makes once per time step.
         """
         x1 = np.broadcast_to(np.asarray(angle_rad, np.float64), (state.batch,))
-        _step_kernel(state.batch)(self.codes, self.p_off, self.s_off, self.params, state.values, state.angle_rad,
+        K.step_batch(self.codes, self.p_off, self.s_off, self.params, state.values, state.angle_rad,
                      np.ascontiguousarray(x1), float(dt_s), state.torque_nm)
         state.angle_rad[...] = x1
         return state.torque_nm.copy()
@@ -272,12 +272,9 @@ class Coupling:
         return f"Coupling({self.name!r}: {kinds}; {self.n_sets} parameter set(s))"
 
 
-#: Batches at least this large are spread over the cores.
+#: Histories of batches at least this large are spread over the cores. (Single steps are not:
+#: a step is too little work to pay for waking a thread pool.)
 PARALLEL_BATCH = 8
-
-
-def _step_kernel(batch: int):
-    return K.step_batch_parallel if batch >= PARALLEL_BATCH else K.step_batch
 
 
 def _check_dt(dt_s: float) -> None:

@@ -499,9 +499,8 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
             dissipated[b, n] = d_sum
 
 
-# Serial versions for small batches (a thread pool costs more than it gives there) and
-# parallel ones that spread the batch over the cores.
+# Serial versions for single steps and small batches (a thread pool costs more than it gives
+# there) and a parallel history runner that spreads a large batch over the cores.
 step_batch = njit(**JIT)(_step_batch)
-step_batch_parallel = njit(parallel=True, **JIT)(_step_batch)
 run_history = njit(**JIT)(_run_history)
 run_history_parallel = njit(parallel=True, **JIT)(_run_history)
