@@ -59,7 +59,8 @@ def cli() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit code."""
     try:
-        cli.main(args=argv, prog_name="droptower", standalone_mode=False)
+        # without standalone mode, click returns the code of a command's Exit(code)
+        code = cli.main(args=argv, prog_name="droptower", standalone_mode=False)
     except DroptowerError as exc:
         click.echo(f"droptower: error: {exc.message}", err=True)
         return 2
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except click.exceptions.Exit as exc:
         return exc.exit_code
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":

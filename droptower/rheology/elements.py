@@ -231,8 +231,7 @@ def exponential_bins(phi0: float, n: int, f_min: float, f_max: float) -> tuple[n
     cdf_hi = 1.0 - np.exp(-phi0 * f_max)
     inner = np.linspace(cdf_lo, cdf_hi, n + 1)
     inner[0], inner[-1] = 0.0, 1.0
-    edges = -np.log1p(-np.clip(inner, 0.0, 1.0 - 1e-300)) / phi0
-    edges[-1] = np.inf
+    edges = np.append(-np.log1p(-inner[:-1]) / phi0, np.inf)
     weights = np.diff(inner)
 
     def partial_mean(f):  # integral of f phi(f) df from 0 to f

@@ -1,0 +1,160 @@
+"""``droptower extract PATH...``: stiffness and damping of drop tests from their logs
+(seed 004 Fig. 9, eq. 13-18; NOTES §1.4, §1.7)."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import click
+
+from droptower.errors import DroptowerError
+
+#: columns of the table printed when neither --out nor --json is given
+SUMMARY = ("file", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg", "damping_ratio",
+           "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
+
+
+def _write_table(rows: list[dict[str, Any]], out: Path) -> None:
+    """Write rows as CSV or Parquet, atomically (temporary file in the same folder, then rename)."""
+    import pandas as pd
+
+    frame = pd.DataFrame(rows)
+    frame["flags"] = frame["flags"].map(";".join)
+    for name in frame.columns[frame.dtypes == object]:
+        if not all(v is None or isinstance(v, str) for v in frame[name]):
+            frame[name] = frame[name].map(lambda v: v if v is None else str(v))  # mixed metadata types
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        if out.suffix.lower() == ".parquet":
+            frame.to_parquet(tmp, index=False)
+        else:
+            frame.to_csv(tmp, index=False)
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _summary(rows: list[dict[str, Any]]) -> str:
+    def cell(v: Any) -> str:
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        if isinstance(v, list):
+            return ";".join(v) or "-"
+        return str(v)
+
+    table = [[cell(r[c]) for c in SUMMARY] for r in rows]
+    widths = [max(len(h), *(len(r[i]) for r in table)) for i, h in enumerate(SUMMARY)]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)) for line in [list(SUMMARY), *table])
+
+
+def _rig_settings(rig: str | None) -> dict[str, float | None]:
+    """Lever length, laser radius and, if the rig has only one lever fixture, its inertia
+    (with several, each log's metadata ``inertia_kgm2`` says which one was used)."""
+    if rig is None:
+        return {}
+    from droptower.rig.config import load_rig
+
+    config = load_rig(rig)
+    inertias = config.inertias_kgm2
+    return {"lever_length_m": config.lever_length_m, "sensor_radius_m": config.sensors.laser.radius_m,
+            "inertia_kgm2": inertias[0] if len(inertias) == 1 else None}
+
+
+@click.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=str))
+@click.option("--rig", default=None, help="Rig TOML (or shipped preset name): lever length, laser radius, inertia.")
+@click.option("--inertia", type=float, default=None, help="Rotating inertia J in kg*m^2 (default: the log's metadata).")
+@click.option("--lever-length", type=float, default=None, help="Lever arm L in m (rotation axis to impact point).")
+@click.option("--sensor-radius", type=float, default=None, help="Laser spot radius in m, for a distance channel.")
+@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="Map a channel to a role: time, impact_force, angle, distance, torque (repeatable).")
+@click.option("--sample-rate", type=float, default=None, help="Sample rate in Hz for files without a time base.")
+@click.option("--window", default="first-cycle", show_default=True,
+              help="Fit window after the impact: first-cycle, N-cycles (e.g. 2-cycles) or seconds (e.g. 0.05).")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the results table to a .csv or .parquet file.")
+@click.option("--json", "as_json", is_flag=True, help="Print the results as a JSON list of objects.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Draw per test the angle and torque with their fits (seed 004 Fig. 9) into this folder.")
+@click.option("--delimiter", default=None, help="CSV field separator (default: sniffed).")
+@click.option("--decimal", type=click.Choice([".", ","]), default=None, help="CSV decimal separator (default: sniffed).")
+@click.option("--header-lines", type=int, default=None, help="CSV lines above the names row (default: sniffed).")
+@click.option("--unit-row/--no-unit-row", default=None, help="CSV has a units row under the names (default: sniffed).")
+def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, lever_length: float | None,
+            sensor_radius: float | None, channel_specs: tuple[str, ...], sample_rate: float | None, window: str,
+            out: Path | None, as_json: bool, plot_dir: Path | None, delimiter: str | None, decimal: str | None,
+            header_lines: int | None, unit_row: bool | None) -> None:
+    """Extract stiffness and damping from drop-test logs PATH... (any number, any format).
+
+    Per test: impact and pre-trigger baseline (offsets, preload), least-squares fit of
+    φ̂·e^(−δt)·cos(ωt − Φ) over the window, c_dyn,M1 = J(ω² + δ²), d_ratio = ½(e^(4πδ/ω) − 1),
+    φ̂_ref, f (seed 004 eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
+    loss factor η and relative damping ψ (NOTES §1.7); standard uncertainties (*_std), the fit
+    error and flags (double_impact, clipping, too_few_samples_per_period, short_window,
+    poor_fit). J and L: --inertia/--lever-length, else the log's metadata, else the rig
+    (its inertia only if it has a single lever fixture).
+
+    A file that fails is reported on one line; the others are still evaluated and written, and
+    the exit code is 1.
+    """
+    from tqdm import tqdm
+
+    from droptower.extract.files import Settings, extract_file, json_safe, result_row
+    from droptower.extract.window import Window
+    from droptower.io.mapping import parse_channel_options
+
+    if out is not None and out.suffix.lower() not in (".csv", ".parquet"):
+        raise DroptowerError(f"--out {out}: use a .csv or .parquet file")
+    for name, value in (("--inertia", inertia), ("--lever-length", lever_length), ("--sensor-radius", sensor_radius),
+                        ("--sample-rate", sample_rate)):
+        if value is not None and not value > 0:
+            raise DroptowerError(f"{name} must be > 0, got {value}")
+    rig_values = _rig_settings(rig)
+    settings = Settings(
+        roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
+        defaults={k: rig_values[k] for k in ("inertia_kgm2", "lever_length_m") if rig_values.get(k) is not None},
+        sensor_radius_m=sensor_radius if sensor_radius is not None else rig_values.get("sensor_radius_m"),
+        sample_rate_hz=sample_rate, window=Window.parse(window),
+        reader_options={"delimiter": "\t" if delimiter == "\\t" else delimiter, "decimal": decimal,
+                        "header_lines": header_lines, "unit_row": unit_row},
+    )
+    if plot_dir is not None:
+        from droptower.extract.plot import plot_fit
+
+    rows: list[dict[str, Any]] = []
+    failures: list[str] = []
+    plots: set[str] = set()
+    for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=None):
+        try:
+            signals, result = extract_file(path, settings)
+            if plot_dir is not None:
+                stem = Path(path).stem
+                name = stem if stem not in plots else f"{stem}_{len(plots)}"
+                plots.add(name)
+                plot_fit(signals, result, plot_dir / f"{name}.png", title=None)
+            rows.append(result_row(path, signals, result))
+        except DroptowerError as exc:
+            failures.append(exc.with_file(path).message)
+            tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
+        except Exception as exc:  # a bug must not stop a 450-file batch; name it and go on
+            failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
+            tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
+
+    if rows and out is not None:
+        _write_table(rows, out)
+    if as_json:
+        click.echo(json.dumps([json_safe(r) for r in rows], indent=2, default=str))
+    elif out is None and rows:
+        click.echo(_summary(rows))
+    if failures:
+        click.echo(f"droptower: {len(failures)} of {len(paths)} file(s) failed:", err=True)
+        for line in failures:
+            click.echo(f"  {line}", err=True)
+        raise click.exceptions.Exit(1)

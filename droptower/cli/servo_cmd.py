@@ -1,0 +1,88 @@
+"""``droptower servo``: drive a coupling on the virtual servo-hydraulic bench over a grid."""
+from __future__ import annotations
+
+import json
+import math
+
+import click
+
+from droptower.errors import DroptowerError
+
+#: Columns of the default table (all are in the JSON output).
+TABLE_COLUMNS = ["amplitude_deg", "frequency_hz", "preload_nm", "offset_deg", "storage_stiffness_nm_per_rad",
+                 "loss_stiffness_nm_per_rad", "dynamic_stiffness_nm_per_deg", "loss_factor", "loss_angle_deg",
+                 "damping_work_j", "relative_damping_psi", "drop_tower_equivalent_damping_ratio"]
+#: A grid point whose single cycles differ by more than this is reported as not steady.
+STEADY_WARNING = 0.02
+
+
+def _float_list(option: str, text: str) -> list[float]:
+    """``"0.5,1.5"`` -> [0.5, 1.5]; anything else is a one-line error naming the option."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise DroptowerError(f"expected comma-separated numbers, got {text!r}", where=option) from None
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise DroptowerError(f"every value must be a positive number, got {text!r}", where=option)
+    return values
+
+
+@click.command()
+@click.argument("coupling")
+@click.option("--amplitude-deg", default="0.5,1.5", show_default=True, help="Amplitudes (deg), comma-separated.")
+@click.option("--frequency-hz", default="1,10,30", show_default=True, help="Frequencies (Hz), comma-separated.")
+@click.option("--preload-nm", default=0.0, show_default=True, type=float, help="Mean torque (N*m) to oscillate about.")
+@click.option("--sample-rate-hz", default=2048.0, show_default=True, type=float,
+              help="Acquisition rate of the evaluated record (the paper's bench: 2048 Hz).")
+@click.option("--simulation-rate-hz", default=38400.0, show_default=True, type=float,
+              help="Least rate the coupling is simulated at (raised to 4096 steps per cycle, "
+                   "rounded up to a multiple of the sample rate).")
+@click.option("--cycles", default=5, show_default=True, type=click.IntRange(min=1), help="Evaluated cycles.")
+@click.option("--run-in-cycles", default=5, show_default=True, type=click.IntRange(min=1),
+              help="Discarded cycles before them (the amplitude rises over the first two).")
+@click.option("--no-smoothing", is_flag=True,
+              help="Skip the one-eighth-cycle Savitzky-Golay smoothing (it rounds hard loop corners).")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON list of objects instead of a table.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write the hysteresis loops to this image.")
+def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: float, sample_rate_hz: float,
+          simulation_rate_hz: float, cycles: int, run_in_cycles: int, no_smoothing: bool, as_json: bool, plot_path: str | None) -> None:
+    """Drive COUPLING (a coupling TOML file or a preset name) with sine tests on the virtual
+    servo-hydraulic bench and evaluate each like a test lab: K', K'', |K*|, loss angle, loss
+    factor, damping work (loop area), relative damping psi (DIN 740-2 style) and the
+    drop-tower-equivalent damping ratio (NOTES §1.7)."""
+    from droptower.rheology import load_coupling
+    from droptower.servo import run_bench
+
+    amps = _float_list("--amplitude-deg", amplitude_deg)
+    freqs = _float_list("--frequency-hz", frequency_hz)
+    model = load_coupling(coupling)
+    if model.units == "translational":
+        click.echo(f"droptower: note: {model.name} is in translational units: read rad as m, N*m as N "
+                   f"(and --amplitude-deg as the amplitude in m times 180/pi)", err=True)
+    result = run_bench(model, [math.radians(a) for a in amps], freqs, preload_nm, sample_rate_hz, cycles,
+                       run_in_cycles=run_in_cycles, ramp_cycles=min(2, run_in_cycles),
+                       simulation_rate_hz=simulation_rate_hz, smooth=not no_smoothing)
+    table = result.table
+    for _, row in table.iterrows():
+        if row["steady_state_deviation"] > STEADY_WARNING:
+            click.echo(f"droptower: warning: {row['amplitude_deg']:g} deg, {row['frequency_hz']:g} Hz: single cycles "
+                       f"differ by {100 * row['steady_state_deviation']:.1f} % (not steady, or the record is coarse "
+                       f"for this loop); raise --run-in-cycles or --sample-rate-hz", err=True)
+    unsmoothed = table.loc[table["smoothing_window_samples"] == 0, "frequency_hz"].unique()
+    if unsmoothed.size and not no_smoothing:
+        click.echo(f"droptower: note: no smoothing at {', '.join(f'{f:g}' for f in unsmoothed)} Hz (one eighth of a "
+                   f"cycle is fewer than 5 samples at {sample_rate_hz:g} Hz)", err=True)
+    if as_json:
+        records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
+                   for rec in table.to_dict(orient="records")]
+        click.echo(json.dumps(records, indent=1))
+    else:
+        click.echo(f"{model.name}: servo bench, sampled at {sample_rate_hz:g} Hz, "
+                   f"simulated at {table['simulation_rate_hz'].min():g} to {table['simulation_rate_hz'].max():g} Hz, "
+                   f"{run_in_cycles} run-in and {cycles} evaluated cycles")
+        click.echo(table[TABLE_COLUMNS].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
+    if plot_path:
+        from droptower.servo.plots import plot_loops
+
+        plot_loops(result, plot_path, title=f"{model.name}: hysteresis loops, preload {preload_nm:g} N*m")
+        click.echo(f"droptower: loops written to {plot_path}", err=True)

@@ -1,0 +1,15 @@
+"""Stiffness and damping from drop-test logs (seed 004 eq. 13-18, NOTES §1.3, §1.4, §1.7).
+
+``extract(signals, inertia_kgm2=..., window="first-cycle") -> ExtractionResult`` evaluates one
+test given as SI :class:`~droptower.io.signals.DropSignals`; ``extract_file(path, Settings())``
+reads, maps and evaluates one log file; :mod:`droptower.extract.formulas` holds eq. 15, 16, 18
+and the servo-comparable damping measures; :class:`SyntheticDrop` makes logs with known
+stiffness and damping; :func:`droptower.extract.plot.plot_fit` draws seed 004 Fig. 9.
+"""
+from droptower.extract.extractor import extract
+from droptower.extract.files import Settings, extract_file, result_row
+from droptower.extract.result import ExtractionResult
+from droptower.extract.synthetic import SyntheticDrop
+from droptower.extract.window import Window
+
+__all__ = ["ExtractionResult", "Settings", "SyntheticDrop", "Window", "extract", "extract_file", "result_row"]

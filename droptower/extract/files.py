@@ -1,0 +1,70 @@
+"""Log files to result rows: read (any format), map channels, extract. Used by
+``droptower extract`` and the benchmark."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from droptower.extract.extractor import extract
+from droptower.extract.result import ExtractionResult
+from droptower.extract.window import Window
+from droptower.io.mapping import map_channels
+from droptower.io.readers import read_any
+from droptower.io.signals import DropSignals
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How to read and evaluate the logs of one batch.
+
+    roles: channel mapping (role -> ``NAME[:UNIT]``); inertia_kgm2, lever_length_m: override
+    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``) used where a
+    log's metadata lacks them, e.g. from the rig; sensor_radius_m: laser spot radius for a
+    distance channel; sample_rate_hz: time base for files without one; reader_options: CSV
+    settings for :func:`droptower.io.read_any`.
+    """
+
+    roles: dict[str, str] = field(default_factory=dict)
+    inertia_kgm2: float | None = None
+    lever_length_m: float | None = None
+    defaults: dict[str, float] = field(default_factory=dict)
+    sensor_radius_m: float | None = None
+    sample_rate_hz: float | None = None
+    window: Window = Window()
+    reader_options: dict[str, Any] = field(default_factory=dict)
+
+
+def extract_file(path: str | Path, settings: Settings) -> tuple[DropSignals, ExtractionResult]:
+    """Read, map and extract one log; any problem is a DroptowerError naming the file."""
+    record = read_any(path, **settings.reader_options)
+    signals = map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
+                           sample_rate_hz=settings.sample_rate_hz)
+    given = {key: value if value is not None or key in signals.metadata else settings.defaults.get(key)
+             for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
+    result = extract(signals, **given, window=settings.window)
+    return signals, result
+
+
+def _scalar(value: Any) -> Any:
+    if value is None or isinstance(value, (str, bool, int, float)):
+        return value
+    return json.dumps(value, default=str)
+
+
+def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult) -> dict[str, Any]:
+    """One table row: ``file``, the log's metadata (nested values as JSON text; a key that
+    clashes with a result is prefixed ``meta_``), then every result of :meth:`ExtractionResult.as_dict`."""
+    results = result.as_dict()
+    row: dict[str, Any] = {"file": str(path)}
+    for key, value in signals.metadata.items():
+        row[f"meta_{key}" if key in results or key == "file" else key] = _scalar(value)
+    row.update(results)
+    return row
+
+
+def json_safe(row: dict[str, Any]) -> dict[str, Any]:
+    """NaN and infinities -> None, so the row is strict JSON."""
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}

@@ -1,0 +1,65 @@
+"""Stiffness and damping from the decay parameters: seed 004 eq. 15, 16, 18, decoded in
+NOTES §1.4, and the servo-comparable damping measures of NOTES §1.7.
+
+All functions are pure and vectorised. delta: decay coefficient δ (1/s); omega: damped
+angular frequency ω (rad/s); inertia: rotating inertia J (kg·m²).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+
+def stiffness(inertia: ArrayLike, omega: ArrayLike, delta: ArrayLike) -> np.ndarray:
+    """Dynamic stiffness c_dyn,M1 = J·(ω² + δ²) in N·m/rad (seed 004 eq. 15, decoded in NOTES §1.4).
+
+    For J φ'' + d φ' + c φ = 0 the damped frequency is ω² = c/J − δ², hence c = J(ω² + δ²).
+    """
+    omega, delta = np.asarray(omega, float), np.asarray(delta, float)
+    return np.asarray(inertia, float) * (omega**2 + delta**2)
+
+
+def damping_ratio(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
+    """d_ratio = E_diss / E_el = ½·(e^(4πδ/ω) − 1) (seed 004 eq. 16, decoded in NOTES §1.4)."""
+    return 0.5 * np.expm1(4.0 * np.pi * np.asarray(delta, float) / np.asarray(omega, float))
+
+
+def decay_ratio(damping_ratio_: ArrayLike) -> np.ndarray:
+    """r = δ/ω from d_ratio: the inverse of :func:`damping_ratio`, r = ln(1 + 2 d_ratio) / (4π)."""
+    return np.log1p(2.0 * np.asarray(damping_ratio_, float)) / (4.0 * np.pi)
+
+
+def stiffness_from_map(inertia: ArrayLike, frequency_hz: ArrayLike, damping_ratio_: ArrayLike) -> np.ndarray:
+    """c = J(ω² + δ²) in N·m/rad from a map row (J, f, d_ratio): ω = 2πf, δ = ω·r(d_ratio).
+
+    This is how NOTES §1.4 checks Table 4 of seed 004 against eq. 15 and 16.
+    """
+    omega = 2.0 * np.pi * np.asarray(frequency_hz, float)
+    return stiffness(inertia, omega, omega * decay_ratio(damping_ratio_))
+
+
+def reference_amplitude(amplitude: ArrayLike, delta: ArrayLike, window_s: ArrayLike) -> np.ndarray:
+    """φ̂_ref = φ̂·e^(−δ·t_max/2): the envelope in the middle of the fit window of length t_max
+    (seed 004 eq. 18, NOTES §1.4). Same unit as ``amplitude``."""
+    return np.asarray(amplitude, float) * np.exp(-np.asarray(delta, float) * np.asarray(window_s, float) / 2.0)
+
+
+def loss_factor(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
+    """Servo-comparable loss factor η = K''/K' = 2r/(1 + r²), r = δ/ω (NOTES §1.7).
+
+    The loss factor a servo-hydraulic bench would measure (ISO 4664-1, DIN 740-2) on the
+    linear Kelvin–Voigt coupling that has this decay, excited at its own damped frequency ω:
+    K' = c = J(ω² + δ²), K'' = d·ω = 2Jδω.
+    """
+    r = np.asarray(delta, float) / np.asarray(omega, float)
+    return 2.0 * r / (1.0 + r**2)
+
+
+def relative_damping(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
+    """Servo-comparable relative damping ψ = W_D / W_el = 2π·η (NOTES §1.7).
+
+    Same linear Kelvin–Voigt coupling as :func:`loss_factor`: damping work per cycle
+    W_D = π K'' φ̂², elastic energy W_el = ½ K' φ̂², so ψ = 2π K''/K' = 2πη exactly. This is not
+    the drop tower's d_ratio (eq. 16): at r = 0.05, ψ = 0.63 but d_ratio = 0.44.
+    """
+    return 2.0 * np.pi * loss_factor(delta, omega)

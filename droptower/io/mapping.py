@@ -1,0 +1,251 @@
+"""Channel mapping: pick the channels of a :class:`Record` for each role and convert to SI.
+
+Roles: ``time``, ``impact_force``, ``angle``, ``distance`` (laser distance, turned into an
+angle with the sensor radius: angle = distance / radius), ``torque``. A role is given as
+``NAME`` or ``NAME:UNIT`` (the unit overrides a missing or wrong unit in the file), or ``-`` to
+leave an optional role out; on the command line as ``--channel ROLE=NAME[:UNIT]``. Roles not given are found by name: first the
+droptower-log names (``time_s``, ``angle_rad``, ...), then common names matched
+case-insensitively (``Time``, ``Winkel``, ``Torque [N*m]``, ...).
+
+Every check names the file: a missing channel (with the list of what the file has), NaN gaps
+or catman invalid markers in a used channel, non-monotonic or duplicated time, channels on
+different time bases (resampled onto the angle's time base only when the rates differ by an
+integer factor), a constant signal.
+"""
+from __future__ import annotations
+
+import re
+from typing import Iterable
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+from droptower.io.channels import Channel, Record
+from droptower.io.droptower_log import unit_from_name
+from droptower.io.signals import DropSignals
+from droptower.units import to_si
+
+ROLES = ("time", "impact_force", "angle", "distance", "torque")
+KINDS = {"time": "time", "impact_force": "force", "angle": "angle", "distance": "length", "torque": "torque"}
+
+#: role -> droptower-log column name (first choice when no role is given).
+OWN_NAMES = {"time": "time_s", "impact_force": "impact_force_n", "angle": "angle_rad",
+             "distance": "laser_distance_m", "torque": "torque_nm"}
+
+#: role -> common channel names (lower case, unit and separators stripped), matched when the
+#: own-format name is absent. A name matches if it equals one of these or starts with one
+#: followed by a non-letter (catman's "Time  1 - default sample rate").
+COMMON_NAMES = {
+    "time": ("time", "zeit", "t", "timestamp", "running time", "time s"),
+    "impact_force": ("impact force", "force", "kraft", "schlagkraft", "impactforce", "f"),
+    "angle": ("angle", "winkel", "torsion angle", "verdrehwinkel", "drehwinkel", "phi", "rotation"),
+    "distance": ("laser distance", "laser", "distance", "abstand", "weg", "displacement"),
+    "torque": ("torque", "drehmoment", "moment", "md"),
+}
+
+_UNIT_IN_NAME = re.compile(r"\s*[\[(][^\])]*[\])]\s*$")
+
+
+def parse_channel_options(options: Iterable[str]) -> dict[str, str]:
+    """``["angle=Winkel:deg", "time=t"]`` -> ``{"angle": "Winkel:deg", "time": "t"}``.
+
+    Parses ``--channel ROLE=NAME[:UNIT]`` options; an unknown role, a missing ``=`` or a role
+    given twice is a :class:`DroptowerError`.
+    """
+    roles: dict[str, str] = {}
+    for option in options:
+        role, sep, spec = option.partition("=")
+        role = role.strip()
+        if not sep or not spec.strip():
+            raise DroptowerError(f"--channel {option!r}: expected ROLE=NAME[:UNIT]")
+        if role not in ROLES:
+            raise DroptowerError(f"--channel {option!r}: unknown role '{role}' (roles: {', '.join(ROLES)})")
+        if role in roles:
+            raise DroptowerError(f"--channel: role '{role}' given twice")
+        roles[role] = spec.strip()
+    return roles
+
+
+def _normalise_name(name: str) -> str:
+    text = _UNIT_IN_NAME.sub("", name).strip().lower()
+    return re.sub(r"[\s_\-]+", " ", text)
+
+
+def _find_default(record: Record, role: str) -> str | None:
+    if OWN_NAMES[role] in record.channels:
+        return OWN_NAMES[role]
+    candidates = COMMON_NAMES[role]
+    matches = []
+    for name in record.channels:
+        norm = _normalise_name(name)
+        suffix_free = norm.rsplit(" ", 1)[0] if unit_from_name(name.replace(" ", "_")) and " " in norm else norm
+        for cand in candidates:
+            if norm == cand or suffix_free == cand or (norm.startswith(cand) and not norm[len(cand)].isalpha()):
+                matches.append(name)
+                break
+    if len(matches) > 1:
+        raise DroptowerError(
+            f"several channels could be the {role} channel ({', '.join(repr(m) for m in matches)}); "
+            f"choose one with --channel {role}=NAME", file=record.path)
+    return matches[0] if matches else None
+
+
+def _resolve(record: Record, role: str, spec: str) -> tuple[Channel, str]:
+    """The channel and unit a ``NAME[:UNIT]`` spec names."""
+    name, unit = spec, None
+    if spec not in record.channels and ":" in spec:
+        name, unit = spec.rsplit(":", 1)
+    if name not in record.channels:
+        raise DroptowerError(
+            f"no channel '{name}' for role {role} (the file has: {', '.join(repr(n) for n in record.channels) or 'none'})",
+            file=record.path)
+    channel = record.channels[name]
+    if unit is None:
+        unit = channel.unit or unit_from_name(name)
+        if not unit:
+            raise DroptowerError(f"channel '{name}' has no unit; give it as --channel {role}={name}:UNIT",
+                                 file=record.path)
+    return channel, unit
+
+
+def _check_values(record: Record, channel: Channel, values: np.ndarray) -> None:
+    where = f"channel '{channel.name}'"
+    if channel.invalid is not None and channel.invalid.any():
+        idx = np.flatnonzero(channel.invalid)
+        raise DroptowerError(f"{idx.size} catman invalid-value markers (-1000000), first at sample {idx[0]}",
+                             file=record.path, where=where)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        raise DroptowerError(f"{idx.size} NaN/missing values (a gap), first at sample {idx[0]}",
+                             file=record.path, where=where)
+    if values.size < 2:
+        raise DroptowerError(f"only {values.size} sample(s)", file=record.path, where=where)
+
+
+def _check_time(record: Record, name: str, time: np.ndarray) -> None:
+    where = f"time of channel '{name}'"
+    if not np.isfinite(time).all():
+        raise DroptowerError(f"NaN in time at sample {int(np.flatnonzero(~np.isfinite(time))[0])}",
+                             file=record.path, where=where)
+    step = np.diff(time)
+    if (step > 0).all():
+        return
+    i = int(np.flatnonzero(step <= 0)[0])
+    kind = "duplicated" if step[i] == 0 else "non-monotonic (goes backwards)"
+    raise DroptowerError(f"time is {kind} at sample {i + 1} ({time[i]!r} s -> {time[i + 1]!r} s)",
+                         file=record.path, where=where)
+
+
+def _onto(record: Record, channel: Channel, values: np.ndarray, base_time: np.ndarray) -> np.ndarray:
+    """``values`` on the time base ``base_time`` (the angle's): as is if the lengths and time
+    stamps agree, interpolated if the channel's own rate differs by an integer factor (or it is
+    offset in time), else an error."""
+    own = channel.time()
+    if values.size == base_time.size:
+        step = (base_time[-1] - base_time[0]) / (base_time.size - 1)
+        if own is None or own.size != values.size or np.abs(own - base_time).max() <= 0.01 * step:
+            return values
+    where = f"channel '{channel.name}'"
+    if own is None or own.size != values.size:
+        raise DroptowerError(f"has {values.size} samples, the angle has {base_time.size}, and no time base of its own",
+                             file=record.path, where=where)
+    rate = (own.size - 1) / (own[-1] - own[0])
+    base_rate = (base_time.size - 1) / (base_time[-1] - base_time[0])
+    ratio = max(rate, base_rate) / min(rate, base_rate)
+    if abs(ratio - round(ratio)) > 1e-6 * ratio:
+        raise DroptowerError(f"sampled at {rate:.6g} Hz, the angle at {base_rate:.6g} Hz: not an integer ratio, "
+                             "cannot put them on one time base", file=record.path, where=where)
+    half = 0.5 / min(rate, base_rate)
+    if own[0] > base_time[0] + half or own[-1] < base_time[-1] - half:
+        raise DroptowerError(f"covers {own[0]:.6g}..{own[-1]:.6g} s, the angle {base_time[0]:.6g}..{base_time[-1]:.6g} s",
+                             file=record.path, where=where)
+    return np.interp(base_time, own, values)
+
+
+def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
+                 sample_rate_hz: float | None = None) -> DropSignals:
+    """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
+
+    roles: role -> ``NAME`` or ``NAME:UNIT``; roles not given are found by name; ``-`` leaves a
+        role out (e.g. a dead force sensor).
+    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``.
+    sample_rate_hz: builds the time base when the file has no time channel and no rate.
+    """
+    roles = dict(roles or {})
+    unknown = set(roles) - set(ROLES)
+    if unknown:
+        raise DroptowerError(f"unknown channel role(s) {', '.join(sorted(unknown))} (roles: {', '.join(ROLES)})",
+                             file=record.path)
+    unused = {role for role, spec in roles.items() if spec.strip() in ("-", "none")}
+    specs = {role: spec for role, spec in roles.items() if role not in unused}
+    explicit = set(specs)
+    if {"angle", "distance"} <= explicit:
+        raise DroptowerError("give either an angle or a distance channel, not both", file=record.path)
+    for role in ROLES:
+        if role in specs or role in unused or (role == "distance" and "angle" in specs) or (
+                role == "angle" and "distance" in specs):
+            continue
+        found = _find_default(record, role)
+        if found is not None:
+            specs[role] = found
+    if "angle" in specs and "distance" in specs and "distance" not in explicit:
+        del specs["distance"]  # both found by name: the angle channel is the direct measurement
+    angle_role = "angle" if "angle" in specs else "distance"
+    if angle_role not in specs:
+        raise DroptowerError(
+            "no angle channel found; name it with --channel angle=NAME[:UNIT] or --channel distance=NAME[:UNIT] "
+            f"(the file has: {', '.join(repr(n) for n in record.channels) or 'none'})", file=record.path)
+
+    signals: dict[str, np.ndarray] = {}
+    channels: dict[str, Channel] = {}
+    for role in ("angle", "distance", "torque", "impact_force"):
+        if role not in specs:
+            continue
+        channel, unit = _resolve(record, role, specs[role])
+        values = to_si(channel.values, unit, KINDS[role], file=record.path, channel=channel.name)
+        _check_values(record, channel, values)
+        if np.ptp(values) == 0.0:
+            raise DroptowerError(f"constant signal ({channel.values[0]!r} {unit} throughout)",
+                                 file=record.path, where=f"channel '{channel.name}'")
+        signals[role], channels[role] = values, channel
+
+    angle_channel = channels[angle_role]
+    n = signals[angle_role].size
+    # time: an explicit time channel, else the given sample rate, else the angle channel's own
+    # time base, else a time channel found by name
+    own_time = angle_channel.time()
+    if "time" in explicit or ("time" in specs and sample_rate_hz is None and own_time is None):
+        time_channel, unit = _resolve(record, "time", specs["time"])
+        time = to_si(time_channel.values, unit, "time", file=record.path, channel=time_channel.name)
+        _check_values(record, time_channel, time)
+        if time.size != n:
+            raise DroptowerError(f"time channel '{time_channel.name}' has {time.size} samples, "
+                                 f"the angle channel '{angle_channel.name}' has {n}", file=record.path)
+        time_name = time_channel.name
+    elif sample_rate_hz is not None:
+        if not sample_rate_hz > 0:
+            raise DroptowerError(f"sample rate must be > 0 Hz, got {sample_rate_hz}", file=record.path)
+        time, time_name = np.arange(n) / float(sample_rate_hz), f"{sample_rate_hz} Hz"
+    elif own_time is not None:
+        time, time_name = np.asarray(own_time, dtype=np.float64), angle_channel.name
+    else:
+        raise DroptowerError("no time channel and no sample rate; give --channel time=NAME[:UNIT] or a sample rate",
+                             file=record.path)
+    _check_time(record, time_name, time)
+
+    # the angle defines the time base; other channels are aligned with its samples (through its
+    # own time stamps if it has them, since the time channel may be a rounded copy of them)
+    reference = time if own_time is None else np.asarray(own_time, dtype=np.float64)
+    for role, channel in channels.items():
+        if role != angle_role:
+            signals[role] = _onto(record, channel, signals[role], reference)
+    angle = signals.get("angle")
+    if angle is None:
+        if not sensor_radius_m or sensor_radius_m <= 0:
+            raise DroptowerError("a laser distance channel needs the sensor radius (m) of the rig, > 0",
+                                 file=record.path)
+        angle = signals["distance"] / sensor_radius_m  # arc length on the sensor radius (small angles)
+    return DropSignals(time_s=time, angle_rad=angle, torque_nm=signals.get("torque"),
+                       impact_force_n=signals.get("impact_force"), metadata=dict(record.metadata),
+                       source=record.path)

@@ -1,0 +1,13 @@
+"""The virtual servo-hydraulic bench: imposed angle histories, lab-style evaluation, grids.
+
+- :mod:`.histories`: sine with preload offset, sweeps, dual-frequency, steps, ramps, random;
+- :mod:`.evaluate`: steady-state cycles -> K', K'', |K*|, loss angle, W_D, psi (seed 001 eq. 6,
+  DIN 740-2 style), and the drop-tower-equivalent damping ratio (NOTES §1.7);
+- :mod:`.bench`: :func:`run_grid` drives a coupling over amplitudes x frequencies, batched;
+- :mod:`.plots`: hysteresis loops.
+"""
+from droptower.servo.bench import BenchResult, run_bench, run_grid
+from droptower.servo.evaluate import CycleEvaluation, drop_tower_equivalent_damping_ratio, evaluate_cycles, evaluate_history
+
+__all__ = ["BenchResult", "CycleEvaluation", "drop_tower_equivalent_damping_ratio", "evaluate_cycles",
+           "evaluate_history", "run_bench", "run_grid"]

@@ -1,0 +1,50 @@
+"""Hysteresis loops of a servo-bench grid: torque over angle (degrees), one panel per amplitude."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+from droptower.servo.bench import BenchResult
+
+
+def plot_loops(result: BenchResult, path: str | Path, title: str = "") -> Path:
+    """Draw the last evaluated cycle of every grid point into ``path`` (PNG, PDF, SVG...).
+
+    One panel per amplitude, one curve per frequency; torque in N*m over angle in degrees.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = result.table
+    amps = sorted(table["amplitude_deg"].unique())
+    ncol = min(3, len(amps))
+    nrow = math.ceil(len(amps) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.6 * nrow), squeeze=False)
+    for ax, amp in zip(axes.flat, amps):
+        for i in np.flatnonzero(table["amplitude_deg"].to_numpy() == amp):
+            ev, row = result.evaluations[i], table.iloc[i]
+            ax.plot(np.degrees(ev.loop_angle_rad), ev.loop_torque_nm, lw=1.2,
+                    label=f"{row['frequency_hz']:g} Hz, psi {row['relative_damping_psi']:.2f}")
+        ax.set_title(f"amplitude {amp:g} deg")
+        ax.set_xlabel("angle (deg)")
+        ax.set_ylabel("torque (N*m)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in list(axes.flat)[len(amps):]:
+        ax.set_visible(False)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    try:
+        fig.savefig(path, dpi=120)
+    except (OSError, ValueError) as exc:
+        raise DroptowerError(f"cannot write the plot ({exc})", file=path) from None
+    finally:
+        plt.close(fig)
+    return path

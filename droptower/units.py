@@ -1,0 +1,94 @@
+"""Unit conversion at the edges: file units into SI, through pint (no hand-written table).
+
+Log files write units in many spellings (``Nm``, ``N·m``, ``kNm``, ``°``, ``Grad``); they are
+normalised to pint syntax, parsed by pint and checked against the expected kind of quantity.
+A unit pint does not know, or one of the wrong dimension, is a :class:`DroptowerError`.
+"""
+from __future__ import annotations
+
+import re
+from functools import lru_cache
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+
+#: kind -> the SI unit values are converted to.
+SI_UNITS: dict[str, str] = {"time": "s", "angle": "rad", "torque": "N*m", "force": "N", "length": "m"}
+
+# Spellings pint does not read as meant: "Nm" would parse as a (nonsensical) unit, not N*m;
+# German lab software writes "Grad" for degrees.
+_ALIASES = [
+    (re.compile(r"^([kM]?)N\s*[·.*\s-]?\s*m$"), r"\1N*m"),
+    (re.compile(r"^(grad|Grad|°)$"), "deg"),
+    (re.compile(r"^(sec|Sec|S)$"), "s"),
+]
+
+
+@lru_cache(maxsize=None)
+def _registry():
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def normalise_unit(unit: str) -> str:
+    """A file's unit spelling in pint syntax (``"kNm"`` -> ``"kN*m"``, ``"°"`` -> ``"deg"``)."""
+    text = unit.strip().strip("[]()").strip()
+    for pattern, replacement in _ALIASES:
+        text = pattern.sub(replacement, text)
+    return text.replace("·", "*").replace("²", "**2")
+
+
+def is_unit(text: str) -> bool:
+    """True if pint reads ``text`` (in any of the spellings above) as a unit; ``""`` counts."""
+    text = normalise_unit(text)
+    if not text:
+        return True
+    if text.replace(".", "").replace(",", "").lstrip("+-").isdigit():
+        return False  # a number, not a unit (pint would read it as a dimensionless factor)
+    try:
+        _registry().parse_units(text)
+    except Exception:  # pint raises many kinds of errors for text that is no unit
+        return False
+    return True
+
+
+@lru_cache(maxsize=256)
+def si_factor(unit: str, kind: str) -> float:
+    """Factor that converts values in ``unit`` to the SI unit of ``kind`` (:data:`SI_UNITS`).
+
+    Raises ValueError with the reason if the unit is unknown or of the wrong dimension.
+    """
+    if kind not in SI_UNITS:
+        raise ValueError(f"unknown quantity kind {kind!r} (use {', '.join(SI_UNITS)})")
+    text = normalise_unit(unit)
+    if not text:
+        raise ValueError(f"no unit given (expected a {kind} unit such as {SI_UNITS[kind]})")
+    import pint
+
+    ureg = _registry()
+    try:
+        quantity = ureg.Quantity(1.0, text)
+    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, AssertionError,
+            AttributeError, TypeError, ValueError) as exc:
+        raise ValueError(f"unknown unit '{unit}'") from exc
+    # radian is dimensionless in pint: an angle unit must reduce to radians, not to a bare number
+    if kind == "angle" and quantity.to_root_units().units != ureg.radian:
+        raise ValueError(f"unit '{unit}' is not an angle unit (expected e.g. rad, deg)")
+    try:
+        return float(quantity.to(SI_UNITS[kind]).magnitude)
+    except pint.errors.DimensionalityError:
+        raise ValueError(f"unit '{unit}' is not a {kind} unit (expected e.g. {SI_UNITS[kind]})") from None
+
+
+def to_si(values: np.ndarray, unit: str, kind: str, *, file: object = None, channel: str | None = None) -> np.ndarray:
+    """``values`` (in ``unit``) converted to the SI unit of ``kind`` ('time', 'angle', 'torque',
+    'force', 'length') as float64. An unknown or wrong unit raises :class:`DroptowerError`
+    naming ``file`` and ``channel``."""
+    try:
+        factor = si_factor(unit, kind)
+    except ValueError as exc:
+        raise DroptowerError(str(exc), file=file, where=f"channel '{channel}'" if channel else None) from None
+    values = np.asarray(values, dtype=np.float64)
+    return values if factor == 1.0 else values * factor
