@@ -1,0 +1,37 @@
+"""``droptower map``: fit the characteristic map (seed 004 eq. 19 and eq. 20) to a results table."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("map")
+@click.argument("results", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Write the map (coefficients, uncertainties, errors, range) to this JSON file.")
+@click.option("--plot", "plot_dir", type=click.Path(path_type=Path, file_okay=False), default=None,
+              help="Write the paper's Fig. 10, 12 and 13 as PNG files into this folder.")
+@click.option("--json", "as_json", is_flag=True, help="Print the map as JSON instead of the summary.")
+def map_command(results: Path, out: Path | None, plot_dir: Path | None, as_json: bool) -> None:
+    """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20).
+
+    RESULTS is a CSV or Parquet table from `droptower extract --out`, a `droptower campaign`
+    folder (its results.parquet), or the paper's Table 4. Flagged tests (double_impact, poor_fit, short_window, clipping)
+    and incomplete rows are excluded and listed.
+    """
+    from droptower.maps import fit_map, read_results, select_tests
+
+    table = read_results(results)
+    fit = fit_map(table, source=results)
+    if out is not None:
+        fit.to_json(out)
+    click.echo(fit.to_json() if as_json else fit.summary(), nl=not as_json)
+    if plot_dir is not None:
+        from droptower.maps.plots import plot_all
+
+        files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
+        for note in notes:
+            click.echo(f"note: {note}", err=True)
+        if not as_json:
+            click.echo(f"plots: {', '.join(str(p) for p in files)}")

@@ -1,0 +1,119 @@
+"""Read a results table and pick the tests a map may be fitted to.
+
+A results table is what ``droptower extract --out`` and ``droptower campaign`` write (CSV or
+Parquet, one row per test, the extractor's column names), or the paper's Table 4
+(``rapp2022_table4_map.csv``). The map needs amplitude, frequency, stiffness and damping ratio;
+inertia, drop mass, drop height, flags and file are used when present.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from droptower.errors import DroptowerError
+
+#: Columns the map is fitted from (the extractor's output names).
+REQUIRED = ("amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
+#: Extractor flags that make a test's stiffness or damping wrong, so it is left out of the map:
+#: a second impact restarts the decay, a poor fit or a window shorter than the paper's three
+#: quarters of a period does not determine δ and ω, a clipped channel cuts the peaks.
+UNUSABLE_FLAGS = frozenset({"double_impact", "poor_fit", "short_window", "clipping"})
+
+
+@dataclass(frozen=True)
+class ExcludedTest:
+    """A test left out of the map: its ``file`` (or ``row N``, 1-based) and the reason."""
+
+    test: str
+    reason: str
+
+
+def read_results(path: str | Path) -> pd.DataFrame:
+    """Load a results table (``.csv`` or ``.parquet``, or a campaign folder holding
+    ``results.parquet``); unreadable files and missing columns are a one-line
+    :class:`DroptowerError` naming the file."""
+    path = Path(path)
+    if path.is_dir():
+        if not (path / "results.parquet").is_file():
+            raise DroptowerError("a folder without results.parquet (not a campaign folder)", file=path)
+        path = path / "results.parquet"
+    if not path.is_file():
+        raise DroptowerError("file not found", file=path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            table = pd.read_csv(path)
+        elif suffix in (".parquet", ".pq"):
+            table = pd.read_parquet(path)
+        else:
+            raise DroptowerError(f"unsupported results format {suffix or '(none)'!r}: use .csv or .parquet", file=path)
+    except DroptowerError:
+        raise
+    except Exception as exc:  # pandas/pyarrow raise many types for a broken file
+        raise DroptowerError(f"cannot read results table ({type(exc).__name__}: {exc})", file=path) from None
+    check_columns(table, path)
+    return table
+
+
+def check_columns(table: pd.DataFrame, source: str | Path | None = None) -> None:
+    """Raise a one-line error naming the file and every required column it lacks."""
+    missing = [c for c in REQUIRED if c not in table.columns]
+    if missing:
+        raise DroptowerError(
+            f"results table lacks column(s) {', '.join(missing)} (has: {', '.join(map(str, table.columns)) or 'none'})",
+            file=source,
+        )
+
+
+def flag_list(value: Any) -> list[str]:
+    """The flags of one row: a ``;``-separated string (CSV), a list or array (Parquet), or empty.
+
+    A string is split into its flag names whatever the separator, so a list that went through
+    ``str()`` (``"['poor_fit', 'clipping']"``) is read right, not kept as one unknown flag."""
+    if value is None or (pd.api.types.is_scalar(value) and pd.isna(value)):
+        return []
+    if isinstance(value, str):
+        return re.findall(r"[A-Za-z0-9_]+", value)
+    return [str(f) for f in value]
+
+
+def select_tests(table: pd.DataFrame, source: str | Path | None = None) -> tuple[pd.DataFrame, list[ExcludedTest]]:
+    """Split a results table into the usable tests and the excluded ones with the reason.
+
+    Excluded: an unusable flag (:data:`UNUSABLE_FLAGS`; a true ``double_impact`` column counts
+    as its flag; other flags such as ``double_impact_unchecked`` are warnings and keep the
+    test), a missing (NaN) or non-finite value in
+    a required column, or a non-positive amplitude, frequency, stiffness or damping ratio
+    (eq. 19 and eq. 20 are defined for positive values only).
+    """
+    check_columns(table, source)
+    names = pd.Series([f"row {i + 1}" for i in range(len(table))], index=table.index)
+    if "file" in table.columns:
+        names = table["file"].where(table["file"].notna(), names).astype(str)
+    flags = [flag_list(v) for v in table["flags"]] if "flags" in table.columns else [[] for _ in range(len(table))]
+    if "double_impact" in table.columns:  # the extractor's boolean column says the same as its flag
+        second = table["double_impact"].astype(str).str.strip().str.lower().isin(["true", "1", "1.0"])
+        for row, hit in zip(flags, second):
+            if hit and "double_impact" not in row:
+                row.append("double_impact")
+    values = table[list(REQUIRED)].apply(pd.to_numeric, errors="coerce").astype(float)
+    v = values.to_numpy()
+    bad_flag = np.array([any(f in UNUSABLE_FLAGS for f in row) for row in flags], dtype=bool)
+    keep = ~bad_flag & np.all(np.isfinite(v), axis=1) & np.all(v > 0, axis=1)
+    excluded = []
+    for i in np.flatnonzero(~keep):
+        reasons = [f"flag {f}" for f in flags[i] if f in UNUSABLE_FLAGS]
+        for col, x in zip(REQUIRED, v[i]):
+            if not np.isfinite(x):
+                reasons.append(f"{col} is {'missing' if np.isnan(x) else x}")
+            elif x <= 0:
+                reasons.append(f"{col} = {x:g} is not positive")
+        excluded.append(ExcludedTest(names.iloc[i], "; ".join(reasons)))
+    usable = table.loc[keep].copy()
+    usable[list(REQUIRED)] = values.loc[keep]
+    return usable, excluded
