@@ -1,14 +1,17 @@
 """Calibrate the reference coupling ``rapp2022_nr60`` to the paper's measured map (seed 004 Table 4).
 
-    python analysis/calibrate_nr60.py [--out rig_configs/couplings/rapp2022_nr60.toml] [--report DIR]
+    python analysis/calibrate_nr60.py [--out rig_configs/couplings/rapp2022_nr60.toml]
 
-Model (built from the core's elements): a spring, a distributed rate-dependent elastoslide of
-32 elements with p = 7 (seed 001; the amplitude dependence, Payne effect) and two Maxwell
-branches (seed 000; the frequency dependence).
+Model (built from the core's elements): a spring, a softening static curve
+T = k a tanh(x/a) (a `spring_table`, seed 002's tabulated k1), a distributed rate-dependent
+elastoslide of 32 elements with p = 7 (seed 001; the amplitude dependence with hysteresis,
+Payne effect) and two Maxwell branches (seed 000; the frequency dependence). The softening
+curve is there because the measured map loses more stiffness over amplitude (2.7x) than a
+Masing-type friction model can lose without dissipating more than the measured damping.
 
 Fast inner loop (as the issue allows): the free decay of the lever inertia J started by the
-impact law's initial rate (NOTES §1.2), integrated with the core at 38.4 kHz — no pymunk, no
-sensors — and fitted over its first complete cycle with the extractor's own decay fit
+impact law's initial rate (NOTES §1.2), integrated with the core at 38.4 kHz by the planner's
+:func:`droptower.rig.planner.free_decay` — no pymunk, no sensors — and fitted over its first complete cycle with the extractor's own decay fit
 (NOTES §1.4). All conditions (3 cases x drop heights) advance as one batch. The residuals are
 the relative deviations of stiffness (weight 1/5 %) and drop-tower damping ratio (weight
 1/10 %) from Table 4 at each row's case and amplitude (interpolated in log amplitude between
@@ -31,6 +34,8 @@ from droptower.extract.decay import fit_decay, start_frequency_and_decay
 from droptower.extract.formulas import damping_ratio, stiffness
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
 from droptower.rig.impact import impact_velocities
+from droptower.rig.planner import free_decay
+from droptower.rig.preload import pretwist
 
 REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "rapp2022_table4_map.csv"
 CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (NOTES §1.1)
@@ -41,49 +46,45 @@ DURATION_S = 0.075
 
 #: name, lower bound, upper bound (SI, torsional); the fit works on log10 of each
 PARAMETERS = [
-    ("spring_stiffness", 1e3, 3e4),       # N*m/rad
+    ("spring_stiffness", 1e3, 3e4),       # N*m/rad, linear part
+    ("softening_stiffness", 1e2, 3e4),    # N*m/rad, initial stiffness of the softening curve
+    ("softening_angle", 1e-3, 0.3),       # rad, angle at which that curve saturates
     ("slide_phi0", 1e-3, 1.0),            # 1/(N*m)
     ("slide_stiffness", 1e3, 1e5),        # N*m/rad
-    ("slide_rate", 1e-3, 1e2),            # rad/s
+    ("slide_rate", 1e-3, 1e4),            # rad/s
     ("maxwell1_stiffness", 1e2, 3e4),     # N*m/rad
     ("maxwell1_time", 1e-4, 1e-1),        # s
     ("maxwell2_stiffness", 1e2, 3e4),     # N*m/rad
     ("maxwell2_time", 1e-4, 1e-1),        # s
 ]
-START = [6000.0, 0.009, 12000.0, 5.0, 3000.0, 3e-3, 2000.0, 5e-4]
+START = [6853.83, 10550.1, 0.00480523, 0.0263475, 4597.92, 161.531, 2126.87, 0.00285019, 932.933, 0.00146391]
+
+
+def softening_curve(stiffness: float, angle: float) -> dict:
+    """T = k a tanh(x / a) as a table over +-8 a (denser near 0); beyond it the end slope continues."""
+    u = np.sinh(np.linspace(-np.arcsinh(8.0), np.arcsinh(8.0), 41))
+    return {"kind": "spring_table", "name": "softening", "angle": list(u * angle),
+            "torque": list(stiffness * angle * np.tanh(u))}
 
 
 def build(values: np.ndarray) -> Coupling:
     """The coupling for one parameter vector (SI)."""
-    k_inf, phi0, k, v_r, k1, t1, k2, t2 = values
+    k_inf, k_soft, a_soft, phi0, k, v_r, k1, t1, k2, t2 = values
     return parse_coupling({
         "name": "rapp2022_nr60",
-        "description": "Natural-rubber disc coupling, Shore A 60 (seed 004): spring + distributed "
-                       "rate-dependent elastoslide (amplitude dependence) + two Maxwell branches "
-                       "(frequency dependence), calibrated to seed 004 Table 4 by analysis/calibrate_nr60.py",
-        "source": "seed 004 (Rapp et al. 2022) Table 4; elements of seed 001 and seed 000",
+        "description": "Natural-rubber disc coupling, Shore A 60 (seed 004): spring + softening static "
+                       "curve + distributed rate-dependent elastoslide (amplitude dependence) + two "
+                       "Maxwell branches (frequency dependence), calibrated to seed 004 Table 4 by "
+                       "analysis/calibrate_nr60.py",
+        "source": "seed 004 (Rapp et al. 2022) Table 4; elements of seeds 000-002",
         "element": [
             {"kind": "spring", "name": "equilibrium", "stiffness": float(k_inf)},
+            softening_curve(float(k_soft), float(a_soft)),
             {"kind": "elastoslide", "name": "payne", "phi0": float(phi0), "k": float(k), "k0": 0.0,
              "v_r": float(v_r), "p": 7, "n": 32},
             {"kind": "maxwell", "name": "viscous_slow", "stiffness": float(k1), "damping": float(k1 * t1)},
             {"kind": "maxwell", "name": "viscous_fast", "stiffness": float(k2), "damping": float(k2 * t2)},
         ]})
-
-
-def free_decay(coupling: Coupling, inertia: np.ndarray, rate0: np.ndarray, dt_s: float, n_steps: int) -> np.ndarray:
-    """Angles (B, n_steps) of J phi'' = -T(phi) from phi = 0, phi' = rate0; symplectic Euler."""
-    state = coupling.new_state(inertia.size)
-    angle = np.zeros(inertia.size)
-    rate = rate0.astype(float).copy()
-    torque = np.zeros(inertia.size)
-    out = np.empty((inertia.size, n_steps))
-    for n in range(n_steps):
-        rate -= dt_s * torque / inertia
-        angle = angle + dt_s * rate
-        torque = coupling.step(state, angle, dt_s)
-        out[:, n] = angle
-    return out
 
 
 def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[float, float, float, float]:
@@ -105,11 +106,10 @@ def predict(values: np.ndarray) -> dict[int, np.ndarray]:
     mass = np.repeat([CASES[c][1] for c in CASES], HEIGHTS_M.size)
     heights = np.tile(HEIGHTS_M, len(CASES))
     rate0 = impact_velocities(mass, inertia, LEVER_M, heights, RESTITUTION).rate_after_rad_per_s
-    dt_s = 1.0 / RATE_HZ
-    n = int(DURATION_S * RATE_HZ)
-    angles = free_decay(coupling, inertia, rate0, dt_s, n)
-    t = np.arange(1, n + 1) * dt_s
-    props = np.array([decay_properties(t, a, j) for a, j in zip(angles, inertia)])
+    at_rest = pretwist(coupling, np.zeros(inertia.size), 0.1, 0.1)
+    decay = free_decay(coupling, inertia, rate0, at_rest, 1.0 / RATE_HZ, DURATION_S)
+    t = decay.time_s[1:]
+    props = np.array([decay_properties(t, a[1:], j) for a, j in zip(decay.angle_rad, inertia)])
     return {c: props[i * HEIGHTS_M.size:(i + 1) * HEIGHTS_M.size] for i, c in enumerate(CASES)}
 
 
@@ -142,13 +142,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=preset_dir("couplings") / "rapp2022_nr60.toml")
     ap.add_argument("--max-evaluations", type=int, default=400)
+    ap.add_argument("--table", type=Path, default=Path(__file__).parent / "results" / "nr60_fast_loop_table4.csv",
+                    help="where to write the fast loop's Table 4 comparison")
     args = ap.parse_args()
     table = pd.read_csv(REFERENCE)
     lo = np.log10([p[1] for p in PARAMETERS])
     hi = np.log10([p[2] for p in PARAMETERS])
     x0 = np.clip(np.log10(START), lo + 1e-9, hi - 1e-9)
     t0 = time.perf_counter()
-    sol = least_squares(residuals, x0, bounds=(lo, hi), args=(table,), diff_step=1e-3,
+    sol = least_squares(residuals, x0, bounds=(lo, hi), args=(table,), diff_step=2e-2,
                         max_nfev=args.max_evaluations, x_scale=1.0, verbose=1)
     values = 10 ** sol.x
     cmp = compare(values, table)
@@ -159,7 +161,9 @@ def main() -> None:
     for (name, *_), v in zip(PARAMETERS, values):
         print(f"  {name:20s} {v:.6g}")
     args.out.write_text(coupling_to_toml(build(values)))
-    print(f"wrote {args.out}")
+    args.table.parent.mkdir(parents=True, exist_ok=True)
+    cmp.to_csv(args.table, index=False)
+    print(f"wrote {args.out} and {args.table}")
     print(json.dumps({"rms_stiffness_deviation": rms_c, "rms_damping_deviation": rms_d}))
 
 

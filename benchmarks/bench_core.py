@@ -46,15 +46,18 @@ def sine(duration_s: float, rate_hz: float) -> np.ndarray:
 def ode_system(coupling: dt.Coupling):
     """The coupling's equations as a first-order ODE in its spring elongations, for solve_ivp.
 
-    Supports the element kinds of the reference coupling: springs, Maxwell branches and
-    rate-dependent slider banks (seed 001 eq. 13).
+    Supports the element kinds of the reference coupling: springs, static curves, Maxwell
+    branches and rate-dependent slider banks (seed 001 eq. 13).
     """
-    springs, maxwell_k, maxwell_c, bank_k, bank_f = 0.0, [], [], [], []
+    springs, maxwell_k, maxwell_c, bank_k, bank_f, curves = 0.0, [], [], [], [], []
     v_r = p_exp = None
     for kern in coupling.kernels:
         p = kern.params
         if kern.code == K.LINEAR_SPRING:
             springs += p[0]
+        elif kern.code == K.TABLE_SPRING:
+            n = int(p[0])
+            curves.append((p[1:1 + n], p[1 + n:1 + 2 * n]))
         elif kern.code == K.MAXWELL:
             maxwell_k.append(p[0]); maxwell_c.append(p[1])
         elif kern.code == K.SLIDER_BANK and p[2] > 0 and p[3] == 0:
@@ -84,7 +87,8 @@ def ode_system(coupling: dt.Coupling):
 
     def torque(t, y):
         x = AMPLITUDE_RAD * np.sin(w * t)
-        return springs * x + y[:nm].T @ mk + y[nm:].T @ bk
+        static = sum(np.interp(x, xs, ys) for xs, ys in curves)  # the amplitude stays inside the tables
+        return springs * x + static + y[:nm].T @ mk + y[nm:].T @ bk
 
     return rhs, jac, torque, nm + bk.size
 

@@ -95,8 +95,13 @@ class SpringTable(ElementSpec):
         return self
 
     def compile(self):
-        n = len(self.angle)
-        return [KernelElement(K.TABLE_SPRING, np.concatenate([[n], self.angle, self.torque]))]
+        x, y = np.asarray(self.angle), np.asarray(self.torque)
+        # stored energy at each knot: trapezoids accumulated from the first knot, shifted so
+        # that the energy at angle 0 is zero (T is linear on the segment holding 0, T(0) = 0)
+        cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))])
+        i = int(np.clip(np.searchsorted(x, 0.0, side="right") - 1, 0, x.size - 2))
+        at_zero = cumulative[i] + 0.5 * y[i] * (0.0 - x[i])
+        return [KernelElement(K.TABLE_SPRING, np.concatenate([[x.size], x, y, cumulative - at_zero]))]
 
 
 class CubicSpring(ElementSpec):

@@ -42,46 +42,29 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 
 # ---------------------------------------------------------------- helpers
 @njit(**JIT)
-def _interp(x, xs, ys, n):
-    """Piecewise-linear interpolation with linear extrapolation by the end segments."""
+def _segment(x, xs, n):
+    """Index i of the table segment [xs[i], xs[i+1]] used at x (the end segments extend outwards)."""
     if x <= xs[0]:
-        i = 0
-    elif x >= xs[n - 1]:
-        i = n - 2
-    else:
-        lo = 0
-        hi = n - 1
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if xs[mid] <= x:
-                lo = mid
-            else:
-                hi = mid
-        i = lo
-    t = (x - xs[i]) / (xs[i + 1] - xs[i])
-    return ys[i] + t * (ys[i + 1] - ys[i])
+        return 0
+    if x >= xs[n - 1]:
+        return n - 2
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xs[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 @njit(**JIT)
-def _table_energy(x, xs, ys, n):
-    """Integral of the piecewise-linear curve from 0 to x (exact: trapezoids per segment)."""
-    # integrate from 0 to x in the direction of x; breakpoints between them are added
-    if x == 0.0:
-        return 0.0
-    lo = min(0.0, x)
-    hi = max(0.0, x)
-    total = 0.0
-    a = lo
-    fa = _interp(a, xs, ys, n)
-    for j in range(n):
-        if xs[j] > lo and xs[j] < hi:
-            fb = ys[j]
-            total += 0.5 * (fa + fb) * (xs[j] - a)
-            a = xs[j]
-            fa = fb
-    fb = _interp(hi, xs, ys, n)
-    total += 0.5 * (fa + fb) * (hi - a)
-    return total if x > 0.0 else -total
+def _interp(x, xs, ys, n):
+    """Piecewise-linear interpolation with linear extrapolation by the end segments."""
+    i = _segment(x, xs, n)
+    t = (x - xs[i]) / (xs[i + 1] - xs[i])
+    return ys[i] + t * (ys[i + 1] - ys[i])
 
 
 @njit(**JIT)
@@ -109,13 +92,19 @@ def linear_spring(p, po, s, so, x0, x1, h):
 
 @njit(**JIT)
 def table_spring(p, po, s, so, x0, x1, h):
-    """T = f(x), piecewise linear through the table (seed 002's k1 table). params: [n, xs.., Ts..]."""
+    """T = f(x), piecewise linear through the table (seed 002's k1 table).
+
+    params: [n, x_1..x_n, T_1..T_n, E_1..E_n] with E_i the stored energy at x_i (the integral
+    of f from 0, precomputed), so the energy at x is E_i plus one trapezoid.
+    """
     n = int(p[po + 0])
     xs = p[po + 1:po + 1 + n]
     ys = p[po + 1 + n:po + 1 + 2 * n]
-    s[so + 0] = _table_energy(x1, xs, ys, n)
-    s[so + 2] = _interp(x1, xs, ys, n)
-    return s[so + 2]
+    i = _segment(x1, xs, n)
+    torque = ys[i] + (x1 - xs[i]) / (xs[i + 1] - xs[i]) * (ys[i + 1] - ys[i])
+    s[so + 0] = p[po + 1 + 2 * n + i] + 0.5 * (ys[i] + torque) * (x1 - xs[i])
+    s[so + 2] = torque
+    return torque
 
 
 @njit(**JIT)
