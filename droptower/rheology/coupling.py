@@ -159,9 +159,12 @@ class Coupling:
         Returns the torque at the new angle (N*m, shape (B,)). This is the call a simulation
         makes once per time step.
         """
-        x1 = np.broadcast_to(np.asarray(angle_rad, np.float64), (state.batch,))
+        x1 = angle_rad
+        if not (type(x1) is np.ndarray and x1.dtype == np.float64 and x1.shape == (state.batch,)
+                and x1.flags.c_contiguous):  # the hot path (once per time step) skips the conversion
+            x1 = np.ascontiguousarray(np.broadcast_to(np.asarray(angle_rad, np.float64), (state.batch,)))
         K.step_batch(self.codes, self.p_off, self.s_off, self.params, state.values, state.angle_rad,
-                     np.ascontiguousarray(x1), float(dt_s), state.torque_nm)
+                     x1, float(dt_s), state.torque_nm)
         state.angle_rad[...] = x1
         return state.torque_nm.copy()
 

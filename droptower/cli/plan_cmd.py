@@ -1,0 +1,71 @@
+"""``droptower plan``: predict a test plan on a rig before running it."""
+from __future__ import annotations
+
+import json
+import math
+
+import click
+
+from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
+
+#: Columns printed as the table (all are in --out and --json).
+TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats",
+                 "lever_rate_after_rad_per_s", "impact_energy_j", "amplitude_deg", "max_twist_deg", "frequency_hz",
+                 "damping_ratio", "peak_torque_nm", "double_impact", "min_clearance_mm", "warnings"]
+
+
+@click.command()
+@click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
+@click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
+              help="Coupling TOML file or shipped preset name.")
+@click.option("--doe", default=DEFAULT_DOE, show_default=True, help="Test-plan TOML file or shipped preset name.")
+@click.option("--duration-s", type=float, default=0.25, show_default=True,
+              help="Record length after the impact (s), for the 3/4-period check.")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, help="Write the full table as CSV.")
+@click.option("--json", "as_json", is_flag=True, help="Print the table as a JSON list of objects.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+              help="Draw twist, frequency, peak torque and double-impact clearance over drop height.")
+def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, as_json: bool,
+         plot_path: str | None) -> None:
+    """Predict every condition of a test plan (repeats collapsed): post-impact velocities and
+    impact energy (NOTES §1.2), angle amplitude, frequency, damping ratio and peak torque from a
+    free decay on the nonlinear coupling (preload included), and the double-impact check of
+    seed 004 (NOTES §1.3). Warns where a rig limit is broken: twist beyond the coupling limit,
+    torque or impact force beyond the sensor range, fewer than 20 samples per period, a record
+    shorter than 3/4 period, a double impact."""
+    import pandas as pd
+
+    from droptower.errors import DroptowerError
+    from droptower.rheology import load_coupling
+    from droptower.rig.config import load_doe, load_rig
+    from droptower.rig.planner import plan as predict
+
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise DroptowerError(f"must be positive, got {duration_s:g}", where="--duration-s")
+    rig_cfg = load_rig(rig)
+    model = load_coupling(coupling)
+    plan_cfg = load_doe(doe)
+    plan_cfg.check(rig_cfg)
+    table = predict(rig_cfg, model, plan_cfg.conditions(), duration_s)
+    if out:
+        table.to_csv(out, index=False)
+    if plot_path:
+        from droptower.rig.plots import plot_plan
+
+        plot_plan(table, rig_cfg, plot_path)
+    if as_json:
+        records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
+                   for rec in table.to_dict(orient="records")]
+        click.echo(json.dumps(records, indent=1, default=lambda v: v.item() if hasattr(v, "item") else str(v)))
+        return
+    click.echo(f"{plan_cfg.name}: {len(table)} conditions, {int(table['repeats'].sum())} tests; "
+               f"{model.name} on {rig_cfg.name}")
+    with pd.option_context("display.width", 250, "display.max_columns", 40, "display.max_colwidth", 80,
+                           "display.float_format", "{:.4g}".format):
+        click.echo(table[[c for c in TABLE_COLUMNS if c in table]].to_string(index=False))
+    n_double = int(table["double_impact"].sum())
+    n_warn = int((table["warnings"] != "").sum())
+    click.echo(f"{n_double} condition(s) double-impact, {n_warn} with warnings")
+    for key, value in (("table", out), ("plot", plot_path)):
+        if value:
+            click.echo(f"{key}: {value}")

@@ -1,0 +1,17 @@
+"""The virtual drop tower (seed 004, NOTES §1.1-1.3): a pymunk scene whose restitution impact
+drives the rheological coupling, sampled like the real rig, and a planner for test campaigns.
+
+- :mod:`.config`: rig and test-plan files (:func:`load_rig`, :func:`load_doe`);
+- :mod:`.impact`: closed forms of the impact law and the free decay, the second-impact check;
+- :mod:`.preload`: the quasi-static pre-twist of the coupling;
+- :mod:`.scene`: the pymunk scene, many tests in one space;
+- :mod:`.sensors`: laser, flange torque, impact force; seeded noise;
+- :mod:`.simulate`: tests -> :class:`DropResult` (summary, channels, log);
+- :mod:`.planner`: predictions per test condition, batched through the coupling;
+- :mod:`.plots`: seed 004 Fig. 4 and the plan's figure.
+"""
+from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
+from droptower.rig.planner import plan
+from droptower.rig.simulate import DropResult, DropTest, simulate
+
+__all__ = ["DOE", "DropResult", "DropTest", "RigConfig", "load_doe", "load_rig", "plan", "simulate"]

@@ -1,0 +1,281 @@
+"""Rig and test-plan files: validated models and loaders (SI units, unknown fields are errors).
+
+A rig file (``rig_configs/rigs/*.toml``) describes a drop tower: lever, fixtures, limits, the
+restitution of the mass-lever contact, the simulation's time step and the sensors. A test plan
+(``rig_configs/doe/*.toml``) lists groups of (inertia, drop mass) crossed with drop heights,
+preloads and repeats (seed 004 Table 2, NOTES §1.1); :meth:`DOE.tests` expands it into one row
+per test. See ``rig_configs/rigs/rapp2022.toml`` and ``rig_configs/doe/rapp2022_table2.toml``.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, PrivateAttr, model_validator
+
+from droptower.configs import read_toml, resolve
+from droptower.errors import DroptowerError
+from droptower.validation import StrictModel, validate
+
+if TYPE_CHECKING:
+    from droptower.rheology import Coupling
+
+# time-step limits (checked before a run; see check_time_step)
+STIFFNESS_LIMIT = 0.1     # dt sqrt(K_max/J): symplectic Euler is stable below 2, accurate well below
+DAMPING_LIMIT = 0.1       # dt d_max / J
+PENETRATION_LIMIT = 0.1   # v1 dt / striker radius: the striker must not sink into the lever in a step
+PULSE_LIMIT = 0.1         # dt / contact duration: the impact time resolved within its force pulse
+
+
+def _range(values: list[float], what: str) -> list[float]:
+    if len(values) != 2 or not values[0] <= values[1]:
+        raise ValueError(f"{what} must be [min, max] with min <= max")
+    return values
+
+
+# ------------------------------------------------------------------ rig
+class Simulation(StrictModel):
+    """How the pymunk scene is stepped (see :mod:`droptower.rig.scene`)."""
+
+    steps_per_sample: PositiveInt = 2            # internal steps per output sample
+    solver_iterations: PositiveInt = 10          # pymunk impulse-solver passes per step
+    striker_radius_m: PositiveFloat = 0.005      # radius of the drop mass's round striker
+    preload_ramp_s: PositiveFloat = 2.0          # quasi-static ramp to the preload twist
+    preload_hold_s: PositiveFloat = 30.0         # hold before the drop (rate-dependent parts relax)
+
+
+class Resonance(StrictModel):
+    """Test-setup resonance on the force-measurement side (seed 004: ringing on the torque only).
+
+    The measured torque is T + strength * (H(T) - T), H a 2nd-order low-pass of unit DC gain
+    with this natural frequency and damping ratio.
+    """
+
+    frequency_hz: PositiveFloat
+    damping_ratio: PositiveFloat
+    strength: NonNegativeFloat = 1.0
+
+
+class Laser(StrictModel):
+    """Laser distance sensor on the lever: distance = radius * angle (arc length) + noise."""
+
+    radius_m: PositiveFloat
+    noise_m: NonNegativeFloat = 0.0
+
+
+class TorqueSensor(StrictModel):
+    """Flange torque from a force sensor; ``range_nm`` is its full scale (saturates beyond)."""
+
+    noise_nm: NonNegativeFloat = 0.0
+    range_nm: PositiveFloat
+    resonance: Resonance | None = None
+
+
+class ForceSensor(StrictModel):
+    """Piezo impact-force sensor at the lever tip; each contact is a half-sine pulse."""
+
+    contact_duration_s: PositiveFloat = 3e-4
+    noise_n: NonNegativeFloat = 0.0
+    range_n: PositiveFloat
+
+
+class Sensors(StrictModel):
+    sample_rate_hz: PositiveFloat = 38400.0
+    pre_trigger_s: PositiveFloat = 0.005
+    laser: Laser
+    torque: TorqueSensor
+    impact_force: ForceSensor
+
+
+class RigConfig(StrictModel):
+    """A drop tower (seed 004 Table 1). SI units; angles in degrees only where named ``_deg``."""
+
+    name: str = ""
+    description: str = ""
+    source: str = ""
+    lever_length_m: PositiveFloat
+    inertias_kgm2: list[PositiveFloat] = Field(min_length=1)   # the rig's lever fixtures
+    drop_masses_kg: list[PositiveFloat] = Field(min_length=1)  # the rig's drop masses
+    drop_height_range_m: list[PositiveFloat]
+    preload_range_nm: list[NonNegativeFloat] = [0.0, 0.0]
+    coupling_limit_deg: PositiveFloat
+    restitution: float = Field(0.5, ge=0.0, le=1.0)
+    gravity_m_per_s2: PositiveFloat = 9.81
+    simulation: Simulation = Simulation()
+    sensors: Sensors
+
+    @model_validator(mode="after")
+    def _check(self):
+        _range(self.drop_height_range_m, "drop_height_range_m")
+        _range(self.preload_range_nm, "preload_range_nm")
+        return self
+
+    _path: Path | None = PrivateAttr(None)  # the file it came from (set by the loader)
+
+    @property
+    def path(self) -> Path | None:
+        return self._path
+
+    # -- derived
+    @property
+    def dt_s(self) -> float:
+        """Internal step of the simulation (s)."""
+        return 1.0 / (self.sensors.sample_rate_hz * self.simulation.steps_per_sample)
+
+    @property
+    def coupling_limit_rad(self) -> float:
+        return math.radians(self.coupling_limit_deg)
+
+    def error(self, problem: str, where: str) -> DroptowerError:
+        """A one-line error attributed to this rig file and a field."""
+        return DroptowerError(problem, file=self.path or self.name or "rig", where=where)
+
+    def check_test(self, inertia_kgm2: float, drop_mass_kg: float, drop_height_m: float, preload_nm: float,
+                   *, file: str | Path | None = None, where: str = "",
+                   labels: dict[str, str] | None = None) -> None:
+        """Reject a test this rig cannot run: non-positive values, height or preload out of range.
+
+        The error names ``file`` and ``where`` plus the field (``labels`` renames fields, e.g.
+        ``{"drop_height_m": "--height"}`` for command-line values).
+        """
+        labels = labels or {}
+
+        def at(name: str) -> str:
+            return f"{where}: {labels.get(name, name)}" if where else labels.get(name, name)
+
+        for name, value in (("inertia_kgm2", inertia_kgm2), ("drop_mass_kg", drop_mass_kg),
+                            ("drop_height_m", drop_height_m)):
+            if not (math.isfinite(value) and value > 0):
+                raise DroptowerError(f"must be positive, got {value:g}", file=file, where=at(name))
+        lo, hi = self.drop_height_range_m
+        if not lo <= drop_height_m <= hi:
+            raise DroptowerError(f"drop height {drop_height_m:g} m is outside the range {lo:g}-{hi:g} m of rig "
+                                 f"{self.path or self.name} (field drop_height_range_m)", file=file,
+                                 where=at("drop_height_m"))
+        lo, hi = self.preload_range_nm
+        if not (math.isfinite(preload_nm) and lo <= preload_nm <= hi):
+            raise DroptowerError(f"preload {preload_nm:g} N*m is outside the range {lo:g}-{hi:g} N*m of rig "
+                                 f"{self.path or self.name} (field preload_range_nm)", file=file,
+                                 where=at("preload_nm"))
+
+    def check_time_step(self, coupling: "Coupling", inertia_kgm2: np.ndarray, pretwist_rad: np.ndarray,
+                            impact_velocity_m_per_s: np.ndarray) -> None:
+        """Reject an internal step too coarse for the coupling or the impact (error names the rig field)."""
+        dt = self.dt_s
+        where = "field simulation.steps_per_sample"
+        j_min = float(np.min(inertia_kgm2))
+        name = coupling.path or coupling.name or "the coupling"
+        stiffness = coupling.max_tangent_stiffness(self.coupling_limit_rad + float(np.max(np.abs(pretwist_rad))))
+        omega_dt = dt * math.sqrt(stiffness / j_min)
+        if omega_dt > STIFFNESS_LIMIT:
+            need = math.ceil(self.simulation.steps_per_sample * omega_dt / STIFFNESS_LIMIT)
+            raise self.error(f"internal step {dt:.3g} s is too coarse for the stiffness of {name} "
+                             f"({stiffness:.4g} N*m/rad on J = {j_min:g} kg*m^2): dt*sqrt(K/J) = {omega_dt:.3g} > "
+                             f"{STIFFNESS_LIMIT}; use steps_per_sample >= {need}", where)
+        damping_dt = dt * coupling.max_damping() / j_min
+        if damping_dt > DAMPING_LIMIT:
+            need = math.ceil(self.simulation.steps_per_sample * damping_dt / DAMPING_LIMIT)
+            raise self.error(f"internal step {dt:.3g} s is too coarse for the damping of {name}: dt*d/J = "
+                             f"{damping_dt:.3g} > {DAMPING_LIMIT}; use steps_per_sample >= {need}", where)
+        sink = float(np.max(impact_velocity_m_per_s)) * dt / self.simulation.striker_radius_m
+        if sink > PENETRATION_LIMIT:
+            need = math.ceil(self.simulation.steps_per_sample * sink / PENETRATION_LIMIT)
+            raise self.error(f"internal step {dt:.3g} s is too coarse for the impact: the drop mass moves "
+                             f"{sink:.2g} striker radii per step (> {PENETRATION_LIMIT}); use steps_per_sample >= {need}",
+                             where)
+        pulse = dt / self.sensors.impact_force.contact_duration_s
+        if pulse > PULSE_LIMIT:
+            need = math.ceil(self.simulation.steps_per_sample * pulse / PULSE_LIMIT)
+            raise self.error(f"internal step {dt:.3g} s is too coarse for the impact: more than {PULSE_LIMIT} of the "
+                             f"contact duration; use steps_per_sample >= {need}", where)
+
+
+def load_rig(path_or_name: str | Path) -> RigConfig:
+    """Load a rig TOML file, or a shipped preset by name (``"rapp2022"``)."""
+    path = resolve(path_or_name, "rigs")
+    data = read_toml(path)
+    rig = validate(RigConfig, data, path)
+    rig._path = path
+    rig.name = rig.name or path.stem
+    fall_time = math.sqrt(2 * rig.drop_height_range_m[0] / rig.gravity_m_per_s2)
+    if rig.sensors.pre_trigger_s >= fall_time:
+        raise rig.error(f"pre-trigger {rig.sensors.pre_trigger_s} s must be shorter than the fall time "
+                        f"{fall_time:.4g} s from the lowest drop height", "field sensors.pre_trigger_s")
+    return rig
+
+
+# ------------------------------------------------------------------ test plan
+class Group(StrictModel):
+    """One (inertia, drop mass) combination; heights, preloads, repeats default to the plan's."""
+
+    name: str = ""
+    inertia_kgm2: PositiveFloat
+    drop_mass_kg: PositiveFloat
+    heights_m: list[PositiveFloat] | None = Field(None, min_length=1)
+    preloads_nm: list[NonNegativeFloat] | None = Field(None, min_length=1)
+    repeats: PositiveInt | None = None
+
+
+class DOE(StrictModel):
+    """A test plan: every group x heights x preloads x repeats (seed 004 Table 2)."""
+
+    name: str = ""
+    description: str = ""
+    source: str = ""
+    base_seed: NonNegativeInt = 0
+    repeats: PositiveInt = 1
+    heights_m: list[PositiveFloat] = Field(min_length=1)
+    preloads_nm: list[NonNegativeFloat] = [0.0]
+    group: list[Group] = Field(min_length=1)
+
+    _path: Path | None = PrivateAttr(None)
+
+    @property
+    def path(self) -> Path | None:
+        return self._path
+
+    def tests(self) -> pd.DataFrame:
+        """One row per test: test_id, case, inertia_kgm2, drop_mass_kg, drop_height_m,
+        preload_nm, repeat (0-based), seed (base_seed + test_id)."""
+        rows = []
+        for i, g in enumerate(self.group):
+            for h in g.heights_m or self.heights_m:
+                for p in g.preloads_nm or self.preloads_nm:
+                    for r in range(g.repeats or self.repeats):
+                        rows.append((g.name or f"group {i + 1}", g.inertia_kgm2, g.drop_mass_kg, h, p, r))
+        df = pd.DataFrame(rows, columns=["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm",
+                                         "repeat"])
+        df.insert(0, "test_id", range(len(df)))
+        df["seed"] = self.base_seed + df["test_id"]
+        return df
+
+    def conditions(self) -> pd.DataFrame:
+        """The distinct test conditions (repeats collapsed), with their number of repeats."""
+        keys = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"]
+        return (self.tests().groupby(keys, sort=False).size().rename("repeats").reset_index())
+
+    def check(self, rig: RigConfig) -> None:
+        """Every test must be runnable on ``rig`` (else a one-line error naming this file and group)."""
+        for i, g in enumerate(self.group):
+            for h in g.heights_m or self.heights_m:
+                for p in g.preloads_nm or self.preloads_nm:
+                    rig.check_test(g.inertia_kgm2, g.drop_mass_kg, h, p, file=self.path,
+                                   where=f"group {i + 1} ({g.name})" if g.name else f"group {i + 1}",
+                                   labels={"drop_height_m": "heights_m", "preload_nm": "preloads_nm"})
+
+
+def _name_group(list_name: str, index: int, item: Any) -> str:
+    name = item.get("name") if isinstance(item, dict) else None
+    return f"{list_name} {index + 1} ({name})" if name else f"{list_name} {index + 1}"
+
+
+def load_doe(path_or_name: str | Path) -> DOE:
+    """Load a test-plan TOML file, or a shipped preset by name (``"rapp2022_table2"``)."""
+    path = resolve(path_or_name, "doe")
+    doe = validate(DOE, read_toml(path), path, _name_group)
+    doe._path = path
+    doe.name = doe.name or path.stem
+    return doe

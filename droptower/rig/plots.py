@@ -1,0 +1,107 @@
+"""Figures of the virtual drop tower: one test (seed 004 Fig. 4 and the traces) and a test plan.
+
+matplotlib with the Agg backend (files only), imported when a figure is drawn.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from droptower.rig.config import RigConfig
+
+if TYPE_CHECKING:
+    from droptower.rig.simulate import DropResult
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_test(result: "DropResult", path: str | Path) -> Path:
+    """Seed 004 Fig. 4 (drop mass and lever tip paths around the impact, contacts marked) over
+    the recorded angle and torque channels (what the log holds) and the coupling's own torque."""
+    plt = _pyplot()
+    t_ms = 1e3 * result.time_s
+    ch = result.channels()
+    fig, axes = plt.subplots(3, 1, figsize=(9, 10), gridspec_kw={"height_ratios": [1.3, 1, 1]})
+    axes[2].sharex(axes[1])
+    # Fig. 4 window: from the start of the record to 1.5 periods (or past the second contact)
+    period = result.period_s
+    t_end = result.impact_time_s + (1.5 * period if np.isfinite(period) else 0.05)
+    if result.double_impact:
+        t_end = max(t_end, result.impact_time_s + result.second_impact_time_s + 0.005)
+    win = result.time_s <= t_end
+    ax = axes[0]
+    ax.plot(t_ms[win], -1e3 * result.drop_mass_m[win], label="drop mass")
+    ax.plot(t_ms[win], -1e3 * result.lever_tip_m[win], label="lever tip")
+    for n, c in enumerate(c for c in result.contacts if c.start_s <= t_end):
+        ax.axvline(1e3 * c.start_s, color="r" if n else "k", lw=0.8, ls="--",
+                   label="1st impact" if n == 0 else ("further contacts" if n == 1 else None))
+    if np.isfinite(period):
+        ax.axvspan(1e3 * result.impact_time_s, 1e3 * (result.impact_time_s + period), color="0.92",
+                   label="1st period of the lever")
+    ax.set_ylabel("height above impact point [mm]")
+    ax.set_xlabel("time [ms]")
+    ax.legend(fontsize=8)
+    t = result.test
+    ax.set_title(f"J = {t.inertia_kgm2:g} kg*m^2, m1 = {t.drop_mass_kg:g} kg, h = {t.drop_height_m:g} m, "
+                 f"preload {t.preload_nm:g} N*m ({result.coupling_name} on {result.rig.name})", fontsize=9)
+    axes[1].plot(t_ms, np.degrees(ch.angle_rad), lw=0.8)
+    axes[1].set_ylabel("angle (laser) [deg]")
+    axes[2].plot(t_ms, ch.torque_nm, lw=0.6, label="flange torque (sensor)")
+    axes[2].plot(t_ms, result.coupling_torque_nm, lw=1.0, label="coupling torque")
+    axes[2].set_ylabel("torque [N*m]")
+    axes[2].set_xlabel("time [ms]")
+    axes[2].legend(fontsize=8)
+    axes[1].set_title("recorded channels", fontsize=9)
+    for a in axes:
+        a.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path) -> Path:
+    """Four panels over drop height, a line per (case, preload): twist against the coupling
+    limit, frequency, peak torque against the sensor range, and the clearance of the drop mass
+    to the lever tip in the first period (negative: double impact)."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8), sharex=True)
+    panels = [("max_twist_deg", "max. twist [deg]", rig.coupling_limit_deg, "coupling limit"),
+              ("frequency_hz", "frequency [Hz]", None, None),
+              ("peak_torque_nm", "peak torque [N*m]", rig.sensors.torque.range_nm, "sensor range"),
+              ("min_clearance_mm", "clearance mass-lever in 1st period [mm]", 0.0, "double impact below")]
+    groups = table.groupby(["case", "inertia_kgm2", "drop_mass_kg"], sort=False) if "case" in table else \
+        table.groupby(["inertia_kgm2", "drop_mass_kg"], sort=False)
+    styles = ["-", "--", ":", "-."]
+    for ax, (col, label, limit, limit_label) in zip(axes.flat, panels):
+        for ci, (key, grp) in enumerate(groups):
+            name = key[0] if "case" in table else f"J={key[0]:g}"
+            for pi, (preload, sub) in enumerate(grp.groupby("preload_nm")):
+                sub = sub.sort_values("drop_height_m")
+                ax.plot(sub["drop_height_m"], sub[col], styles[pi % len(styles)], color=f"C{ci}", marker="o", ms=3,
+                        label=f"{name}, {key[-1]:g} kg, {preload:g} N*m")
+                bad = sub["double_impact"]
+                ax.plot(sub["drop_height_m"][bad], sub[col][bad], "x", color="k", ms=7)
+        if limit is not None:
+            ax.axhline(limit, color="r", lw=1, ls="--", label=limit_label)
+        ax.set_ylabel(label)
+        ax.set_xscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("drop height [m]")
+    axes[0, 0].legend(fontsize=7, ncol=1)
+    fig.suptitle(f"test plan on rig '{rig.name}' (x: double impact)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,274 @@
+"""Run drop tests on the virtual drop tower: test conditions -> pymunk scenes -> results and logs.
+
+A batch of tests is one pymunk space (:mod:`.scene`) stepped together, the coupling of every
+scene advanced by one :meth:`Coupling.step` call per step; ``workers > 1`` splits the batch
+over processes. Each test starts at the beginning of its record, ``pre_trigger_s`` before the
+impact, with the drop mass where free fall from its drop height has brought it (so the record
+needs no simulated fall of up to 1.1 s), and the coupling pre-twisted to its preload
+(:mod:`.preload`).
+"""
+from __future__ import annotations
+
+import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from droptower.errors import DroptowerError
+from droptower.io.droptower_log import write_log
+from droptower.rheology import Coupling
+from droptower.rig.config import RigConfig
+from droptower.rig.impact import ImpactVelocities, first_period, impact_velocities, lever_tip_path
+from droptower.rig.preload import Pretwist, pretwist
+from droptower.rig.scene import Contact, DropTowerScenes
+from droptower.rig.sensors import Channels, sample
+
+ENERGY_SAMPLE_S = 5e-4    # energies are sampled this often
+
+
+@dataclass(frozen=True)
+class DropTest:
+    """One test condition (SI): the lever inertia, drop mass, height, preload; repeat and seed."""
+
+    inertia_kgm2: float
+    drop_mass_kg: float
+    drop_height_m: float
+    preload_nm: float = 0.0
+    repeat: int = 0
+    seed: int = 0
+
+
+@dataclass
+class DropResult:
+    """One simulated drop test.
+
+    time_s (N,) from ``-pre_trigger_s`` (impact near 0); angle_rad (N,) the lever's rotation
+    from its rest position (positive in the impact direction); pretwist_rad the preload twist
+    of the coupling at rest; screw_torque_nm the preload screw's torque; coupling_torque_nm (N,)
+    the coupling's torque (preload included); drop_mass_m (N,) drop-mass position below the
+    impact point. Energies (J, on ``energy_time_s``) as in :class:`~droptower.rig.scene.SceneRecord`.
+    contacts: every contact of the drop mass with the lever; predicted: NOTES §1.2 closed forms.
+    """
+
+    rig: RigConfig
+    coupling_name: str
+    test: DropTest
+    duration_s: float
+    time_s: np.ndarray
+    angle_rad: np.ndarray
+    pretwist_rad: float
+    screw_torque_nm: float
+    coupling_torque_nm: np.ndarray
+    drop_mass_m: np.ndarray
+    energy_time_s: np.ndarray
+    energy_j: dict[str, np.ndarray]
+    contacts: list[Contact]
+    predicted: ImpactVelocities
+    warnings: list[str] = field(default_factory=list)
+
+    # ---------------------------------------------------------------- derived
+    @property
+    def lever_tip_m(self) -> np.ndarray:
+        """Where the lever meets the striker's line, below the impact point (m, positive down)."""
+        return lever_tip_path(self.angle_rad, self.rig.lever_length_m)
+
+    @property
+    def impact_time_s(self) -> float:
+        return self.contacts[0].start_s if self.contacts else math.nan
+
+    @property
+    def period_s(self) -> float:
+        """The lever's first oscillation period: from the impact to the angle's second zero crossing."""
+        t0 = self.impact_time_s
+        if math.isnan(t0):
+            return math.nan
+        after = self.time_s >= t0
+        return float(first_period(np.concatenate([[t0], self.time_s[after]]),
+                                  np.concatenate([[0.0], self.angle_rad[after]])))
+
+    @property
+    def second_impact_time_s(self) -> float:
+        """Time of the first contact after the impact (s from the impact), NaN if none."""
+        return self.contacts[1].start_s - self.contacts[0].start_s if len(self.contacts) > 1 else math.nan
+
+    @property
+    def double_impact(self) -> bool:
+        """A second contact within the lever's first oscillation period (seed 004, NOTES §1.3);
+        without a complete period in the record, within the record."""
+        period = self.period_s
+        second = self.second_impact_time_s
+        return bool(not math.isnan(second) and (math.isnan(period) or second <= period))
+
+    @property
+    def energy_balance_error(self) -> float:
+        """max over the record of |E(t) - m1 g h| / (m1 g h), E = kinetic + potential + coupling
+        stored + dissipated + contact losses - screw work (all changes since the start)."""
+        e = self.energy_j
+        total = e["kinetic"] + e["potential"] + e["stored"] + e["dissipated"] + e["contact_loss"] - e["screw_work"]
+        supplied = self.test.drop_mass_kg * self.rig.gravity_m_per_s2 * self.test.drop_height_m
+        return float(np.max(np.abs(total - supplied)) / supplied)
+
+    def summary(self) -> dict[str, Any]:
+        """The figures of the test, every key with its unit (``--json`` of ``droptower simulate``)."""
+        first = self.contacts[0] if self.contacts else Contact(start_s=math.nan)
+        L = self.rig.lever_length_m
+        rate = first.lever_rate_after_rad_per_s
+        period = self.period_s
+        twist = self.pretwist_rad + self.angle_rad
+        p = self.predicted
+        return {
+            "inertia_kgm2": self.test.inertia_kgm2, "drop_mass_kg": self.test.drop_mass_kg,
+            "drop_height_m": self.test.drop_height_m, "preload_nm": self.test.preload_nm,
+            "repeat": self.test.repeat, "seed": self.test.seed, "restitution": self.rig.restitution,
+            "impact_velocity_m_per_s": first.approach_m_per_s,
+            "drop_mass_velocity_after_m_per_s": first.drop_mass_after_m_per_s,
+            "lever_tip_velocity_after_m_per_s": rate * L,
+            "lever_rate_after_rad_per_s": rate,
+            "predicted_drop_mass_velocity_after_m_per_s": float(p.drop_mass_after_m_per_s),
+            "predicted_lever_tip_velocity_after_m_per_s": float(p.lever_tip_after_m_per_s),
+            "effective_restitution": first.restitution,
+            "impact_energy_j": 0.5 * self.test.inertia_kgm2 * rate ** 2,
+            "predicted_impact_energy_j": float(p.impact_energy_j),
+            "impact_time_s": self.impact_time_s,
+            "impulse_ns": first.impulse_ns,
+            "contacts": len(self.contacts),
+            "contact_times_s": [c.start_s for c in self.contacts],
+            "double_impact": self.double_impact,
+            "second_impact_time_s": self.second_impact_time_s,
+            "period_s": period,
+            "frequency_hz": 1.0 / period if period > 0 else math.nan,
+            "pretwist_deg": math.degrees(self.pretwist_rad),
+            "max_angle_deg": math.degrees(float(np.max(self.angle_rad))),
+            "max_twist_deg": math.degrees(float(np.max(np.abs(twist)))),
+            "max_torque_nm": float(np.max(np.abs(self.coupling_torque_nm))),
+            "energy_balance_error": self.energy_balance_error,
+            "warnings": list(self.warnings),
+        }
+
+    # ---------------------------------------------------------------- sensors and log
+    def channels(self) -> Channels:
+        """The test sampled by the rig's sensors, with the noise of ``test.seed``."""
+        return sample(self.time_s, self.pretwist_rad + self.angle_rad, self.coupling_torque_nm,
+                      np.array([c.start_s for c in self.contacts]), np.array([c.impulse_ns for c in self.contacts]),
+                      self.rig.sensors, self.test.seed)
+
+    def metadata(self) -> dict[str, Any]:
+        """The log's metadata: what was tested, on which rig, and how it was sampled."""
+        t, rig = self.test, self.rig
+        return {
+            "source": "droptower simulate", "rig": rig.name, "coupling": self.coupling_name,
+            "inertia_kgm2": t.inertia_kgm2, "drop_mass_kg": t.drop_mass_kg, "drop_height_m": t.drop_height_m,
+            "preload_nm": t.preload_nm, "repeat": t.repeat, "seed": t.seed, "restitution": rig.restitution,
+            "sample_rate_hz": rig.sensors.sample_rate_hz, "pre_trigger_s": rig.sensors.pre_trigger_s,
+            "lever_length_m": rig.lever_length_m, "laser_radius_m": rig.sensors.laser.radius_m,
+            "pretwist_rad": self.pretwist_rad, "impact_time_s": self.impact_time_s,
+            "contacts": len(self.contacts), "double_impact": self.double_impact,
+        }
+
+    def write_log(self, path: str | Path) -> Path:
+        """Write the sampled test as a droptower log (``.csv`` or ``.parquet``)."""
+        ch = self.channels()
+        return write_log(path, ch.time_s, ch.columns(), self.metadata())
+
+
+# -------------------------------------------------------------------- running
+def as_tests(tests: Sequence[DropTest] | pd.DataFrame) -> list[DropTest]:
+    """Test conditions from a list or from a DataFrame with the columns of :meth:`DOE.tests`."""
+    if isinstance(tests, pd.DataFrame):
+        cols = ["inertia_kgm2", "drop_mass_kg", "drop_height_m"]
+        missing = [c for c in cols if c not in tests.columns]
+        if missing:
+            raise ValueError(f"test table lacks the columns {missing}")
+        return [DropTest(float(r.inertia_kgm2), float(r.drop_mass_kg), float(r.drop_height_m),
+                         float(getattr(r, "preload_nm", 0.0)), int(getattr(r, "repeat", 0)), int(getattr(r, "seed", 0)))
+                for r in tests.itertuples(index=False)]
+    return list(tests)
+
+
+def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.DataFrame,
+             duration_s: float = 0.25, workers: int = 1) -> list[DropResult]:
+    """Simulate drop tests, all in one batch (or split over ``workers`` processes); results in order.
+
+    duration_s: record length after the impact (the record starts ``pre_trigger_s`` before it).
+    """
+    tests = as_tests(tests)
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise DroptowerError(f"record duration must be positive, got {duration_s} s", where="duration_s")
+    for i, t in enumerate(tests):
+        rig.check_test(t.inertia_kgm2, t.drop_mass_kg, t.drop_height_m, t.preload_nm, where=f"test {i + 1}")
+    inertia = np.array([t.inertia_kgm2 for t in tests])
+    twist = pretwist(coupling, np.array([t.preload_nm for t in tests]), rig.simulation.preload_ramp_s,
+                     rig.simulation.preload_hold_s)
+    v1 = np.sqrt(2.0 * rig.gravity_m_per_s2 * np.array([t.drop_height_m for t in tests]))
+    rig.check_time_step(coupling, inertia, twist.angle_rad, v1)
+    if workers <= 1 or len(tests) < 2:
+        return _run_batch(rig, coupling, tests, duration_s, twist)
+    chunks = np.array_split(np.arange(len(tests)), min(workers, len(tests)))
+    # forked workers only step the coupling (serial kernels): everything that may run a numba
+    # parallel region (the preload) ran above, so no OpenMP pool is entered after the fork
+    with ProcessPoolExecutor(max_workers=len(chunks), mp_context=multiprocessing.get_context("fork")) as pool:
+        parts = pool.map(_run_batch, [rig] * len(chunks), [coupling] * len(chunks),
+                         [[tests[i] for i in c] for c in chunks], [duration_s] * len(chunks),
+                         [twist.take(c) for c in chunks])
+        return [r for part in parts for r in part]
+
+
+def _run_batch(rig: RigConfig, coupling: Coupling, tests: list[DropTest], duration_s: float,
+               twist: Pretwist) -> list[DropResult]:
+    g = rig.gravity_m_per_s2
+    inertia = np.array([t.inertia_kgm2 for t in tests])
+    mass = np.array([t.drop_mass_kg for t in tests])
+    height = np.array([t.drop_height_m for t in tests])
+    predicted = impact_velocities(mass, inertia, rig.lever_length_m, height, rig.restitution, g)
+    fs = rig.sensors.sample_rate_hz
+    t_pre = rig.sensors.pre_trigger_s
+    n_samples = int(round((t_pre + duration_s) * fs))
+    v1 = predicted.impact_m_per_s
+    v_start = v1 - g * t_pre  # free fall from the drop height reaches the impact point at t = 0
+    gap = v_start * t_pre + 0.5 * g * t_pre ** 2
+    scenes = DropTowerScenes(inertia_kgm2=inertia, drop_mass_kg=mass, gap_m=gap, start_velocity_m_per_s=v_start,
+                             lever_length_m=rig.lever_length_m, restitution=rig.restitution,
+                             striker_radius_m=rig.simulation.striker_radius_m, gravity_m_per_s2=g, dt_s=rig.dt_s,
+                             solver_iterations=rig.simulation.solver_iterations, t0_s=-t_pre)
+    energy_every = max(1, int(round(ENERGY_SAMPLE_S * fs)))
+    rec = scenes.run(coupling, twist.state, twist.angle_rad, twist.torque_nm, n_samples,
+                     rig.simulation.steps_per_sample, energy_every)
+    results = []
+    for i, test in enumerate(tests):
+        pred = ImpactVelocities(**{k: np.asarray(v)[i] for k, v in vars(predicted).items()})
+        energy = {"kinetic": rec.kinetic_j[i], "potential": rec.potential_j[i], "stored": rec.stored_j[i],
+                  "dissipated": rec.dissipated_j[i], "screw_work": rec.screw_work_j[i],
+                  "contact_loss": rec.contact_loss_j[i]}
+        result = DropResult(rig=rig, coupling_name=coupling.name, test=test, duration_s=duration_s,
+                            time_s=rec.time_s, angle_rad=rec.angle_rad[i], pretwist_rad=float(twist.angle_rad[i]),
+                            screw_torque_nm=float(twist.torque_nm[i]), coupling_torque_nm=rec.coupling_torque_nm[i],
+                            drop_mass_m=rec.drop_mass_m[i], energy_time_s=rec.energy_time_s, energy_j=energy,
+                            contacts=rec.contacts[i], predicted=pred)
+        result.warnings.extend(_warnings(result))
+        results.append(result)
+    return results
+
+
+def _warnings(result: DropResult) -> list[str]:
+    out = []
+    rig = result.rig
+    twist = np.max(np.abs(result.pretwist_rad + result.angle_rad))
+    if twist > rig.coupling_limit_rad:
+        out.append(f"twist {math.degrees(twist):.1f} deg exceeds the coupling limit {rig.coupling_limit_deg:g} deg")
+    torque = np.max(np.abs(result.coupling_torque_nm))
+    if torque > rig.sensors.torque.range_nm:
+        out.append(f"torque {torque:.0f} N*m beyond the torque sensor's range {rig.sensors.torque.range_nm:g} N*m")
+    duration = rig.sensors.impact_force.contact_duration_s
+    force = max((math.pi * c.impulse_ns / (2 * duration) for c in result.contacts), default=0.0)
+    if force > rig.sensors.impact_force.range_n:
+        out.append(f"impact force {force:.0f} N beyond the force sensor's range {rig.sensors.impact_force.range_n:g} N")
+    if not result.contacts:
+        out.append("the drop mass never hit the lever within the record")
+    if result.double_impact:
+        out.append(f"double impact {1e3 * result.second_impact_time_s:.2f} ms after the impact")
+    return out
