@@ -252,7 +252,13 @@ class Coupling:
                 total += float(np.sum(p[5:5 + n]))
             elif kern.code == K.VARIABLE_MAXWELL:
                 nk = int(p[3])
-                total += float(np.max(p[5 + nk:5 + 2 * nk]) * 2) if nk else p[0] + 2 * p[1] * x
+                xs, ys = p[K.VM_HEADER:K.VM_HEADER + nk], p[K.VM_HEADER + nk:K.VM_HEADER + 2 * nk]
+                if nk and p[5] > 0:  # force table: its steepest segment
+                    total += float(np.max(np.diff(ys) / np.diff(xs)))
+                elif nk:  # stiffness table: tangent k + k' e, bounded by twice the largest k
+                    total += 2.0 * float(np.max(ys))
+                else:
+                    total += p[0] + 2 * p[1] * x
             elif kern.code == K.PFEFFER:
                 k1, alpha, beta, gamma = p[:4]
                 total += k1 * (1 + alpha)

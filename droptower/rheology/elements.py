@@ -366,42 +366,80 @@ class Mullins(ElementSpec):
         return slow + [KernelElement(K.MAXWELL, np.array([dk, dk * self.tau]), 3)]
 
 
+class ForceTable(StrictModel):
+    """A static curve: force y (N*m) over deformation x (rad), rising, through (0, 0)."""
+
+    x: list[float]
+    y: list[float]
+
+    @model_validator(mode="after")
+    def _shape(self):
+        _strictly_increasing(self.x, "x")
+        if len(self.x) != len(self.y):
+            raise ValueError("x and y must have the same length")
+        if np.any(np.diff(self.y) <= 0):
+            raise ValueError("the force must rise with the deformation")
+        if not self.x[0] <= 0.0 <= self.x[-1] or abs(np.interp(0.0, self.x, self.y)) > 1e-9 * max(map(abs, self.y)):
+            raise ValueError("the curve must pass through deformation 0 with force 0")
+        return self
+
+
 class VariableMaxwell(ElementSpec):
     """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
 
-    Spring force (k0 + gain |e|) e, e the branch spring's own deformation (so the branch stays
-    passive), or k(e) e from ``stiffness_table`` (x in rad, y in N*m/rad); dashpot force
-    c(|v|) v with c from ``damping_table`` (x in rad/s, y in N*m*s/rad) or constant ``damping``.
-    The six-parameter model uses k0 + gain; the 20-parameter one uses the two 9-point tables.
+    The branch spring's force at its own deformation e (so the branch stays passive) is
+    (k0 + gain |e|) e; or k(e) e with k from ``stiffness_table`` (x in rad, y in N*m/rad; the
+    end values hold beyond the table); or ``force_table`` (x in rad, y in N*m): a static curve
+    in series with the dashpot, e.g. a softening curve that relaxes under a held preload. The
+    dashpot force is c(|v|) v with c from ``damping_table`` (x in rad/s, y in N*m*s/rad) or the
+    constant ``damping``. The six-parameter model uses k0 + gain; the 20-parameter one the two
+    9-point tables. Spring and dashpot forces must rise with deformation and rate.
     """
 
     kind: Literal["variable_maxwell"]
     stiffness: PositiveFloat | None = None       # N*m/rad (k0)
     stiffness_gain: NonNegativeFloat = 0.0       # N*m/rad^2
     stiffness_table: Table | None = None
+    force_table: ForceTable | None = None
     damping: PositiveFloat | None = None         # N*m*s/rad
     damping_table: Table | None = None
 
     @model_validator(mode="after")
     def _choice(self):
-        if (self.stiffness is None) == (self.stiffness_table is None):
-            raise ValueError("give exactly one of stiffness and stiffness_table")
+        if sum(v is not None for v in (self.stiffness, self.stiffness_table, self.force_table)) != 1:
+            raise ValueError("give exactly one of stiffness, stiffness_table and force_table")
         if (self.damping is None) == (self.damping_table is None):
             raise ValueError("give exactly one of damping and damping_table")
-        if self.damping_table is not None and self.damping_table.x[0] > 0:
-            raise ValueError("damping_table must start at rate 0")
+        if self.damping_table is not None:
+            if self.damping_table.x[0] != 0:
+                raise ValueError("damping_table must start at rate 0")
+            if not _rises(self.damping_table.x, self.damping_table.y):
+                raise ValueError("damping_table makes the dashpot force c(v) v fall with the rate")
+        if self.stiffness_table is not None and not _rises(self.stiffness_table.x, self.stiffness_table.y):
+            raise ValueError("stiffness_table makes the spring force k(e) e fall with the deformation")
         return self
 
     def compile(self):
-        kt, ct = self.stiffness_table, self.damping_table
-        nk = len(kt.x) if kt else 0
+        table = self.stiffness_table or self.force_table
+        ct = self.damping_table
+        nk = len(table.x) if table else 0
         nc = len(ct.x) if ct else 0
-        params = [self.stiffness or 0.0, self.stiffness_gain, self.damping or 0.0, nk, nc]
-        if kt:
-            params += list(kt.x) + list(kt.y)
+        params = [self.stiffness or 0.0, self.stiffness_gain, self.damping or 0.0, nk, nc,
+                  1.0 if self.force_table else 0.0]
+        if table:
+            params += list(table.x) + list(table.y)
         if ct:
             params += list(ct.x) + list(ct.y)
         return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float), 1)]
+
+
+def _rises(x: list[float], coefficient: list[float]) -> bool:
+    """Whether coefficient(x) * x, with the coefficient linear between knots and constant
+    beyond them, rises with x (checked densely on every segment)."""
+    xs = np.asarray(x, float)
+    grid = np.unique(np.concatenate([np.linspace(a, b, 64) for a, b in zip(xs[:-1], xs[1:])]))
+    force = np.interp(grid, xs, coefficient) * grid
+    return bool(np.all(np.diff(force) > 0))
 
 
 # ------------------------------------------------------------------ seed 002

@@ -299,10 +299,28 @@ def slider_bank(p, po, s, so, x0, x1, h):
 
 
 @njit(**JIT)
+def _clamped(x, xs, ys, n):
+    """Lookup-table value at x: linear between the knots, the end values beyond them."""
+    if x <= xs[0]:
+        return ys[0]
+    if x >= xs[n - 1]:
+        return ys[n - 1]
+    return _interp(x, xs, ys, n)
+
+
+VM_HEADER = 6  # k0, gain, c0, n_k, n_c, force_mode
+
+
+@njit(**JIT)
 def _vm_spring(e, p, nk):
-    """Spring force of the variable Maxwell branch: (k0 + g|e|) e, or k(e) e from a table."""
+    """Spring force of the variable Maxwell branch at its deformation e: (k0 + g|e|) e; or
+    k(e) e with k from the stiffness table; or, in force mode, the force table f(e) itself."""
     if nk > 0:
-        return _interp(e, p[5:5 + nk], p[5 + nk:5 + 2 * nk], nk) * e
+        xs = p[VM_HEADER:VM_HEADER + nk]
+        ys = p[VM_HEADER + nk:VM_HEADER + 2 * nk]
+        if p[5] > 0.0:
+            return _interp(e, xs, ys, nk)
+        return _clamped(e, xs, ys, nk) * e
     return (p[0] + p[1] * abs(e)) * e
 
 
@@ -310,8 +328,8 @@ def _vm_spring(e, p, nk):
 def _vm_energy(e, p, nk):
     """Stored energy of the variable Maxwell spring: integral of its force from 0 to e."""
     if nk > 0:
-        # k(u) u is quadratic between knots: Simpson per segment is exact
-        xs = p[5:5 + nk]
+        # the force is at most quadratic between knots: Simpson per segment is exact
+        xs = p[VM_HEADER:VM_HEADER + nk]
         lo = min(0.0, e)
         hi = max(0.0, e)
         total = 0.0
@@ -331,10 +349,10 @@ def _vm_energy(e, p, nk):
 
 @njit(**JIT)
 def _vm_dashpot(v, p, nk, nc):
-    """Dashpot force c(|v|) v, with c from a table over the rate or constant c0."""
+    """Dashpot force c(|v|) v, with c from a table over the rate (end value beyond it) or c0."""
     if nc > 0:
-        off = 5 + 2 * nk
-        return _interp(abs(v), p[off:off + nc], p[off + nc:off + 2 * nc], nc) * v
+        off = VM_HEADER + 2 * nk
+        return _clamped(abs(v), p[off:off + nc], p[off + nc:off + 2 * nc], nc) * v
     return p[2] * v
 
 
@@ -342,9 +360,10 @@ def _vm_dashpot(v, p, nk, nc):
 def variable_maxwell(p, po, s, so, x0, x1, h):
     """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
 
-    params: [k0, g, c0, nk, nc, ek_1..ek_nk, k_1..k_nk, v_1..v_nc, c_1..c_nc]
+    params: [k0, g, c0, nk, nc, force_mode, e_1..e_nk, k_1..k_nk (or f_1..f_nk), v_1..v_nc, c_1..c_nc]
     The spring force is f(e) = (k0 + g|e|) e (the six-parameter model's K3 linear in
-    deformation) or k(e) e from a lookup table; the dashpot force is c(|v|) v. Backward Euler:
+    deformation), k(e) e from a stiffness lookup table, or f(e) from a force table (a static
+    curve in series with the dashpot); the dashpot force is c(|v|) v. Backward Euler:
     f(e1) = d((x1 - x0 - (e1 - e0)) / h); the residual is increasing in e1 and changes sign
     between 0 and e0 + dx, so a safeguarded Newton/bisection always converges.
     """

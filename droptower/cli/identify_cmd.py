@@ -1,0 +1,187 @@
+"""``droptower identify`` and ``droptower compare-models``: coupling models from torque-angle data.
+
+DATA are imposed-angle / measured-torque records in any format the readers take (channels
+found by name or given with ``--channel ROLE=NAME[:UNIT]``, roles ``time``, ``angle``,
+``torque``). ``--params INIT.toml`` holds up to three tables::
+
+    [initial]                 # starting values, by parameter name (see the report)
+    k1_nm_per_rad = 8000.0
+    [bounds]                  # [lower, upper]
+    tau2_s = [0.5, 100.0]
+    [options]                 # family options, and max_nfev, skip_s
+    tau_split_s = 0.1
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+from pydantic import Field
+
+from droptower.errors import DroptowerError
+from droptower.validation import StrictModel, validate
+
+
+class InitFile(StrictModel):
+    """Layout of ``--params INIT.toml``."""
+
+    initial: dict[str, float] = Field(default_factory=dict)
+    bounds: dict[str, tuple[float, float]] = Field(default_factory=dict)
+    options: dict[str, Any] = Field(default_factory=dict)
+
+
+def _read_init(path: str | None) -> InitFile:
+    if path is None:
+        return InitFile()
+    from droptower.configs import read_toml
+
+    return validate(InitFile, read_toml(path), path)
+
+
+def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float):
+    from droptower.identify.data import segments_from_files
+    from droptower.io import parse_channel_options
+
+    roles = parse_channel_options(channels)
+    unknown = set(roles) - {"time", "angle", "torque"}
+    if unknown:
+        raise DroptowerError(f"--channel: identification uses the roles time, angle and torque, not {', '.join(sorted(unknown))}")
+    return segments_from_files(paths, roles, skip_s=skip_s)
+
+
+def _write_coupling(result, out: str, sources: list[str]) -> None:
+    from droptower.rheology import coupling_to_toml, load_coupling
+
+    c = result.coupling
+    quality = f"nRMSE {100 * result.fit.nrmse:.2f} % on the fitting data"
+    if result.holdout:
+        quality += f", {100 * result.holdout.nrmse:.2f} % on hold-out data"
+    c.description = f"{c.description}. Identified by droptower identify --model {result.family} ({quality}). " \
+                    f"{result.coupling_note}".strip()
+    c.source = f"{c.source}; identified from {', '.join(sources)}"
+    path = Path(out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(coupling_to_toml(c))
+    load_coupling(path)  # what is written must read back
+
+
+@click.command()
+@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--model", "kind", required=True,
+              help="Model family: zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay.")
+@click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="Channel for a role (time, angle, torque); repeatable.")
+@click.option("--params", "params_path", type=click.Path(dir_okay=False),
+              help="TOML with [initial], [bounds], [options] (see below).")
+@click.option("--holdout", type=click.Path(dir_okay=False), help="Record kept out of the fit, for the hold-out RMSE.")
+@click.option("--out", type=click.Path(dir_okay=False), help="Write the identified coupling (TOML) here.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False), help="Write torque and loop plots to this folder.")
+def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params_path: str | None,
+             holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None) -> None:
+    """Identify a coupling model of family --model from imposed-angle / measured-torque DATA.
+
+    Bounded trust-region-reflective least squares on the torque error, preceded by the
+    family's staged strategy (seeds 000-004). Reports the parameters with standard errors,
+    parameters on a bound, the RMSE normalised by the largest |torque| on the fitting and the
+    hold-out data, the residual's lag-1 correlation and the effort. A fit that does not
+    converge is reported and nothing is written (exit code 2).
+
+    --params INIT.toml (parameter names as in the report):
+
+    \b
+      [initial]                   # starting values
+      k1_nm_per_rad = 8000.0
+      [bounds]                    # [lower, upper]
+      tau2_s = [0.5, 100.0]
+      [options]                   # family options; every family: max_nfev, skip_s, substeps
+      tau_split_s = 0.1
+    """
+    from droptower.identify.families import family_class
+    from droptower.identify.report import plot_identification, result_dict, result_text
+    from droptower.identify.strategies import identify as run
+
+    family_class(kind)  # an unknown kind fails before any file is read
+    init = _read_init(params_path)
+    skip_s = float(init.options.get("skip_s", 0.0))
+    segments = _read_data(data, channels, skip_s)
+    held = _read_data((holdout,), channels, skip_s) if holdout else None
+    result = run(kind, segments, init=init.initial, bounds=init.bounds, options=init.options, holdout=held,
+                 file=params_path)
+    click.echo(json.dumps(result_dict(result), indent=1) if as_json else result_text(result))
+    if plot_dir:
+        for path in plot_identification(result, segments, plot_dir, held):
+            click.echo(f"plot: {path}", err=True)
+    if not result.converged:
+        bad = next(s for s in result.stages if not s.converged)
+        raise DroptowerError(f"model {kind}: the fit did not converge (stage '{bad.stage}': {bad.message}); "
+                             f"no coupling written", where=None)
+    if out:
+        _write_coupling(result, out, [Path(p).name for p in data])
+        click.echo(f"coupling: {out}", err=True)
+
+
+@click.command()
+@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="Channel for a role (time, angle, torque); repeatable.")
+@click.option("--holdout", type=click.Path(dir_okay=False), help="Record kept out of the fits; ranks the models.")
+@click.option("--models", default="zerodim6,zerodim20,elastoslide,pfeffer,masing,overlay", show_default=True,
+              help="Families to fit, comma-separated.")
+@click.option("--json", "as_json", is_flag=True, help="Print the tables as JSON.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False),
+              help="Write the RMSE bars (seed 000 Fig. 8) and the overlaid loops to this folder.")
+def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str,
+                   as_json: bool, plot_dir: str | None) -> None:
+    """Fit every model family on the same DATA and rank them.
+
+    Prints a ranking (parameters, nRMSE on the fitting and hold-out data, fit time) and
+    seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
+    relative to the worst model on that record). Families that fail or do not converge are
+    listed on stderr; the exit code is then 1.
+    """
+    from droptower.identify.families import family_class
+    from droptower.identify.report import plot_comparison, ranking_table, record_table
+    from droptower.identify.strategies import identify as run
+
+    kinds = [k.strip() for k in models.split(",") if k.strip()]
+    for kind in kinds:
+        family_class(kind)
+    segments = _read_data(data, channels, 0.0)
+    held = _read_data((holdout,), channels, 0.0) if holdout else None
+    results, failures = {}, []
+    for kind in kinds:
+        start = time.perf_counter()
+        try:
+            r = run(kind, segments, holdout=held, previous=results)
+        except DroptowerError as exc:
+            failures.append(f"{kind}: {exc.message}")
+            continue
+        r.time_s = time.perf_counter() - start
+        results[kind] = r
+        if not r.converged:
+            failures.append(f"{kind}: the fit did not converge")
+    ranking = ranking_table(results)
+    records = record_table(results, segments + (held or []))
+    if as_json:
+        click.echo(json.dumps({"ranking": json.loads(ranking.to_json(orient="records")),
+                               "records": json.loads(records.to_json(orient="records"))}, indent=1))
+    else:
+        click.echo("ranking (nRMSE: RMSE in % of the largest |torque|):")
+        click.echo(ranking.to_string(float_format=lambda v: f"{v:.3f}"))
+        click.echo("\nper record (seed 000 Fig. 8): nRMSE % / RMSE relative to the worst model")
+        if not records.empty:
+            pct = records.pivot(index="record", columns="model", values="nrmse_percent")
+            rel = records.pivot(index="record", columns="model", values="rmse_over_max_rmse")
+            click.echo(pct.round(3).astype(str).add(" / ").add(rel.round(2).astype(str)).to_string())
+    if plot_dir and results:
+        loop_segment = (held or segments)[0]
+        for path in plot_comparison(results, records, loop_segment, plot_dir):
+            click.echo(f"plot: {path}", err=True)
+    if failures:
+        for line in failures:
+            click.echo(f"droptower: failed: {line}", err=True)
+        raise click.exceptions.Exit(1)

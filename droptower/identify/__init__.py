@@ -1,0 +1,23 @@
+"""Identification of the source papers' coupling models from imposed-angle / measured-torque data.
+
+- :mod:`.data`: records -> :class:`Segment` (SI, constant step, checked);
+- :mod:`.cycles`: turning points, steady sine blocks, their lab evaluation;
+- :mod:`.families`: the model families (parameters, bounds, couplings, batches);
+- :mod:`.fit`: bounded trust-region-reflective least squares with batched Jacobians;
+- :mod:`.strategies`: each family's staged identification (:func:`identify`);
+- :mod:`.report`: JSON / text reports, comparison tables, plots.
+
+Example::
+
+    from droptower.identify import identify, segments_from_files
+    data = segments_from_files(["sweep.csv", "ramps.csv"])
+    result = identify("zerodim6", data, holdout=segments_from_files(["random.csv"]))
+    print(result.parameters, result.fit.nrmse, result.holdout.nrmse)
+"""
+from droptower.identify.data import Segment, make_segment, segments_from_files
+from droptower.identify.families import FAMILIES
+from droptower.identify.fit import FitResult, Identification, Metrics
+from droptower.identify.strategies import identify
+
+__all__ = ["FAMILIES", "FitResult", "Identification", "Metrics", "Segment", "identify", "make_segment",
+           "segments_from_files"]

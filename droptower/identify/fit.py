@@ -1,0 +1,372 @@
+"""Bounded nonlinear least squares on the torque error under imposed angle histories.
+
+The optimiser is SciPy's trust-region-reflective method (seed 000 used MATLAB's TRF). Every
+parameter is optimised in a normalised variable (its logarithm, or its value over a scale)
+so that one trust region suits them all. The Jacobian is a forward difference whose columns
+are all simulated in ONE call of the core: the perturbed parameter sets are stacked on the
+core's batch axis (:meth:`Coupling.stack`), together with every segment of the data, and the
+core's parallel loop runs them at once.
+
+Quality is reported as seed 000 does: the RMSE of the torque normalised by the largest
+measured |torque| (``nrmse``), on the fitting data and on held-out data.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from droptower.errors import DroptowerError
+from droptower.identify.data import Segment
+from droptower.rheology import Coupling
+
+
+#: Histories up to this factor longer than the shortest of a call share it (padding waste).
+PAD_FACTOR = 1.5
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One model parameter: name (with its unit as suffix), bounds, and how it is optimised.
+
+    log: optimised as ln(value) (positive parameters spanning decades; lower > 0); otherwise
+    as value / scale (parameters that may be 0).
+    """
+
+    name: str
+    lower: float
+    upper: float
+    log: bool = True
+    scale: float = 1.0
+
+    def to_z(self, value: float) -> float:
+        return float(np.log(value)) if self.log else value / self.scale
+
+    def to_value(self, z: float) -> float:
+        return float(np.exp(z)) if self.log else z * self.scale
+
+    def dvalue_dz(self, value: float) -> float:
+        return value if self.log else self.scale
+
+    def z_bounds(self) -> tuple[float, float]:
+        return self.to_z(self.lower), self.to_z(self.upper)
+
+
+class Model(Protocol):
+    """What the fitting engine needs of a model family."""
+
+    parameters: list[Parameter]
+
+    def batch(self, values: np.ndarray) -> Coupling:
+        """One coupling whose parameter sets are the rows of ``values`` (M, n)."""
+
+
+@dataclass
+class Counter:
+    """Model evaluations: parameter sets simulated over their data, and calls of the core."""
+
+    evaluations: int = 0
+    core_calls: int = 0
+
+
+def simulate_rows(model: Model, values: np.ndarray, segments: list[Segment], which: np.ndarray,
+                  counter: Counter | None = None, evaluations: int | None = None) -> list[np.ndarray]:
+    """Torque of parameter set ``values[r]`` on segment ``segments[which[r]]`` for every row r.
+
+    Rows sharing a time step and of similar length go to the core in one batched call
+    (shorter histories are padded by holding their last angle). A model with ``substeps`` > 1
+    is integrated on a step that many times finer (the angle linear between samples, as the
+    core assumes anyway), so that its parameters do not absorb the discretisation of the
+    data's sample rate. Returns one (N_s,) array per row.
+    """
+    values = np.atleast_2d(np.asarray(values, dtype=float))
+    which = np.asarray(which, dtype=np.int64)
+    substeps = int(getattr(model, "substeps", 1))
+    unique, inverse = np.unique(values, axis=0, return_inverse=True)
+    coupling = model.batch(unique)
+    params = coupling.params[np.ravel(inverse)] if coupling.n_sets > 1 else np.repeat(coupling.params, len(which), 0)
+    out: list[np.ndarray | None] = [None] * len(which)
+    lengths = np.array([segments[s].n for s in which])
+    for dt in sorted({segments[s].dt_s for s in which}):
+        rows = np.flatnonzero([segments[s].dt_s == dt for s in which])
+        rows = rows[np.argsort(lengths[rows], kind="stable")]
+        # rows of similar length share a call: padding costs at most PAD_FACTOR - 1
+        groups, first = [], 0
+        for i in range(1, rows.size + 1):
+            if i == rows.size or lengths[rows[i]] > PAD_FACTOR * lengths[rows[first]]:
+                groups.append(rows[first:i])
+                first = i
+        for group in groups:
+            n_max = int(lengths[group].max())
+            angles = np.empty((group.size, n_max))
+            for i, r in enumerate(group):
+                a = segments[which[r]].angle_rad
+                angles[i, :a.size] = a
+                angles[i, a.size:] = a[-1]
+            if substeps > 1:  # the same piecewise-linear angle, integrated on a finer step
+                fine = np.arange(1, n_max * substeps + 1) / substeps - 1.0
+                angles = np.array([np.interp(fine, np.arange(n_max), row, left=0.0) for row in angles])
+            batch = Coupling(coupling.elements, name=coupling.name, params=params[group])
+            torque = batch.simulate(angles, dt / substeps).torque_nm[:, substeps - 1::substeps]
+            for i, r in enumerate(group):
+                out[r] = torque[i, :lengths[r]]
+            if counter is not None:
+                counter.core_calls += 1
+    if counter is not None:
+        counter.evaluations += values.shape[0] if evaluations is None else evaluations
+    return out  # type: ignore[return-value]
+
+
+def simulate(model: Model, values: np.ndarray, segments: list[Segment], counter: Counter | None = None
+             ) -> list[list[np.ndarray]]:
+    """Torque of each parameter set (rows of ``values``) on every segment: out[m][s] (N_s,)."""
+    values = np.atleast_2d(values)
+    m, s = values.shape[0], len(segments)
+    # one evaluation = one parameter set over all the data
+    flat = simulate_rows(model, np.repeat(values, s, axis=0), segments, np.tile(np.arange(s), m), counter, m)
+    return [flat[i * s:(i + 1) * s] for i in range(m)]
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Torque error of a model on some data.
+
+    rmse_nm: root mean square of (model - measured) over the compared samples;
+    nrmse: rmse_nm / max |measured torque| (seed 000's measure, a fraction, not percent);
+    residual_lag1: lag-1 autocorrelation of the residual (near 0: white, the model explains
+    all structure; near 1: systematic misfit or strongly coloured noise); n_samples.
+    """
+
+    rmse_nm: float
+    nrmse: float
+    residual_lag1: float
+    n_samples: int
+    max_torque_nm: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {"rmse_nm": self.rmse_nm, "nrmse": self.nrmse, "nrmse_percent": 100.0 * self.nrmse,
+                "residual_lag1": self.residual_lag1, "n_samples": self.n_samples,
+                "max_torque_nm": self.max_torque_nm}
+
+
+def metrics(segments: list[Segment], predictions: list[np.ndarray]) -> Metrics:
+    """Error of ``predictions`` (one (N_s,) array per segment) against the segments' torque."""
+    sq = 0.0
+    num = 0.0
+    n = 0
+    peak = 0.0
+    for seg, pred in zip(segments, predictions):
+        ok = seg.compared
+        r = np.where(ok, pred - np.where(ok, seg.torque_nm, 0.0), 0.0)
+        sq += float(np.sum(r ** 2))
+        num += float(np.sum((r[:-1] * r[1:])[ok[:-1] & ok[1:]]))
+        n += int(ok.sum())
+        peak = max(peak, float(np.max(np.abs(seg.torque_nm[ok]))))
+    rmse = float(np.sqrt(sq / max(n, 1)))
+    return Metrics(rmse, rmse / peak if peak > 0 else float("nan"), num / sq if sq > 0 else 0.0, n, peak)
+
+
+@dataclass
+class FitResult:
+    """One least-squares fit.
+
+    values: all parameter values; free: which were fitted; std_error: standard errors of the
+    fitted ones from the Jacobian (s^2 (J'J)^-1), inflated by sqrt((1 + r1)/(1 - r1)) for the
+    residual's lag-1 autocorrelation r1 (an AR(1) effective sample size), NaN for fixed ones;
+    at_bounds: names of fitted parameters that ended on a bound; metrics: on the fitting data;
+    nfev, njev: optimiser function and Jacobian evaluations; evaluations: parameter sets
+    simulated over the data (a Jacobian of n columns counts n); converged: the optimiser met a
+    tolerance (not the evaluation limit); message: the optimiser's word.
+    """
+
+    stage: str
+    names: list[str]
+    values: np.ndarray
+    free: np.ndarray
+    std_error: np.ndarray
+    at_bounds: list[str]
+    metrics: Metrics
+    nfev: int
+    njev: int
+    evaluations: int
+    core_calls: int
+    time_s: float
+    converged: bool
+    message: str
+
+    def params(self) -> dict[str, float]:
+        return dict(zip(self.names, map(float, self.values)))
+
+    def summary(self) -> dict:
+        return {"stage": self.stage, "free": [n for n, f in zip(self.names, self.free) if f],
+                "nrmse": self.metrics.nrmse, "nfev": self.nfev, "njev": self.njev,
+                "evaluations": self.evaluations, "time_s": self.time_s, "converged": self.converged,
+                "message": self.message}
+
+
+def check_in_bounds(parameters: list[Parameter], values: np.ndarray, file: str | None = None) -> None:
+    """A one-line error for the first value outside its parameter's bounds."""
+    for p, v in zip(parameters, values):
+        if not (np.isfinite(v) and p.lower <= v <= p.upper):
+            raise DroptowerError(f"initial value {p.name} = {v:g} is outside its bounds [{p.lower:g}, {p.upper:g}]",
+                                 file=file)
+
+
+def clip_to_bounds(parameters: list[Parameter], values: np.ndarray) -> np.ndarray:
+    """Data-driven guesses pulled strictly inside the bounds (TRF starts from an interior point)."""
+    out = np.array(values, dtype=float)
+    for i, p in enumerate(parameters):
+        lo, hi = p.z_bounds()
+        margin = 1e-6 * (hi - lo)
+        z = p.to_z(min(max(out[i], p.lower), p.upper))
+        out[i] = p.to_value(float(np.clip(z, lo + margin, hi - margin)))
+    return out
+
+
+def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray, *, free: np.ndarray | None = None,
+                      stage: str = "joint", max_nfev: int | None = None, tol: float = 1e-7,
+                      per_segment: np.ndarray | None = None) -> FitResult:
+    """Fit the free parameters of ``model`` to ``segments`` from ``initial`` (physical values).
+
+    Trust-region reflective least squares on the sum over segments of (model - measured)^2
+    over the compared samples. The Jacobian's columns go to the core in one batched call.
+    ``per_segment`` (S, n): each segment's own values of the fixed parameters (seed 003's
+    amplitude-dependent parameters while its frequency-dependent ones are fitted); the free
+    ones are shared. ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
+    optimiser's function evaluations; reaching it means "not converged".
+    """
+    params = model.parameters
+    x_all = np.asarray(initial, dtype=float).copy()
+    free = np.ones(len(params), bool) if free is None else np.asarray(free, bool)
+    idx = np.flatnonzero(free)
+    if idx.size == 0:
+        raise ValueError("no free parameter")
+    counter = Counter()
+    start = time.perf_counter()
+    masks = [s.compared for s in segments]
+    meas = [s.torque_nm[m] for s, m in zip(segments, masks)]
+    n_seg = len(segments)
+    base = np.tile(x_all, (n_seg, 1)) if per_segment is None else np.array(per_segment, dtype=float)
+    lo, hi = np.array([params[i].z_bounds() for i in idx]).T
+
+    def values_of(z: np.ndarray) -> np.ndarray:
+        v = x_all.copy()
+        v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z)]
+        return v
+
+    def torques(rows: np.ndarray) -> list[list[np.ndarray]]:
+        """Torque of each parameter set ``rows`` (M, n) on every segment, one core call."""
+        values = np.repeat(base[None, :, :], rows.shape[0], axis=0)  # (M, S, n)
+        values[:, :, idx] = rows[:, None, idx]
+        flat = simulate_rows(model, values.reshape(-1, len(params)), segments, np.tile(np.arange(n_seg), rows.shape[0]),
+                             counter, rows.shape[0])
+        return [flat[i * n_seg:(i + 1) * n_seg] for i in range(rows.shape[0])]
+
+    def residuals(rows: np.ndarray) -> np.ndarray:
+        """(M, R) residual vectors of the parameter sets ``rows`` (M, n)."""
+        r = np.array([np.concatenate([t[m] - y for t, m, y in zip(per_set, masks, meas)]) for per_set in torques(rows)])
+        return np.where(np.isfinite(r), r, 1e30)  # a failed simulation is a terrible candidate
+
+    cache: dict[bytes, np.ndarray] = {}
+
+    def fun(z: np.ndarray) -> np.ndarray:
+        key = z.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = residuals(values_of(z)[None, :])[0]
+        return cache[key]
+
+    def jac(z: np.ndarray) -> np.ndarray:
+        r0 = fun(z)
+        h = 1e-6 * (1.0 + np.abs(z))
+        h = np.where(z + h > hi, -h, h)  # step inward at an upper bound
+        rows = np.array([values_of(z + h[j] * np.eye(z.size)[j]) for j in range(z.size)])
+        rj = residuals(rows)
+        return ((rj - r0) / h[:, None]).T
+
+    z0 = np.array([params[i].to_z(x_all[i]) for i in idx])
+    res = least_squares(fun, z0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, ftol=tol, xtol=tol,
+                        gtol=tol * 1e-2, max_nfev=int(max_nfev or 20 * idx.size + 20))
+    values = values_of(res.x)
+    r = fun(res.x)
+    m = metrics(segments, torques(values[None, :])[0])
+    std = np.full(len(params), np.nan)
+    dof = r.size - idx.size
+    if dof > 0:
+        s2 = float(r @ r) / dof
+        rho = min(max(m.residual_lag1, 0.0), 0.99)
+        cov = s2 * np.linalg.pinv(res.jac.T @ res.jac) * (1.0 + rho) / (1.0 - rho)
+        sz = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        std[idx] = [params[i].dvalue_dz(values[i]) * s for i, s in zip(idx, sz)]
+    at_bounds = [params[i].name for i, a in zip(idx, res.active_mask) if a != 0]
+    return FitResult(stage, [p.name for p in params], values, free, std, at_bounds, m, int(res.nfev),
+                     int(res.njev or 0), counter.evaluations, counter.core_calls, time.perf_counter() - start,
+                     bool(res.status > 0), str(res.message))
+
+
+def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
+                 counter: Counter | None = None) -> tuple[int, np.ndarray]:
+    """Sum of squared torque errors of every candidate parameter set (rows), in one core call.
+
+    Returns the index of the best candidate and all the costs.
+    """
+    torques = simulate(model, candidates, segments, counter)
+    costs = np.array([sum(float(np.nansum((t - s.torque_nm)[s.compared] ** 2)) for t, s in zip(per, segments))
+                      for per in torques])
+    costs = np.where(np.isfinite(costs), costs, np.inf)
+    return int(np.argmin(costs)), costs
+
+
+Predictor = Callable[[list[Segment]], list[np.ndarray]]
+
+
+@dataclass
+class Identification:
+    """The result of identifying one model family.
+
+    family: the family's name; parameters: the identified values (name with unit -> value);
+    std_error: their standard errors (NaN where not estimated); derived: quantities computed
+    from them (e.g. dashpot coefficients from relaxation times); at_bounds: parameters on a
+    bound; stages: one :class:`FitResult` summary per stage; fit / holdout: :class:`Metrics`;
+    coupling: the single coupling written by ``--out``; coupling_note: what that coupling
+    represents when the model's parameters depend on amplitude or frequency; extra: the
+    family's report (analytic identification, parameter functions, ...); converged: every
+    least-squares stage converged; predict: the model's torque on other segments.
+    """
+
+    family: str
+    parameters: dict[str, float]
+    std_error: dict[str, float]
+    at_bounds: list[str]
+    stages: list[FitResult]
+    fit: Metrics
+    coupling: Coupling
+    predict: Predictor = field(repr=False)
+    derived: dict[str, float] = field(default_factory=dict)
+    coupling_note: str = ""
+    extra: dict = field(default_factory=dict)
+    holdout: Metrics | None = None
+    time_s: float = 0.0
+
+    @property
+    def converged(self) -> bool:
+        return all(s.converged for s in self.stages)
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.parameters)
+
+    @property
+    def evaluations(self) -> int:
+        return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0))
+
+    @property
+    def nfev(self) -> int:
+        return sum(s.nfev for s in self.stages)
+
+    def evaluate_holdout(self, segments: list[Segment]) -> Metrics:
+        self.holdout = metrics(segments, self.predict(segments))
+        return self.holdout

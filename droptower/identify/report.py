@@ -1,0 +1,217 @@
+"""Reports of identifications: dictionaries (JSON), text, comparison tables and plots.
+
+Every field carries its unit in its name; RMSE values are given as the fraction ``nrmse`` and
+as ``nrmse_percent`` of the largest measured |torque| (seed 000's measure).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from droptower.identify.data import Segment
+from droptower.identify.fit import Identification, metrics
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe: numpy scalars and arrays to Python, NaN/inf to None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def result_dict(ident: Identification) -> dict[str, Any]:
+    """Everything an identification reports, JSON-ready."""
+    return _clean({
+        "model": ident.family,
+        "converged": ident.converged,
+        "n_parameters": ident.n_parameters,
+        "parameters": {n: {"value": v, "std_error": ident.std_error.get(n)} for n, v in ident.parameters.items()},
+        "derived": ident.derived,
+        "at_bounds": ident.at_bounds,
+        "fit": ident.fit.as_dict(),
+        "holdout": ident.holdout.as_dict() if ident.holdout else None,
+        "evaluations": ident.evaluations,
+        "nfev": ident.nfev,
+        "time_s": ident.time_s,
+        "stages": [s.summary() for s in ident.stages],
+        "coupling_note": ident.coupling_note,
+        "details": ident.extra,
+    })
+
+
+def result_text(ident: Identification) -> str:
+    """A human-readable report of one identification."""
+    lines = [f"model {ident.family}: {ident.n_parameters} parameters, "
+             f"{'converged' if ident.converged else 'NOT CONVERGED'}"]
+    width = max(len(n) for n in list(ident.parameters) + list(ident.derived) + ["x"])
+    for name, value in ident.parameters.items():
+        std = ident.std_error.get(name, float("nan"))
+        flag = "  (at bound)" if name in ident.at_bounds else ""
+        unc = f" +- {std:.3g}" if math.isfinite(std) else ""
+        lines.append(f"  {name:<{width}} = {value:.6g}{unc}{flag}")
+    for name, value in ident.derived.items():
+        lines.append(f"  {name:<{width}} = {float(value):.6g}  (derived)")
+    lines.append(f"fit:     nRMSE {100 * ident.fit.nrmse:.3f} % of max |torque| {ident.fit.max_torque_nm:.4g} N*m "
+                 f"(RMSE {ident.fit.rmse_nm:.4g} N*m), residual lag-1 correlation {ident.fit.residual_lag1:.3f}")
+    if ident.holdout:
+        h = ident.holdout
+        lines.append(f"holdout: nRMSE {100 * h.nrmse:.3f} % of max |torque| {h.max_torque_nm:.4g} N*m "
+                     f"(RMSE {h.rmse_nm:.4g} N*m), residual lag-1 correlation {h.residual_lag1:.3f}")
+    lines.append(f"effort:  {ident.evaluations} model evaluations, {ident.nfev} optimiser steps, "
+                 f"{ident.time_s:.2f} s")
+    for s in ident.stages:
+        lines.append(f"  stage {s.stage}: nRMSE {100 * s.metrics.nrmse:.3f} %, {s.nfev} steps, "
+                     f"{s.evaluations} evaluations, {s.time_s:.2f} s, "
+                     f"{'converged' if s.converged else 'not converged: ' + s.message}")
+    if ident.coupling_note:
+        lines.append(f"coupling: {ident.coupling_note}")
+    for key in ("analytic", "loading_curve", "p_walk", "amplitude_functions", "frequency_functions"):
+        if key in ident.extra:
+            lines.append(f"{key.replace('_', ' ')}: {_brief(ident.extra[key])}")
+    return "\n".join(lines)
+
+
+def _brief(value: Any) -> str:
+    if isinstance(value, dict):
+        return "; ".join(f"{k} {_brief(v)}" for k, v in value.items())
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.4g}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_brief(v) for v in value) + "]"
+    return str(value)
+
+
+# ---------------------------------------------------------------------------- comparison
+def ranking_table(results: dict[str, Identification]) -> pd.DataFrame:
+    """One row per family, best first (hold-out nRMSE if there is one, else fit nRMSE;
+    non-converged fits last)."""
+    rows = []
+    for kind, r in results.items():
+        rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
+                     "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
+                     "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
+    table = pd.DataFrame(rows)
+    if table.empty:
+        return table
+    key = "holdout_nrmse_percent" if table["holdout_nrmse_percent"].notna().any() else "fit_nrmse_percent"
+    table["_rank"] = ~table["converged"]
+    table = table.sort_values(["_rank", key]).drop(columns="_rank").reset_index(drop=True)
+    table.index = table.index + 1
+    return table
+
+
+def record_table(results: dict[str, Identification], segments: list[Segment]) -> pd.DataFrame:
+    """Seed 000 Fig. 8 as a table: per record and model, the RMSE as percent of the largest
+    |torque| of all records (8b) and relative to the largest RMSE of that record over the
+    models (8a)."""
+    peak = max(float(np.nanmax(np.abs(s.torque_nm))) for s in segments)
+    rows = []
+    for kind, r in results.items():
+        predictions = r.predict(segments)
+        for seg, pred in zip(segments, predictions):
+            m = metrics([seg], [pred])
+            rows.append({"record": seg.name, "model": kind, "rmse_nm": m.rmse_nm, "nrmse_percent": 100 * m.rmse_nm / peak})
+    table = pd.DataFrame(rows)
+    if not table.empty:
+        table["rmse_over_max_rmse"] = table["rmse_nm"] / table.groupby("record")["rmse_nm"].transform("max")
+    return table
+
+
+# ---------------------------------------------------------------------------- plots
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
+def plot_identification(ident: Identification, segments: list[Segment], out_dir: str | Path,
+                        holdout: list[Segment] | None = None) -> list[Path]:
+    """Per record: measured and model torque over time, and the hysteresis loops (torque over
+    angle in degrees). Returns the PNG files written."""
+    plt = _pyplot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    groups = [("fit", segments)] + ([("holdout", holdout)] if holdout else [])
+    for label, segs in groups:
+        for seg, pred in zip(segs, ident.predict(segs)):
+            fig, (ax_t, ax_l) = plt.subplots(1, 2, figsize=(12, 4.5))
+            t = np.arange(seg.n) * seg.dt_s
+            ok = seg.compared
+            ax_t.plot(t[ok], seg.torque_nm[ok], lw=0.8, label="measured")
+            ax_t.plot(t[ok], pred[ok], lw=0.8, label=f"model {ident.family}")
+            ax_t.set_xlabel("time (s)")
+            ax_t.set_ylabel("torque (N*m)")
+            ax_t.legend()
+            deg = np.degrees(seg.angle_rad)
+            ax_l.plot(deg[ok], seg.torque_nm[ok], lw=0.6, label="measured")
+            ax_l.plot(deg[ok], pred[ok], lw=0.6, label="model")
+            ax_l.set_xlabel("angle (deg)")
+            ax_l.set_ylabel("torque (N*m)")
+            m = metrics([seg], [pred])
+            fig.suptitle(f"{ident.family} on {seg.name} ({label}): nRMSE {100 * m.nrmse:.2f} %")
+            fig.tight_layout()
+            path = out / f"identify_{ident.family}_{label}_{_safe(seg.name)}.png"
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+            paths.append(path)
+    return paths
+
+
+def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, segment: Segment,
+                    out_dir: str | Path) -> list[Path]:
+    """Seed 000 Fig. 8 (bars of the per-record RMSE, relative to the largest and in percent of
+    the largest torque) and the hysteresis loops of every model overlaid on ``segment``."""
+    plt = _pyplot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    for ax, col, title in ((axes[0], "rmse_over_max_rmse", "RMSE / max RMSE of the record"),
+                           (axes[1], "nrmse_percent", "RMSE (% of max |torque|)")):
+        pivot = records.pivot(index="record", columns="model", values=col)
+        pivot.plot.bar(ax=ax, rot=30)
+        ax.set_title(title)
+        ax.set_xlabel("")
+    fig.suptitle("models compared per record (seed 000 Fig. 8)")
+    fig.tight_layout()
+    paths.append(out / "compare_models_rmse.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 6))
+    ok = segment.compared
+    deg = np.degrees(segment.angle_rad)
+    ax.plot(deg[ok], segment.torque_nm[ok], color="k", lw=1.2, label="measured")
+    for kind, r in results.items():
+        ax.plot(deg[ok], r.predict([segment])[0][ok], lw=0.7, label=kind)
+    ax.set_xlabel("angle (deg)")
+    ax.set_ylabel("torque (N*m)")
+    ax.set_title(f"hysteresis loops on {segment.name}")
+    ax.legend()
+    fig.tight_layout()
+    paths.append(out / "compare_models_loops.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
