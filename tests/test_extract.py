@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from droptower.errors import DroptowerError
-from droptower.extract import formulas
+from droptower import sdof
 from droptower.extract.extractor import extract
 from droptower.extract.synthetic import SyntheticDrop
 from droptower.extract.window import Window
@@ -28,7 +28,7 @@ TABLE3 = [(33.031, 293.64, 1.5552), (18.373, 164.81, 1.5295), (16.426, 154.59, 1
 
 @pytest.mark.parametrize("delta, omega, d_ratio", TABLE3)
 def test_table3_damping_ratio_to_four_digits(delta, omega, d_ratio):
-    assert formulas.damping_ratio(delta, omega) == pytest.approx(d_ratio, rel=1e-4)
+    assert sdof.damping_ratio(delta, omega) == pytest.approx(d_ratio, rel=1e-4)
 
 
 def test_table4_stiffness_from_inertia_frequency_and_damping():
@@ -39,13 +39,13 @@ def test_table4_stiffness_from_inertia_frequency_and_damping():
 
     table = pd.read_csv(path)
     assert len(table) == 30
-    c = formulas.stiffness_from_map(table.inertia_kgm2, table.frequency_hz, table.damping_ratio) * DEG
+    c = sdof.stiffness_from_map(table.inertia_kgm2, table.frequency_hz, table.damping_ratio) * DEG
     np.testing.assert_allclose(c, table.stiffness_nm_per_deg, rtol=5e-4)
 
 
 def test_decay_ratio_inverts_damping_ratio():
     r = np.linspace(0.0, 0.2, 21)
-    np.testing.assert_allclose(formulas.decay_ratio(formulas.damping_ratio(r, 1.0)), r, atol=1e-14)
+    np.testing.assert_allclose(sdof.decay_ratio(sdof.damping_ratio(r, 1.0)), r, atol=1e-14)
 
 
 def test_stiffness_is_the_sdof_stiffness():
@@ -53,35 +53,41 @@ def test_stiffness_is_the_sdof_stiffness():
     J, c, d = 0.359, 14_000.0, 12.0
     roots = np.roots([J, d, c])
     delta, omega = -roots[0].real, abs(roots[0].imag)
-    assert formulas.stiffness(J, omega, delta) == pytest.approx(c, rel=1e-12)
+    assert sdof.stiffness(J, omega, delta) == pytest.approx(c, rel=1e-12)
 
 
 def test_reference_amplitude_is_the_envelope_mid_window():
-    assert formulas.reference_amplitude(2.0, 10.0, 0.04) == pytest.approx(2.0 * math.exp(-0.2))
+    assert sdof.reference_amplitude(2.0, 10.0, 0.04) == pytest.approx(2.0 * math.exp(-0.2))
 
 
 def test_notes_1_7_numbers():
-    # NOTES §1.7: r = 0.05 -> ψ 0.63, d_ratio 0.44; r = 0.10 -> both ≈ 1.25; r = 0.12 -> ψ 1.49, d_ratio 1.76
-    for r, psi, d in [(0.05, 0.63, 0.44), (0.12, 1.49, 1.76)]:
-        assert formulas.relative_damping(r, 1.0) == pytest.approx(psi, abs=0.005)
-        assert formulas.damping_ratio(r, 1.0) == pytest.approx(d, abs=0.005)
-    assert formulas.relative_damping(0.1, 1.0) == pytest.approx(1.25, abs=0.01)
-    assert formulas.damping_ratio(0.1, 1.0) == pytest.approx(1.25, abs=0.01)
+    # NOTES §1.7: r = 0.05 -> ψ 0.63, d_ratio 0.44; r = 0.10 -> both ≈ 1.25; r = 0.12 -> ψ 1.49, d_ratio 1.76.
+    # The notes quote ψ ≈ 2πη; the DIN definition (W_el = ½ T̂ φ̂) gives 2πη / √(1 + η²).
+    for r, psi, d in [(0.05, 0.63, 0.44), (0.10, 1.25, 1.25), (0.12, 1.49, 1.76)]:
+        eta = sdof.loss_factor(r, 1.0)
+        assert 2 * np.pi * eta == pytest.approx(psi, abs=0.01)
+        assert sdof.relative_damping(r, 1.0) == pytest.approx(2 * np.pi * eta / np.sqrt(1 + eta**2), rel=1e-12)
+        assert sdof.damping_ratio(r, 1.0) == pytest.approx(d, abs=0.01)
 
 
 def test_loss_factor_and_psi_are_those_of_the_kelvin_voigt_loop():
-    """Drive T = cφ + dφ' with φ = φ̂ sin ωt: η = K''/K' from the first harmonic, ψ = W_D / (½K'φ̂²)
-    with W_D the loop area, computed numerically (DIN 740-2 definitions, NOTES §1.7)."""
+    """Drive T = cφ + dφ' with φ = φ̂ sin ωt: η = K''/K' from the first harmonic, ψ = W_D / (½T̂φ̂)
+    with W_D the loop area and T̂ the torque amplitude, computed numerically (DIN 740-2
+    definitions, NOTES §1.7)."""
     J, delta, omega = 0.359, 21.0, 196.0
-    c, d = formulas.stiffness(J, omega, delta), 2 * J * delta
+    c, d = sdof.stiffness(J, omega, delta), 2 * J * delta
     t = np.linspace(0.0, 2 * np.pi / omega, 20001)
     phi = 0.01 * np.sin(omega * t)
     torque = c * phi + d * 0.01 * omega * np.cos(omega * t)
     k_storage = 2 * np.trapezoid(torque * np.sin(omega * t), t) / t[-1] / 0.01
     k_loss = 2 * np.trapezoid(torque * np.cos(omega * t), t) / t[-1] / 0.01
     loop = np.trapezoid(torque, phi)
-    assert formulas.loss_factor(delta, omega) == pytest.approx(k_loss / k_storage, rel=1e-6)
-    assert formulas.relative_damping(delta, omega) == pytest.approx(loop / (0.5 * k_storage * 0.01**2), rel=1e-6)
+    torque_amplitude = 0.5 * (torque.max() - torque.min())
+    assert sdof.loss_factor(delta, omega) == pytest.approx(k_loss / k_storage, rel=1e-6)
+    assert sdof.relative_damping(delta, omega) == pytest.approx(loop / (0.5 * torque_amplitude * 0.01), rel=1e-6)
+    # the servo bench's conversion back to the drop tower's d_ratio inverts the loss factor
+    assert sdof.drop_tower_equivalent_damping_ratio(sdof.loss_factor(delta, omega)) == pytest.approx(
+        sdof.damping_ratio(delta, omega), rel=1e-12)
 
 
 # --- synthetic logs with known stiffness and damping ----------------------------------------
@@ -109,8 +115,8 @@ def test_synthetic_linear_log(rate, d_ratio):
     # the first complete cycle (seed 004)
     assert result.window_end_s == pytest.approx(2 * np.pi / drop.omega, rel=0.01)
     # servo-comparable damping of the same linear coupling (NOTES §1.7)
-    assert result.loss_factor == pytest.approx(formulas.loss_factor(drop.delta, drop.omega), rel=0.03)
-    assert result.relative_damping_psi == pytest.approx(formulas.relative_damping(drop.delta, drop.omega), rel=0.03)
+    assert result.loss_factor == pytest.approx(sdof.loss_factor(drop.delta, drop.omega), rel=0.03)
+    assert result.relative_damping_psi == pytest.approx(sdof.relative_damping(drop.delta, drop.omega), rel=0.03)
     # impact: the fit's start velocity and the force impulse agree with the truth (NOTES §1.2)
     assert result.impact_velocity_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.01)
     assert result.impact_velocity_from_force_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)

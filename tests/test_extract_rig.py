@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droptower.extract import Settings, extract_file, formulas
+from droptower import sdof
+from droptower.extract import Settings, extract_file
 from droptower.rheology.loader import parse_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.simulate import DropTest, simulate
@@ -14,7 +15,7 @@ from droptower.rig.simulate import DropTest, simulate
 
 def test_linear_coupling_through_the_virtual_rig(tmp_path):
     inertia, stiffness, d_ratio = 0.359, 14_000.0, 1.5
-    r = float(formulas.decay_ratio(d_ratio))
+    r = float(sdof.decay_ratio(d_ratio))
     omega = np.sqrt(stiffness / (inertia * (1 + r * r)))
     coupling = parse_coupling({"name": "kelvin-voigt", "element": [
         {"kind": "spring", "stiffness": stiffness}, {"kind": "dashpot", "damping": 2 * inertia * r * omega}]})

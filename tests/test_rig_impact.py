@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from droptower.rig.impact import (damping_ratio_from_decay, drop_mass_path, first_period, impact_velocities,
+from droptower.sdof import damping_ratio
+from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
                                   lever_tip_path, linear_free_decay, second_impact_time)
 
 L = 0.2
@@ -79,4 +80,4 @@ def test_second_impact_time_finds_the_crossing():
 
 def test_damping_ratio_eq16():
     r = np.log(4.0) / (4 * np.pi)  # d_ratio = 1.5 exactly
-    assert damping_ratio_from_decay(r * 200.0, 200.0) == pytest.approx(1.5)
+    assert damping_ratio(r * 200.0, 200.0) == pytest.approx(1.5)

@@ -2,7 +2,7 @@
 
 ``extract(signals, inertia_kgm2=..., window="first-cycle") -> ExtractionResult`` evaluates one
 test given as SI :class:`~droptower.io.signals.DropSignals`; ``extract_file(path, Settings())``
-reads, maps and evaluates one log file; :mod:`droptower.extract.formulas` holds eq. 15, 16, 18
+reads, maps and evaluates one log file; :mod:`droptower.sdof` holds eq. 15, 16, 18
 and the servo-comparable damping measures; :class:`SyntheticDrop` makes logs with known
 stiffness and damping; :func:`droptower.extract.plot.plot_fit` draws seed 004 Fig. 9.
 """

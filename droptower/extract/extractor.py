@@ -4,14 +4,14 @@ NOTES §1.3, §1.4, §1.7).
 Steps: impact onset and pre-trigger baseline (:mod:`.impact`; the pre-trigger means remove
 sensor offsets and the preload), starting frequency and decay from the angle after the impact,
 the fit window (:mod:`.window`), the angle fit and the torque fit (:mod:`.decay`), then eq.
-15-18 (:mod:`.formulas`) with standard uncertainties propagated from the fits.
+15-18 (:mod:`droptower.sdof`) with standard uncertainties propagated from the fits.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from droptower.errors import DroptowerError
-from droptower.extract import formulas
+from droptower import sdof
 from droptower.extract.decay import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
 from droptower.extract.impact import find_impact
 from droptower.extract.result import ExtractionResult
@@ -76,7 +76,7 @@ def metadata_value(signals: DropSignals, given: float | None, key: str) -> float
 def _derived(theta: np.ndarray, inertia: float, window_s: float, t_from: float, has_torque: bool) -> np.ndarray:
     """f, ω, δ, φ̂, φ̂_ref, c_M1, d_ratio, η, ψ, c_M2, M2/M1 − 1, T̂ from θ = (φ̂, δ, ω, Φ, a, b, offset)."""
     amp, delta, omega, phase, a, b, _ = theta
-    c1 = formulas.stiffness(inertia, omega, delta)
+    c1 = sdof.stiffness(inertia, omega, delta)
     c2 = torque_amplitude = np.nan
     if has_torque:
         torque_amplitude = np.hypot(a, b)
@@ -88,9 +88,9 @@ def _derived(theta: np.ndarray, inertia: float, window_s: float, t_from: float, 
         torque = env * (a * np.cos(omega * t_max) + b * np.sin(omega * t_max))
         c2 = torque / (amp * env * np.cos(omega * t_max - phase))
     return np.array([
-        omega / (2 * np.pi), omega, delta, amp, formulas.reference_amplitude(amp, delta, window_s), c1,
-        formulas.damping_ratio(delta, omega), formulas.loss_factor(delta, omega),
-        formulas.relative_damping(delta, omega), c2, c2 / c1 - 1.0, torque_amplitude,
+        omega / (2 * np.pi), omega, delta, amp, sdof.reference_amplitude(amp, delta, window_s), c1,
+        sdof.damping_ratio(delta, omega), sdof.loss_factor(delta, omega),
+        sdof.relative_damping(delta, omega), c2, c2 / c1 - 1.0, torque_amplitude,
     ])
 
 

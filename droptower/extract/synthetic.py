@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.extract.formulas import decay_ratio
+from droptower.sdof import decay_ratio
 from droptower.io.droptower_log import write_log
 from droptower.io.signals import DropSignals
 

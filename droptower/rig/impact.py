@@ -137,8 +137,3 @@ def first_period(t_s: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
             j = down[0] + up[0]
             out[i] = t_s[j] + (t_s[j + 1] - t_s[j]) * row[j] / (row[j] - row[j + 1]) - t_s[0]
     return out.reshape(a.shape[:-1]) if a.ndim > 1 else out[0]
-
-
-def damping_ratio_from_decay(delta_per_s, omega_rad_per_s):
-    """The paper's damping ratio d_ratio = E_diss/E_el = 1/2 (e^(4 pi delta/omega) - 1) (NOTES §1.4, eq. 16)."""
-    return 0.5 * np.expm1(4.0 * np.pi * np.asarray(delta_per_s, float) / np.asarray(omega_rad_per_s, float))

@@ -18,9 +18,10 @@ import pandas as pd
 
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.impact import (damping_ratio_from_decay, drop_mass_path, first_period, impact_velocities,
+from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
                                   lever_tip_path, second_impact_time)
 from droptower.rig.preload import Pretwist, pretwist
+from droptower.sdof import damping_ratio
 
 MIN_SAMPLES_PER_PERIOD = 20   # fewer samples per oscillation and the decay fit has too little to work with
 MIN_RECORD_PERIODS = 0.75     # seed 004 / NOTES §1.4: at least three quarters of a period after the impact
@@ -133,7 +134,7 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["frequency_hz"] = 1.0 / period
     out["period_s"] = period
     out["decay_per_s"] = delta
-    out["damping_ratio"] = damping_ratio_from_decay(delta, omega)
+    out["damping_ratio"] = damping_ratio(delta, omega)
     out["peak_torque_nm"] = peak_torque
     out["double_impact"] = np.isfinite(t_second)
     out["second_impact_time_s"] = t_second

@@ -40,6 +40,7 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import savgol_filter
 
 from droptower.errors import DroptowerError
+from droptower.sdof import drop_tower_equivalent_damping_ratio
 
 #: Savitzky-Golay polynomial order; the filter needs a window of at least order + 2 samples.
 SG_POLYORDER = 3
@@ -58,21 +59,6 @@ def smoothing_window(sample_rate_hz: float, frequency_hz: float) -> int:
     w = int(round(sample_rate_hz / (8.0 * frequency_hz)))
     w += 1 - w % 2
     return w if w >= MIN_WINDOW else 0
-
-
-def drop_tower_equivalent_damping_ratio(loss_factor: np.ndarray | float) -> np.ndarray:
-    """The drop tower's damping ratio d = E_diss / E_el (seed 004 eq. 16, NOTES §1.4) of the
-    linear Kelvin-Voigt coupling that has the given loss factor.
-
-    Such a coupling swinging freely at its damped frequency has eta = 2r / (1 + r^2) with
-    r = delta / omega (NOTES §1.7), so r = (1 - sqrt(1 - eta^2)) / eta, and
-    d = (exp(4 pi r) - 1) / 2. A loss factor above 1 has no such coupling: NaN.
-    """
-    eta = np.asarray(loss_factor, dtype=float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r = np.where(eta == 0.0, 0.0, (1.0 - np.sqrt(1.0 - eta * eta)) / eta)
-    r = np.where((eta >= 0.0) & (eta <= 1.0), r, np.nan)
-    return 0.5 * np.expm1(4.0 * np.pi * r)
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,11 @@
-"""Stiffness and damping from the decay parameters: seed 004 eq. 15, 16, 18, decoded in
-NOTES §1.4, and the servo-comparable damping measures of NOTES §1.7.
+"""The single-degree-of-freedom decay J φ'' + d φ' + c φ = 0 and what it yields: stiffness and
+damping from the decay parameters (seed 004 eq. 15, 16, 18, decoded in NOTES §1.4) and the
+servo-comparable damping measures of NOTES §1.7.
 
-All functions are pure and vectorised. delta: decay coefficient δ (1/s); omega: damped
-angular frequency ω (rad/s); inertia: rotating inertia J (kg·m²).
+One module that the rig (planning), the extractor and the servo bench all use, so the
+drop tower's and the servo bench's damping are converted by the same formulas. All functions
+are pure and vectorised. delta: decay coefficient δ (1/s); omega: damped angular frequency
+ω (rad/s); inertia: rotating inertia J (kg·m²).
 """
 from __future__ import annotations
 
@@ -56,10 +59,28 @@ def loss_factor(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
 
 
 def relative_damping(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
-    """Servo-comparable relative damping ψ = W_D / W_el = 2π·η (NOTES §1.7).
+    """Servo-comparable relative damping ψ = W_D / W_el with W_el = ½·T̂·φ̂ (DIN 740-2, NOTES §1.7).
 
     Same linear Kelvin–Voigt coupling as :func:`loss_factor`: damping work per cycle
-    W_D = π K'' φ̂², elastic energy W_el = ½ K' φ̂², so ψ = 2π K''/K' = 2πη exactly. This is not
-    the drop tower's d_ratio (eq. 16): at r = 0.05, ψ = 0.63 but d_ratio = 0.44.
+    W_D = π K'' φ̂², torque amplitude T̂ = |K*| φ̂, so ψ = 2π K''/|K*| = 2πη / √(1 + η²)
+    (≈ 2πη, the approximation NOTES §1.7 quotes). This is not the drop tower's d_ratio
+    (eq. 16): at r = 0.05, ψ = 0.62 but d_ratio = 0.44.
     """
-    return 2.0 * np.pi * loss_factor(delta, omega)
+    eta = loss_factor(delta, omega)
+    return 2.0 * np.pi * eta / np.sqrt(1.0 + eta**2)
+
+
+def decay_ratio_from_loss_factor(loss_factor_: ArrayLike) -> np.ndarray:
+    """r = δ/ω of the linear Kelvin–Voigt coupling whose loss factor is η = 2r/(1 + r²) (NOTES §1.7):
+    r = (1 − √(1 − η²))/η; NaN where no such coupling exists (η < 0 or η > 1)."""
+    eta = np.asarray(loss_factor_, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.where(eta == 0.0, 0.0, (1.0 - np.sqrt(1.0 - eta * eta)) / eta)
+    return np.where((eta >= 0.0) & (eta <= 1.0), r, np.nan)
+
+
+def drop_tower_equivalent_damping_ratio(loss_factor_: ArrayLike) -> np.ndarray:
+    """The drop tower's damping ratio d = E_diss / E_el (seed 004 eq. 16, NOTES §1.4) of the
+    linear Kelvin–Voigt coupling with the given (servo-measured) loss factor: what the drop
+    tower would report for it, swinging freely at its damped frequency (NOTES §1.7)."""
+    return 0.5 * np.expm1(4.0 * np.pi * decay_ratio_from_loss_factor(loss_factor_))
