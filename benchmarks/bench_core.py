@@ -47,9 +47,10 @@ def ode_system(coupling: dt.Coupling):
     """The coupling's equations as a first-order ODE in its spring elongations, for solve_ivp.
 
     Supports the element kinds of the reference coupling: springs, static curves, Maxwell
-    branches and rate-dependent slider banks (seed 001 eq. 13).
+    branches (linear, or a force table in series with a linear dashpot) and rate-dependent
+    slider banks (seed 001 eq. 13).
     """
-    springs, maxwell_k, maxwell_c, bank_k, bank_f, curves = 0.0, [], [], [], [], []
+    springs, maxwell_k, maxwell_c, bank_k, bank_f, curves, branches = 0.0, [], [], [], [], [], []
     v_r = p_exp = None
     for kern in coupling.kernels:
         p = kern.params
@@ -58,6 +59,9 @@ def ode_system(coupling: dt.Coupling):
         elif kern.code == K.TABLE_SPRING:
             n = int(p[0])
             curves.append((p[1:1 + n], p[1 + n:1 + 2 * n]))
+        elif kern.code == K.VARIABLE_MAXWELL and p[5] > 0 and p[4] == 0:
+            nk = int(p[3])
+            branches.append((p[K.VM_HEADER:K.VM_HEADER + nk], p[K.VM_HEADER + nk:K.VM_HEADER + 2 * nk], p[2]))
         elif kern.code == K.MAXWELL:
             maxwell_k.append(p[0]); maxwell_c.append(p[1])
         elif kern.code == K.SLIDER_BANK and p[2] > 0 and p[3] == 0:
@@ -69,28 +73,45 @@ def ode_system(coupling: dt.Coupling):
     mk, mc = np.array(maxwell_k), np.array(maxwell_c)
     bk, bf = np.array(bank_k), np.array(bank_f)
     nm = mk.size
+    nb = len(branches)  # state layout: Maxwell elongations, table-branch elongations, sliders
+
+    def branch_force(i, e):  # force tables continue with their end slopes
+        xs, ys, _ = branches[i]
+        return np.interp(e, xs, ys) + np.where(e > xs[-1], (e - xs[-1]) * (ys[-1] - ys[-2]) / (xs[-1] - xs[-2]), 0) \
+            + np.where(e < xs[0], (e - xs[0]) * (ys[1] - ys[0]) / (xs[1] - xs[0]), 0)
+
+    def branch_slope(i, e):
+        xs, ys, _ = branches[i]
+        j = np.clip(np.searchsorted(xs, e) - 1, 0, xs.size - 2)
+        return (ys[j + 1] - ys[j]) / (xs[j + 1] - xs[j])
     w = 2 * np.pi * FREQ_HZ
 
     def rate(t):
         return AMPLITUDE_RAD * w * np.cos(w * t)
 
+    s0 = nm + nb  # first slider
+
     def rhs(t, y):
         v = rate(t)
         out = np.empty_like(y)
         out[:nm] = v - mk / mc * y[:nm]
-        out[nm:] = v - v_r * (bk * y[nm:] / bf) ** p_exp
+        for i, (_, _, c) in enumerate(branches):
+            out[nm + i] = v - branch_force(i, y[nm + i]) / c
+        out[s0:] = v - v_r * (bk * y[s0:] / bf) ** p_exp
         return out
 
     def jac(t, y):
-        d = np.concatenate([-mk / mc, -v_r * p_exp * (bk / bf) ** p_exp * y[nm:] ** (p_exp - 1)])
+        d = np.concatenate([-mk / mc, [-branch_slope(i, y[nm + i]) / c for i, (_, _, c) in enumerate(branches)],
+                            -v_r * p_exp * (bk / bf) ** p_exp * y[s0:] ** (p_exp - 1)])
         return np.diag(d)
 
     def torque(t, y):
         x = AMPLITUDE_RAD * np.sin(w * t)
         static = sum(np.interp(x, xs, ys) for xs, ys in curves)  # the amplitude stays inside the tables
-        return springs * x + static + y[:nm].T @ mk + y[nm:].T @ bk
+        table_branches = sum(branch_force(i, y[nm + i]) for i in range(nb))
+        return springs * x + static + table_branches + y[:nm].T @ mk + y[s0:].T @ bk
 
-    return rhs, jac, torque, nm + bk.size
+    return rhs, jac, torque, s0 + bk.size
 
 
 def main() -> None:

@@ -56,6 +56,17 @@ def _strictly_increasing(values: list[float], what: str) -> list[float]:
     return values
 
 
+def knot_energies(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Stored energy (integral of the piecewise-linear curve y(x) from 0) at each knot.
+
+    Trapezoids accumulated from the first knot, shifted so that the energy at 0 is zero (the
+    curve is linear on the segment holding 0 and passes through (0, 0)).
+    """
+    cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))])
+    i = int(np.clip(np.searchsorted(x, 0.0, side="right") - 1, 0, x.size - 2))
+    return cumulative - (cumulative[i] - 0.5 * y[i] * x[i])
+
+
 # ------------------------------------------------------------------ springs
 class Spring(ElementSpec):
     """Linear spring, T = stiffness * angle."""
@@ -96,12 +107,7 @@ class SpringTable(ElementSpec):
 
     def compile(self):
         x, y = np.asarray(self.angle), np.asarray(self.torque)
-        # stored energy at each knot: trapezoids accumulated from the first knot, shifted so
-        # that the energy at angle 0 is zero (T is linear on the segment holding 0, T(0) = 0)
-        cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))])
-        i = int(np.clip(np.searchsorted(x, 0.0, side="right") - 1, 0, x.size - 2))
-        at_zero = cumulative[i] + 0.5 * y[i] * (0.0 - x[i])
-        return [KernelElement(K.TABLE_SPRING, np.concatenate([[x.size], x, y, cumulative - at_zero]))]
+        return [KernelElement(K.TABLE_SPRING, np.concatenate([[x.size], x, y, knot_energies(x, y)]))]
 
 
 class CubicSpring(ElementSpec):
@@ -430,6 +436,8 @@ class VariableMaxwell(ElementSpec):
             params += list(table.x) + list(table.y)
         if ct:
             params += list(ct.x) + list(ct.y)
+        if self.force_table:
+            params += list(knot_energies(np.asarray(table.x), np.asarray(table.y)))
         return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float), 1)]
 
 

@@ -176,13 +176,12 @@ def _slide_newton(u, bb, a, p_exp, tol):
 
     The left side is increasing and convex for u > 0, so Newton's method converges
     monotonically from any start at or above the root; ``u`` (the fast pass's last iterate,
-    which lies above the root after its first step) is clipped to the upper bound |B|. Should
-    that ever be slow, it restarts from the tighter upper bound (|B|/A)^(1/p).
+    which lies above the root after its first step) is clipped to the upper bounds |B| and
+    (|B|/A)^(1/p).
     """
-    u = min(u, bb)
+    upper = min(bb, (bb / a) ** (1.0 / p_exp))  # both bound the root from above
+    u = min(u, upper) if u >= 0.0 else upper     # (a NaN from an overflow in the fast pass restarts)
     for it in range(200):
-        if it == 20:
-            u = min(u, (bb / a) ** (1.0 / p_exp))
         up = _ipow(u, p_exp - 1)
         step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
         u -= step
@@ -193,6 +192,7 @@ def _slide_newton(u, bb, a, p_exp, tol):
 
 NEWTON_FAST_ITERATIONS = 3
 NEWTON_TOL = 1e-11
+FAST_MAX_EXPONENT = 32  # _ipow_small handles exponents below 32 (5 bits)
 
 
 @njit(**JIT)
@@ -207,6 +207,12 @@ def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
     runs over all elements and vectorises; the few elements it leaves unconverged (at
     stick-slip transitions) are finished one by one.
     """
+    if p_exp >= FAST_MAX_EXPONENT:  # beyond the branch-free power: element by element
+        for i in range(n):
+            b = scales[i] * (elong[i] + dx)
+            u = _slide_newton(abs(b), abs(b), h * v_r * scales[i], p_exp, NEWTON_TOL)
+            trial[i] = (u if b > 0.0 else -u) / scales[i]
+        return
     unconverged = 0
     for i in range(n):
         scale = scales[i]
@@ -228,7 +234,7 @@ def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
         scale = scales[i]
         b = scale * (elong[i] + dx)
         u = trial[i]
-        if unconverged and u < 0.0:
+        if unconverged and not u >= 0.0:  # negative: unconverged; NaN: the power overflowed
             u = _slide_newton(-u, abs(b), h * v_r * scale, p_exp, NEWTON_TOL)
         trial[i] = (u if b > 0.0 else -u) / scale
 
@@ -357,10 +363,47 @@ def _vm_dashpot(v, p, nk, nc):
 
 
 @njit(**JIT)
+def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
+    """The variable Maxwell step for a force table in series with a linear dashpot c, exactly.
+
+    Backward Euler asks f(e) + (c/h) e = (c/h)(e0 + dx), whose left side is piecewise linear
+    and increasing: find its segment by bisection over the knots, then solve the line. The
+    stored energy comes from the knot energies precomputed after the table.
+    """
+    xs = pv[VM_HEADER:VM_HEADER + nk]
+    ys = pv[VM_HEADER + nk:VM_HEADER + 2 * nk]
+    beta = pv[2] / h
+    rhs = beta * (e0 + dx)
+    lo = 0
+    hi = nk - 1
+    if rhs <= ys[0] + beta * xs[0]:
+        hi = 1
+    elif rhs >= ys[nk - 1] + beta * xs[nk - 1]:
+        lo = nk - 2
+    else:
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if ys[mid] + beta * xs[mid] <= rhs:
+                lo = mid
+            else:
+                hi = mid
+    i = lo
+    slope = (ys[i + 1] - ys[i]) / (xs[i + 1] - xs[i])
+    e = (rhs - ys[i] + slope * xs[i]) / (slope + beta)
+    t1 = ys[i] + slope * (e - xs[i])
+    s[so + 1] += 0.5 * (s[so + 2] + t1) * (dx - (e - e0))
+    s[so + 0] = pv[VM_HEADER + 2 * nk + i] + 0.5 * (ys[i] + t1) * (e - xs[i])
+    s[so + 2] = t1
+    s[so + 3] = e
+    return t1
+
+
+@njit(**JIT)
 def variable_maxwell(p, po, s, so, x0, x1, h):
     """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
 
     params: [k0, g, c0, nk, nc, force_mode, e_1..e_nk, k_1..k_nk (or f_1..f_nk), v_1..v_nc, c_1..c_nc]
+    and, in force mode, the stored energies E_1..E_nk at the knots.
     The spring force is f(e) = (k0 + g|e|) e (the six-parameter model's K3 linear in
     deformation), k(e) e from a stiffness lookup table, or f(e) from a force table (a static
     curve in series with the dashpot); the dashpot force is c(|v|) v. Backward Euler:
@@ -372,6 +415,8 @@ def variable_maxwell(p, po, s, so, x0, x1, h):
     nc = int(pv[4])
     e0 = s[so + 3]
     dx = x1 - x0
+    if pv[5] > 0.0 and nc == 0:
+        return _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h)
     lo = min(0.0, e0 + dx)
     hi = max(0.0, e0 + dx)
     e = e0 + dx if abs(e0 + dx) < abs(e0) else e0
