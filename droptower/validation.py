@@ -60,7 +60,9 @@ def validate(model: type[M], data: dict[str, Any], file: str | Path | None,
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors(include_url=False)[0]
+        errors = exc.errors(include_url=False)
+        # a misspelt field shows as that field unknown and the right one missing: name the typo
+        err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
         where = describe_location(tuple(err["loc"]), data, name_item) or None
         msg = err["msg"]
         if err["type"] == "extra_forbidden":

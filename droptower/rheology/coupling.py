@@ -159,6 +159,8 @@ class Coupling:
         Returns the torque at the new angle (N*m, shape (B,)). This is the call a simulation
         makes once per time step.
         """
+        if not dt_s > 0.0:  # also catches NaN; cheap enough for the hot path
+            _check_dt(dt_s)
         x1 = angle_rad
         if not (type(x1) is np.ndarray and x1.dtype == np.float64 and x1.shape == (state.batch,)
                 and x1.flags.c_contiguous):  # the hot path (once per time step) skips the conversion

@@ -288,6 +288,8 @@ class Elastoslide(ElementSpec):
             raise ValueError("give phi0 (exponential distribution) or a distribution")
         if self.distribution is not None and self.phi0 is not None:
             raise ValueError("give either phi0 or a distribution, not both")
+        if self.distribution is not None and (self.yield_min is not None or self.yield_max is not None):
+            raise ValueError("yield_min and yield_max apply to the exponential distribution (phi0), not to a given one")
         if self.distribution is None:
             lo = self.yield_min or 0.0
             hi = self.yield_max if self.yield_max is not None else -np.log(1e-3) / self.phi0

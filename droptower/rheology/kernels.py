@@ -131,16 +131,16 @@ def dashpot(p, po, s, so, x0, x1, h):
 def maxwell(p, po, s, so, x0, x1, h):
     """Spring k in series with dashpot c (seed 000 eq. 1), exact for a linear ramp in the step.
 
-    params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), and the time
-    step and decay factor exp(-h k/c) of the last step (a cache).
+    params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), and h k/c and
+    the decay factor exp(-h k/c) of the last step (a cache).
     """
     k = p[po + 0]
     c = p[po + 1]
     e0 = s[so + 3]
     v = (x1 - x0) / h
     tau = c / k
-    if s[so + 4] != h:  # exp() only when the time step changes
-        s[so + 4] = h
+    if s[so + 4] != h / tau:  # exp() only when the time step (or the parameters) change
+        s[so + 4] = h / tau
         s[so + 5] = np.exp(-h / tau)
     decay = s[so + 5]
     e1 = e0 * decay + v * tau * (1.0 - decay)
@@ -452,7 +452,7 @@ def pfeffer(p, po, s, so, x0, x1, h):
     """Pfeffer frequency part (seed 002, NOTES 2.3): k1 parallel to c1 in series with (k2 || c2).
 
     params: [k1, alpha, beta, gamma] with k2 = alpha k1, c1 = gamma k1, c2 = beta c1.
-    internal: z, the Kelvin-Voigt deflection, then a cache of (h, exp(-lambda h)); dz/dt = (du/dt - (alpha/gamma) z) / (1 + beta),
+    internal: z, the Kelvin-Voigt deflection, then a cache of (lambda h, exp(-lambda h)); dz/dt = (du/dt - (alpha/gamma) z) / (1 + beta),
     integrated exactly for the step's constant du/dt. F = k1 [u + gamma (du/dt - dz/dt)].
     """
     k1 = p[po + 0]
@@ -462,8 +462,8 @@ def pfeffer(p, po, s, so, x0, x1, h):
     z0 = s[so + 3]
     v = (x1 - x0) / h
     lam = alpha / (gamma * (1.0 + beta))
-    if s[so + 4] != h:  # exp() only when the time step changes
-        s[so + 4] = h
+    if s[so + 4] != lam * h:  # exp() only when the time step (or the parameters) change
+        s[so + 4] = lam * h
         s[so + 5] = np.exp(-lam * h)
     decay = s[so + 5]
     z1 = z0 * decay + v / (1.0 + beta) * (1.0 - decay) / lam

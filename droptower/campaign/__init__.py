@@ -1,0 +1,13 @@
+"""Campaigns: a whole test plan simulated on the virtual drop tower, logged and extracted on the
+one data path real logs take (``droptower campaign``; seed 004 Table 2, NOTES §1.1).
+
+``run_campaign(out, rig, coupling, doe, workers=..., scheduler=..., resume=...)`` fills a
+folder with one log and one result record per test, a manifest and the results table
+(:mod:`.folder` describes the layout). Modules: :mod:`.spec` (inputs, settings, identity),
+:mod:`.chunk` (what a worker does with one chunk), :mod:`.executors` (this process, local
+cores, a Dask cluster), :mod:`.results` (the table), :mod:`.runner` (the orchestration).
+"""
+from droptower.campaign.runner import CampaignRun, run_campaign
+from droptower.campaign.spec import CampaignSpec, prepare
+
+__all__ = ["CampaignRun", "CampaignSpec", "prepare", "run_campaign"]

@@ -1,0 +1,221 @@
+"""The campaign folder on disk: layout, manifest and per-test records.
+
+::
+
+    DIR/manifest.json            identity (hashes and contents of rig, coupling, plan), settings,
+                                 versions, per-test status (done / failed / pending)
+    DIR/logs/test_00042.parquet  the simulated log of test 42 (the project's log format)
+    DIR/records/test_00042.json  its result record: plan fields, extracted values, status
+    DIR/results.parquet, .csv    one row per finished test, assembled from the records
+
+A test is finished when its record exists; the record is written (atomically: a temporary
+file, then :func:`os.replace`) only after its log, so a record always has its log. A failed
+extraction of a good log is a finished test too (status ``failed``, with the error): running it
+again would fail the same way. Nothing in a folder that holds another campaign is ever
+touched: the manifest's hashes decide.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import math
+import platform
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from droptower.campaign.spec import CampaignSpec
+from droptower.errors import DroptowerError
+from droptower.io.droptower_log import _atomic_write as atomic_write
+
+FORMAT = "droptower-campaign"
+FORMAT_VERSION = 1
+#: Packages whose versions the manifest records (results may change with any of them).
+PACKAGES = ("droptower", "numpy", "scipy", "pymunk", "numba", "pandas", "pyarrow")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Paths inside a campaign folder; test files are numbered with ``width`` digits."""
+
+    root: Path
+    width: int = 5
+
+    @property
+    def manifest(self) -> Path:
+        return self.root / "manifest.json"
+
+    @property
+    def records(self) -> Path:
+        return self.root / "records"
+
+    @property
+    def logs(self) -> Path:
+        return self.root / "logs"
+
+    @property
+    def results_parquet(self) -> Path:
+        return self.root / "results.parquet"
+
+    @property
+    def results_csv(self) -> Path:
+        return self.root / "results.csv"
+
+    def log_file(self, test_id: int, log_format: str) -> str:
+        """The log of a test, relative to the folder (as the results table lists it)."""
+        return f"logs/test_{test_id:0{self.width}d}.{log_format}"
+
+    def record(self, test_id: int) -> Path:
+        return self.records / f"test_{test_id:0{self.width}d}.json"
+
+
+def layout_for(root: str | Path, spec: CampaignSpec) -> Layout:
+    return Layout(Path(root), max(5, len(str(len(spec.tests) - 1))))
+
+
+@functools.cache
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def write_json(path: Path, value: Any) -> None:
+    """Write strict JSON (NaN and infinities as null) atomically."""
+    text = json.dumps(_strict(value), indent=1, default=str) + "\n"
+    atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def _strict(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()  # numpy scalars
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def read_manifest(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DroptowerError(f"unreadable campaign manifest ({exc}); not touching this folder", file=path) from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise DroptowerError("not a droptower campaign manifest; not touching this folder", file=path)
+    if data.get("format_version") != FORMAT_VERSION:
+        raise DroptowerError(f"campaign manifest version {data.get('format_version')!r} is not supported "
+                             f"(this droptower writes {FORMAT_VERSION})", file=path)
+    return data
+
+
+def saved_settings(root: Path) -> dict[str, Any]:
+    """The settings of the campaign in ``root`` (empty if it holds none)."""
+    manifest = Layout(root).manifest
+    return dict(read_manifest(manifest).get("settings") or {}) if manifest.is_file() else {}
+
+
+def _differences(old: dict[str, Any], spec: CampaignSpec) -> list[str]:
+    """The parts of the identity in which the folder's campaign and ``spec`` differ, in words."""
+    out = []
+    for part, digest in spec.hashes().items():
+        if old.get("hashes", {}).get(part) == digest:
+            continue
+        if part == "settings":
+            was = old.get("settings") or {}
+            out += [f"{key} ({was.get(key)!r} in the folder, {value!r} given)"
+                    for key, value in spec.settings.items() if was.get(key) != value] or ["settings"]
+        else:
+            out.append(part)
+    return out
+
+
+def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[str, Any] | None, list[str]]:
+    """Check that the campaign may write into ``layout.root``; create it if new.
+
+    Returns the existing manifest (None for a new folder) and warnings (other package
+    versions than the folder was started with). A folder holding a campaign needs ``resume``
+    and the same identity; a non-empty folder without a manifest is refused.
+    """
+    root = layout.root
+    if root.exists() and not root.is_dir():
+        raise DroptowerError("exists and is not a folder", file=root)
+    if layout.manifest.is_file():
+        old = read_manifest(layout.manifest)
+        done = sum(t.get("status") != "pending" for t in old.get("tests", []))
+        if not resume:
+            raise DroptowerError(f"holds a campaign already ({done} of {len(old.get('tests', []))} tests finished); "
+                                 "add --resume to continue it, or choose another --out folder", file=root)
+        differ = _differences(old, spec)
+        if differ:
+            raise DroptowerError(f"holds a different campaign (its {', '.join(differ)} differ from the given ones); "
+                                 "nothing was changed: choose another --out folder", file=root)
+        for stray in [*root.glob(".*.tmp"), *layout.records.glob(".*.tmp"), *layout.logs.glob(".*.tmp")]:
+            stray.unlink(missing_ok=True)  # a temporary file of a write that was killed before its rename
+        warnings = [f"{root}: campaign started with {name} {was}, continuing with {now}"
+                    for name, now in versions().items()
+                    if (was := old.get("versions", {}).get(name)) is not None and was != now]
+        return old, warnings
+    if root.is_dir() and any(root.iterdir()):
+        raise DroptowerError("is not empty and holds no campaign (no manifest.json); choose an empty or new folder",
+                             file=root)
+    try:
+        layout.records.mkdir(parents=True, exist_ok=True)
+        layout.logs.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DroptowerError(f"cannot create the campaign folder ({exc.strerror or exc})", file=root) from None
+    return None, []
+
+
+def write_manifest(layout: Layout, spec: CampaignSpec, status: dict[int, dict[str, Any]],
+                   created: str | None = None) -> None:
+    """The manifest: identity, inputs, settings, versions and per-test status.
+
+    status: test_id -> ``{"status": "done" | "failed", "error": ...}`` for finished tests;
+    every other test of the plan is ``pending``.
+    """
+    now = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    tests = []
+    for test_id in spec.tests["test_id"].tolist():
+        entry = status.get(test_id, {"status": "pending"})
+        tests.append({"test_id": test_id, "status": entry["status"],
+                      "log_file": layout.log_file(test_id, spec.log_format) if entry["status"] != "pending" else None,
+                      "error": entry.get("error")})
+    counts = {s: sum(t["status"] == s for t in tests) for s in ("done", "failed", "pending")}
+    write_json(layout.manifest, {
+        "format": FORMAT, "format_version": FORMAT_VERSION,
+        "created": created or now, "updated": now,
+        "hashes": spec.hashes(),
+        "inputs": spec.inputs,
+        "settings": spec.settings,
+        "versions": versions(),
+        "summary": {"n_tests": len(tests), **counts},
+        "tests": tests,
+    })
+
+
+def read_record(path: Path) -> dict[str, Any] | None:
+    """A test's result record, or None if it is absent or unreadable (then the test is redone)."""
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return record if isinstance(record, dict) and record.get("status") in ("done", "failed") else None
+
+
+def finished(layout: Layout, spec: CampaignSpec) -> dict[int, dict[str, Any]]:
+    """test_id -> record of every finished test of the plan."""
+    out = {}
+    for test_id in spec.tests["test_id"].tolist():
+        record = read_record(layout.record(test_id))
+        if record is not None and record.get("test_id") == test_id:
+            out[test_id] = record
+    return out

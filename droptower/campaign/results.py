@@ -1,0 +1,56 @@
+"""The results table of a campaign, assembled from its per-test records.
+
+Columns, in order: the plan (:data:`~droptower.campaign.spec.PLAN_COLUMNS`), the extracted
+values under the names ``droptower extract --json`` prints (``frequency_hz``,
+``amplitude_deg``, ``stiffness_nm_per_deg``, ``damping_ratio``, ..., ``*_std``,
+``double_impact``), then ``flags`` (``;``-separated), ``log_file`` (relative to the campaign
+folder), ``status`` (``done`` or ``failed``), ``error`` and ``simulation_warnings`` (what the
+rig noticed: twist beyond the coupling's limit, a double impact). A failed test has empty
+extracted values.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from droptower.campaign.folder import atomic_write
+from droptower.campaign.spec import PLAN_COLUMNS
+
+TAIL_COLUMNS = ("flags", "log_file", "status", "error", "simulation_warnings")
+
+
+def assemble(records: list[dict[str, Any]]) -> pd.DataFrame:
+    """One row per record, in test order, with the columns of the module docstring."""
+    records = sorted(records, key=lambda r: r["test_id"])
+    extracted: dict[str, None] = {}  # result names in first-seen order (a dict keeps the order)
+    for record in records:
+        for name in record.get("result") or {}:
+            if name not in PLAN_COLUMNS and name != "flags":
+                extracted.setdefault(name)
+    rows = []
+    for record in records:
+        result = record.get("result") or {}
+        row = {name: record.get(name) for name in PLAN_COLUMNS}
+        row.update({name: result.get(name) for name in extracted})
+        row["flags"] = ";".join(result.get("flags") or [])
+        row["log_file"] = record.get("log_file")
+        row["status"] = record["status"]
+        row["error"] = record.get("error") or ""
+        row["simulation_warnings"] = ";".join(record.get("simulation_warnings") or [])
+        rows.append(row)
+    table = pd.DataFrame(rows, columns=[*PLAN_COLUMNS, *extracted, *TAIL_COLUMNS])
+    for name in extracted:
+        if name == "double_impact":
+            table[name] = table[name].astype("boolean")
+        else:
+            table[name] = pd.to_numeric(table[name].astype(object).where(table[name].notna(), np.nan))
+    return table
+
+
+def write_results(table: pd.DataFrame, parquet: Path, csv: Path) -> None:
+    """Write the table as Parquet and CSV, each atomically."""
+    atomic_write(parquet, lambda tmp: table.to_parquet(tmp, index=False))
+    atomic_write(csv, lambda tmp: table.to_csv(tmp, index=False))

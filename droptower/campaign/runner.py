@@ -1,0 +1,153 @@
+"""Run a campaign: plan -> fixed chunks -> (simulate, log, extract) per chunk -> results table.
+
+Resumable and loss-free: the folder's records say which tests are finished; only chunks with
+unfinished tests run; the manifest is rewritten (atomically) after every chunk; the results
+table is assembled from the records at the end of every run. Deterministic: chunks are fixed
+by the plan (not by the number of workers), every test's noise comes from its own seed, so one
+worker, two workers, a Dask cluster and an interrupted-then-resumed run write the same results.
+"""
+from __future__ import annotations
+
+import resource
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from droptower.campaign.chunk import ChunkOutcome, ChunkTask, run_chunk
+from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
+from droptower.campaign.folder import Layout, finished, layout_for, open_folder, saved_settings, write_manifest
+from droptower.campaign.results import assemble, write_results
+from droptower.campaign.spec import PLAN_COLUMNS, CampaignSpec, prepare
+from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
+from droptower.errors import DroptowerError
+
+
+@dataclass
+class CampaignRun:
+    """What a run did.
+
+    results: the results table (every finished test of the folder); failed: (test_id, error)
+    of tests whose simulation or extraction failed (final, listed in the results);
+    errors: chunks that crashed with an unexpected error in this run (their tests stay
+    pending and are retried by ``--resume``); pending: tests still unfinished; ran_tests: tests
+    written in this run; CPU time per phase summed over the workers (s) and the wall time; peak memory (MB) of this process and of the largest worker.
+    """
+
+    spec: CampaignSpec
+    root: Path
+    executor: str
+    results: pd.DataFrame
+    failed: list[tuple[int, str]]
+    errors: list[str]
+    pending: int
+    ran_tests: int
+    wall_s: float
+    simulate_cpu_s: float = 0.0
+    write_cpu_s: float = 0.0
+    extract_cpu_s: float = 0.0
+    peak_rss_main_mb: float = 0.0
+    peak_rss_worker_mb: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+
+
+def _rss_mb(who: int) -> float:
+    peak = resource.getrusage(who).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10
+
+
+def run_campaign(out: str | Path, rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING,
+                 doe: str | Path = DEFAULT_DOE, *, workers: int | None = None, scheduler: str | None = None,
+                 resume: bool = False, duration_s: float | None = None, chunk_size: int | None = None,
+                 log_format: str | None = None, window: str | None = None, progress: bool = True,
+                 max_chunks: int | None = None, scheduler_timeout_s: float = SCHEDULER_TIMEOUT_S) -> CampaignRun:
+    """Simulate, log and extract every test of the plan ``doe`` on ``rig`` with ``coupling``
+    (files or shipped preset names) into the folder ``out``.
+
+    workers: local processes (None: every local core; 1: this process); scheduler: a Dask
+    scheduler address instead; resume: continue the campaign in ``out`` (same rig, coupling,
+    plan and settings, else a one-line error and nothing touched); duration_s: record length
+    after the impact (None: twice the longest predicted period, see :func:`prepare`);
+    chunk_size: tests per batched simulation (None: 25); log_format: ``parquet`` (None) or
+    ``csv``; window: the extractor's fit window (None: ``first-cycle``). With ``resume``, a
+    setting left None is the folder's. progress: a tqdm bar on stderr; max_chunks: stop after
+    this many chunks (an interrupted campaign, for tests and trial runs).
+    """
+    t_start = time.perf_counter()
+    if workers is not None and workers < 1:
+        raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
+    given = {"duration_s": duration_s, "chunk_size": chunk_size, "log_format": log_format, "window": window}
+    saved = saved_settings(Path(out)) if resume else {}
+    spec = prepare(rig, coupling, doe, **{k: saved.get(k) if v is None else v for k, v in given.items()})
+    layout = layout_for(out, spec)
+    # a Dask scheduler is asked first: if it does not answer, the folder is not touched
+    cluster = make_executor(workers, scheduler, scheduler_timeout_s) if scheduler is not None else None
+    try:
+        return _run(spec, layout, resume, workers, cluster, progress, max_chunks, t_start)
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
+def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, cluster: DaskCluster | None,
+         progress: bool, max_chunks: int | None, t_start: float) -> CampaignRun:
+    from tqdm import tqdm
+
+    old, warnings = open_folder(layout, spec, resume)
+    created = old.get("created") if old else None
+    records = finished(layout, spec)
+    status = {i: {"status": r["status"], "error": r.get("error")} for i, r in records.items()}
+    write_manifest(layout, spec, status, created)
+
+    plan = spec.tests[list(PLAN_COLUMNS)].to_dict(orient="records")
+    tasks = []
+    for index, rows in enumerate(spec.chunks()):
+        todo = tuple(plan[i]["test_id"] not in status for i in rows)
+        if any(todo):
+            tasks.append(ChunkTask(index=index, layout=layout, plan=tuple(plan[i] for i in rows), todo=todo,
+                                   rig=spec.rig, coupling=spec.coupling, duration_s=spec.duration_s,
+                                   log_format=spec.log_format, window=spec.window))
+    if max_chunks is not None:
+        tasks = tasks[:max_chunks]
+
+    run = CampaignRun(spec=spec, root=layout.root, executor="", results=pd.DataFrame(), failed=[], errors=[],
+                      pending=0, ran_tests=0, wall_s=0.0, warnings=warnings)
+    if tasks:
+        if cluster is None:
+            workers = min(local_cores() if workers is None else workers, len(tasks))
+        with cluster or make_executor(workers) as executor:
+            run.executor = executor.description
+            bar = tqdm(total=len(spec.tests), initial=len(status), unit="test", desc="campaign", file=sys.stderr,
+                       disable=None if progress else True)
+            try:
+                for task, outcome in executor.run(run_chunk, tasks):
+                    if isinstance(outcome, ChunkOutcome):
+                        status.update(outcome.status)
+                        run.ran_tests += len(outcome.status)
+                        run.simulate_cpu_s += outcome.simulate_cpu_s
+                        run.write_cpu_s += outcome.write_cpu_s
+                        run.extract_cpu_s += outcome.extract_cpu_s
+                        run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, outcome.peak_rss_mb)
+                        bar.update(len(outcome.status))
+                    else:
+                        ids = [r["test_id"] for r in task.plan]
+                        run.errors.append(f"chunk {task.index} (tests {ids[0]}-{ids[-1]}): internal error "
+                                          f"({type(outcome).__name__}: {outcome})")
+                        tqdm.write(f"droptower: error: {run.errors[-1]}", file=sys.stderr)
+                    write_manifest(layout, spec, status, created)
+            finally:
+                bar.close()
+                write_manifest(layout, spec, status, created)
+
+    records = finished(layout, spec)
+    run.results = assemble(list(records.values()))
+    write_results(run.results, layout.results_parquet, layout.results_csv)
+    run.failed = [(i, r.get("error") or "") for i, r in sorted(records.items()) if r["status"] == "failed"]
+    run.pending = len(spec.tests) - len(records)
+    run.peak_rss_main_mb = _rss_mb(resource.RUSAGE_SELF)
+    run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, _rss_mb(resource.RUSAGE_CHILDREN))
+    run.wall_s = time.perf_counter() - t_start
+    return run

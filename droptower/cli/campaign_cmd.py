@@ -1,0 +1,71 @@
+"""``droptower campaign``: a whole test plan simulated, logged and extracted (seed 004 Table 2)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
+
+
+@click.command()
+@click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
+@click.option("--coupling", default=DEFAULT_COUPLING, show_default=True, help="Coupling TOML file or shipped preset name.")
+@click.option("--doe", default=DEFAULT_DOE, show_default=True, help="Test-plan TOML file or shipped preset name.")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Campaign folder: logs/, records/, results.parquet, results.csv, manifest.json.")
+@click.option("--workers", type=int, default=None, help="Local worker processes [default: every local core].")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run the chunks on this Dask distributed scheduler (e.g. tcp://host:8786) instead; the "
+                   "folder must be reachable by its workers under the same path.")
+@click.option("--scheduler-timeout-s", type=float, default=10.0, show_default=True,
+              help="How long to wait for the scheduler to answer.")
+@click.option("--resume", is_flag=True, help="Continue the campaign in --out where it stopped.")
+@click.option("--duration-s", type=float, default=None,
+              help="Record length after the impact (s) [default: twice the longest first period the planner "
+                   "predicts for the plan; with --resume: the folder's].")
+@click.option("--log-format", type=click.Choice(["parquet", "csv"]), default=None,
+              help="Log file format [default: parquet; with --resume: the folder's].")
+@click.option("--chunk-size", type=int, default=None,
+              help="Tests per batched simulation, part of the campaign's identity [default: 25; with --resume: "
+                   "the folder's].")
+def campaign(rig: str, coupling: str, doe: str, out: Path, workers: int | None, scheduler: str | None,
+             scheduler_timeout_s: float, resume: bool, duration_s: float | None, log_format: str | None,
+             chunk_size: int | None) -> None:
+    """Simulate every test of a plan on the virtual drop tower, write its log and extract it
+    from the log on disk with the code that evaluates real logs (as `droptower extract`).
+
+    Writes OUT/results.parquet and OUT/results.csv (one row per test: plan fields, the
+    extracted values under the names of `droptower extract --json`, flags, log_file),
+    OUT/logs/, and OUT/manifest.json (hashes and contents of rig, coupling and plan, versions,
+    per-test status). Resumable: with --resume, finished tests are kept and the rest is run;
+    a folder holding another campaign is never touched. Same plan and seeds, same results,
+    whatever the number of workers.
+
+    A test whose simulation or extraction fails is listed at the end (exit code 1); the
+    others are still written.
+    """
+    from droptower.campaign import run_campaign
+
+    run = run_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
+                       duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
+                       scheduler_timeout_s=scheduler_timeout_s)
+    for line in run.warnings:
+        click.echo(f"droptower: warning: {line}", err=True)
+    n = len(run.spec.tests)
+    done = int((run.results["status"] == "done").sum()) if len(run.results) else 0
+    click.echo(f"{run.spec.coupling.name} on {run.spec.rig.name}, plan {run.spec.doe.name}: {n} tests, "
+               f"{done} extracted, {len(run.failed)} failed, {run.pending} pending "
+               f"({run.ran_tests} run now{' on ' + run.executor if run.executor else ''}, {run.wall_s:.1f} s; "
+               f"record {run.spec.duration_s:g} s after the impact)")
+    click.echo(f"results: {run.root / 'results.parquet'}, {run.root / 'results.csv'}")
+    if run.failed:
+        click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
+        for test_id, error in run.failed:
+            click.echo(f"  test {test_id}: {error}", err=True)
+    for line in run.errors:
+        click.echo(f"droptower: error: {line}", err=True)
+    if run.pending:
+        click.echo(f"droptower: {run.pending} test(s) not finished; run again with --resume to continue", err=True)
+    if run.failed or run.errors or run.pending:
+        raise click.exceptions.Exit(1)

@@ -1,0 +1,18 @@
+"""Validation of characteristic maps: against servo-hydraulic sweeps (seed 004 Fig. 14, NOTES
+§1.6-1.7) and against a measured map such as seed 004 Table 4.
+
+- :mod:`.servo_points`: the NOTES §1.6 sweeps on the virtual servo bench, or measured servo
+  results from a table;
+- :mod:`.validation`: map vs servo points, deviations inside and outside the measured range,
+  damping compared like with like (the drop tower's d_ratio);
+- :mod:`.fig14`: the four panels of seed 004 Fig. 14;
+- :mod:`.reference_map`: a campaign and its map vs a measured map (Table 4).
+
+Downstream of maps, servo and rheology; only the CLI and ``analysis/`` import it.
+"""
+from droptower.compare.reference_map import compare_reference, format_comparison, read_reference
+from droptower.compare.servo_points import ServoPoints, read_servo_results, run_sweeps, sweep_points
+from droptower.compare.validation import Validation, format_summary, validate_map
+
+__all__ = ["ServoPoints", "Validation", "compare_reference", "format_comparison", "format_summary",
+           "read_reference", "read_servo_results", "run_sweeps", "sweep_points", "validate_map"]
