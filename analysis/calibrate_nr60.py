@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 
 from droptower.configs import preset_dir
 from droptower.extract.decay import fit_decay, start_frequency_and_decay
-from droptower.extract.formulas import damping_ratio, stiffness
+from droptower.sdof import damping_ratio, stiffness
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
 from droptower.rig.impact import impact_velocities
 from droptower.rig.planner import free_decay
@@ -112,9 +112,8 @@ def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[
             float(stiffness(inertia, omega, delta)) * np.pi / 180, float(damping_ratio(delta, omega)))
 
 
-def predict(values: np.ndarray) -> dict[int, np.ndarray]:
+def predict(coupling: Coupling) -> dict[int, np.ndarray]:
     """Per case: array (heights, 4) of amplitude_deg, frequency_hz, stiffness_nm_per_deg, d_ratio."""
-    coupling = build(values)
     inertia = np.repeat([CASES[c][0] for c in CASES], HEIGHTS_M.size)
     mass = np.repeat([CASES[c][1] for c in CASES], HEIGHTS_M.size)
     heights = np.tile(HEIGHTS_M, len(CASES))
@@ -128,7 +127,12 @@ def predict(values: np.ndarray) -> dict[int, np.ndarray]:
 
 def compare(values: np.ndarray, table: pd.DataFrame) -> pd.DataFrame:
     """Table 4 rows with the predicted stiffness and damping ratio at each row's case and amplitude."""
-    pred = predict(values)
+    return compare_coupling(build(values), table)
+
+
+def compare_coupling(coupling: Coupling, table: pd.DataFrame) -> pd.DataFrame:
+    """:func:`compare` for a given coupling (e.g. the shipped preset)."""
+    pred = predict(coupling)
     rows = []
     for _, row in table.iterrows():
         p = pred[int(row["case"])]
