@@ -173,8 +173,8 @@ def _bank(stiffness: np.ndarray, yield_torque: np.ndarray, rate: float = 0.0, ex
           constriction: tuple[float, float] = (0.0, 0.0)) -> KernelElement:
     n = stiffness.size
     params = np.concatenate([[n, rate, exponent, constriction[0], constriction[1]], stiffness, yield_torque,
-                             stiffness / yield_torque])
-    return KernelElement(K.SLIDER_BANK, params, 2 * n)
+                             stiffness / yield_torque, yield_torque / stiffness])
+    return KernelElement(K.SLIDER_BANK, params, 3 * n)
 
 
 class Prandtl(ElementSpec):
@@ -311,8 +311,8 @@ class Elastoslide(ElementSpec):
     def compile(self):
         w, f = self.bins()
         # element i: spring k w_i, slider limit w_i f*_i, so k e / f* is the same ratio
-        return [KernelElement(K.LINEAR_SPRING, np.array([self.k0])),
-                _bank(self.k * w, w * f, rate=self.v_r, exponent=self.p)]
+        bank = _bank(self.k * w, w * f, rate=self.v_r, exponent=self.p)
+        return [KernelElement(K.LINEAR_SPRING, np.array([self.k0])), bank] if self.k0 > 0 else [bank]
 
 
 # ------------------------------------------------------------------ seed 000

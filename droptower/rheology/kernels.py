@@ -81,7 +81,7 @@ def _ipow(u, p):
 
 
 # ---------------------------------------------------------------- elastic elements
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def linear_spring(p, po, s, so, x0, x1, h):
     """T = k x.  params: [k]."""
     k = p[po + 0]
@@ -107,7 +107,7 @@ def table_spring(p, po, s, so, x0, x1, h):
     return torque
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def cubic_spring(p, po, s, so, x0, x1, h):
     """T = A x^3 + B x (seed 003). params: [A, B]."""
     a = p[po + 0]
@@ -118,7 +118,7 @@ def cubic_spring(p, po, s, so, x0, x1, h):
 
 
 # ---------------------------------------------------------------- dissipative elements
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def dashpot(p, po, s, so, x0, x1, h):
     """T = c dx/dt, the rate of the step. params: [c]."""
     t1 = p[po + 0] * (x1 - x0) / h
@@ -127,7 +127,7 @@ def dashpot(p, po, s, so, x0, x1, h):
     return t1
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def maxwell(p, po, s, so, x0, x1, h):
     """Spring k in series with dashpot c (seed 000 eq. 1), exact for a linear ramp in the step.
 
@@ -162,6 +162,9 @@ def _constriction(x, p_c, k_c):
 @njit(**JIT)
 def _ipow_small(u, p):
     """u**p for an integer 0 <= p < 32 without branches (so that loops over it vectorise)."""
+    if p == 6:  # seed 001's p = 7: the compiler unswitches the loop on this invariant test
+        u2 = u * u
+        return u2 * u2 * u2
     r = 1.0
     b = u
     for bit in range(5):
@@ -179,10 +182,12 @@ def _slide_newton(u, bb, a, p_exp, tol):
     which lies above the root after its first step) is clipped to the upper bounds |B| and
     (|B|/A)^(1/p).
     """
-    upper = min(bb, (bb / a) ** (1.0 / p_exp))  # both bound the root from above
-    u = min(u, upper) if u >= 0.0 else upper     # (a NaN from an overflow in the fast pass restarts)
+    u = min(u, bb) if u >= 0.0 else bb  # a NaN (an overflow in the fast pass) restarts from |B|
     for it in range(200):
         up = _ipow(u, p_exp - 1)
+        if it == 20 or not np.isfinite(a * up * u):  # slow, or overflowing: the tighter bound
+            u = min(u, (bb / a) ** (1.0 / p_exp))
+            up = _ipow(u, p_exp - 1)
         step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
         u -= step
         if abs(step) <= tol * u:
@@ -196,22 +201,23 @@ FAST_MAX_EXPONENT = 32  # _ipow_small handles exponents below 32 (5 bits)
 
 
 @njit(**JIT)
-def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
+def _bank_rate_dependent(scales, yield_angles, elong, trial, work, v_r, p_exp, n, dx, h):
     """Backward-Euler update of every element of a rate-dependent elastoslide bank.
 
     Seed 001 eq. 13/17: de/dt = dx/dt - v_r (k e / f*)^p. In the normalised elongation
     u = k e / f* (``scales`` = k / f*) the implicit step reads u + A u^p = B with
     A = h v_r k / f* and B = k (e0 + dx) / f*, an odd, increasing function of u, convex for
-    u > 0: one root, found by Newton's method. A branch-free pass of a fixed number of
-    iterations, warm-started from the previous elongation (steady motion changes it little),
-    runs over all elements and vectorises; the few elements it leaves unconverged (at
-    stick-slip transitions) are finished one by one.
+    u > 0: one root, found by Newton's method (``yield_angles`` = f* / k = 1 / scales, to
+    multiply rather than divide). A branch-free pass of a fixed number of iterations,
+    warm-started from the previous elongation (steady motion changes it little), runs over all
+    elements and vectorises; the few elements it leaves unconverged (at stick-slip
+    transitions; marked NaN, their last iterate kept in ``work``) are finished one by one.
     """
     if p_exp >= FAST_MAX_EXPONENT:  # beyond the branch-free power: element by element
         for i in range(n):
             b = scales[i] * (elong[i] + dx)
             u = _slide_newton(abs(b), abs(b), h * v_r * scales[i], p_exp, NEWTON_TOL)
-            trial[i] = (u if b > 0.0 else -u) / scales[i]
+            trial[i] = (u if b > 0.0 else -u) * yield_angles[i]
         return
     unconverged = 0
     for i in range(n):
@@ -227,16 +233,16 @@ def _bank_rate_dependent(scales, elong, trial, v_r, p_exp, n, dx, h):
             up = _ipow_small(u, p_exp - 1)
             step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
             u -= step
-        unconverged += 0 if abs(step) <= NEWTON_TOL * u else 1
-        # the normalised result; a negative value marks it unconverged for the second pass
-        trial[i] = u if abs(step) <= NEWTON_TOL * u else -u
-    for i in range(n):
-        scale = scales[i]
-        b = scale * (elong[i] + dx)
-        u = trial[i]
-        if unconverged and not u >= 0.0:  # negative: unconverged; NaN: the power overflowed
-            u = _slide_newton(-u, abs(b), h * v_r * scale, p_exp, NEWTON_TOL)
-        trial[i] = (u if b > 0.0 else -u) / scale
+        ok = abs(step) <= NEWTON_TOL * u  # False for NaN (an overflowing power)
+        unconverged += 0 if ok else 1
+        work[i] = u
+        trial[i] = (u if b > 0.0 else -u) * yield_angles[i] if ok else np.nan
+    if unconverged:
+        for i in range(n):
+            if trial[i] != trial[i]:
+                b = scales[i] * (elong[i] + dx)
+                u = _slide_newton(work[i], abs(b), h * v_r * scales[i], p_exp, NEWTON_TOL)
+                trial[i] = (u if b > 0.0 else -u) * yield_angles[i]
 
 
 @njit(**JIT)
@@ -268,11 +274,11 @@ def _bank_commit(ks, elong, trial, n, dx):
 def slider_bank(p, po, s, so, x0, x1, h):
     """n springs k_i each in series with a slider of limit f_i, in parallel (Iwan / Masing).
 
-    params: [n, v_r, p, P, K, k_1..k_n, f_1..f_n, k_1/f_1..k_n/f_n]
+    params: [n, v_r, p, P, K, k_1..k_n, f_1..f_n, k_1/f_1..k_n/f_n, f_1/k_1..f_n/k_n]
       p == 0: Coulomb sliders (Prandtl/Jenkins elements, seed 003; return mapping);
       p odd : rate-dependent elastoslide sliders (seed 001 eq. 13), slip rate v_r (e k/f)^p;
       P > 0 : the bank's torque is scaled by the constriction S(x) (seed 003), K its floor.
-    internal: elongations e_1..e_n, then n scratch slots for the trial elongations.
+    internal: elongations e_1..e_n, then 2n scratch slots (trial elongations, Newton iterates).
     """
     n = int(p[po + 0])
     v_r = p[po + 1]
@@ -286,7 +292,8 @@ def slider_bank(p, po, s, so, x0, x1, h):
         _bank_coulomb(p[ko:ko + n], p[fo:fo + n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], n, dx)
     else:
         # slices with offsets from 0 keep the loops free of index checks, so they vectorise
-        _bank_rate_dependent(p[po + 5 + 2 * n:po + 5 + 3 * n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n],
+        _bank_rate_dependent(p[po + 5 + 2 * n:po + 5 + 3 * n], p[po + 5 + 3 * n:po + 5 + 4 * n],
+                             s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], s[so + 3 + 2 * n:so + 3 + 3 * n],
                              v_r, p_exp, n, dx, h)
     force, energy, slider_work = _bank_commit(p[ko:ko + n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], n, dx)
     if p_c > 0.0:
@@ -483,7 +490,7 @@ def pfeffer(p, po, s, so, x0, x1, h):
 
 
 # ---------------------------------------------------------------- the compiled coupling
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def step_element(code, p, po, s, so, x0, x1, h):
     """Dispatch one kernel element (parameters from p[po], state from s[so])."""
     if code == LINEAR_SPRING:
