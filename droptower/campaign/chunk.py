@@ -18,7 +18,6 @@ import resource
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from droptower.campaign.folder import Layout, write_json
@@ -59,12 +58,14 @@ class ChunkOutcome:
     peak_rss_mb: float = 0.0
 
 
-def _peak_rss_mb() -> float:
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+def peak_rss_mb(who: int = resource.RUSAGE_SELF) -> float:
+    """Peak resident memory (MB) of this process (or, with RUSAGE_CHILDREN, of its largest
+    finished child)."""
+    peak = resource.getrusage(who).ru_maxrss
     return peak / 2**20 if sys.platform == "darwin" else peak / 2**10  # bytes on macOS, KiB on Linux
 
 
-def _record(row: dict[str, Any], log_file: str, status: str, result: dict[str, Any] | None, error: str | None,
+def _record(row: dict[str, Any], log_file: str | None, status: str, result: dict[str, Any] | None, error: str | None,
             warnings: list[str]) -> dict[str, Any]:
     return {**row, "status": status, "log_file": log_file, "result": result, "error": error,
             "simulation_warnings": warnings}
@@ -88,9 +89,9 @@ def run_chunk(task: ChunkTask) -> ChunkOutcome:
             if todo:
                 test_id = int(row["test_id"])
                 write_json(layout.record(test_id), _record(row, None, "failed", None, f"simulation: {exc.message}", []))
-                out.status[test_id] = {"status": "failed", "error": f"simulation: {exc.message}"}
+                out.status[test_id] = {"status": "failed", "error": f"simulation: {exc.message}", "log_file": None}
         out.simulate_cpu_s = time.thread_time() - t0
-        out.peak_rss_mb = _peak_rss_mb()
+        out.peak_rss_mb = peak_rss_mb()
         return out
     out.simulate_cpu_s = time.thread_time() - t0
 
@@ -107,11 +108,12 @@ def run_chunk(task: ChunkTask) -> ChunkOutcome:
         try:
             _, extracted = extract_file(layout.root / log_file, settings)
             record = _record(row, log_file, "done", extracted.as_dict(), None, result.warnings)
-        except DroptowerError as exc:
-            record = _record(row, log_file, "failed", None, exc.message, result.warnings)
+        except DroptowerError as exc:  # the log is named by log_file: the message leaves out the folder's path
+            reason = ": ".join(part for part in (exc.where, exc.problem) if part)
+            record = _record(row, log_file, "failed", None, reason, result.warnings)
         write_json(layout.record(test_id), record)
-        out.status[test_id] = {"status": record["status"], "error": record["error"]}
+        out.status[test_id] = {"status": record["status"], "error": record["error"], "log_file": log_file}
         out.write_cpu_s += t2 - t1
         out.extract_cpu_s += time.thread_time() - t2
-    out.peak_rss_mb = _peak_rss_mb()
+    out.peak_rss_mb = peak_rss_mb()
     return out

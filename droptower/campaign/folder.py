@@ -86,17 +86,19 @@ def versions() -> dict[str, str]:
     return out
 
 
-def write_json(path: Path, value: Any) -> None:
-    """Write strict JSON (NaN and infinities as null) atomically."""
-    text = json.dumps(_strict(value), indent=1, default=str) + "\n"
+def write_json(path: Path, value: Any) -> Path:
+    """Write strict JSON (NaN and infinities as null, numpy scalars as numbers) atomically."""
+    text = json.dumps(strict_json(value), indent=1, default=str) + "\n"
     atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+    return path
 
 
-def _strict(value: Any) -> Any:
+def strict_json(value: Any) -> Any:
+    """``value`` as strict JSON data: NaN and infinities as None, numpy scalars as Python numbers."""
     if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
+        return {k: strict_json(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_strict(v) for v in value]
+        return [strict_json(v) for v in value]
     if hasattr(value, "item") and not isinstance(value, (str, bytes)):
         value = value.item()  # numpy scalars
     if isinstance(value, float) and not math.isfinite(value):
@@ -105,6 +107,7 @@ def _strict(value: Any) -> Any:
 
 
 def read_manifest(path: Path) -> dict[str, Any]:
+    """A campaign folder's manifest; anything else is a one-line error (the folder is not touched)."""
     try:
         data = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -179,15 +182,14 @@ def write_manifest(layout: Layout, spec: CampaignSpec, status: dict[int, dict[st
                    created: str | None = None) -> None:
     """The manifest: identity, inputs, settings, versions and per-test status.
 
-    status: test_id -> ``{"status": "done" | "failed", "error": ...}`` for finished tests;
-    every other test of the plan is ``pending``.
+    status: test_id -> ``{"status": "done" | "failed", "error": ..., "log_file": ...}`` for
+    finished tests; every other test of the plan is ``pending``.
     """
     now = datetime.now(timezone.utc).isoformat(timespec="seconds")
     tests = []
     for test_id in spec.tests["test_id"].tolist():
         entry = status.get(test_id, {"status": "pending"})
-        tests.append({"test_id": test_id, "status": entry["status"],
-                      "log_file": layout.log_file(test_id, spec.log_format) if entry["status"] != "pending" else None,
+        tests.append({"test_id": test_id, "status": entry["status"], "log_file": entry.get("log_file"),
                       "error": entry.get("error")})
     counts = {s: sum(t["status"] == s for t in tests) for s in ("done", "failed", "pending")}
     write_json(layout.manifest, {

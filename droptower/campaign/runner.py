@@ -13,11 +13,10 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 
-from droptower.campaign.chunk import ChunkOutcome, ChunkTask, run_chunk
+from droptower.campaign.chunk import ChunkOutcome, ChunkTask, peak_rss_mb, run_chunk
 from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
 from droptower.campaign.folder import Layout, finished, layout_for, open_folder, saved_settings, write_manifest
 from droptower.campaign.results import assemble, write_results
@@ -31,10 +30,11 @@ class CampaignRun:
     """What a run did.
 
     results: the results table (every finished test of the folder); failed: (test_id, error)
-    of tests whose simulation or extraction failed (final, listed in the results);
-    errors: chunks that crashed with an unexpected error in this run (their tests stay
-    pending and are retried by ``--resume``); pending: tests still unfinished; ran_tests: tests
-    written in this run; CPU time per phase summed over the workers (s) and the wall time; peak memory (MB) of this process and of the largest worker.
+    of tests whose simulation or extraction failed (final, listed in the results); errors:
+    chunks that crashed with an unexpected error in this run (their tests stay pending and are
+    retried by ``--resume``); pending: tests still unfinished; ran_tests: tests written in this
+    run; executor: where the chunks ran; CPU time per phase summed over the workers (s), the
+    wall time (s); peak memory (MB) of this process and of the largest worker.
     """
 
     spec: CampaignSpec
@@ -52,11 +52,6 @@ class CampaignRun:
     peak_rss_main_mb: float = 0.0
     peak_rss_worker_mb: float = 0.0
     warnings: list[str] = field(default_factory=list)
-
-
-def _rss_mb(who: int) -> float:
-    peak = resource.getrusage(who).ru_maxrss
-    return peak / 2**20 if sys.platform == "darwin" else peak / 2**10
 
 
 def run_campaign(out: str | Path, rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING,
@@ -99,7 +94,7 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
     old, warnings = open_folder(layout, spec, resume)
     created = old.get("created") if old else None
     records = finished(layout, spec)
-    status = {i: {"status": r["status"], "error": r.get("error")} for i, r in records.items()}
+    status = {i: {k: r.get(k) for k in ("status", "error", "log_file")} for i, r in records.items()}
     write_manifest(layout, spec, status, created)
 
     plan = spec.tests[list(PLAN_COLUMNS)].to_dict(orient="records")
@@ -147,7 +142,7 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
     write_results(run.results, layout.results_parquet, layout.results_csv)
     run.failed = [(i, r.get("error") or "") for i, r in sorted(records.items()) if r["status"] == "failed"]
     run.pending = len(spec.tests) - len(records)
-    run.peak_rss_main_mb = _rss_mb(resource.RUSAGE_SELF)
-    run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, _rss_mb(resource.RUSAGE_CHILDREN))
+    run.peak_rss_main_mb = peak_rss_mb()
+    run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, peak_rss_mb(resource.RUSAGE_CHILDREN))
     run.wall_s = time.perf_counter() - t_start
     return run

@@ -12,7 +12,7 @@ from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 @click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True, help="Coupling TOML file or shipped preset name.")
 @click.option("--doe", default=DEFAULT_DOE, show_default=True, help="Test-plan TOML file or shipped preset name.")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), required=True,
+@click.option("--out", type=click.Path(path_type=Path), required=True,
               help="Campaign folder: logs/, records/, results.parquet, results.csv, manifest.json.")
 @click.option("--workers", type=int, default=None, help="Local worker processes [default: every local core].")
 @click.option("--scheduler", default=None, metavar="ADDRESS",

@@ -6,7 +6,7 @@ damping ratio):
 - ``map_*``: the fitted map (eq. 19, eq. 20) at the row's amplitude and frequency;
 - ``campaign_*``: the campaign's own extracted tests of the row's case (same inertia and drop
   mass), averaged per drop height over repeats and preloads (the paper found no influence of
-  the preload, seed 004 Fig. 11), interpolated linearly in log amplitude at the row's
+  the preload, seed 004 Fig. 11; one preload can be selected), interpolated linearly in log amplitude at the row's
   amplitude (extrapolated from the two outermost heights beyond them; ``campaign_extrapolated``
   says so). The campaign's frequency at that amplitude is reported too: where the coupling's
   stiffness is off, so is the frequency the case's inertia gives.
@@ -53,10 +53,15 @@ def read_reference(path: str | Path) -> pd.DataFrame:
     return table
 
 
-def campaign_points(results: pd.DataFrame) -> pd.DataFrame:
+def campaign_points(results: pd.DataFrame, preload_nm: float | None = None) -> pd.DataFrame:
     """The usable tests (no unusable flag, :func:`droptower.maps.select_tests`) averaged per
-    inertia, drop mass and drop height: amplitude, frequency, stiffness, damping ratio, n_tests."""
+    inertia, drop mass and drop height: amplitude, frequency, stiffness, damping ratio, n_tests.
+    preload_nm: only the tests at this preload (None: all)."""
     usable, _ = select_tests(results)
+    if preload_nm is not None:
+        if "preload_nm" not in usable.columns:
+            raise DroptowerError("campaign results lack preload_nm, so no preload can be selected")
+        usable = usable[np.isclose(usable["preload_nm"].astype(float), preload_nm)]
     keys = [k for k in ("inertia_kgm2", "drop_mass_kg", "drop_height_m") if k in usable.columns]
     if "inertia_kgm2" not in keys or "drop_height_m" not in keys:
         raise DroptowerError("campaign results lack inertia_kgm2 or drop_height_m (not a campaign's results)")
@@ -78,9 +83,10 @@ def _log_interp(x: float, xs: np.ndarray, ys: np.ndarray) -> tuple[float, bool]:
     return float(ys[i[0]] + slope * (lx - lxs[i[0]])), True
 
 
-def compare_reference(reference: pd.DataFrame, fit: MapFit | None = None,
-                      results: pd.DataFrame | None = None) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """The comparison table (one row per reference row) and its summary (module docstring)."""
+def compare_reference(reference: pd.DataFrame, fit: MapFit | None = None, results: pd.DataFrame | None = None,
+                      preload_nm: float | None = None) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The comparison table (one row per reference row) and its summary (module docstring);
+    preload_nm: interpolate only the campaign's tests at this preload (None: all preloads)."""
     table = reference.copy()
     a = table["amplitude_deg"].to_numpy(float)
     summary: dict[str, Any] = {"n_rows": len(table)}
@@ -89,7 +95,8 @@ def compare_reference(reference: pd.DataFrame, fit: MapFit | None = None,
         table["map_damping_ratio"] = fit.damping_ratio(a, table["frequency_hz"].to_numpy(float))
         table["map_in_range"] = fit.in_range(a, table["frequency_hz"].to_numpy(float))
     if results is not None:
-        points = campaign_points(results)
+        points = campaign_points(results, preload_nm)
+        summary["campaign_preload_nm"] = "all" if preload_nm is None else preload_nm
         values = {q: np.full(len(table), np.nan) for q in QUANTITIES}
         extrapolated = np.ones(len(table), dtype=bool)
         for i, row in enumerate(table.itertuples(index=False)):

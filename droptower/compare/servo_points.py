@@ -64,13 +64,16 @@ SERVO_COLUMNS = ("sweep", "amplitude_deg", "frequency_hz", "servo_stiffness_nm_p
 class ServoPoints:
     """A servo table (module docstring) and where it came from.
 
-    stiffness_definition / damping_definition: which servo quantity the columns hold, in words.
+    stiffness_definition / damping_definition: which servo quantity the columns hold, in words;
+    raw: the bench's full table (every :func:`droptower.servo.run_grid` column plus ``sweep``)
+    or the file as read: readable again by :func:`read_servo_results`.
     """
 
     table: pd.DataFrame
     source: str
     stiffness_definition: str
     damping_definition: str
+    raw: pd.DataFrame
 
 
 def sweep_points(reduced: bool = False) -> pd.DataFrame:
@@ -102,7 +105,7 @@ def run_sweeps(coupling, reduced: bool = False, sample_rate_hz: float = 2048.0) 
     table = points.merge(bench, on=["amplitude_deg", "frequency_hz"], how="left", validate="many_to_one")
     servo = _servo_table(table, "storage_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio")
     return ServoPoints(servo, f"virtual servo bench, coupling {model.name}", *_definitions(
-        "storage_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio"))
+        "storage_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio"), raw=table)
 
 
 def read_servo_results(path: str | Path) -> ServoPoints:
@@ -150,7 +153,7 @@ def read_servo_results(path: str | Path) -> ServoPoints:
         raw["sweep"] = kinds
     else:
         raw["sweep"] = _infer_sweeps(raw["amplitude_deg"].to_numpy(float), raw["frequency_hz"].to_numpy(float))
-    return ServoPoints(_servo_table(raw, stiffness, damping), str(path), *_definitions(stiffness, damping))
+    return ServoPoints(_servo_table(raw, stiffness, damping), str(path), *_definitions(stiffness, damping), raw=raw)
 
 
 def _infer_sweeps(amplitude: np.ndarray, frequency: np.ndarray) -> list[str]:

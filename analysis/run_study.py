@@ -1,0 +1,222 @@
+"""The study of seed 004, end to end, on the virtual rig: campaign -> map -> servo validation ->
+comparison with the paper's measured map (Table 4), into one report folder.
+
+    python analysis/run_study.py [--out report] [--reduced] [--coupling rapp2022_nr60] [--workers N]
+
+1. the Table-2 campaign (450 tests; ``--reduced``: one repeat of five drop heights per case,
+   no preload: 15 tests) on the rig ``rapp2022`` with the coupling (default the calibrated
+   ``rapp2022_nr60``): simulated, logged, extracted from the logs (``droptower campaign``),
+   into ``OUT/campaign/`` (resumed if it is there already);
+2. the characteristic map, seed 004 eq. 19 and eq. 20 (``droptower map``): ``OUT/map.json``
+   and Fig. 10, 12, 13;
+3. the servo-hydraulic validation, NOTES §1.6 sweeps on the virtual servo bench
+   (``droptower validate``; ``--reduced``: fewer steps): ``OUT/validation.csv``, Fig. 14;
+4. the comparison with Table 4 (``../shared/reference/rapp2022_table4_map.csv``): per row the
+   map at the row's amplitude and frequency and the campaign's tests interpolated at the row's
+   case and amplitude: ``OUT/table4_comparison.csv``, printed with the acceptance of issue 5
+   (RMS <= 5 % stiffness, <= 10 % damping ratio);
+5. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json``.
+"""
+from __future__ import annotations
+
+import argparse
+import html
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import tomli_w
+from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+from droptower.campaign import run_campaign
+from droptower.campaign.folder import write_json
+from droptower.compare import compare_reference, format_comparison, format_summary, run_sweeps, validate_map
+from droptower.compare.files import write_csv, write_validation
+from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG, read_toml, resolve
+from droptower.errors import DroptowerError
+from droptower.maps import fit_map, select_tests
+from droptower.maps.plots import plot_all
+
+REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference" / "rapp2022_table4_map.csv"
+REDUCED_HEIGHTS_M = [0.05, 0.4, 1.0, 3.5, 6.0]
+TABLE4_FIGURE = "table4_comparison.png"
+
+
+def reduced_plan(folder: Path) -> Path:
+    """The Table-2 plan cut to one repeat of a few heights, no preload (a test file in ``folder``)."""
+    plan = read_toml(resolve(DEFAULT_DOE, "doe"))
+    plan.update(name=f"{plan['name']}_reduced", description="Table 2 reduced for CI: five heights, one repeat, no preload",
+                repeats=1, heights_m=REDUCED_HEIGHTS_M, preloads_nm=[0.0])
+    path = folder / "reduced_plan.toml"
+    folder.mkdir(parents=True, exist_ok=True)
+    path.write_text(tomli_w.dumps(plan))
+    return path
+
+
+def plot_table4(comparison: pd.DataFrame, results: pd.DataFrame, path: Path) -> Path:
+    """Stiffness and damping ratio over amplitude per case: Table 4, the campaign's tests, the
+    campaign interpolated at Table 4's amplitudes and the map at Table 4's (amplitude, frequency)."""
+    usable, _ = select_tests(results)
+    fig = Figure(figsize=(11, 4.6), layout="constrained")
+    axes = fig.subplots(1, 2)
+    for i, (inertia, rows) in enumerate(comparison.groupby("inertia_kgm2")):
+        color = f"C{i}"
+        tests = usable[np.isclose(usable["inertia_kgm2"], inertia, rtol=1e-6)]
+        rows = rows.sort_values("amplitude_deg")
+        for ax, q in ((axes[0], "stiffness_nm_per_deg"), (axes[1], "damping_ratio")):
+            ax.plot(tests["amplitude_deg"], tests[q], ".", color=color, alpha=0.3, ms=4)
+            ax.plot(rows["amplitude_deg"], rows[q], "s", color=color, mfc="none", label=f"J = {inertia:g} kg·m²")
+            ax.plot(rows["amplitude_deg"], rows[f"campaign_{q}"], "-", color=color)
+            ax.plot(rows["amplitude_deg"], rows[f"map_{q}"], "x", color=color)
+    axes[0].set(xlabel="angular amplitude [deg]", ylabel="stiffness [N·m/deg]", xscale="log")
+    axes[1].set(xlabel="angular amplitude [deg]", ylabel="damping ratio d [-]", xscale="log")
+    for ax in axes:
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xticks([0.1, 0.2, 0.5, 1, 2, 5])
+        ax.grid(True, alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.suptitle("Virtual campaign vs the paper's measured map (seed 004 Table 4). Squares: Table 4; lines: campaign "
+                 "interpolated at its amplitudes;\ncrosses: map at Table 4's amplitude and frequency; dots: single tests",
+                 fontsize=10)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _table_html(table: pd.DataFrame, digits: int = 4) -> str:
+    return table.to_html(index=False, float_format=lambda v: f"{v:.{digits}g}", border=0, classes="data",
+                         na_rep="")
+
+
+def write_index(out: Path, facts: dict[str, Any], sections: list[tuple[str, str]]) -> Path:
+    """``index.html``: a title, the facts, then (heading, html) sections."""
+    style = ("body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}"
+             "table.data{border-collapse:collapse;font-size:12px}table.data td,table.data th{border:1px solid #ccc;"
+             "padding:2px 6px;text-align:right}pre{background:#f6f6f6;padding:.6em;overflow-x:auto}img{max-width:100%}")
+    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>droptower study</title><style>{style}</style>"
+             "</head><body><h1>Drop-tower study of seed 004 on the virtual rig</h1><table class='data'>"]
+    parts += [f"<tr><th>{html.escape(k)}</th><td style='text-align:left'>{html.escape(str(v))}</td></tr>"
+              for k, v in facts.items()]
+    parts.append("</table>")
+    for heading, body in sections:
+        parts.append(f"<h2>{html.escape(heading)}</h2>{body}")
+    parts.append("</body></html>")
+    path = out / "index.html"
+    path.write_text("\n".join(parts))
+    return path
+
+
+def by_preload_text(by_preload: dict[str, dict[str, Any]]) -> str:
+    """The campaign's deviations from Table 4 per preload, one line each ('' for one preload)."""
+    return "".join(f"\n    tests at preload {p} N*m only: stiffness rms {s['stiffness_rms_deviation_pct']:.2f} %, "
+                   f"damping ratio rms {s['damping_rms_deviation_pct']:.2f} %" for p, s in by_preload.items())
+
+
+def _pre(text: str) -> str:
+    return f"<pre>{html.escape(text)}</pre>"
+
+
+def _img(name: str) -> str:
+    return f"<p><a href='{name}'><img src='{name}' alt='{name}'></a></p>"
+
+
+def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING, workers: int | None = None,
+              progress: bool = True) -> dict[str, Any]:
+    """Run the study into ``out``; returns the summary (also written to ``out/summary.json``)."""
+    if not REFERENCE.is_file():
+        raise DroptowerError("Table 4 of seed 004 is needed for the comparison and is absent", file=REFERENCE)
+    t0 = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    doe = reduced_plan(out) if reduced else DEFAULT_DOE
+
+    # 1. campaign (resumed if the folder holds it already; another campaign there is an error)
+    run = run_campaign(out / "campaign", DEFAULT_RIG, coupling, doe, workers=workers, resume=True, progress=progress)
+    results = run.results
+    t_campaign = time.perf_counter() - t0
+
+    # 2. map
+    fit = fit_map(results, source=str(out / "campaign" / "results.parquet"))
+    fit.to_json(out / "map.json")
+    usable, excluded = select_tests(results)
+    map_figures, _ = plot_all(usable, fit, out)
+
+    # 3. servo validation (NOTES §1.6, §1.7)
+    points = run_sweeps(run.spec.coupling, reduced=reduced)
+    validation = validate_map(fit, points)
+    write_validation(out, validation, fit, points)
+
+    # 4. Table 4
+    table4 = pd.read_csv(REFERENCE)
+    comparison, comparison_summary = compare_reference(table4, fit, results)
+    write_csv(out / "table4_comparison.csv", comparison)
+    # the same per preload: the paper saw no influence of the preload (seed 004 Fig. 11)
+    by_preload = {f"{p:g}": compare_reference(table4, None, results, p)[1]["campaign"]
+                  for p in sorted(results["preload_nm"].unique())} if results["preload_nm"].nunique() > 1 else {}
+    plot_table4(comparison, results, out / TABLE4_FIGURE)
+
+    summary = {
+        "reduced": reduced, "coupling": run.spec.coupling.name, "coupling_file": str(run.spec.coupling.path),
+        "rig": run.spec.rig.name, "plan": run.spec.doe.name, "tests": len(run.spec.tests),
+        "tests_extracted": int((results["status"] == "done").sum()), "tests_failed": len(run.failed),
+        "tests_pending": run.pending, "tests_excluded_from_map": len(excluded),
+        "campaign_hashes": run.spec.hashes(), "record_duration_s": run.spec.duration_s,
+        "map_fit": {k: v for k, v in fit.to_dict()["fit"].items()}, "map_range": fit.to_dict()["range"],
+        "servo_validation": validation.summary, "table4": comparison_summary, "table4_by_preload_nm": by_preload,
+        "campaign_wall_s": t_campaign, "study_wall_s": time.perf_counter() - t0,
+    }
+    write_json(out / "summary.json", summary)
+
+    excluded_table = pd.DataFrame([{"test": e.test, "reason": e.reason} for e in excluded], columns=["test", "reason"])
+    write_index(out, {
+        "coupling": f"{run.spec.coupling.name} ({run.spec.coupling.path})", "rig": run.spec.rig.name,
+        "plan": f"{run.spec.doe.name}: {len(run.spec.tests)} tests{' (reduced)' if reduced else ''}",
+        "tests": f"{summary['tests_extracted']} extracted, {summary['tests_failed']} failed, "
+                 f"{len(excluded)} excluded from the map",
+        "campaign": f"campaign/ (manifest.json, results.parquet, results.csv, logs/); {t_campaign:.1f} s",
+        "record length after the impact": f"{run.spec.duration_s:g} s",
+    }, [
+        ("Comparison with Table 4 of seed 004", _pre(format_comparison(comparison_summary) + by_preload_text(by_preload))
+         + _img(TABLE4_FIGURE)
+         + "<p><a href='table4_comparison.csv'>table4_comparison.csv</a></p>" + _table_html(comparison)),
+        ("Characteristic map (seed 004 eq. 19, eq. 20)", _pre(fit.summary()) + "<p><a href='map.json'>map.json</a></p>"
+         + "".join(_img(p.name) for p in map_figures)),
+        ("Servo-hydraulic validation (seed 004 Fig. 14)", _pre(format_summary(validation)) + _img("fig14_servo_validation.png")
+         + "<p><a href='validation.csv'>validation.csv</a>, <a href='servo_results.csv'>servo_results.csv</a></p>"
+         + _table_html(validation.table)),
+        ("Tests excluded from the map", _table_html(excluded_table) if len(excluded_table) else "<p>none</p>"),
+    ])
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report)")
+    ap.add_argument("--reduced", action="store_true", help="15 tests and fewer servo steps (CI)")
+    ap.add_argument("--coupling", default=DEFAULT_COUPLING, help="coupling file or preset (default: rapp2022_nr60)")
+    ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: every core)")
+    args = ap.parse_args(argv)
+    try:
+        summary = run_study(args.out, args.reduced, args.coupling, args.workers)
+    except DroptowerError as exc:
+        print(f"run_study: error: {exc.message}", file=sys.stderr)
+        return 2
+    s = summary["servo_validation"]
+    print(f"{summary['coupling']}: {summary['tests']} tests, {summary['tests_extracted']} extracted, "
+          f"{summary['tests_failed']} failed, {summary['tests_excluded_from_map']} excluded from the map "
+          f"(campaign {summary['campaign_wall_s']:.1f} s, study {summary['study_wall_s']:.1f} s)")
+    print(f"map fit: stiffness rms {summary['map_fit']['stiffness_rms_error_pct']:.2f} %, damping ratio rms "
+          f"{summary['map_fit']['damping_ratio_rms_error_pct']:.2f} %")
+    print(f"servo validation (stiffness rms / damping rms, %): inside the range {s['inside']['stiffness_rms_deviation_pct']:.2f}"
+          f" / {s['inside']['damping_rms_deviation_pct']:.2f}, outside {s['outside']['stiffness_rms_deviation_pct']:.2f} / "
+          f"{s['outside']['damping_rms_deviation_pct']:.2f}")
+    print(format_comparison(summary["table4"]) + by_preload_text(summary["table4_by_preload_nm"]))
+    print(f"report: {args.out / 'index.html'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

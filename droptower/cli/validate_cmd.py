@@ -1,0 +1,77 @@
+"""``droptower validate``: a characteristic map against servo-hydraulic sweeps (seed 004 Fig. 14)
+and, optionally, against a measured map such as seed 004 Table 4."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from droptower.configs import DEFAULT_COUPLING
+
+
+@click.command()
+@click.option("--map", "map_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The map (map.json from `droptower map --out`).")
+@click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
+              help="Coupling (TOML file or preset) to run the sweeps on the virtual servo bench.")
+@click.option("--servo-results", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Measured servo results (CSV/Parquet) instead of the virtual bench: amplitude_deg, "
+                   "frequency_hz, a stiffness column (storage_stiffness_nm_per_deg, ...), a damping column "
+                   "(drop_tower_equivalent_damping_ratio, loss_factor, loss_angle_deg or relative_damping_psi), "
+                   "optional sweep.")
+@click.option("--reference", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also compare with a measured map table (e.g. seed 004 Table 4: inertia_kgm2, amplitude_deg, "
+                   "frequency_hz, stiffness_nm_per_deg, damping_ratio).")
+@click.option("--results", type=click.Path(path_type=Path), default=None,
+              help="With --reference: the campaign (folder or results table) whose tests are interpolated at "
+                   "each reference row's case and amplitude.")
+@click.option("--quick", is_flag=True, help="Fewer sweep steps (a quick check).")
+@click.option("--out", type=click.Path(path_type=Path), default=None,
+              help="Write validation.csv, validation_summary.json, servo_results.csv and "
+                   "fig14_servo_validation.png (and the reference comparison) into this folder.")
+@click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
+def validate(map_path: Path, coupling: str, servo_results: Path | None, reference: Path | None,
+             results: Path | None, quick: bool, out: Path | None, as_json: bool) -> None:
+    """Predict the servo-hydraulic sweeps of NOTES §1.6 from the map and compare: frequency
+    sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
+    10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
+
+    Stiffness: the map's c (= J(omega^2 + delta^2), seed 004 eq. 15) against the servo's storage
+    stiffness K'. Damping like with like (NOTES §1.7): the map's damping ratio (the drop tower's
+    d = E_diss/E_el, eq. 16) against the servo's drop-tower-equivalent d; the loss factor and the
+    relative damping psi of both are reported alongside. Deviations (map / servo - 1) are
+    summarised inside and outside the drop tower's measured range.
+    """
+    from droptower.compare import (compare_reference, format_comparison, format_summary, read_reference,
+                                   read_servo_results, run_sweeps, validate_map)
+    from droptower.errors import DroptowerError
+    from droptower.maps import MapFit, read_results
+
+    if results is not None and reference is None:
+        raise DroptowerError("--results needs --reference (the measured map to compare the campaign with)")
+    if out is not None:
+        from droptower.compare.files import output_folder, write_validation
+
+        output_folder(out, create=False)  # before the sweeps: a bad --out fails at once
+    fit = MapFit.from_json(map_path)
+    reference_table = read_reference(reference) if reference is not None else None
+    campaign = read_results(results) if results is not None else None
+    points = read_servo_results(servo_results) if servo_results is not None else run_sweeps(coupling, reduced=quick)
+    validation = validate_map(fit, points)
+    comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
+    if out is not None:
+        written = write_validation(out, validation, fit, points, comparison)
+    if as_json:
+        from droptower.campaign.folder import strict_json
+
+        doc = {"summary": validation.summary, "points": validation.table.to_dict(orient="records")}
+        if comparison is not None:
+            doc["reference"] = {"summary": comparison[1], "rows": comparison[0].to_dict(orient="records")}
+        click.echo(json.dumps(strict_json(doc), indent=1))
+        return
+    click.echo(format_summary(validation))
+    if comparison is not None:
+        click.echo(format_comparison(comparison[1], reference.name))
+    if out is not None:
+        click.echo(f"written: {', '.join(str(p) for p in written)}")

@@ -1,0 +1,56 @@
+"""The files ``droptower validate --out DIR`` writes (also used by ``analysis/run_study.py``).
+
+- ``validation.csv``: one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
+- ``validation_summary.json``: RMS / max deviations inside and outside the range, definitions;
+- ``servo_results.csv``: the servo points as measured or simulated (readable by
+  ``--servo-results``);
+- ``fig14_servo_validation.png``: seed 004 Fig. 14;
+- with a reference map: ``reference_comparison.csv`` and ``reference_summary.json``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from droptower.campaign.folder import atomic_write, write_json
+from droptower.compare.fig14 import FIG14, plot_fig14
+from droptower.compare.servo_points import ServoPoints
+from droptower.compare.validation import Validation
+from droptower.errors import DroptowerError
+from droptower.maps import MapFit
+
+
+def write_csv(path: Path, table: pd.DataFrame) -> Path:
+    atomic_write(path, lambda tmp: table.to_csv(tmp, index=False))
+    return path
+
+
+def output_folder(out: str | Path, create: bool = True) -> Path:
+    """``out``, created if needed (``create``); a file in its place or an unwritable parent is a
+    one-line error."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise DroptowerError("exists and is not a folder", file=out)
+    if not create:
+        return out
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DroptowerError(f"cannot create the output folder ({exc.strerror or exc})", file=out) from None
+    return out
+
+
+def write_validation(out: str | Path, validation: Validation, fit: MapFit, points: ServoPoints,
+                     reference: tuple[pd.DataFrame, dict[str, Any]] | None = None) -> list[Path]:
+    """Write the files of the module docstring into ``out``; returns them."""
+    out = output_folder(out)
+    files = [write_csv(out / "validation.csv", validation.table),
+             write_json(out / "validation_summary.json", validation.summary),
+             write_csv(out / "servo_results.csv", points.raw),
+             plot_fig14(validation, fit, out / FIG14)]
+    if reference is not None:
+        files += [write_csv(out / "reference_comparison.csv", reference[0]),
+                  write_json(out / "reference_summary.json", reference[1])]
+    return files
