@@ -162,9 +162,6 @@ def _constriction(x, p_c, k_c):
 @njit(**JIT)
 def _ipow_small(u, p):
     """u**p for an integer 0 <= p < 32 without branches (so that loops over it vectorise)."""
-    if p == 6:  # seed 001's p = 7: the compiler unswitches the loop on this invariant test
-        u2 = u * u
-        return u2 * u2 * u2
     r = 1.0
     b = u
     for bit in range(5):
@@ -197,6 +194,7 @@ def _slide_newton(u, bb, a, p_exp, tol):
 
 NEWTON_FAST_ITERATIONS = 3
 NEWTON_TOL = 1e-11
+FAST_STEP_TOL = 3e-7
 FAST_MAX_EXPONENT = 32  # _ipow_small handles exponents below 32 (5 bits)
 
 
@@ -233,7 +231,9 @@ def _bank_rate_dependent(scales, yield_angles, elong, trial, work, v_r, p_exp, n
             up = _ipow_small(u, p_exp - 1)
             step = (u + a * up * u - bb) / (1.0 + p_exp * a * up)
             u -= step
-        ok = abs(step) <= NEWTON_TOL * u  # False for NaN (an overflowing power)
+        # Newton's error after a step is ~ (p/2) step^2 / u: a last step below FAST_STEP_TOL
+        # leaves an error below ~1e-12 u (the test is False for NaN, an overflowing power)
+        ok = abs(step) <= FAST_STEP_TOL * u
         unconverged += 0 if ok else 1
         work[i] = u
         trial[i] = (u if b > 0.0 else -u) * yield_angles[i] if ok else np.nan
