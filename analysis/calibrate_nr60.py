@@ -35,6 +35,8 @@ from droptower.configs import preset_dir
 from droptower.extract.decay import fit_decay, start_frequency_and_decay
 from droptower.sdof import damping_ratio, stiffness
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
+from droptower.compare.reference_map import compare_reference
+from droptower.rig.config import load_rig
 from droptower.rig.impact import impact_velocities
 from droptower.rig.planner import free_decay
 from droptower.rig.preload import pretwist
@@ -42,8 +44,12 @@ from droptower.rig.preload import pretwist
 REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "rapp2022_table4_map.csv"
 CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (NOTES §1.1)
 LEVER_M, RESTITUTION = 0.2, 0.5
-HEIGHTS_M = np.geomspace(0.01, 8.0, 16)
+HEIGHTS_M = np.array([0.05, 0.2, 0.4, 0.55, 0.7, 1.0, 1.4, 1.8, 3.5, 6.0])  # Table 2
 RATE_HZ = 38_400.0
+# residual scales: the acceptance (5 % stiffness, 10 % damping RMS) leaves more room for the
+# stiffness; the full pipeline (pymunk impact, sensors, extraction) adds a little to the fast loop
+STIFFNESS_WEIGHT = 0.05
+DAMPING_WEIGHT = 0.05
 DURATION_S = 0.075
 
 #: name, lower bound, upper bound (SI, torsional); the fit works on log10 of each
@@ -53,13 +59,13 @@ PARAMETERS = [
     ("softening_angle", 1e-3, 0.3),       # rad, angle at which that curve saturates
     ("slide_phi0", 1e-3, 1.0),            # 1/(N*m)
     ("slide_stiffness", 1e3, 1e5),        # N*m/rad
-    ("slide_rate", 1e-3, 1e4),            # rad/s
+    ("slide_rate", 1e-3, 1e5),            # rad/s
     ("maxwell1_stiffness", 1e2, 3e4),     # N*m/rad
     ("maxwell1_time", 1e-4, 1e-1),        # s
     ("maxwell2_stiffness", 1e2, 3e4),     # N*m/rad
     ("maxwell2_time", 1e-4, 1e-1),        # s
 ]
-START = [6853.83, 10550.1, 0.00480523, 0.0263475, 4597.92, 161.531, 2126.87, 0.00285019, 932.933, 0.00146391]
+START = [6808.02, 10232.3, 0.00510512, 0.0162483, 4146.59, 8342.15, 1716.29, 0.00258673, 1286.07, 0.00252115]
 
 
 #: relaxation time of the softening branch (s): long against a test (< 0.1 s), short against the
@@ -112,17 +118,21 @@ def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[
             float(stiffness(inertia, omega, delta)) * np.pi / 180, float(damping_ratio(delta, omega)))
 
 
-def predict(coupling: Coupling) -> dict[int, np.ndarray]:
-    """Per case: array (heights, 4) of amplitude_deg, frequency_hz, stiffness_nm_per_deg, d_ratio."""
+def predict(coupling: Coupling) -> pd.DataFrame:
+    """The fast loop's points, one per case and Table-2 drop height, in the columns of a
+    campaign's results (so the campaign's own comparison code can use them)."""
     inertia = np.repeat([CASES[c][0] for c in CASES], HEIGHTS_M.size)
     mass = np.repeat([CASES[c][1] for c in CASES], HEIGHTS_M.size)
     heights = np.tile(HEIGHTS_M, len(CASES))
     rate0 = impact_velocities(mass, inertia, LEVER_M, heights, RESTITUTION).rate_after_rad_per_s
-    at_rest = pretwist(coupling, np.zeros(inertia.size), 0.1, 0.1)
+    rig = load_rig("rapp2022")  # preload procedure as in a campaign (zero preload)
+    at_rest = pretwist(coupling, np.zeros(inertia.size), rig.simulation.preload_ramp_s, rig.simulation.preload_hold_s)
     decay = free_decay(coupling, inertia, rate0, at_rest, 1.0 / RATE_HZ, DURATION_S)
     t = decay.time_s[1:]
     props = np.array([decay_properties(t, a[1:], j) for a, j in zip(decay.angle_rad, inertia)])
-    return {c: props[i * HEIGHTS_M.size:(i + 1) * HEIGHTS_M.size] for i, c in enumerate(CASES)}
+    return pd.DataFrame({"inertia_kgm2": inertia, "drop_mass_kg": mass, "drop_height_m": heights,
+                         "amplitude_deg": props[:, 0], "frequency_hz": props[:, 1],
+                         "stiffness_nm_per_deg": props[:, 2], "damping_ratio": props[:, 3]})
 
 
 def compare(values: np.ndarray, table: pd.DataFrame) -> pd.DataFrame:
@@ -131,28 +141,22 @@ def compare(values: np.ndarray, table: pd.DataFrame) -> pd.DataFrame:
 
 
 def compare_coupling(coupling: Coupling, table: pd.DataFrame) -> pd.DataFrame:
-    """:func:`compare` for a given coupling (e.g. the shipped preset)."""
-    pred = predict(coupling)
-    rows = []
-    for _, row in table.iterrows():
-        p = pred[int(row["case"])]
-        order = np.argsort(p[:, 0])
-        log_amp = np.log(p[order, 0])
-        at = np.log(row["amplitude_deg"])
-        rows.append({**row.to_dict(),
-                     "model_frequency_hz": np.interp(at, log_amp, p[order, 1]),
-                     "model_stiffness_nm_per_deg": np.interp(at, log_amp, p[order, 2]),
-                     "model_damping_ratio": np.interp(at, log_amp, p[order, 3])})
-    out = pd.DataFrame(rows)
+    """:func:`compare` for a given coupling (e.g. the shipped preset): the fast loop's points
+    interpolated at each row's case and amplitude exactly as the study interpolates a campaign's
+    (:func:`droptower.compare.reference_map.compare_reference`)."""
+    out, _ = compare_reference(table, results=predict(coupling))
+    out = out.rename(columns={"campaign_frequency_hz": "model_frequency_hz",
+                              "campaign_stiffness_nm_per_deg": "model_stiffness_nm_per_deg",
+                              "campaign_damping_ratio": "model_damping_ratio"})
     out["stiffness_deviation"] = out["model_stiffness_nm_per_deg"] / out["stiffness_nm_per_deg"] - 1
     out["damping_deviation"] = out["model_damping_ratio"] / out["damping_ratio"] - 1
     out["frequency_deviation"] = out["model_frequency_hz"] / out["frequency_hz"] - 1
-    return out
+    return out[[c for c in out.columns if not c.endswith("_pct")]]
 
 
 def residuals(log_values: np.ndarray, table: pd.DataFrame) -> np.ndarray:
     cmp = compare(10 ** log_values, table)
-    return np.concatenate([cmp["stiffness_deviation"] / 0.05, cmp["damping_deviation"] / 0.10])
+    return np.concatenate([cmp["stiffness_deviation"] / STIFFNESS_WEIGHT, cmp["damping_deviation"] / DAMPING_WEIGHT])
 
 
 def main() -> None:

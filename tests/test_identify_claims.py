@@ -59,22 +59,18 @@ def test_round_trip_servo_bench_identify_drop_tower(tmp_path):
     25-35 Hz); the identified coupling in the drop tower gives the stiffness the original does."""
     pytest.importorskip("droptower.rig.simulate")
     pytest.importorskip("droptower.extract.files")
-    from droptower import load_coupling
     from droptower.cli.main import main
     from droptower.extract import Settings, extract_file
     from droptower.io import write_log
     from droptower.rig.config import load_rig
-    from droptower.servo import histories as H
+    from droptower.servo.bench import run_records
 
-    original = load_coupling("rapp2022_nr60")
-    fs, sub = 2048.0, 8
     files = []
-    for f in (25.0, 30.0, 35.0):
-        fine = H.amplitude_sweep(np.radians([0.3, 0.5, 0.7, 0.9]), f, fs * sub, run_in_cycles=3, cycles=3)
-        torque = original.respond(fine.angle_rad, fine.dt_s)
-        path = tmp_path / f"bench_{f:g}hz.csv"
-        write_log(path, fine.time_s[::sub], {"angle_rad": fine.angle_rad[::sub], "torque_nm": torque[::sub]},
-                  {"frequency_hz": f})
+    for i, r in enumerate(run_records("rapp2022_nr60", np.radians([0.3, 0.5, 0.7, 0.9]), [25.0, 30.0, 35.0],
+                                      cycles=3, run_in_cycles=3)):
+        path = tmp_path / f"bench_{i:02d}.csv"
+        write_log(path, r.time_s, {"angle_rad": r.angle_rad, "torque_nm": r.torque_nm},
+                  {"frequency_hz": r.frequency_hz, "amplitude_rad": r.amplitude_rad})
         files.append(str(path))
     out = tmp_path / "identified.toml"
     assert main(["identify", *files, "--model", "zerodim6", "--out", str(out)]) == 0

@@ -13,6 +13,7 @@ from droptower.errors import DroptowerError
 from droptower.io import read_any, read_log, write_log
 from droptower.io.catman import read_catman
 from droptower.io.csvfmt import read_csv_log
+from droptower.io.droptower_log import atomic_write
 
 REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference" / "catman"
 CATMAN_FILES = {2: "2byteJob1_2022_04_12_13_32_10.bin", 4: "4byteJob1_2022_04_12_13_31_47.bin",
@@ -129,6 +130,21 @@ def test_own_csv_layout(tmp_path):
     path = write_log(tmp_path / "x.csv", np.array([0.0, 0.5]), {"angle_deg": np.array([0.1, 1 / 3])}, {"k": "v"})
     assert path.read_text(encoding="utf-8") == (
         '# droptower-log 1\n# k = "v"\ntime_s,angle_deg\n0,0.1\n0.5,0.3333333333333333\n')
+
+
+def test_atomic_write_replaces_whole_or_not_at_all(tmp_path):
+    path = tmp_path / "table.csv"
+    atomic_write(path, lambda tmp: Path(tmp).write_text("old"))
+    assert path.read_text() == "old"
+
+    def fails(tmp):
+        assert Path(tmp).parent == tmp_path  # same folder: os.replace stays on one file system
+        Path(tmp).write_text("half")
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        atomic_write(path, fails)
+    assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["table.csv"]
 
 
 def test_own_log_errors(tmp_path):

@@ -13,6 +13,7 @@ from droptower.cli.main import main
 from droptower.errors import DroptowerError
 from droptower.maps import MapFit, fit_map, model, read_results
 from droptower.maps.plots import plot_all
+from droptower.maps.results import select_tests
 
 REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
 TABLE4 = REFERENCE / "rapp2022_table4_map.csv"
@@ -172,6 +173,17 @@ def test_parquet_with_list_flags_and_rows_without_file(tmp_path: Path) -> None:
     m = fit_map(read_results(path), source=path)
     assert [(e.test, e.reason) for e in m.excluded] == [("row 8", "flag double_impact; flag poor_fit")]
     pd.testing.assert_frame_equal(read_results(tmp_path), read_results(path))  # a campaign folder
+
+
+def test_excluded_tests_are_named_by_file_else_log_file_else_row() -> None:
+    table = synthetic_table(noise=0.0).iloc[:4].copy()
+    table["log_file"] = ["logs/a.parquet", "logs/b.parquet", None, None]
+    table["file"] = ["a.bin", None, None, ""]
+    table["flags"] = "poor_fit"
+    _, excluded = select_tests(table)
+    assert [e.test for e in excluded] == ["a.bin", "logs/b.parquet", "row 3", "row 4"]
+    _, excluded = select_tests(table.drop(columns="file"))
+    assert [e.test for e in excluded] == ["logs/a.parquet", "logs/b.parquet", "row 3", "row 4"]
 
 
 # ---- map.json ------------------------------------------------------------------------------------

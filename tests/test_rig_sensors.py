@@ -20,6 +20,25 @@ def test_force_pulse_carries_exactly_the_impulse():
         assert nonzero.min() >= t_c - duration / 2 - 1 / FS and nonzero.max() <= t_c + duration / 2 + 1 / FS
     two = force_pulses(t, np.array([0.0, 0.03]), np.array([5.0, 1.0]), 3e-4)
     assert two[t < 0.015].sum() / FS == pytest.approx(5.0) and two[t > 0.015].sum() / FS == pytest.approx(1.0)
+    # the pulse is centred on the impulse's time, also between samples; cut by the record's end, it keeps its impulse
+    f = force_pulses(t, np.array([0.0123]), np.array([1.0]), 3e-4)
+    assert np.sum(t * f) / np.sum(f) == pytest.approx(0.0123, abs=1e-9)
+    end = force_pulses(t, np.array([t[-2]]), np.array([2.0]), 3e-4)
+    assert end.sum() / FS == pytest.approx(2.0, rel=1e-12)
+
+
+def test_a_long_contact_is_a_long_low_force():
+    """A contact history (a steady 9.81 N for 0.1 s, as the drop mass resting on the lever) keeps
+    its force; an impact in the same record stays one 0.3 ms pulse."""
+    t = -0.005 + np.arange(6000) / FS
+    rest = (t >= 0.05) & (t < 0.15)
+    history = np.where(rest, 9.81 / FS, 0.0)
+    history[np.searchsorted(t, 0.0)] = 1.2
+    f = force_pulses(t, t, history, 3e-4)
+    assert f.sum() / FS == pytest.approx(history.sum(), rel=1e-12)
+    np.testing.assert_allclose(f[(t > 0.051) & (t < 0.149)], 9.81, rtol=1e-12)
+    assert np.all(f[(t > 1.6e-4) & (t < 0.0498)] == pytest.approx(0.0, abs=1e-9))
+    assert np.max(f) == pytest.approx(np.pi * 1.2 / (2 * 3e-4), rel=0.02)
 
 
 def test_resonance_rings_at_its_frequency_and_keeps_the_static_torque():
@@ -79,3 +98,38 @@ def test_written_log_reads_back_with_metadata(tmp_path):
         # the preload sits in the pre-trigger: torque at 500 N*m, angle at the twist
         assert np.median(record["torque_nm"].values[:150]) == pytest.approx(500.0, abs=1.0)
         assert np.median(record["angle_rad"].values[:150]) == pytest.approx(500.0 / 14000.0, rel=1e-3)
+
+
+def test_drop_mass_resting_on_the_lever_is_not_an_impact():
+    """Case 1 (0.1557 kg m², 1 kg, 0.05 m): the drop mass bounces and comes to rest on the lever
+    at ~0.06 s for the rest of the 0.25 s record (~1.9 N*s over ~14 000 steps). The force
+    channel shows it as its weight, the impact stays the largest pulse, and the extractor finds
+    the impact at its time, not a double impact (the rest comes after the first period)."""
+    from droptower.extract.extractor import extract
+    from droptower.io.signals import DropSignals
+    from droptower.rheology.loader import parse_coupling
+    from droptower.rig.simulate import DropTest, simulate
+
+    rig = load_rig("rapp2022")
+    coupling = parse_coupling({"name": "lin", "element": [{"kind": "spring", "stiffness": 14000.0},
+                                                          {"kind": "dashpot", "damping": 15.5}]})
+    r = simulate(rig, coupling, [DropTest(0.1557, 1.0, 0.05, seed=5)], duration_s=0.25)[0]
+    impact, resting = r.contacts[0], max(r.contacts, key=lambda c: c.steps)
+    assert resting.steps * rig.dt_s > 0.1 and resting.impulse_ns > impact.impulse_ns  # the condition is there
+    duration = rig.sensors.impact_force.contact_duration_s
+    ideal = force_pulses(r.time_s, r.time_s, r.contact_impulse_ns, duration)
+    assert ideal.sum() / FS == pytest.approx(sum(c.impulse_ns for c in r.contacts), rel=1e-12)
+    assert abs(r.time_s[np.argmax(ideal)] - impact.start_s) <= 1 / FS
+    on = r.time_s > resting.start_s + 0.01
+    assert np.max(ideal[on]) < 3 * 9.81 and np.mean(ideal[on]) == pytest.approx(9.81, rel=0.05)
+    assert not r.warnings
+
+    ch = r.channels()
+    assert abs(ch.time_s[np.argmax(ch.impact_force_n)] - impact.start_s) <= 1 / FS
+    result = extract(DropSignals(time_s=ch.time_s, angle_rad=ch.angle_rad, torque_nm=ch.torque_nm,
+                                 impact_force_n=ch.impact_force_n, metadata=r.metadata()))
+    assert impact.start_s - duration / 2 - 1 / FS <= result.impact_time_s <= impact.start_s
+    assert r.period_s < r.contacts[1].start_s - impact.start_s
+    assert not result.double_impact and not r.double_impact
+    assert result.impact_impulse_ns == pytest.approx(impact.impulse_ns, rel=0.02)
+    assert result.stiffness_nm_per_rad == pytest.approx(14000.0, rel=0.01)  # Kelvin-Voigt: J (omega² + delta²) = K

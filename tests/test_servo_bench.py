@@ -21,6 +21,7 @@ from droptower.rheology.elements import Pfeffer
 from droptower.rheology.loader import parse_coupling
 from droptower.servo import evaluate_history, run_bench, run_grid
 from droptower.servo import histories as H
+from droptower.servo.bench import run_records
 
 FREQS = [1.0, 10.0, 30.0, 100.0]
 AMPS = [0.004, 0.02]
@@ -150,6 +151,26 @@ def test_preload_is_reached_by_the_mean_angle():
                                                                     "damping": 25.0}), [0.01], [10.0],
                      preload_nm=-preload)
     assert relax["offset_rad"].iloc[0] == pytest.approx(-preload / k, rel=1e-3)
+
+
+def test_run_records_are_the_signals_behind_the_table():
+    """The records of a preloaded grid, sampled at the acquisition rate, follow the Kelvin-Voigt
+    law T = k phi + c phi' over the whole test and belong to the table's rows."""
+    k, c, preload = 10000.0, 10.0, 300.0
+    coupling = _coupling({"kind": "spring", "stiffness": k}, {"kind": "dashpot", "damping": c})
+    df = run_grid(coupling, AMPS, [5.0, 20.0], preload_nm=preload)
+    records = run_records(coupling, AMPS, [5.0, 20.0], preload_nm=preload)
+    assert [(r.amplitude_rad, r.frequency_hz, r.preload_nm, r.offset_rad) for r in records] == list(
+        zip(df["amplitude_rad"], df["frequency_hz"], df["preload_nm"], df["offset_rad"]))
+    for r in records:
+        np.testing.assert_allclose(np.diff(r.time_s), 1 / 2048, rtol=1e-9)
+        assert r.angle_rad.shape == r.torque_nm.shape == r.time_s.shape
+        # phi' by central differences: relative error (omega / 2048)^2 / 6 < 7e-4 (< 0.02 N*m), and
+        # h |jump of phi''| / 4 < 0.02 N*m where the preload ramp ends; the fine step's half-step
+        # lag of the dashpot, c |phi''| h_fine / 2 < 0.01 N*m
+        rate = (r.angle_rad[2:] - r.angle_rad[:-2]) / (r.time_s[2:] - r.time_s[:-2])
+        np.testing.assert_allclose(r.torque_nm[1:-1], k * r.angle_rad[1:-1] + c * rate, rtol=0, atol=0.03)
+        assert r.angle_rad.max() == pytest.approx(r.offset_rad + r.amplitude_rad, rel=1e-3)
 
 
 def test_preload_without_static_stiffness_is_an_error():

@@ -28,7 +28,7 @@ from typing import Any
 
 from droptower.campaign.spec import CampaignSpec
 from droptower.errors import DroptowerError
-from droptower.io.droptower_log import _atomic_write as atomic_write
+from droptower.io.droptower_log import atomic_write
 
 FORMAT = "droptower-campaign"
 FORMAT_VERSION = 1

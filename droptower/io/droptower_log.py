@@ -34,7 +34,7 @@ import json
 import os
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -71,7 +71,11 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"metadata value of type {type(value).__name__} cannot be written as JSON")
 
 
-def _atomic_write(path: Path, write) -> None:
+def atomic_write(path: Path, write: Callable[[str], None]) -> None:
+    """Write ``path`` all at once: ``write(tmp)`` fills a temporary file in the same folder, which
+    then replaces ``path`` by :func:`os.replace` (atomic on one file system), so a reader never
+    sees a half-written file and an interrupted write leaves the old file; the temporary file
+    is removed if ``write`` fails."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:
@@ -130,7 +134,7 @@ def write_log(path: str | Path, time_s: np.ndarray, channels: dict[str, np.ndarr
         def write(tmp: str) -> None:
             pq.write_table(table, tmp)
 
-    _atomic_write(path, write)
+    atomic_write(path, write)
     return path
 
 

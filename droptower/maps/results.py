@@ -85,6 +85,7 @@ def flag_list(value: Any) -> list[str]:
 def select_tests(table: pd.DataFrame, source: str | Path | None = None) -> tuple[pd.DataFrame, list[ExcludedTest]]:
     """Split a results table into the usable tests and the excluded ones with the reason.
 
+    Each excluded test is named by its ``file``, else its ``log_file``, else "row N" (from 1).
     Excluded: an unusable flag (:data:`UNUSABLE_FLAGS`; a true ``double_impact`` column counts
     as its flag; other flags such as ``double_impact_unchecked`` are warnings and keep the
     test), a missing (NaN) or non-finite value in
@@ -93,8 +94,10 @@ def select_tests(table: pd.DataFrame, source: str | Path | None = None) -> tuple
     """
     check_columns(table, source)
     names = pd.Series([f"row {i + 1}" for i in range(len(table))], index=table.index)
-    if "file" in table.columns:
-        names = table["file"].where(table["file"].notna(), names).astype(str)
+    for column in ("log_file", "file"):  # named by file, else log_file (campaign tables), else the row
+        if column in table.columns:
+            given = table[column].notna() & (table[column].astype(str).str.strip() != "")
+            names = table[column].astype(str).where(given, names)
     flags = [flag_list(v) for v in table["flags"]] if "flags" in table.columns else [[] for _ in range(len(table))]
     if "double_impact" in table.columns:  # the extractor's boolean column says the same as its flag
         second = table["double_impact"].astype(str).str.strip().str.lower().isin(["true", "1", "1.0"])

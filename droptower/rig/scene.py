@@ -25,7 +25,10 @@ Physics choices (the reasons are the accuracy targets of issue 3):
   it; while contacts are open, pymunk's batch arbiter query after each step gives every
   impulse, and the kinetic energy each impulse removed follows from the velocities just after
   it minus the impulse's own velocity change (vectorised over the scenes in contact: an
-  uncaught drop mass comes back and may rest on the lever for thousands of steps).
+  uncaught drop mass comes back and may rest on the lever for thousands of steps). The
+  impulses are also booked on the output sample grid (``contact_impulse_ns``), each shared
+  linearly between the two samples around the end of its step: the contact force history the
+  impact-force sensor samples (:func:`droptower.rig.sensors.force_pulses`).
 - Scenes sit 1 m apart along x: they never touch and share no body but the static one, so a
   scene in a batch moves as it would alone (up to rounding of its coordinates).
 """
@@ -84,7 +87,9 @@ class SceneRecord:
     ``energy_time_s`` (M,), each (B, M): kinetic (drop mass + lever), potential (drop mass,
     relative to the impact point), coupling stored and dissipated (changes since the start),
     screw_work (work of the preload screw on the lever), contact_loss (restitution losses).
-    contacts: per scene, its contacts in time order.
+    contact_impulse_ns (B, N): impulse of all contacts on the drop mass booked on the sample
+    grid (N*s; impulses after the last sample go to it), so ``sum(contact_impulse_ns[i])`` is
+    the sum of the impulses of ``contacts[i]``. contacts: per scene, its contacts in time order.
     """
 
     time_s: np.ndarray
@@ -98,6 +103,7 @@ class SceneRecord:
     dissipated_j: np.ndarray
     screw_work_j: np.ndarray
     contact_loss_j: np.ndarray
+    contact_impulse_ns: np.ndarray
     contacts: list[list[Contact]] = field(default_factory=list)
 
 
@@ -199,6 +205,7 @@ class _Contacts:
         self.loss_total = np.zeros(b)  # restitution losses of all contacts so far (J)
         self.buffer = pymunk.batch.Buffer()
         self.pending: tuple[np.ndarray, ...] | None = None
+        self.history = np.zeros((b, 1))  # impulses on the output sample grid, sized by :meth:`start_history`
         # the current event per scene
         self.start = np.full(b, np.nan)
         self.steps = np.zeros(b, int)
@@ -218,6 +225,10 @@ class _Contacts:
             loss_j=float(self.loss[i]), drop_mass_after_m_per_s=float(-self.v_after[i]),
             lever_rate_after_rad_per_s=float(self.w_after[i])))
         self.start[i] = np.nan
+
+    def start_history(self, n_samples: int) -> None:
+        """Book impulses from now on onto an empty grid of ``n_samples`` output samples."""
+        self.history = np.zeros((len(self.events), n_samples))
 
     def begin(self, scene: int, time_s: float) -> None:
         self._close(scene)
@@ -242,8 +253,11 @@ class _Contacts:
         keep = self.touching[scenes]  # arbiters kept for persistence after separation report stale impulses
         self.pending = (scenes[keep], values[keep].copy())
 
-    def account(self, bodies: _FewBodies | _ManyBodies) -> None:
-        """Book the pending impulses with the velocities just after them (the bodies' current state)."""
+    def account(self, bodies: _FewBodies | _ManyBodies, sample_position: float) -> None:
+        """Book the pending impulses with the velocities just after them (the bodies' current state).
+
+        sample_position: the end of the step that gave them, in output samples from the first.
+        """
         if self.pending is None:
             return
         scenes, values = self.pending
@@ -264,7 +278,15 @@ class _Contacts:
         self.steps[scenes] += 1
         np.add.at(self.loss, scenes, loss)
         np.add.at(self.loss_total, scenes, loss)
-        np.add.at(self.impulse, scenes, np.hypot(px, py))
+        impulse = np.hypot(px, py)
+        np.add.at(self.impulse, scenes, impulse)
+        # shared between the samples around the step's end: sum and centroid (the timing) stay exact
+        n = self.history.shape[1]
+        lo = min(int(sample_position), n - 1)
+        share = sample_position - lo if lo + 1 < n else 0.0
+        np.add.at(self.history, (scenes, lo), (1.0 - share) * impulse)
+        if share:
+            np.add.at(self.history, (scenes, lo + 1), share * impulse)
         # the impact: the first step of the contact that pushed (the solver resolves it within the step)
         first = pushed & np.isnan(self.approach[scenes])
         hit = scenes[first]
@@ -370,12 +392,13 @@ class DropTowerScenes:
         pred = np.empty(B)
         bodies, contacts = self.bodies, self.contacts
         step = self.space.step
+        contacts.start_history(n_samples)
         k = 0
         for n in range(n_samples):
             for s in range(steps_per_sample):
                 bodies.refresh()
                 if contacts.pending is not None:
-                    contacts.account(bodies)
+                    contacts.account(bodies, k / steps_per_sample)
                 # the coupling angle this step will reach (pymunk moves positions first, with the old rate)
                 bodies.predict(dt, twist_arg, pred)
                 if s == 0:
@@ -400,9 +423,9 @@ class DropTowerScenes:
                 if contacts.open:
                     contacts.query()
         bodies.refresh()
-        contacts.account(bodies)
+        contacts.account(bodies, k / steps_per_sample)
         time_s = self.t0 + np.arange(n_samples) * steps_per_sample * dt
         return SceneRecord(time_s=time_s, angle_rad=angle, coupling_torque_nm=torque_hist, drop_mass_m=self.r - mass_hist,
                            energy_time_s=time_s[::energy_every], kinetic_j=kinetic, potential_j=potential,
                            stored_j=stored, dissipated_j=dissipated, screw_work_j=screw_work, contact_loss_j=loss,
-                           contacts=contacts.close_all())
+                           contact_impulse_ns=contacts.history, contacts=contacts.close_all())

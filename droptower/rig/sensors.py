@@ -10,11 +10,14 @@
   the angle does not show): T_meas = T + s (H(T) - T), H the 2nd-order low-pass
   w^2 / (p^2 + 2 z w p + w^2), discretised with a zero-order hold at the sample rate, starting
   at rest at the pre-trigger torque. Then noise, and saturation at the sensor's range.
-- Impact force (piezo sensor at the lever tip): every contact as a half-sine pulse of the
-  configured contact duration (seed 004: ~0.3 ms), centred on the simulated contact time (the
-  rigid impact is the limit of a symmetric pulse, so the lever's velocity jump sits at the
-  pulse's centroid) and scaled so that its samples sum to exactly the simulated impulse
-  (sum F dt = impulse). Then noise and saturation.
+- Impact force (piezo sensor at the lever tip): the simulated contact force history (the
+  impulses of every solver step, :mod:`.scene`), each impulse seen as a half-sine pulse of the
+  configured contact duration (seed 004: ~0.3 ms) centred on its time (the rigid impact is the
+  limit of a symmetric pulse, so the lever's velocity jump sits at the pulse's centroid) and
+  scaled so that its samples sum to exactly the impulse (sum F dt = impulse). The impact, a
+  single-step impulse, becomes one 0.3 ms pulse; the drop mass resting on the lever, a long
+  train of small impulses, a low force as long as the contact (its weight, give or take the
+  lever's motion). Then noise and saturation.
 
 Noise is white and Gaussian, drawn from independent streams of one seed: same seed, same log.
 """
@@ -56,22 +59,35 @@ def resonance(torque_nm: np.ndarray, sample_rate_hz: float, res: Resonance) -> n
     return torque_nm + res.strength * (filtered - torque_nm)
 
 
-def force_pulses(time_s: np.ndarray, contact_times_s: np.ndarray, impulses_ns: np.ndarray,
-                 duration_s: float) -> np.ndarray:
-    """Half-sine pulses of ``duration_s`` centred on each contact, each with sum F dt = impulse."""
-    force = np.zeros_like(time_s)
-    dt = (time_s[-1] - time_s[0]) / (time_s.size - 1)
-    for t_c, impulse in zip(np.atleast_1d(contact_times_s), np.atleast_1d(impulses_ns)):
-        phase = (time_s - t_c) / duration_s + 0.5
-        inside = (phase > 0.0) & (phase < 1.0)
-        shape = np.where(inside, np.sin(np.pi * np.clip(phase, 0.0, 1.0)), 0.0)
-        total = shape.sum() * dt
-        if total == 0.0:  # a pulse shorter than a sample: all of it in the nearest sample
-            j = int(np.clip(np.rint((t_c - time_s[0]) / dt), 0, time_s.size - 1))
-            force[j] += impulse / dt
-        else:
-            force += impulse * shape / total
-    return force
+def force_pulses(time_s: np.ndarray, times_s: np.ndarray, impulses_ns: np.ndarray, duration_s: float) -> np.ndarray:
+    """The force of impulses (N*s) delivered at ``times_s`` (s), sampled at ``time_s`` (N,).
+
+    Each impulse is a half-sine pulse of ``duration_s`` centred on its time with sum F dt =
+    impulse, also where the pulse is cut by the record's ends; impulses outside the record go to
+    its first or last sample. Pass one impulse per contact for ideal impacts, or a contact's
+    impulse history (e.g. per sample) for a force that lasts as long as the contact.
+    """
+    n = time_s.size
+    dt = (time_s[-1] - time_s[0]) / (n - 1)
+    # each impulse shared linearly between the two samples around it: sum and centroid stay exact
+    position = np.clip((np.atleast_1d(times_s) - time_s[0]) / dt, 0.0, n - 1)
+    lo = np.minimum(position.astype(int), n - 2)
+    share = position - lo
+    impulse = np.zeros(n)
+    np.add.at(impulse, lo, (1.0 - share) * impulses_ns)
+    np.add.at(impulse, lo + 1, share * impulses_ns)
+    # the half-sine on the sample grid, unit sum (a pulse shorter than a sample is one sample)
+    half = 0.5 * duration_s / dt
+    j = np.arange(-int(np.ceil(half)), int(np.ceil(half)) + 1)
+    kernel = np.where(np.abs(j) < half, np.cos(0.5 * np.pi * j / half), 0.0)
+    kernel /= kernel.sum()
+    m = j.size // 2
+
+    def spread(x: np.ndarray) -> np.ndarray:
+        return np.convolve(x, kernel)[m:m + n]
+
+    # a pulse cut by the record's ends keeps its impulse: scale by the share of it inside
+    return spread(impulse / spread(np.ones(n))) / dt
 
 
 def sample(time_s: np.ndarray, twist_rad: np.ndarray, coupling_torque_nm: np.ndarray,
@@ -79,7 +95,8 @@ def sample(time_s: np.ndarray, twist_rad: np.ndarray, coupling_torque_nm: np.nda
     """The channels the rig would record for one test.
 
     time_s (N,) at the sample rate; twist_rad (N,) the coupling's total twist; coupling_torque_nm
-    (N,) its torque; contacts (times, impulses in N*s); ``seed`` fixes the noise.
+    (N,) its torque; contact impulses (their times in s and impulses in N*s, as taken by
+    :func:`force_pulses`); ``seed`` fixes the noise.
     """
     n = time_s.size
     laser_rng, torque_rng, force_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3))

@@ -26,7 +26,7 @@ from droptower.rig.config import RigConfig
 from droptower.rig.impact import ImpactVelocities, first_period, impact_velocities, lever_tip_path
 from droptower.rig.preload import Pretwist, pretwist
 from droptower.rig.scene import Contact, DropTowerScenes
-from droptower.rig.sensors import Channels, sample
+from droptower.rig.sensors import Channels, force_pulses, sample
 
 ENERGY_SAMPLE_S = 5e-4    # energies are sampled this often
 
@@ -52,7 +52,9 @@ class DropResult:
     of the coupling at rest; screw_torque_nm the preload screw's torque; coupling_torque_nm (N,)
     the coupling's torque (preload included); drop_mass_m (N,) drop-mass position below the
     impact point. Energies (J, on ``energy_time_s``) as in :class:`~droptower.rig.scene.SceneRecord`.
-    contacts: every contact of the drop mass with the lever; predicted: NOTES §1.2 closed forms.
+    contact_impulse_ns (N,): the contacts' impulse on the drop mass in each sample (N*s; the
+    contact force history the force sensor sees). contacts: every contact of the drop mass with
+    the lever; predicted: NOTES §1.2 closed forms.
     """
 
     rig: RigConfig
@@ -65,6 +67,7 @@ class DropResult:
     screw_torque_nm: float
     coupling_torque_nm: np.ndarray
     drop_mass_m: np.ndarray
+    contact_impulse_ns: np.ndarray
     energy_time_s: np.ndarray
     energy_j: dict[str, np.ndarray]
     contacts: list[Contact]
@@ -153,9 +156,8 @@ class DropResult:
     # ---------------------------------------------------------------- sensors and log
     def channels(self) -> Channels:
         """The test sampled by the rig's sensors, with the noise of ``test.seed``."""
-        return sample(self.time_s, self.pretwist_rad + self.angle_rad, self.coupling_torque_nm,
-                      np.array([c.start_s for c in self.contacts]), np.array([c.impulse_ns for c in self.contacts]),
-                      self.rig.sensors, self.test.seed)
+        return sample(self.time_s, self.pretwist_rad + self.angle_rad, self.coupling_torque_nm, self.time_s,
+                      self.contact_impulse_ns, self.rig.sensors, self.test.seed)
 
     def metadata(self) -> dict[str, Any]:
         """The log's metadata: what was tested, on which rig, and how it was sampled."""
@@ -247,7 +249,8 @@ def _run_batch(rig: RigConfig, coupling: Coupling, tests: list[DropTest], durati
         result = DropResult(rig=rig, coupling_name=coupling.name, test=test, duration_s=duration_s,
                             time_s=rec.time_s, angle_rad=rec.angle_rad[i], pretwist_rad=float(twist.angle_rad[i]),
                             screw_torque_nm=float(twist.torque_nm[i]), coupling_torque_nm=rec.coupling_torque_nm[i],
-                            drop_mass_m=rec.drop_mass_m[i], energy_time_s=rec.energy_time_s, energy_j=energy,
+                            drop_mass_m=rec.drop_mass_m[i], contact_impulse_ns=rec.contact_impulse_ns[i],
+                            energy_time_s=rec.energy_time_s, energy_j=energy,
                             contacts=rec.contacts[i], predicted=pred)
         result.warnings.extend(_warnings(result))
         results.append(result)
@@ -263,8 +266,8 @@ def _warnings(result: DropResult) -> list[str]:
     torque = np.max(np.abs(result.coupling_torque_nm))
     if torque > rig.sensors.torque.range_nm:
         out.append(f"torque {torque:.0f} N*m beyond the torque sensor's range {rig.sensors.torque.range_nm:g} N*m")
-    duration = rig.sensors.impact_force.contact_duration_s
-    force = max((math.pi * c.impulse_ns / (2 * duration) for c in result.contacts), default=0.0)
+    force = np.max(force_pulses(result.time_s, result.time_s, result.contact_impulse_ns,
+                                rig.sensors.impact_force.contact_duration_s))
     if force > rig.sensors.impact_force.range_n:
         out.append(f"impact force {force:.0f} N beyond the force sensor's range {rig.sensors.impact_force.range_n:g} N")
     if not result.contacts:

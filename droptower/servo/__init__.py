@@ -4,10 +4,11 @@
 - :mod:`.evaluate`: steady-state cycles -> K', K'', |K*|, loss angle, W_D, psi (seed 001 eq. 6,
   DIN 740-2 style), and the drop-tower-equivalent damping ratio (NOTES §1.7);
 - :mod:`.bench`: :func:`run_grid` drives a coupling over amplitudes x frequencies, batched;
+  :func:`run_records` gives the raw time records of the same runs;
 - :mod:`.plots`: hysteresis loops.
 """
-from droptower.servo.bench import BenchResult, run_bench, run_grid
+from droptower.servo.bench import BenchRecord, BenchResult, run_bench, run_grid, run_records
 from droptower.servo.evaluate import CycleEvaluation, drop_tower_equivalent_damping_ratio, evaluate_cycles, evaluate_history
 
-__all__ = ["BenchResult", "CycleEvaluation", "drop_tower_equivalent_damping_ratio", "evaluate_cycles",
+__all__ = ["BenchRecord", "BenchResult", "run_records", "CycleEvaluation", "drop_tower_equivalent_damping_ratio", "evaluate_cycles",
            "evaluate_history", "run_bench", "run_grid"]

@@ -18,13 +18,16 @@ The preload is a torque: the mean angle is found by secant iterations on the mea
 the evaluated cycles (the steady-state mean torque), each iteration one batched run. Without
 preload the test oscillates about the unloaded position (angle 0), as on a real bench; the
 mean torque it then carries is reported (``mean_torque_nm``).
+
+:func:`run_records` gives the time records behind the table (at the acquisition rate) for
+users who want the raw signals.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 import pandas as pd
@@ -50,6 +53,24 @@ class BenchResult:
 
     table: pd.DataFrame
     evaluations: list[CycleEvaluation]
+
+
+@dataclass(frozen=True)
+class BenchRecord:
+    """The time record of one grid point, sampled at the acquisition rate (SI).
+
+    amplitude_rad, frequency_hz, preload_nm: the commanded test; offset_rad: the mean angle
+    found for the preload; time_s, angle_rad, torque_nm (N,): the whole test (offset ramp,
+    run-in, evaluated cycles, tail), as a bench's data acquisition records it.
+    """
+
+    amplitude_rad: float
+    frequency_hz: float
+    preload_nm: float
+    offset_rad: float
+    time_s: np.ndarray = field(repr=False)
+    angle_rad: np.ndarray = field(repr=False)
+    torque_nm: np.ndarray = field(repr=False)
 
 
 def _as_coupling(coupling: Coupling | str | Path) -> Coupling:
@@ -86,8 +107,9 @@ def _drive(coupling: Coupling, unit_sine: np.ndarray, unit_ramp: np.ndarray, amp
 
 def _run_frequency(coupling: Coupling, frequency_hz: float, amplitudes: np.ndarray, preload_nm: float,
                    sample_rate_hz: float, substeps: int, cycles: int, run_in_cycles: int, ramp_cycles: int,
-                   smooth: bool) -> tuple[np.ndarray, list[CycleEvaluation]]:
-    """Offsets (rad) and evaluations of the amplitudes at one frequency, preload reached."""
+                   smooth: bool) -> tuple[np.ndarray, list[CycleEvaluation], np.ndarray, np.ndarray, np.ndarray]:
+    """Offsets (rad), evaluations and records (time (N,), angle and torque (B, N) at the sample
+    rate) of the amplitudes at one frequency, preload reached."""
     fine = sample_rate_hz * substeps
     kw = dict(run_in_cycles=run_in_cycles, cycles=cycles, ramp_cycles=ramp_cycles)
     unit_sine = histories.sine(frequency_hz, 1.0, fine, **kw)
@@ -95,15 +117,15 @@ def _run_frequency(coupling: Coupling, frequency_hz: float, amplitudes: np.ndarr
     seg = unit_sine.evaluation_segments[0]
     time_lab = unit_sine.time_s[::substeps]
 
-    def run(rows: np.ndarray, offsets: np.ndarray) -> list[CycleEvaluation]:
+    def run(rows: np.ndarray, offsets: np.ndarray) -> tuple[list[CycleEvaluation], np.ndarray, np.ndarray]:
         torque = _drive(coupling, unit_sine.angle_rad, unit_ramp, amplitudes[rows], offsets, 1.0 / fine, substeps)
         angle = offsets[:, None] * unit_ramp[None, ::substeps] + amplitudes[rows, None] * unit_sine.angle_rad[None, ::substeps]
         return [evaluate_cycles(time_lab, angle[i], torque[i], frequency_hz, seg.start_s, seg.cycles, smooth=smooth)
-                for i in range(rows.size)]
+                for i in range(rows.size)], angle, torque
 
     rows = np.arange(amplitudes.size)
     offsets = np.zeros(amplitudes.size)
-    evals = run(rows, offsets)
+    evals, angle, torque = run(rows, offsets)
 
     def residual(ev: list[CycleEvaluation]) -> tuple[np.ndarray, np.ndarray]:
         r = np.array([e.mean_torque_nm for e in ev]) - preload_nm
@@ -124,7 +146,7 @@ def _run_frequency(coupling: Coupling, frequency_hz: float, amplitudes: np.ndarr
             raise DroptowerError(f"cannot reach the preload of {preload_nm:g} N*m at {frequency_hz:g} Hz: "
                                  f"the mean torque does not rise with the mean angle")
         new_off = offsets[todo] - res[todo] / slope[todo]
-        new_evals = run(todo, new_off)
+        new_evals, angle[todo], torque[todo] = run(todo, new_off)
         new_res, new_ok = residual(new_evals)
         prev_off[todo], prev_res[todo] = offsets[todo], res[todo]
         offsets[todo], res[todo], ok[todo] = new_off, new_res, new_ok
@@ -137,13 +159,14 @@ def _run_frequency(coupling: Coupling, frequency_hz: float, amplitudes: np.ndarr
         raise DroptowerError(f"preload of {preload_nm:g} N*m not reached at {math.degrees(amplitudes[bad]):g} deg, "
                              f"{frequency_hz:g} Hz after {PRELOAD_ITERATIONS} iterations "
                              f"(mean torque {evals[bad].mean_torque_nm:g} N*m)")
-    return offsets, evals
+    return offsets, evals, time_lab, angle, torque
 
 
-def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
-              preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *, run_in_cycles: int = 5,
-              ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True) -> BenchResult:
-    """Run the grid amplitudes x frequencies on the bench; see :func:`run_grid`."""
+def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
+          preload_nm: float, sample_rate_hz: float, cycles: int, run_in_cycles: int, ramp_cycles: int,
+          simulation_rate_hz: float, smooth: bool) -> Iterator[tuple[BenchRecord, CycleEvaluation, float]]:
+    """Check the grid, then run it frequency by frequency: per grid point its record, its
+    evaluation and the fine simulation rate (Hz) it ran with."""
     c = _as_coupling(coupling)
     amps = _positive_list(amplitudes_rad, "amplitude", "rad")
     freqs = _positive_list(frequencies_hz, "frequency", "Hz")
@@ -159,25 +182,50 @@ def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], 
     if int(cycles) != cycles or cycles < 1 or int(run_in_cycles) != run_in_cycles or run_in_cycles < 1:
         raise DroptowerError(f"cycles ({cycles}) and run-in cycles ({run_in_cycles}) must be positive integers")
 
-    rows, evaluations = [], []
     for f in freqs:
         fine = max(simulation_rate_hz, MIN_STEPS_PER_CYCLE * f)
         substeps = max(1, math.ceil(fine / sample_rate_hz - 1e-9))
-        offsets, evals = _run_frequency(c, float(f), amps, float(preload_nm), float(sample_rate_hz), substeps,
-                                        int(cycles), int(run_in_cycles), int(ramp_cycles), smooth)
-        for a, off, ev in zip(amps, offsets, evals):
-            # 12 digits: an amplitude given as 1.5 deg reads back as 1.5, not 1.5000000000000002
-            rec = {"amplitude_rad": float(a), "amplitude_deg": float(f"{math.degrees(a):.12g}"),
-                   "preload_nm": float(preload_nm),
-                   "offset_rad": float(off), "offset_deg": math.degrees(off)}
-            rec.update(ev.records()[0])
-            rec["simulation_rate_hz"] = float(sample_rate_hz * substeps)
-            rows.append(rec)
-            evaluations.append(ev)
+        offsets, evals, time_s, angle, torque = _run_frequency(
+            c, float(f), amps, float(preload_nm), float(sample_rate_hz), substeps, int(cycles), int(run_in_cycles),
+            int(ramp_cycles), smooth)
+        for i, (a, off, ev) in enumerate(zip(amps, offsets, evals)):
+            record = BenchRecord(amplitude_rad=float(a), frequency_hz=float(f), preload_nm=float(preload_nm),
+                                 offset_rad=float(off), time_s=time_s, angle_rad=angle[i], torque_nm=torque[i])
+            yield record, ev, float(sample_rate_hz * substeps)
+
+
+def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
+              preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *, run_in_cycles: int = 5,
+              ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True) -> BenchResult:
+    """Run the grid amplitudes x frequencies on the bench; see :func:`run_grid`."""
+    rows, evaluations = [], []
+    for record, ev, simulation_rate in _grid(coupling, amplitudes_rad, frequencies_hz, preload_nm, sample_rate_hz,
+                                             cycles, run_in_cycles, ramp_cycles, simulation_rate_hz, smooth):
+        a, off = record.amplitude_rad, record.offset_rad
+        # 12 digits: an amplitude given as 1.5 deg reads back as 1.5, not 1.5000000000000002
+        rec = {"amplitude_rad": a, "amplitude_deg": float(f"{math.degrees(a):.12g}"),
+               "preload_nm": record.preload_nm, "offset_rad": off, "offset_deg": math.degrees(off)}
+        rec.update(ev.records()[0])
+        rec["simulation_rate_hz"] = simulation_rate
+        rows.append(rec)
+        evaluations.append(ev)
     table = pd.DataFrame(rows)
     lead = ["amplitude_deg", "frequency_hz", "preload_nm"]
     table = table[lead + [col for col in table.columns if col not in lead]]
     return BenchResult(table, evaluations)
+
+
+def run_records(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
+                preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *,
+                run_in_cycles: int = 5, ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0
+                ) -> list[BenchRecord]:
+    """The time records of the grid amplitudes x frequencies (frequency-major, as the rows of
+    :func:`run_grid`), sampled at ``sample_rate_hz``: the raw signals behind the table, for
+    users who evaluate, identify or plot them themselves. Same arguments and the same runs
+    (fine simulation step, preload found by iteration) as :func:`run_grid`.
+    """
+    return [record for record, _, _ in _grid(coupling, amplitudes_rad, frequencies_hz, preload_nm, sample_rate_hz,
+                                             cycles, run_in_cycles, ramp_cycles, simulation_rate_hz, smooth=True)]
 
 
 def run_grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
