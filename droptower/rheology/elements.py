@@ -146,7 +146,7 @@ class Maxwell(ElementSpec):
     damping: PositiveFloat    # N*m*s/rad
 
     def compile(self):
-        return [KernelElement(K.MAXWELL, np.array([self.stiffness, self.damping]), 3)]
+        return [KernelElement(K.MAXWELL, np.array([self.stiffness, self.damping]), 5)]
 
 
 class PronyTerm(StrictModel):
@@ -164,7 +164,7 @@ class Prony(ElementSpec):
     def compile(self):
         out = [KernelElement(K.LINEAR_SPRING, np.array([self.equilibrium_stiffness]))]
         for t in self.terms:
-            out.append(KernelElement(K.MAXWELL, np.array([t.stiffness, t.stiffness * t.relaxation_time]), 3))
+            out.append(KernelElement(K.MAXWELL, np.array([t.stiffness, t.stiffness * t.relaxation_time]), 5))
         return out
 
 
@@ -371,7 +371,7 @@ class Mullins(ElementSpec):
         dk = self.fast_stiffness - self.slow_stiffness_at_zero()
         if dk <= 0:
             return slow
-        return slow + [KernelElement(K.MAXWELL, np.array([dk, dk * self.tau]), 3)]
+        return slow + [KernelElement(K.MAXWELL, np.array([dk, dk * self.tau]), 5)]
 
 
 class ForceTable(StrictModel):

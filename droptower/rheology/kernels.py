@@ -131,19 +131,19 @@ def dashpot(p, po, s, so, x0, x1, h):
 def maxwell(p, po, s, so, x0, x1, h):
     """Spring k in series with dashpot c (seed 000 eq. 1), exact for a linear ramp in the step.
 
-    params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), and h k/c and
-    the decay factor exp(-h k/c) of the last step (a cache).
+    params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), then a cache of
+    the step's coefficients, keyed on h k and c: e1 = e0 exp(-h k/c) + dx tau (1 - exp(-h k/c)) / h.
     """
     k = p[po + 0]
     c = p[po + 1]
     e0 = s[so + 3]
-    v = (x1 - x0) / h
-    tau = c / k
-    if s[so + 4] != h / tau:  # exp() only when the time step (or the parameters) change
-        s[so + 4] = h / tau
-        s[so + 5] = np.exp(-h / tau)
-    decay = s[so + 5]
-    e1 = e0 * decay + v * tau * (1.0 - decay)
+    if s[so + 4] != h * k or s[so + 5] != c:  # exp() and divisions only when h or the parameters change
+        tau = c / k
+        s[so + 4] = h * k
+        s[so + 5] = c
+        s[so + 6] = np.exp(-h / tau)
+        s[so + 7] = tau * (1.0 - s[so + 6]) / h
+    e1 = e0 * s[so + 6] + (x1 - x0) * s[so + 7]
     t1 = k * e1
     # dashpot stroke = (x1 - x0) - (e1 - e0), carrying the mean spring force
     s[so + 1] += 0.5 * (s[so + 2] + t1) * ((x1 - x0) - (e1 - e0))
@@ -253,7 +253,7 @@ def _bank_coulomb(ks, fs, elong, trial, n, dx):
         trial[i] = min(max(elong[i] + dx, -lim), lim)
 
 
-@njit(**JIT)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc"})  # vectorised sums
 def _bank_commit(ks, elong, trial, n, dx):
     """Commit the trial elongations; return (force, stored energy, slider work of the step)."""
     force = 0.0
