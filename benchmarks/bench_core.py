@@ -23,19 +23,11 @@ from scipy.integrate import solve_ivp
 
 import droptower as dt
 from droptower.rheology import kernels as K
+from timing import best_of
 
 RATE_HZ = 38_400.0
 FREQ_HZ = 30.0
 AMPLITUDE_RAD = np.deg2rad(1.5)
-
-
-def best_of(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def sine(duration_s: float, rate_hz: float) -> np.ndarray:

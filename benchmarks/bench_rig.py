@@ -26,17 +26,9 @@ from droptower.rheology import load_coupling
 from droptower.rig.config import load_doe, load_rig
 from droptower.rig.scene import DropTowerScenes
 from droptower.rig.simulate import DropTest, simulate
+from timing import best_of
 
 DURATION_S = 0.25
-
-
-def best_of(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def bare_pymunk(rig, steps: int) -> None:

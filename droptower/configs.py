@@ -22,10 +22,18 @@ DEFAULT_DOE = "rapp2022_table2"
 
 
 def preset_dir(kind: str) -> Path:
-    """The folder of shipped presets of ``kind`` (``couplings``, ``rigs`` or ``doe``)."""
+    """The folder of shipped presets of ``kind`` (``couplings``, ``rigs`` or ``doe``).
+
+    Installed, they are the package ``droptower.rig_configs``; run from a source checkout
+    (``droptower`` imported from the repository, e.g. by the tests), ``rig_configs/`` beside it.
+    """
     if kind not in KINDS:
         raise ValueError(f"unknown preset kind {kind!r}")
-    return Path(str(resources.files("droptower.rig_configs"))) / kind
+    try:
+        root = Path(str(resources.files("droptower.rig_configs")))
+    except ModuleNotFoundError:
+        root = Path(__file__).resolve().parents[1] / "rig_configs"
+    return root / kind
 
 
 def list_presets(kind: str) -> list[str]:
