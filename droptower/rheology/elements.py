@@ -439,8 +439,9 @@ class VariableMaxwell(ElementSpec):
         if ct:
             params += list(ct.x) + list(ct.y)
         if self.force_table:
-            params += list(knot_energies(np.asarray(table.x), np.asarray(table.y)))
-        return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float), 1)]
+            x, y = np.asarray(table.x), np.asarray(table.y)
+            params += list(knot_energies(x, y)) + list(np.diff(y) / np.diff(x))
+        return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float), 3)]
 
 
 def _rises(x: list[float], coefficient: list[float]) -> bool:

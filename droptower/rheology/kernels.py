@@ -375,11 +375,15 @@ def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
 
     Backward Euler asks f(e) + (c/h) e = (c/h)(e0 + dx), whose left side is piecewise linear
     and increasing: find its segment by bisection over the knots, then solve the line. The
-    stored energy comes from the knot energies precomputed after the table.
+    stored energy comes from the knot energies precomputed after the table, the slopes of the
+    segments after those. Internal: e, then the cached time step and c/h.
     """
     xs = pv[VM_HEADER:VM_HEADER + nk]
     ys = pv[VM_HEADER + nk:VM_HEADER + 2 * nk]
-    beta = pv[2] / h
+    if s[so + 4] != h:  # c/h only when the time step changes
+        s[so + 4] = h
+        s[so + 5] = pv[2] / h
+    beta = s[so + 5]
     rhs = beta * (e0 + dx)
     lo = 0
     hi = nk - 1
@@ -395,7 +399,7 @@ def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
             else:
                 hi = mid
     i = lo
-    slope = (ys[i + 1] - ys[i]) / (xs[i + 1] - xs[i])
+    slope = pv[VM_HEADER + 3 * nk + i]  # precomputed segment slopes
     e = (rhs - ys[i] + slope * xs[i]) / (slope + beta)
     t1 = ys[i] + slope * (e - xs[i])
     s[so + 1] += 0.5 * (s[so + 2] + t1) * (dx - (e - e0))
@@ -410,7 +414,7 @@ def variable_maxwell(p, po, s, so, x0, x1, h):
     """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
 
     params: [k0, g, c0, nk, nc, force_mode, e_1..e_nk, k_1..k_nk (or f_1..f_nk), v_1..v_nc, c_1..c_nc]
-    and, in force mode, the stored energies E_1..E_nk at the knots.
+    and, in force mode, the stored energies E_1..E_nk at the knots and the slopes of the segments.
     The spring force is f(e) = (k0 + g|e|) e (the six-parameter model's K3 linear in
     deformation), k(e) e from a stiffness lookup table, or f(e) from a force table (a static
     curve in series with the dashpot); the dashpot force is c(|v|) v. Backward Euler:
