@@ -9,7 +9,8 @@ import pytest
 
 from droptower.configs import list_presets
 from droptower.rheology import load_coupling
-from test_rheology_support import (TABLE4, drop_tower_damping_ratio, first_harmonic, preset_paths, sine)
+from droptower.sdof import drop_tower_equivalent_damping_ratio
+from test_rheology_support import TABLE4, first_harmonic, preset_paths, sine
 
 EXPECTED = {"seed001_specimen", "seed001_lag_damper", "seed002_bushing", "seed003_masing",
             "seed000_six_parameter", "rapp2022_nr60"}
@@ -54,7 +55,7 @@ def _evaluate(coupling, amplitude_deg, frequency_hz):
     amplitude = np.deg2rad(amplitude_deg)
     t, x, dt = sine(amplitude, frequency_hz, SPC, RUN_IN + 1)
     k_storage, k_loss = first_harmonic(t, coupling.respond(x, dt), amplitude, frequency_hz, SPC)
-    return np.deg2rad(k_storage), float(drop_tower_damping_ratio(k_loss / k_storage))
+    return np.deg2rad(k_storage), float(drop_tower_equivalent_damping_ratio(k_loss / k_storage))
 
 
 AMPLITUDES_DEG = [0.15, 0.2, 0.5, 1.0, 2.0, 2.5, 3.0]

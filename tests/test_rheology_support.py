@@ -80,15 +80,6 @@ def first_harmonic(t: np.ndarray, torque: np.ndarray, amplitude: float, frequenc
             2.0 * np.mean(tq * np.cos(w), axis=-1) / amplitude)
 
 
-def drop_tower_damping_ratio(loss_factor):
-    """Drop-tower damping ratio d (NOTES 1.4 eq. 16) of the equivalent Kelvin-Voigt coupling
-    with loss factor eta at its own damped frequency (NOTES 1.7): eta = 2 r / (1 + r^2),
-    d = 1/2 (exp(4 pi r) - 1), r = delta / omega."""
-    eta = np.asarray(loss_factor, float)
-    r = (1.0 - np.sqrt(1.0 - eta ** 2)) / eta
-    return 0.5 * (np.exp(4 * np.pi * r) - 1.0)
-
-
 def random_smooth(rng: np.random.Generator, t: np.ndarray, frequency_hz: float, n_modes: int = 6) -> np.ndarray:
     """A band-limited random history (zero at t = 0), unit scale: a sum of sines with random
     frequencies in [0.2, 3] x frequency_hz and random phases, faded in over the first period."""
