@@ -7,6 +7,7 @@ printed as one line on stderr with exit code 2 and no traceback.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import sys
 
 import click
@@ -58,9 +59,12 @@ def cli() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit code."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    if not args:  # bare `droptower` is a request for help, not a usage error
+        args = ["--help"]
     try:
         # without standalone mode, click returns the code of a command's Exit(code)
-        code = cli.main(args=argv, prog_name="droptower", standalone_mode=False)
+        code = cli.main(args=args, prog_name="droptower", standalone_mode=False)
     except DroptowerError as exc:
         click.echo(f"droptower: error: {exc.message}", err=True)
         return 2

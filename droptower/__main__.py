@@ -1,0 +1,6 @@
+"""``python -m droptower``: the same command as the ``droptower`` console script."""
+import sys
+
+from droptower.cli.main import main
+
+sys.exit(main())
