@@ -28,7 +28,8 @@ from scipy.optimize import least_squares
 from droptower import load_coupling
 from droptower.identify import identify, make_segment
 from droptower.identify.fit import simulate
-from droptower.identify.strategies import setup
+from droptower.identify.families import ZeroDim6
+from droptower.identify.families.stages import setup
 from droptower.rheology import parse_coupling
 from droptower.servo import histories as H
 
@@ -83,7 +84,7 @@ def main() -> None:
     scale = 0.25 if args.quick else 1.0
 
     wall6, r6, data, seconds = run("zerodim6", load_coupling("seed000_six_parameter"), scale)
-    s = setup("zerodim6", data)
+    s = setup(ZeroDim6, data)
     fam = s.family
     x = np.array(list(r6.parameters.values()))
     t0 = time.perf_counter()

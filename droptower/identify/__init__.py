@@ -2,9 +2,10 @@
 
 - :mod:`.data`: records -> :class:`Segment` (SI, constant step, checked);
 - :mod:`.cycles`: turning points, steady sine blocks, their lab evaluation;
-- :mod:`.families`: the model families (parameters, bounds, couplings, batches);
 - :mod:`.fit`: bounded trust-region-reflective least squares with batched Jacobians;
-- :mod:`.strategies`: each family's staged identification (:func:`identify`);
+- :mod:`.families`: one module per model family (parameters, bounds, coupling, and its staged
+  strategy), the shared stages in :mod:`.families.stages`;
+- :mod:`.strategies`: :func:`identify` binds a family to the data and runs its strategy;
 - :mod:`.report`: JSON / text reports, comparison tables, plots.
 
 Example::

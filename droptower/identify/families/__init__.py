@@ -1,0 +1,37 @@
+"""The model families of the source papers, one module each (its parameters and its strategy).
+
+Families (NOTES §2): ``zerodim6`` and ``zerodim20`` (seed 000), ``elastoslide`` (seed 001),
+``pfeffer`` (seed 002), ``masing`` (seed 003), ``overlay`` (seed 004's map). Every module
+holds the family class (parameters, bounds, first guess, coupling) and its staged
+identification strategy; :mod:`.base` the family base class, :mod:`.stages` the stages they
+share.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from droptower.errors import DroptowerError
+from droptower.identify.families import elastoslide, masing, overlay, pfeffer, zerodim6, zerodim20
+from droptower.identify.families.base import COMMON_OPTIONS, Family
+from droptower.identify.families.elastoslide import ElastoslideFamily, loading_curve
+from droptower.identify.families.masing import MasingFamily
+from droptower.identify.families.overlay import OverlayFamily
+from droptower.identify.families.pfeffer import PfefferFamily
+from droptower.identify.families.zerodim6 import ZeroDim6
+from droptower.identify.families.zerodim20 import ZeroDim20
+from droptower.identify.fit import Identification
+
+_MODULES = (zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay)
+FAMILIES: dict[str, type[Family]] = {m.FAMILY.kind: m.FAMILY for m in _MODULES}
+STRATEGIES: dict[str, Callable[..., Identification]] = {m.FAMILY.kind: m.strategy for m in _MODULES}
+
+
+def family_class(kind: str) -> type[Family]:
+    """The family of a ``--model`` name; a one-line error for an unknown one."""
+    if kind not in FAMILIES:
+        raise DroptowerError(f"unknown model kind {kind!r} (known: {', '.join(FAMILIES)})")
+    return FAMILIES[kind]
+
+
+__all__ = ["COMMON_OPTIONS", "FAMILIES", "STRATEGIES", "ElastoslideFamily", "Family", "MasingFamily", "OverlayFamily",
+           "PfefferFamily", "ZeroDim20", "ZeroDim6", "family_class", "loading_curve"]

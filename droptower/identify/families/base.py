@@ -1,0 +1,103 @@
+"""The base of the model families: a parameter vector <-> a coupling of the rheological core.
+
+Each family names its parameters (unit as suffix), scales their bounds and a first guess to
+the data (:class:`~droptower.identify.data.DataScale`), and builds a coupling of the
+rheological core from a parameter vector. :meth:`Family.batch` builds ONE coupling whose
+parameter sets (rows of ``Coupling.params``) are many parameter vectors: the fitting engine
+simulates them all in one call of the core.
+"""
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+from droptower.identify.data import DataScale
+from droptower.identify.fit import Parameter, clip_to_bounds
+from droptower.rheology import Coupling, parse_coupling
+
+
+class Family:
+    """Base of the model families.
+
+    kind: the name on the command line; title, source: for reports and coupling files;
+    OPTIONS: family options (``[options]`` of ``--params INIT.toml``) with their defaults.
+    """
+
+    kind: ClassVar[str] = ""
+    title: ClassVar[str] = ""
+    source: ClassVar[str] = ""
+    OPTIONS: ClassVar[dict[str, Any]] = {}
+
+    def __init__(self, scale: DataScale, options: dict[str, Any] | None = None):
+        self.scale = scale
+        options = dict(options or {})
+        unknown = set(options) - set(self.OPTIONS) - set(COMMON_OPTIONS)
+        if unknown:
+            known = sorted(set(self.OPTIONS) | set(COMMON_OPTIONS))
+            raise DroptowerError(f"unknown option(s) {', '.join(sorted(unknown))} for model {self.kind} "
+                                 f"(known: {', '.join(known)})")
+        self.options = {**COMMON_OPTIONS, **self.OPTIONS, **options}
+        self.parameters: list[Parameter] = self._parameters()
+
+    # -------------------------------------------------------------- per family
+    def _parameters(self) -> list[Parameter]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def guess(self) -> np.ndarray:  # pragma: no cover - abstract
+        """A first guess from the data's scale (physical values)."""
+        raise NotImplementedError
+
+    def elements(self, v: np.ndarray) -> list[dict[str, Any]]:  # pragma: no cover - abstract
+        """The ``[[element]]`` tables of the coupling for parameter vector ``v``."""
+        raise NotImplementedError
+
+    def derived(self, v: np.ndarray) -> dict[str, float]:
+        """Quantities computed from the parameters, for reports."""
+        return {}
+
+    @property
+    def substeps(self) -> int:
+        """Integration steps per data sample (option ``substeps``)."""
+        n = int(self.options["substeps"])
+        if n < 1:
+            raise DroptowerError(f"option substeps must be a positive integer, got {self.options['substeps']}")
+        return n
+
+    # -------------------------------------------------------------- common
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    def initial(self) -> np.ndarray:
+        return clip_to_bounds(self.parameters, self.guess())
+
+    def vector(self, values: dict[str, float]) -> np.ndarray:
+        """Parameter vector from a name -> value mapping (all names required)."""
+        missing = [n for n in self.names if n not in values]
+        if missing:
+            raise DroptowerError(f"missing parameter(s) {', '.join(missing)} for model {self.kind}")
+        return np.array([float(values[n]) for n in self.names])
+
+    def coupling(self, v: np.ndarray, *, name: str = "", description: str = "") -> Coupling:
+        """The coupling of one parameter vector."""
+        data = {"name": name or f"identified_{self.kind}", "description": description or self.title,
+                "source": self.source, "units": "torsional", "element": self.elements(np.asarray(v, float))}
+        return parse_coupling(data)
+
+    def batch(self, values: np.ndarray) -> Coupling:
+        """One coupling whose parameter sets are the rows of ``values`` (M, n)."""
+        values = np.atleast_2d(values)
+        return Coupling.stack([self.coupling(v) for v in values])
+
+
+#: Options every family takes: max_nfev (evaluation limit of each least-squares stage; 0: 20
+#: per free parameter + 20), skip_s (seconds at each record's start left out of the fit),
+#: substeps (integration steps per sample: the rig and the bench integrate finer than they
+#: sample, and a model fitted on the sample step alone absorbs that step's discretisation).
+COMMON_OPTIONS: dict[str, Any] = {"max_nfev": 0, "skip_s": 0.0, "substeps": 1}
+
+
+def stiffness_parameter(name: str, s: DataScale, lo: float = 1e-4, hi: float = 1e3) -> Parameter:
+    return Parameter(name, lo * s.stiffness_nm_per_rad, hi * s.stiffness_nm_per_rad)

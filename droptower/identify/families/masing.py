@@ -1,0 +1,235 @@
+"""Seed 003's Masing model with Prandtl elements (NOTES §2.4): family and strategy.
+
+One global fit, then A, B, k, R, alpha per amplitude level and each as a function of
+amplitude, then the Maxwell stiffnesses per frequency level and as linear functions of
+frequency.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.optimize import curve_fit
+
+from droptower.errors import DroptowerError
+from droptower.identify.data import Segment
+from droptower.identify.families.base import Family, stiffness_parameter
+from droptower.identify.families.stages import Setup, levels, result_of, steady_blocks
+from droptower.identify.fit import Identification, Parameter, clip_to_bounds, metrics, simulate_rows
+
+class MasingFamily(Family):
+    """Seed 003's Masing model: n Prandtl elements (stiffness k each, limits R e^{alpha(eta-1)})
+    + cubic spring A x^3 + B x + two Maxwell elements (C_i, D_i = C_i tau_i), optionally with
+    the constriction S(x) = (|tanh(P x)| + K)/(1 + K).
+
+    Seed 003 works in units normalised by R; here R (N*m) is a parameter.
+    """
+
+    kind = "masing"
+    title = "Masing model: Prandtl elements + cubic spring + two Maxwell elements"
+    source = "seed 003 (Masing model with Prandtl elements), NOTES 2.4"
+    OPTIONS = {"n": 7, "constriction": False, "amplitude_deg": 0.0, "frequency_hz": 0.0,
+               "amplitude_function": "auto"}
+    MASING = ("a_nm_per_rad3", "b_nm_per_rad", "k_nm_per_rad", "r_nm", "alpha")
+    CONSTRICTION = ("p_c_per_rad", "k_c")
+    MAXWELL = ("c1_nm_per_rad", "tau1_s", "c2_nm_per_rad", "tau2_s")
+
+    def _parameters(self):
+        s = self.scale
+        k = s.stiffness_nm_per_rad
+        out = [Parameter("a_nm_per_rad3", 0.0, 1e3 * s.torque_nm / s.amplitude_rad ** 3, log=False,
+                         scale=s.torque_nm / s.amplitude_rad ** 3),
+               Parameter("b_nm_per_rad", 0.0, 1e3 * k, log=False, scale=k),
+               stiffness_parameter("k_nm_per_rad", s, 1e-4, 1e4), Parameter("r_nm", 1e-6 * s.torque_nm, 1e3 * s.torque_nm),
+               Parameter("alpha", 0.0, 30.0, log=False)]
+        if self.options["constriction"]:
+            out += [Parameter("p_c_per_rad", 1e-3 / s.amplitude_rad, 1e4 / s.amplitude_rad),
+                    Parameter("k_c", 0.0, 1e3, log=False)]
+        out += [stiffness_parameter("c1_nm_per_rad", s), Parameter("tau1_s", 1e-6, 1e3),
+                stiffness_parameter("c2_nm_per_rad", s), Parameter("tau2_s", 1e-6, 1e3)]
+        return out
+
+    @property
+    def n_masing(self) -> int:
+        return len(self.MASING) + (len(self.CONSTRICTION) if self.options["constriction"] else 0)
+
+    def guess(self):
+        s = self.scale
+        k = s.stiffness_nm_per_rad
+        w = 2 * np.pi * max(s.frequency_hz, 1e-3)
+        masing = [0.0, 0.3 * k, 2.0 * k / int(self.options["n"]), 0.3 * s.torque_nm / int(self.options["n"]), 2.0]
+        if self.options["constriction"]:
+            masing += [3.0 / s.amplitude_rad, 1.0]
+        return np.array(masing + [0.2 * k, 3.0 / w, 0.2 * k, 0.1 / w])
+
+    def elements(self, v):
+        a, b, k, r, alpha = v[:5]
+        masing = {"kind": "masing", "n": int(self.options["n"]), "stiffness": k, "max_yield_torque": r, "alpha": alpha}
+        if self.options["constriction"]:
+            masing["constriction"] = {"p": v[5], "k": v[6]}
+        c1, tau1, c2, tau2 = v[self.n_masing:]
+        return [{"kind": "cubic_spring", "a": a, "b": b}, masing,
+                {"kind": "maxwell", "name": "Maxwell 1", "stiffness": c1, "damping": c1 * tau1},
+                {"kind": "maxwell", "name": "Maxwell 2", "stiffness": c2, "damping": c2 * tau2}]
+
+    def derived(self, v):
+        c1, tau1, c2, tau2 = v[self.n_masing:]
+        return {"d1_nms_per_rad": c1 * tau1, "d2_nms_per_rad": c2 * tau2}
+
+
+def fit_function(x: np.ndarray, y: np.ndarray, std: np.ndarray | None = None, form: str = "auto") -> dict[str, Any]:
+    """A parameter as a function of amplitude or frequency (seed 003).
+
+    Forms: ``constant``, ``poly1``, ``poly4`` (degree up to 4, at most n - 2), ``exp``
+    (a + b exp(-c x)), or ``auto``: the form with the lowest corrected Akaike criterion
+    among those with fewer coefficients than points - 1 (poly1 for three points or fewer).
+    Points are weighted by 1 / ``std`` (the per-level standard errors), so a level whose
+    value the data hardly determine does not bend the function.
+    Returns {"form", "coefficients" (highest power first for polynomials), "rms_error"}.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    n = x.size
+    sd = np.ones(n) if std is None else np.asarray(std, float)
+    sd = np.where(np.isfinite(sd) & (sd > 0), sd, np.nanmax(np.where(np.isfinite(sd), sd, 0.0)) or 1.0)
+    sd = np.maximum(sd, 1e-9 * max(float(np.max(np.abs(y))), 1e-300))
+    if form not in ("auto", "constant", "poly1", "poly4", "exp"):
+        raise DroptowerError(f"unknown function form {form!r} (constant, poly1, poly4, exp, auto)")
+    if form == "auto":
+        forms = ["constant", "poly1"] if n <= 3 else ["constant", "poly1", "poly4", "exp"]
+    else:
+        forms = [form]
+    best = None
+    for f in forms:
+        if f == "constant" or (f.startswith("poly") and n == 1):
+            coef = np.array([np.average(y, weights=sd ** -2)])
+            pred = np.full(n, coef[0])
+            name = "constant"
+        elif f.startswith("poly"):
+            deg = min(int(f[4:]), max(n - 2, 1))
+            coef = np.polyfit(x, y, deg, w=1.0 / sd)
+            pred = np.polyval(coef, x)
+            name = f"poly{deg}"
+        else:
+            if n < 4:
+                continue
+            try:
+                coef, _ = curve_fit(lambda t, a, b, c: a + b * np.exp(-c * t), x, y, sigma=sd, maxfev=4000,
+                                    p0=[y[np.argmax(x)], y[np.argmin(x)] - y[np.argmax(x)], 1.0 / max(np.ptp(x), 1e-300)])
+            except (RuntimeError, ValueError):
+                continue
+            pred = coef[0] + coef[1] * np.exp(-coef[2] * x)
+            name = "exp"
+        k = coef.size
+        chi2 = float(np.sum(((pred - y) / sd) ** 2))
+        aicc = chi2 + 2 * k + (2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else 0.0)
+        if best is None or aicc < best[0]:
+            best = (aicc, {"form": name, "coefficients": [float(c) for c in coef],
+                           "rms_error": float(np.sqrt(np.mean((pred - y) ** 2)))})
+    return best[1]  # type: ignore[index]
+
+
+def eval_function(fn: dict[str, Any], x: float) -> float:
+    c = fn["coefficients"]
+    if fn["form"] == "constant":
+        return c[0]
+    if fn["form"] == "exp":
+        return c[0] + c[1] * math.exp(-c[2] * x)
+    return float(np.polyval(c, x))
+
+
+def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
+    fam: MasingFamily = s.family  # type: ignore[assignment]
+    nm = fam.n_masing
+    masing_names, maxwell_names = fam.names[:nm], fam.names[nm:]
+    glob = s.fit(segments, s.x0.copy(), None, "global (all data)")
+    stages = [glob]
+    x = glob.values.copy()
+    steady = steady_blocks(segments)
+    extra: dict[str, Any] = {"amplitude_levels": [], "frequency_levels": []}
+    if not steady:
+        extra["note"] = "no steady sine blocks: one parameter set identified on all data"
+        return result_of(s, segments, x, stages, start, extra=extra,
+                       coupling_note="one parameter set for all data (no steady sine blocks)")
+
+    # 1. Masing parameters per amplitude level (all frequencies of that level)
+    amp_levels = levels([sb.amplitude_rad for sb in steady])
+    per_amp = []
+    for members in amp_levels:
+        wins = [steady[i].window for i in members]
+        amp_deg = math.degrees(float(np.median([steady[i].amplitude_rad for i in members])))
+        r = s.fit(wins, x, masing_names, f"Masing at {amp_deg:.3g} deg")
+        stages.append(r)
+        per_amp.append((amp_deg, r))
+        extra["amplitude_levels"].append({"amplitude_deg": amp_deg, "blocks": len(members),
+                                          **{n: float(v) for n, v in zip(fam.names[:nm], r.values[:nm])},
+                                          **{f"{n}_std": float(v) for n, v in zip(fam.names[:nm], r.std_error[:nm])},
+                                          "nrmse": r.metrics.nrmse})
+    form = str(fam.options["amplitude_function"])
+    amp_x = np.array([a for a, _ in per_amp])
+    amp_fn = {n: fit_function(amp_x, np.array([r.values[i] for _, r in per_amp]),
+                              np.array([r.std_error[i] for _, r in per_amp]), form)
+              for i, n in enumerate(masing_names)}
+
+    def masing_at(amp_deg: float) -> np.ndarray:
+        a = float(np.clip(amp_deg, amp_x.min(), amp_x.max()))  # no extrapolation beyond the levels
+        v = x.copy()
+        v[:nm] = [eval_function(amp_fn[n], a) for n in masing_names]
+        return clip_to_bounds(fam.parameters, v)
+
+    # 2. Maxwell stiffnesses per frequency level, the Masing part at each block's amplitude.
+    # One frequency determines two numbers of the Maxwell part (its K' and K''), so the
+    # relaxation times stay at the global fit's and the two stiffnesses are fitted
+    maxwell_free = [n for n in maxwell_names if n.startswith("c")]
+    freq_levels = levels([sb.frequency_hz for sb in steady])
+    per_freq = []
+    for members in freq_levels:
+        wins = [steady[i].window for i in members]
+        base = np.array([masing_at(math.degrees(steady[i].amplitude_rad)) for i in members])
+        f_hz = float(np.median([steady[i].frequency_hz for i in members]))
+        r = s.fit(wins, base[0], maxwell_free, f"Maxwell at {f_hz:.3g} Hz", per_segment=base)
+        stages.append(r)
+        per_freq.append((f_hz, r))
+        extra["frequency_levels"].append({"frequency_hz": f_hz, "blocks": len(members),
+                                          **{n: float(r.values[nm + j]) for j, n in enumerate(maxwell_names)},
+                                          "nrmse": r.metrics.nrmse})
+    freq_x = np.array([f for f, _ in per_freq])
+    freq_fn = {n: fit_function(freq_x, np.array([r.values[nm + j] for _, r in per_freq]),
+                               np.array([r.std_error[nm + j] for _, r in per_freq]), "poly1")
+               for j, n in enumerate(maxwell_names)}
+
+    def params_at(amp_deg: float, f_hz: float) -> np.ndarray:
+        v = masing_at(amp_deg)
+        f = float(np.clip(f_hz, freq_x.min(), freq_x.max()))
+        v[nm:] = [eval_function(freq_fn[n], f) for n in maxwell_names]
+        return clip_to_bounds(fam.parameters, v)
+
+    extra["amplitude_functions"] = {n: {**fn, "variable": "amplitude_deg"} for n, fn in amp_fn.items()}
+    extra["frequency_functions"] = {n: {**fn, "variable": "frequency_hz"} for n, fn in freq_fn.items()}
+    # fit quality of the amplitude/frequency-dependent model: each block with its own set
+    rows = np.array([params_at(math.degrees(sb.amplitude_rad), sb.frequency_hz) for sb in steady])
+    wins = [sb.window for sb in steady]
+    fit_metrics = metrics(wins, simulate_rows(fam, rows, wins, np.arange(len(wins))))
+    amp_out, f_out = float(fam.options["amplitude_deg"]), float(fam.options["frequency_hz"])
+    if amp_out or f_out:
+        amp_out = amp_out or float(np.median(amp_x))
+        f_out = f_out or float(np.median(freq_x))
+        v_out = params_at(amp_out, f_out)
+        note = (f"one parameter set of the amplitude/frequency-dependent model, at amplitude {amp_out:.4g} deg and "
+                f"frequency {f_out:.4g} Hz (identified levels: {', '.join(f'{a:.3g}' for a in amp_x)} deg; "
+                f"{', '.join(f'{f:.3g}' for f in freq_x)} Hz)")
+        extra["written_at"] = {"amplitude_deg": amp_out, "frequency_hz": f_out}
+    else:
+        v_out = x
+        note = ("the global fit, one parameter set for all data; the amplitude- and frequency-dependent "
+                "parameters are in the report (options amplitude_deg / frequency_hz write them at one point)")
+    result = result_of(s, segments, v_out, stages, start, extra=extra, coupling_note=note, fit=fit_metrics)
+    # standard errors: the global fit's for the global set, else per level (in the report)
+    result.std_error = dict(zip(fam.names, map(float, glob.std_error))) if v_out is x else \
+        {n: float("nan") for n in fam.names}
+    result.at_bounds = sorted({b for st in stages for b in st.at_bounds})
+    return result
+
+
+FAMILY = MasingFamily
+strategy = identify_masing

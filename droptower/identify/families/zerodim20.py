@@ -1,0 +1,131 @@
+"""Seed 000's lookup-table model with the Mullins filter (section 4, eq. 3): family and strategy.
+
+The six-parameter fit mapped exactly onto the tables and the Mullins filter, then all 20
+parameters jointly.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from droptower.identify.data import DataScale, Segment
+from droptower.identify.families.base import COMMON_OPTIONS, Family, stiffness_parameter
+from droptower.identify.families.stages import Setup, result_of, setup
+from droptower.identify.families.zerodim6 import ZeroDim6, staged_fit
+from droptower.identify.fit import FitResult, Identification, Parameter, clip_to_bounds
+from droptower.rheology import parse_coupling
+
+#: A lookup-table value may move by this factor from the six-parameter start.
+TABLE_RANGE = 3.0
+
+FAR = 1e3
+
+
+class ZeroDim20(Family):
+    """Seed 000's lookup-table model with the Mullins filter, 20 parameters.
+
+    Mullins filter (eq. 3): slow stiffness, fast minus slow stiffness, time constant tau (3);
+    a Maxwell branch whose spring stiffness is a 9-point table over its deformation
+    (breakpoints evenly over +-the largest amplitude of the data) and whose damping is an
+    8-point table over its rate (0 .. the largest rate of the data): 9 + 8 = 17. Seed 000
+    reduced its 45 lookup values to 20; this is one such choice. Beyond their breakpoints the
+    tables hold their end values. Within them it contains the six-parameter model exactly
+    (tables linear in |e| and constant), so it starts from that fit.
+    """
+
+    kind = "zerodim20"
+    title = "zero-dimensional lookup-table model with Mullins filter (20 parameters)"
+    source = "seed 000 (zero-dimensional model), section 4, eq. 3"
+    OPTIONS = {"deformation_max_rad": 0.0, "rate_max_rad_per_s": 0.0}
+    N_STIFF = 9
+    N_DAMP = 8
+
+    def _parameters(self):
+        s = self.scale
+        self.set_breakpoints(float(self.options["deformation_max_rad"]) or s.amplitude_rad,
+                             float(self.options["rate_max_rad_per_s"]) or s.rate_rad_per_s)
+        c_hi = 1e3 * s.stiffness_nm_per_rad
+        return ([stiffness_parameter("k_slow_nm_per_rad", s), stiffness_parameter("k_fast_minus_slow_nm_per_rad", s),
+                 Parameter("tau_mullins_s", 1e-3, 1e4)]
+                + [stiffness_parameter(f"k3_{i + 1}_nm_per_rad", s) for i in range(self.N_STIFF)]
+                + [Parameter(f"c3_{i + 1}_nms_per_rad", 1e-9 * c_hi, c_hi) for i in range(self.N_DAMP)])
+
+    def set_breakpoints(self, deformation_max_rad: float, rate_max_rad_per_s: float) -> None:
+        """Table breakpoints: stiffness over +-deformation_max (the branch spring's own
+        deformation), damping over 0 .. rate_max (its dashpot's rate)."""
+        self.deformation_rad = np.linspace(-deformation_max_rad, deformation_max_rad, self.N_STIFF)
+        self.rate_rad_per_s = np.linspace(0.0, rate_max_rad_per_s, self.N_DAMP)
+
+    def guess(self):
+        return self.from_zerodim6(ZeroDim6(self.scale).guess())
+
+    def from_zerodim6(self, v6: np.ndarray) -> np.ndarray:
+        """The 20 parameters that reproduce a six-parameter model exactly."""
+        k1, k2, tau2, k3, gain, tau3 = v6
+        return np.concatenate([[k1, k2, tau2], k3 + gain * np.abs(self.deformation_rad),
+                               np.full(self.N_DAMP, k3 * tau3)])
+
+    def elements(self, v):
+        k_slow, dk, tau = v[:3]
+        ks = v[3:3 + self.N_STIFF]
+        cs = v[3 + self.N_STIFF:]
+        # beyond its breakpoints a table holds its end value (one more point far out): the
+        # core extrapolates linearly, which could turn a falling damping table negative on
+        # data faster than the fitting data (a lookup table's usual end clamp)
+        e, far = self.deformation_rad, FAR * self.deformation_rad[-1]
+        return [{"kind": "mullins", "name": "Mullins filter", "tau": tau, "slow_stiffness": k_slow,
+                 "fast_stiffness": k_slow + dk},
+                {"kind": "variable_maxwell", "name": "K3-C3 tables",
+                 "stiffness_table": {"x": [-far, *e.tolist(), far], "y": [ks[0], *ks.tolist(), ks[-1]]},
+                 "damping_table": {"x": [*self.rate_rad_per_s.tolist(), FAR * self.rate_rad_per_s[-1]],
+                                   "y": [*cs.tolist(), cs[-1]]}}]
+
+
+def branch_ranges(v6: np.ndarray, segments: list[Segment]) -> tuple[float, float]:
+    """Largest deformation of the K3 spring and largest rate of the C3 dashpot (rad, rad/s)
+    that the six-parameter model ``v6`` visits on ``segments``: where seed 000's lookup tables
+    of the same branch need their breakpoints."""
+    k3, gain, tau3 = v6[3], v6[4], v6[5]
+    six = ZeroDim6(DataScale.of(segments))
+    branch = parse_coupling({"element": [six.elements(v6)[2]]})  # the variable Maxwell branch alone
+    t3 = np.concatenate([np.abs(branch.respond(seg.angle_rad, seg.dt_s)) for seg in segments])
+    peak = float(t3.max())
+    e_max = 2 * peak / (k3 + math.sqrt(k3 * k3 + 4 * gain * peak)) if gain > 0 else peak / k3
+    return e_max, peak / (k3 * tau3)
+
+
+def identify_zerodim20(s: Setup, segments: list[Segment], start: float, previous: dict | None = None,
+                       **_) -> Identification:
+    fam: ZeroDim20 = s.family  # type: ignore[assignment]
+    x = s.x0.copy()
+    stages: list[FitResult] = []
+    if not s.given.all():
+        six = (previous or {}).get("zerodim6")
+        if six is None:
+            opts = {k: v for k, v in fam.options.items() if k in COMMON_OPTIONS}
+            s6 = setup(ZeroDim6, segments, options=opts)
+            v6, stages, _ = staged_fit(s6, segments)
+        else:
+            v6 = np.array(list(six.parameters.values()))
+        e_max, v_max = branch_ranges(v6, segments)
+        fam.set_breakpoints(float(fam.options["deformation_max_rad"]) or e_max,
+                            float(fam.options["rate_max_rad_per_s"]) or v_max)
+        for i, (name, value) in enumerate(zip(fam.names, fam.from_zerodim6(v6))):
+            s.set_estimate(x, name, value)
+            p = fam.parameters[i]
+            if i >= 3 and not s.bounded[i]:
+                # seed 000: "sound constraints" - a table value stays within a factor of
+                # TABLE_RANGE of the six-parameter start, so a breakpoint the data hardly reach
+                # cannot run off (and spoil the model just beyond the fitting data)
+                fam.parameters[i] = Parameter(p.name, max(p.lower, x[i] / TABLE_RANGE), min(p.upper, x[i] * TABLE_RANGE),
+                                              p.log, p.scale)
+                x[i] = clip_to_bounds([fam.parameters[i]], [x[i]])[0]
+    r = s.fit(segments, x, None, "joint (20 parameters)")
+    extra = {"deformation_breakpoints_rad": fam.deformation_rad.tolist(),
+             "rate_breakpoints_rad_per_s": fam.rate_rad_per_s.tolist()}
+    return result_of(s, segments, r.values.copy(), stages + [r], start, extra=extra)
+
+
+FAMILY = ZeroDim20
+strategy = identify_zerodim20
