@@ -39,6 +39,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from droptower.configs import preset_dir
+from droptower.data import table4_path
 from droptower.extract.decay import fit_decay, start_frequency_and_decay
 from droptower.sdof import damping_ratio, stiffness
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
@@ -49,7 +50,7 @@ from droptower.rig.impact import impact_velocities
 from droptower.rig.planner import free_decay
 from droptower.rig.preload import pretwist
 
-REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "rapp2022_table4_map.csv"
+REFERENCE = table4_path()  # seed 004 Table 4, shipped with the package
 CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (NOTES §1.1)
 LEVER_M, RESTITUTION = 0.2, 0.5
 HEIGHTS_M = np.array([0.05, 0.2, 0.4, 0.55, 0.7, 1.0, 1.4, 1.8, 3.5, 6.0])  # Table 2

@@ -11,7 +11,7 @@ comparison with the paper's measured map (Table 4), into one report folder.
    and Fig. 10, 12, 13;
 3. the servo-hydraulic validation, NOTES §1.6 sweeps on the virtual servo bench
    (``droptower validate``; ``--reduced``: fewer steps): ``OUT/validation.csv``, Fig. 14;
-4. the comparison with Table 4 (``../shared/reference/rapp2022_table4_map.csv``): per row the
+4. the comparison with Table 4 (shipped: ``droptower/data/rapp2022_table4_map.csv``): per row the
    map at the row's amplitude and frequency and the campaign's tests interpolated at the row's
    case and amplitude: ``OUT/table4_comparison.csv``, printed with the acceptance of issue 5
    (RMS <= 5 % stiffness, <= 10 % damping ratio);
@@ -37,11 +37,12 @@ from droptower.campaign.folder import write_json
 from droptower.compare import compare_reference, format_comparison, format_summary, run_sweeps, validate_map
 from droptower.compare.files import write_csv, write_validation
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG, read_toml, resolve
+from droptower.data import table4_path
 from droptower.errors import DroptowerError
 from droptower.maps import fit_map, select_tests
 from droptower.maps.plots import plot_all
 
-REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference" / "rapp2022_table4_map.csv"
+REFERENCE = table4_path()  # seed 004 Table 4, shipped with the package
 REDUCED_HEIGHTS_M = [0.05, 0.4, 1.0, 3.5, 6.0]
 TABLE4_FIGURE = "table4_comparison.png"
 

@@ -16,7 +16,6 @@ from droptower.extract.synthetic import SyntheticDrop
 from droptower.extract.window import Window
 from droptower.io.signals import DropSignals
 
-REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
 DEG = math.pi / 180.0
 
 
@@ -32,12 +31,9 @@ def test_table3_damping_ratio_to_four_digits(delta, omega, d_ratio):
 
 
 def test_table4_stiffness_from_inertia_frequency_and_damping():
-    path = REFERENCE / "rapp2022_table4_map.csv"
-    if not path.is_file():
-        pytest.skip("shared/reference/rapp2022_table4_map.csv absent")
-    import pandas as pd
+    from droptower.data import read_table4
 
-    table = pd.read_csv(path)
+    table = read_table4()
     assert len(table) == 30
     c = sdof.stiffness_from_map(table.inertia_kgm2, table.frequency_hz, table.damping_ratio) * DEG
     np.testing.assert_allclose(c, table.stiffness_nm_per_deg, rtol=5e-4)

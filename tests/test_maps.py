@@ -10,13 +10,13 @@ import pandas as pd
 import pytest
 
 from droptower.cli.main import main
+from droptower.data import table4_path
 from droptower.errors import DroptowerError
 from droptower.maps import MapFit, fit_map, model, read_results
 from droptower.maps.plots import plot_all
 from droptower.maps.results import select_tests
 
-REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
-TABLE4 = REFERENCE / "rapp2022_table4_map.csv"
+TABLE4 = table4_path()
 
 # Known map for the synthetic tests: the shape of the Table-4 fit with all exponents inside
 # their bounds (eq. 19: k1..k7, eq. 20: k8..k13).
@@ -45,8 +45,6 @@ def synthetic_table(noise: float, seed: int = 0) -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def table4() -> pd.DataFrame:
-    if not TABLE4.is_file():
-        pytest.skip("../shared/reference/rapp2022_table4_map.csv absent")
     return pd.read_csv(TABLE4)
 
 

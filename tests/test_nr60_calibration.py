@@ -15,11 +15,12 @@ import pandas as pd
 import pytest
 
 import droptower as dt
+from droptower.data import table4_path
 from droptower.extract import Settings, extract_file
 from droptower.rig import load_rig, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT.parent / "shared" / "reference" / "rapp2022_table4_map.csv"
+REFERENCE = table4_path()
 STORED = ROOT / "analysis" / "results" / "nr60_fast_loop_table4.csv"
 
 
@@ -32,8 +33,6 @@ def _calibration_module():
 
 @pytest.fixture(scope="module")
 def recomputed() -> pd.DataFrame:
-    if not REFERENCE.is_file():
-        pytest.skip(f"reference data absent: {REFERENCE}")
     calibration = _calibration_module()
     coupling = dt.load_coupling("rapp2022_nr60")
     return calibration.compare_coupling(coupling, pd.read_csv(REFERENCE))

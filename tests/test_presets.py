@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from droptower.configs import list_presets
+from droptower.data import read_table4
 from droptower.rheology import load_coupling
 from droptower.sdof import drop_tower_equivalent_damping_ratio
-from test_rheology_support import TABLE4, first_harmonic, preset_paths, sine
+from test_rheology_support import first_harmonic, preset_paths, sine
 
 EXPECTED = {"seed001_specimen", "seed001_lag_damper", "seed002_bushing", "seed003_masing",
             "seed000_six_parameter", "rapp2022_nr60"}
@@ -99,10 +100,7 @@ def test_stiffness_rises_with_frequency(grid):
 
 
 def _table4():
-    if not TABLE4.is_file():
-        pytest.skip(f"{TABLE4} absent")
-    import pandas as pd
-    return pd.read_csv(TABLE4)
+    return read_table4()
 
 
 @pytest.mark.parametrize("near_deg, within_deg", [(0.2, 0.1), (2.5, 0.3)])

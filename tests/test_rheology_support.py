@@ -14,7 +14,6 @@ from droptower.rheology import parse_coupling
 
 REPO = Path(__file__).resolve().parents[1]
 PRESET_DIR = REPO / "rig_configs" / "couplings"
-TABLE4 = REPO.parent / "shared" / "reference" / "rapp2022_table4_map.csv"
 
 #: Representative excitation of each shipped preset: (amplitude in the file's length unit,
 #: rad or m, and frequency in Hz), from the ranges its source tested. Presets not listed fall

@@ -13,8 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from droptower.data import table4_path
+
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT.parent / "shared" / "reference" / "rapp2022_table4_map.csv"
+REFERENCE = table4_path()
 STORED = ROOT / "analysis" / "results" / "table4_comparison.csv"
 TABLE4_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "amplitude_deg", "frequency_hz", "stiffness_nm_per_deg",
                   "damping_ratio"]
@@ -37,8 +39,6 @@ def _finite_numbers(value) -> bool:
 
 @pytest.mark.slow
 def test_reduced_study_writes_the_report(tmp_path, capsys):
-    if not REFERENCE.is_file():
-        pytest.skip(f"reference data absent: {REFERENCE}")
     out = tmp_path / "report"
     assert _study_module().main(["--reduced", "--out", str(out), "--workers", "2"]) == 0
     printed = capsys.readouterr().out
@@ -79,8 +79,6 @@ def stored() -> pd.DataFrame:
     if not STORED.is_file():
         pytest.skip(f"no stored full-study result ({STORED.relative_to(ROOT)}): run "
                     "python analysis/run_study.py --out report and copy report/table4_comparison.csv there")
-    if not REFERENCE.is_file():
-        pytest.skip(f"reference data absent: {REFERENCE}")
     return pd.read_csv(STORED)
 
 

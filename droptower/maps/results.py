@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from droptower.data import TABLE4_NAME, table4_path
 from droptower.errors import DroptowerError
 
 #: Columns the map is fitted from (the extractor's output names).
@@ -34,10 +35,12 @@ class ExcludedTest:
 
 
 def read_results(path: str | Path) -> pd.DataFrame:
-    """Load a results table (``.csv`` or ``.parquet``, or a campaign folder holding
-    ``results.parquet``); unreadable files and missing columns are a one-line
-    :class:`DroptowerError` naming the file."""
+    """Load a results table (``.csv`` or ``.parquet``, a campaign folder holding
+    ``results.parquet``, or ``rapp2022_table4``: the paper's Table 4 shipped with the package);
+    unreadable files and missing columns are a one-line :class:`DroptowerError` naming the file."""
     path = Path(path)
+    if str(path) == TABLE4_NAME and not path.exists():
+        path = table4_path()  # the paper's Table 4, shipped with the package
     if path.is_dir():
         if not (path / "results.parquet").is_file():
             raise DroptowerError("a folder without results.parquet (not a campaign folder)", file=path)
