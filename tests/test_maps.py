@@ -285,3 +285,9 @@ def test_cli_summary_out_and_plots(table4: pd.DataFrame, tmp_path: Path, capsys:
     assert MapFit.from_json(out).stats.n_tests == 30
     for name in ("fig10_parameter_variation.png", "fig12_stiffness_map.png", "fig13_damping_map.png"):
         assert (plots / name).stat().st_size > 10_000
+
+
+def test_shipped_table4_by_name(capsys: pytest.CaptureFixture[str]) -> None:
+    """``droptower map rapp2022_table4`` reads the copy shipped inside the package (the paper's 30 rows)."""
+    assert main(["map", "rapp2022_table4", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["fit"]["n_tests"] == 30
