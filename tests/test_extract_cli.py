@@ -130,7 +130,7 @@ def test_batch_with_a_bad_file_writes_the_good_ones(logs, tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["--window", "fist-cycle"], "window 'fist-cycle'"),
-    (["--out", "results.xlsx"], "use a .csv or .parquet"),
+    (["--out", "results.txt"], "unknown table format"),
     (["--inertia", "-1"], "--inertia must be > 0"),
     (["--channel", "angel=x"], "unknown role"),
 ])

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from droptower.campaign.folder import atomic_write
 from droptower.campaign.spec import PLAN_COLUMNS
+from droptower.io.tables import write_table
 
 TAIL_COLUMNS = ("flags", "log_file", "status", "error", "simulation_warnings")
 
@@ -52,5 +52,5 @@ def assemble(records: list[dict[str, Any]]) -> pd.DataFrame:
 
 def write_results(table: pd.DataFrame, parquet: Path, csv: Path) -> None:
     """Write the table as Parquet and CSV, each atomically."""
-    atomic_write(parquet, lambda tmp: table.to_parquet(tmp, index=False))
-    atomic_write(csv, lambda tmp: table.to_csv(tmp, index=False))
+    write_table(table, parquet)
+    write_table(table, csv)

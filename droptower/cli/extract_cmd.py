@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -16,29 +14,6 @@ from droptower.errors import DroptowerError
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg", "damping_ratio",
            "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
-
-
-def _write_table(rows: list[dict[str, Any]], out: Path) -> None:
-    """Write rows as CSV or Parquet, atomically (temporary file in the same folder, then rename)."""
-    import pandas as pd
-
-    frame = pd.DataFrame(rows)
-    frame["flags"] = frame["flags"].map(";".join)
-    for name in frame.columns[frame.dtypes == object]:
-        if not all(v is None or isinstance(v, str) for v in frame[name]):
-            frame[name] = frame[name].map(lambda v: v if v is None else str(v))  # mixed metadata types
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        if out.suffix.lower() == ".parquet":
-            frame.to_parquet(tmp, index=False)
-        else:
-            frame.to_csv(tmp, index=False)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _summary(rows: list[dict[str, Any]]) -> str:
@@ -79,7 +54,7 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @click.option("--window", default="first-cycle", show_default=True,
               help="Fit window after the impact: first-cycle, N-cycles (e.g. 2-cycles) or seconds (e.g. 0.05).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write the results table to a .csv or .parquet file.")
+              help="Write the results table to this file (.csv, .parquet, .json or .xlsx).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as a JSON list of objects.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Draw per test the angle and torque with their fits (seed 004 Fig. 9) into this folder.")
@@ -104,14 +79,16 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     A file that fails is reported on one line; the others are still evaluated and written, and
     the exit code is 1.
     """
+    import pandas as pd
     from tqdm import tqdm
 
     from droptower.extract.files import Settings, extract_file, json_safe, result_row
     from droptower.extract.window import Window
+    from droptower.io.tables import check_table_path, write_table
     from droptower.io.mapping import parse_channel_options
 
-    if out is not None and out.suffix.lower() not in (".csv", ".parquet"):
-        raise DroptowerError(f"--out {out}: use a .csv or .parquet file")
+    if out is not None:
+        check_table_path(out, "--out")
     for name, value in (("--inertia", inertia), ("--lever-length", lever_length), ("--sensor-radius", sensor_radius),
                         ("--sample-rate", sample_rate)):
         if value is not None and not value > 0:
@@ -148,13 +125,14 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
     if rows and out is not None:
-        _write_table(rows, out)
+        write_table(pd.DataFrame(rows), out, "--out")
     if as_json:
         click.echo(json.dumps([json_safe(r) for r in rows], indent=2, default=str))
     elif out is None and rows:
         click.echo(_summary(rows))
-    if failures:
+    if failures and len(paths) > 1:  # one file: its error line above says it all
         click.echo(f"droptower: {len(failures)} of {len(paths)} file(s) failed:", err=True)
         for line in failures:
             click.echo(f"  {line}", err=True)
+    if failures:
         raise click.exceptions.Exit(1)

@@ -9,7 +9,8 @@ import click
 @click.command("map")
 @click.argument("results", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="Write the map (coefficients, uncertainties, errors, range) to this JSON file.")
+              help="Write the map: map.json (coefficients, uncertainties, errors, range; what validate --map "
+                   "reads) or the coefficient table as .csv, .parquet or .xlsx.")
 @click.option("--plot", "plot_dir", type=click.Path(path_type=Path, file_okay=False), default=None,
               help="Write the paper's Fig. 10, 12 and 13 as PNG files into this folder.")
 @click.option("--json", "as_json", is_flag=True, help="Print the map as JSON instead of the summary.")
@@ -20,12 +21,17 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, as_json:
     folder (its results.parquet), or the paper's Table 4. Flagged tests (double_impact, poor_fit, short_window, clipping)
     and incomplete rows are excluded and listed.
     """
+    from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, read_results, select_tests
 
+    if out is not None:
+        check_table_path(out, "--out")
     table = read_results(results)
     fit = fit_map(table, source=results)
-    if out is not None:
+    if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
+    elif out is not None:
+        write_table(fit.coefficient_table(), out, "--out")
     click.echo(fit.to_json() if as_json else fit.summary(), nl=not as_json)
     if plot_dir is not None:
         from droptower.maps.plots import plot_all

@@ -21,7 +21,8 @@ TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "prelo
 @click.option("--doe", default=DEFAULT_DOE, show_default=True, help="Test-plan TOML file or shipped preset name.")
 @click.option("--duration-s", type=float, default=0.25, show_default=True,
               help="Record length after the impact (s), for the 3/4-period check.")
-@click.option("--out", type=click.Path(dir_okay=False), default=None, help="Write the full table as CSV.")
+@click.option("--out", type=click.Path(dir_okay=False), default=None,
+              help="Write the full table to this file (.csv, .parquet, .json or .xlsx).")
 @click.option("--json", "as_json", is_flag=True, help="Print the table as a JSON list of objects.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Draw twist, frequency, peak torque and double-impact clearance over drop height.")
@@ -36,19 +37,22 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     import pandas as pd
 
     from droptower.errors import DroptowerError
+    from droptower.io.tables import check_table_path, write_table
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_doe, load_rig
     from droptower.rig.planner import plan as predict
 
     if not (math.isfinite(duration_s) and duration_s > 0):
         raise DroptowerError(f"must be positive, got {duration_s:g}", where="--duration-s")
+    if out:
+        check_table_path(out, "--out")
     rig_cfg = load_rig(rig)
     model = load_coupling(coupling)
     plan_cfg = load_doe(doe)
     plan_cfg.check(rig_cfg)
     table = predict(rig_cfg, model, plan_cfg.conditions(), duration_s)
     if out:
-        table.to_csv(out, index=False)
+        write_table(table, out, "--out")
     if plot_path:
         from droptower.rig.plots import plot_plan
 

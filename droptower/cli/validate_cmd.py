@@ -30,9 +30,11 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--out", type=click.Path(path_type=Path), default=None,
               help="Write validation.csv, validation_summary.json, servo_results.csv and "
                    "fig14_servo_validation.png (and the reference comparison) into this folder.")
+@click.option("--table-format", type=click.Choice(["csv", "parquet", "json", "xlsx"]), default="csv",
+              show_default=True, help="Format of the tables written into --out.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
 def validate(map_path: Path, coupling: str, servo_results: Path | None, reference: Path | None,
-             results: Path | None, quick: bool, out: Path | None, as_json: bool) -> None:
+             results: Path | None, quick: bool, out: Path | None, table_format: str, as_json: bool) -> None:
     """Predict the servo-hydraulic sweeps of NOTES §1.6 from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
     10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
@@ -61,7 +63,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, referenc
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
     if out is not None:
-        written = write_validation(out, validation, fit, points, comparison)
+        written = write_validation(out, validation, fit, points, comparison, table_suffix=f".{table_format}")
     if as_json:
         from droptower.campaign.folder import strict_json
 

@@ -1,6 +1,6 @@
 """The files ``droptower validate --out DIR`` writes (also used by ``analysis/run_study.py``).
 
-- ``validation.csv``: one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
+- ``validation.csv`` (or ``--table-format``): one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
 - ``validation_summary.json``: RMS / max deviations inside and outside the range, definitions;
 - ``servo_results.csv``: the servo points as measured or simulated (readable by
   ``--servo-results``);
@@ -14,17 +14,18 @@ from typing import Any
 
 import pandas as pd
 
-from droptower.campaign.folder import atomic_write, write_json
+from droptower.campaign.folder import write_json
 from droptower.compare.fig14 import FIG14, plot_fig14
 from droptower.compare.servo_points import ServoPoints
 from droptower.compare.validation import Validation
 from droptower.errors import DroptowerError
+from droptower.io.tables import write_table
 from droptower.maps import MapFit
 
 
 def write_csv(path: Path, table: pd.DataFrame) -> Path:
-    atomic_write(path, lambda tmp: table.to_csv(tmp, index=False))
-    return path
+    """``table`` as CSV at ``path`` (:func:`droptower.io.tables.write_table`)."""
+    return write_table(table, path)
 
 
 def output_folder(out: str | Path, create: bool = True) -> Path:
@@ -43,14 +44,16 @@ def output_folder(out: str | Path, create: bool = True) -> Path:
 
 
 def write_validation(out: str | Path, validation: Validation, fit: MapFit, points: ServoPoints,
-                     reference: tuple[pd.DataFrame, dict[str, Any]] | None = None) -> list[Path]:
-    """Write the files of the module docstring into ``out``; returns them."""
+                     reference: tuple[pd.DataFrame, dict[str, Any]] | None = None,
+                     table_suffix: str = ".csv") -> list[Path]:
+    """Write the files of the module docstring into ``out`` (the tables as ``table_suffix``:
+    .csv, .parquet, .json or .xlsx); returns them."""
     out = output_folder(out)
-    files = [write_csv(out / "validation.csv", validation.table),
+    files = [write_table(validation.table, out / f"validation{table_suffix}"),
              write_json(out / "validation_summary.json", validation.summary),
-             write_csv(out / "servo_results.csv", points.raw),
+             write_table(points.raw, out / f"servo_results{table_suffix}"),
              plot_fig14(validation, fit, out / FIG14)]
     if reference is not None:
-        files += [write_csv(out / "reference_comparison.csv", reference[0]),
+        files += [write_table(reference[0], out / f"reference_comparison{table_suffix}"),
                   write_json(out / "reference_summary.json", reference[1])]
     return files

@@ -28,7 +28,7 @@ import math
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -38,6 +38,9 @@ from droptower.errors import DroptowerError
 from droptower.maps import model
 from droptower.maps.results import ExcludedTest
 from droptower.validation import StrictModel, validate
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FORMAT = "droptower-map"
 FORMAT_VERSION = 1
@@ -137,6 +140,18 @@ class MapFit:
             "excluded": [asdict(e) for e in self.excluded],
             "source": self.source,
         }
+
+    def coefficient_table(self) -> "pd.DataFrame":
+        """The coefficients as a table (``map --out map.csv|.parquet|.xlsx``): ``coefficient``,
+        ``equation``, ``unit``, ``value``, ``std`` (NaN: not identifiable), ``at_bound``,
+        ``not_unique``. Only ``map.json`` is read back (``validate --map``)."""
+        import pandas as pd
+
+        return pd.DataFrame([{
+            "coefficient": k, "equation": "seed 004 eq. 19" if k in model.STIFFNESS_UNITS else "seed 004 eq. 20",
+            "unit": UNIT_TEXT[u], "value": self.coefficients[k],
+            "std": self.uncertainties[k] if math.isfinite(self.uncertainties[k]) else math.nan,
+            "at_bound": k in self.at_bounds, "not_unique": k in self.not_unique} for k, u in UNITS.items()])
 
     def to_json(self, path: str | Path | None = None) -> str:
         """The map as JSON text; with ``path``, also written there (atomically)."""
