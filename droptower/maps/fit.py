@@ -50,26 +50,38 @@ N_POLISH = 8
 SINGULAR_RTOL = 1e-10
 
 
-def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None) -> MapFit:
-    """Fit eq. 19 and eq. 20 to a results table (DataFrame, or a CSV/Parquet path).
+def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None, form: str = "paper") -> MapFit:
+    """Fit eq. 19 and eq. 20 (``form="paper"``), another form of :data:`droptower.maps.forms.FORMS`,
+    or the terms chosen by cross-validation (``"auto"``, :mod:`droptower.maps.select`) to a
+    results table (DataFrame, or a CSV/Parquet path); every form is cross-validated.
 
     Columns: ``amplitude_deg``, ``frequency_hz``, ``stiffness_nm_per_deg``, ``damping_ratio``
-    (optional ``flags``, ``file``). Flagged, incomplete or non-positive tests are excluded and
+    (optional ``flags``, ``file``, ``drop_height_m``). Flagged, incomplete or non-positive tests are excluded and
     listed in the result. Too few tests or a degenerate design (fewer than 3 distinct
     amplitudes or frequencies) is a one-line :class:`DroptowerError` naming ``source``.
     """
+    from droptower.maps import select  # select builds on this module's solver
+    from droptower.maps.forms import FORMS, PAPER
+
+    if form != "auto" and form not in FORMS:
+        raise DroptowerError(f"unknown map form {form!r} (use {', '.join([*FORMS, 'auto'])})", file=source)
     if not isinstance(results, pd.DataFrame):
         source = results if source is None else source
         results = read_results(results)
     usable, excluded = select_tests(results, source)
     a, f, c, d = (usable[col].to_numpy(float) for col in REQUIRED)
     _check_design(a, f, excluded, source)
+    groups, cv_method = select.cv_groups(usable)
 
-    s19 = _fit_stiffness(a, f, c)
-    y = model.stiffness(s19.params, a, f) / d  # eq. 20's target: the c/d that makes the map's damping ratio match
-    s20 = _fit_ratio(a, y)
+    if form == "paper":
+        s19 = _fit_stiffness(a, f, c)
+        y = model.stiffness(s19.params, a, f) / d  # eq. 20's target: the c/d that makes the map's damping ratio match
+        fitted = select.fit_form(PAPER, a, f, c, d, groups, cv_method, s19, _fit_ratio(a, y))
+    else:
+        fitted = select.fit_form(None if form == "auto" else FORMS[form], a, f, c, d, groups, cv_method)
+    s19, s20 = fitted.stiffness, fitted.ratio
 
-    names = [*model.STIFFNESS_UNITS, *model.RATIO_UNITS]
+    names = [*fitted.form.stiffness_names, *fitted.form.ratio_names]
     both = {key: np.concatenate([getattr(s19, key), getattr(s20, key)]) for key in ("params", "std", "at_bound", "not_unique")}
     return MapFit(
         coefficients=dict(zip(names, map(float, both["params"]))),
@@ -79,12 +91,16 @@ def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None
             stiffness_rms_error_pct=_rms(s19.errors) * 100, stiffness_max_error_pct=float(np.max(np.abs(s19.errors))) * 100,
             damping_ratio_rms_error_pct=_rms(s20.errors) * 100, damping_ratio_max_error_pct=float(np.max(np.abs(s20.errors))) * 100,
             stiffness_condition_number=s19.condition, damping_condition_number=s20.condition,
+            stiffness_cv_rms_error_pct=_rms(fitted.stiffness_cv_errors) * 100,
+            damping_ratio_cv_rms_error_pct=_rms(fitted.damping_cv_errors) * 100,
         ),
         range=MapRange(float(a.min()), float(a.max()), float(f.min()), float(f.max())),
         excluded=excluded,
         at_bounds=tuple(n for n, flag in zip(names, both["at_bound"]) if flag),
         not_unique=tuple(n for n, flag in zip(names, both["not_unique"]) if flag),
         source=str(source) if source is not None else None,
+        form=fitted.form,
+        cross_validation=cv_method,
     )
 
 

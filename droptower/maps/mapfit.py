@@ -1,9 +1,13 @@
-"""A fitted characteristic map: coefficients of seed 004 eq. 19 and eq. 20, how well they fit,
-where they were measured, and the ``map.json`` file that carries them.
+"""A fitted characteristic map: coefficients of seed 004 eq. 19 and eq. 20 (or of another
+:class:`~droptower.maps.forms.MapForm`), how well they fit and cross-validate, where they were
+measured, and the ``map.json`` file that carries them.
 
 ``map.json`` keys (every value's unit is in its name; relative errors in percent):
 
-- ``format`` ("droptower-map"), ``format_version`` (1), ``equations`` (the two equations, text).
+- ``format`` ("droptower-map"), ``format_version`` (1), ``equations`` (the two equations, text),
+  ``form`` (``name``, ``stiffness_terms``, ``ratio_terms``: the term kinds of
+  :mod:`droptower.maps.forms`; absent means the paper's form). The coefficient names and units
+  below are the paper form's; another form numbers its own terms the same way (``k1`` …).
 - ``coefficients``: ``k1_nm_per_deg``, ``k2_per_deg``, ``k3_nm_per_deg``, ``k4_per_deg``,
   ``k5_nm_per_deg_per_sqrt_hz``, ``k6_nm_per_deg``, ``k7_per_hz`` (eq. 19: stiffness in N·m/deg,
   amplitude in deg, frequency in Hz) and ``k8_nm_per_deg``, ``k9_per_deg``, ``k10_nm_per_deg``,
@@ -16,7 +20,10 @@ where they were measured, and the ``map.json`` file that carries them.
   (the map's predictions in the measured range are still fine; the coefficient is not physics).
 - ``fit``: ``n_tests``, ``stiffness_rms_error_pct``, ``stiffness_max_error_pct``,
   ``damping_ratio_rms_error_pct``, ``damping_ratio_max_error_pct`` (model vs. test, relative),
-  ``stiffness_condition_number``, ``damping_condition_number`` (of the column-scaled Jacobian).
+  ``stiffness_condition_number``, ``damping_condition_number`` (of the column-scaled Jacobian),
+  ``stiffness_cv_rms_error_pct``, ``damping_ratio_cv_rms_error_pct`` (each test predicted by the
+  map fitted without its group, see ``cross_validation``: the error to expect between tests).
+- ``cross_validation``: how the tests were grouped (``leave-one-drop-height-out (15 folds)``).
 - ``range``: ``amplitude_deg_min``, ``amplitude_deg_max``, ``frequency_hz_min``,
   ``frequency_hz_max``: the measured range (the map interpolates inside, extrapolates outside).
 - ``excluded``: ``[{"test": file or "row N", "reason": ...}]``; ``source``: the results file.
@@ -35,7 +42,7 @@ from numpy.typing import ArrayLike
 from pydantic import create_model
 
 from droptower.errors import DroptowerError
-from droptower.maps import model
+from droptower.maps.forms import PAPER, UNIT_TEXT, Equation, MapForm
 from droptower.maps.results import ExcludedTest
 from droptower.validation import StrictModel, validate
 
@@ -44,14 +51,9 @@ if TYPE_CHECKING:
 
 FORMAT = "droptower-map"
 FORMAT_VERSION = 1
-EQUATIONS = {
-    "stiffness_nm_per_deg": "k1*10^(-k2*a) + k3*10^(-k4*a) + k5*sqrt(f) + k6*10^(-k7*f)  (seed 004 eq. 19)",
-    "damping_ratio": "stiffness_nm_per_deg / (k8*10^(-k9*a) + k10*10^(-k11*a) + k12*10^(-k13*a))  (seed 004 eq. 20)",
-    "a": "amplitude_deg", "f": "frequency_hz",
-}
+EQUATIONS = PAPER.equations()
 #: coefficient name -> unit suffix, eq. 19 then eq. 20
-UNITS: dict[str, str] = {**model.STIFFNESS_UNITS, **model.RATIO_UNITS}
-UNIT_TEXT = {"nm_per_deg": "N*m/deg", "per_deg": "1/deg", "per_hz": "1/Hz", "nm_per_deg_per_sqrt_hz": "N*m/(deg*sqrt(Hz))"}
+UNITS: dict[str, str] = PAPER.units
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,8 @@ class FitStats:
     damping_ratio_max_error_pct: float
     stiffness_condition_number: float
     damping_condition_number: float
+    stiffness_cv_rms_error_pct: float | None = None
+    damping_ratio_cv_rms_error_pct: float | None = None
 
 
 @dataclass(frozen=True)
@@ -79,9 +83,10 @@ class MapRange:
 
 @dataclass
 class MapFit:
-    """The characteristic map of seed 004 (eq. 19 and eq. 20) fitted to drop tests.
+    """The characteristic map of seed 004 (eq. 19 and eq. 20, or another ``form``) fitted to drop tests.
 
-    coefficients / uncertainties: ``"k1"`` … ``"k13"`` in the paper's units (:data:`UNITS`);
+    coefficients / uncertainties: ``"k1"`` … ``"k13"`` in the paper's units (:data:`UNITS`;
+    another form: ``form.units``);
     an uncertainty is ``inf`` where the tests do not identify the coefficient. at_bounds: names
     of coefficients on their bound (zero); not_unique: names of coefficients that another
     equally consistent solution places elsewhere (see the module docstring). Predictions take amplitude in deg and frequency in Hz
@@ -96,24 +101,27 @@ class MapFit:
     at_bounds: tuple[str, ...] = ()
     not_unique: tuple[str, ...] = ()
     source: str | None = None
+    form: MapForm = PAPER
+    cross_validation: str | None = None
 
     @property
     def stiffness_params(self) -> np.ndarray:
-        """k1..k7 of eq. 19."""
-        return np.array([self.coefficients[k] for k in model.STIFFNESS_UNITS])
+        """The stiffness equation's coefficients (k1..k7 of eq. 19)."""
+        return np.array([self.coefficients[k] for k in self.form.stiffness_names])
 
     @property
     def ratio_params(self) -> np.ndarray:
-        """k8..k13 of eq. 20."""
-        return np.array([self.coefficients[k] for k in model.RATIO_UNITS])
+        """The c/d equation's coefficients (k8..k13 of eq. 20)."""
+        return np.array([self.coefficients[k] for k in self.form.ratio_names])
 
     def stiffness_nm_per_deg(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
-        """Dynamic stiffness (N·m/deg) from eq. 19."""
-        return model.stiffness(self.stiffness_params, amplitude_deg, frequency_hz)
+        """Dynamic stiffness (N·m/deg) from eq. 19 (or the form's stiffness equation)."""
+        return self.form.stiffness.value(self.stiffness_params, amplitude_deg, frequency_hz)
 
     def damping_ratio(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
-        """Damping ratio d = E_diss/E_el (-, seed 004 eq. 16) from eq. 19 / eq. 20."""
-        return model.damping_ratio(self.stiffness_params, self.ratio_params, amplitude_deg, frequency_hz)
+        """Damping ratio d = E_diss/E_el (-, seed 004 eq. 16): stiffness over c/d (eq. 19 / eq. 20)."""
+        return self.stiffness_nm_per_deg(amplitude_deg, frequency_hz) / self.form.ratio.value(
+            self.ratio_params, amplitude_deg, frequency_hz)
 
     def in_range(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
         """True where (amplitude, frequency) lies inside the measured range (bounds included).
@@ -127,15 +135,18 @@ class MapFit:
     # ---- map.json ----------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """The ``map.json`` content (keys in the module docstring); non-finite numbers are null."""
+        units = self.form.units
         return {
             "format": FORMAT,
             "format_version": FORMAT_VERSION,
-            "equations": dict(EQUATIONS),
-            "coefficients": {f"{k}_{u}": _finite(self.coefficients[k]) for k, u in UNITS.items()},
-            "coefficients_std": {f"{k}_{u}": _finite(self.uncertainties[k]) for k, u in UNITS.items()},
+            "equations": self.form.equations(),
+            "form": self.form.to_dict(),
+            "coefficients": {f"{k}_{u}": _finite(self.coefficients[k]) for k, u in units.items()},
+            "coefficients_std": {f"{k}_{u}": _finite(self.uncertainties[k]) for k, u in units.items()},
             "at_bounds": list(self.at_bounds),
             "not_unique": list(self.not_unique),
-            "fit": {k: v if isinstance(v, int) else _finite(v) for k, v in asdict(self.stats).items()},
+            "fit": {k: v if isinstance(v, int) or v is None else _finite(v) for k, v in asdict(self.stats).items()},
+            "cross_validation": self.cross_validation,
             "range": asdict(self.range),
             "excluded": [asdict(e) for e in self.excluded],
             "source": self.source,
@@ -172,17 +183,30 @@ class MapFit:
         doc = validate(_MapFile, data, file)
         if doc.format != FORMAT or doc.format_version != FORMAT_VERSION:
             raise DroptowerError(f"not a {FORMAT} file of version {FORMAT_VERSION}", file=file)
-        coefficients = {k: getattr(doc.coefficients, f"{k}_{u}") for k, u in UNITS.items()}
-        stds = {k: getattr(doc.coefficients_std, f"{k}_{u}") for k, u in UNITS.items()}
+        try:
+            form = PAPER if doc.form is None else MapForm(doc.form.name, Equation(tuple(doc.form.stiffness_terms)),
+                                                         Equation(tuple(doc.form.ratio_terms)))
+        except ValueError as exc:
+            raise DroptowerError(f"form: {exc}", file=file) from None
+        units = form.units
+        for part, given in (("coefficients", doc.coefficients), ("coefficients_std", doc.coefficients_std)):
+            if set(given) != {f"{k}_{u}" for k, u in units.items()}:
+                raise DroptowerError(f"{part}: expected the keys {', '.join(f'{k}_{u}' for k, u in units.items())} "
+                                     f"of the form {form.name!r}, got {', '.join(given) or 'none'}", file=file)
+        coefficients = {k: doc.coefficients[f"{k}_{u}"] for k, u in units.items()}
+        stds = {k: doc.coefficients_std[f"{k}_{u}"] for k, u in units.items()}
+        cv = ("stiffness_cv_rms_error_pct", "damping_ratio_cv_rms_error_pct")
         return cls(
             coefficients=coefficients,
             uncertainties={k: math.inf if v is None else v for k, v in stds.items()},
-            stats=FitStats(**{k: math.inf if v is None else v for k, v in doc.fit.model_dump().items()}),
+            stats=FitStats(**{k: v if k in cv else math.inf if v is None else v for k, v in doc.fit.model_dump().items()}),
             range=MapRange(**doc.range.model_dump()),
             excluded=[ExcludedTest(**e.model_dump()) for e in doc.excluded],
             at_bounds=tuple(doc.at_bounds),
             not_unique=tuple(doc.not_unique),
             source=doc.source,
+            form=form,
+            cross_validation=doc.cross_validation,
         )
 
     @classmethod
@@ -204,22 +228,25 @@ class MapFit:
     # ---- text summary ------------------------------------------------------------------
     def summary(self) -> str:
         """Human-readable summary: coefficients ± uncertainty, errors, range, exclusions."""
-        s, r = self.stats, self.range
+        s, r, form = self.stats, self.range, self.form
+        paper = form == PAPER
         lines = [
-            f"characteristic map (seed 004 eq. 19, eq. 20) from {self.source or 'results'}: "
-            f"{s.n_tests} tests used, {len(self.excluded)} excluded",
+            f"characteristic map ({'seed 004 eq. 19, eq. 20' if paper else f'form {form.name}'}) from "
+            f"{self.source or 'results'}: {s.n_tests} tests used, {len(self.excluded)} excluded",
             f"measured range: amplitude {r.amplitude_deg_min:.3g}-{r.amplitude_deg_max:.3g} deg, "
             f"frequency {r.frequency_hz_min:.4g}-{r.frequency_hz_max:.4g} Hz",
-            "eq. 19  c(a, f) = k1*10^(-k2*a) + k3*10^(-k4*a) + k5*sqrt(f) + k6*10^(-k7*f)  [N*m/deg]",
-            *self._coefficient_lines(model.STIFFNESS_UNITS),
-            f"  stiffness error: rms {s.stiffness_rms_error_pct:.2f} %, max {s.stiffness_max_error_pct:.2f} %"
-            f" (condition number {s.stiffness_condition_number:.3g})",
-            "eq. 20  c/d(a) = k8*10^(-k9*a) + k10*10^(-k11*a) + k12*10^(-k13*a)  [N*m/deg]",
-            *self._coefficient_lines(model.RATIO_UNITS),
-            f"  damping ratio error: rms {s.damping_ratio_rms_error_pct:.2f} %, max {s.damping_ratio_max_error_pct:.2f} %"
-            f" (condition number {s.damping_condition_number:.3g})",
+            f"{'eq. 19  ' if paper else ''}c(a, f) = {form.stiffness.text(form.stiffness_names)}  [N*m/deg]",
+            *self._coefficient_lines(form.stiffness_names),
+            f"  stiffness error: rms {s.stiffness_rms_error_pct:.2f} %{_cv_text(s.stiffness_cv_rms_error_pct)}, "
+            f"max {s.stiffness_max_error_pct:.2f} % (condition number {s.stiffness_condition_number:.3g})",
+            f"{'eq. 20  c/d(a)' if paper else 'c/d(a, f)'} = {form.ratio.text(form.ratio_names)}  [N*m/deg]",
+            *self._coefficient_lines(form.ratio_names),
+            f"  damping ratio error: rms {s.damping_ratio_rms_error_pct:.2f} %{_cv_text(s.damping_ratio_cv_rms_error_pct)}, "
+            f"max {s.damping_ratio_max_error_pct:.2f} % (condition number {s.damping_condition_number:.3g})",
         ]
-        poor = [k for k in UNITS if not abs(self.uncertainties[k]) <= 0.5 * abs(self.coefficients[k])]
+        if self.cross_validation:
+            lines.append(f"cross-validated: {self.cross_validation}")
+        poor = [k for k in form.units if not abs(self.uncertainties[k]) <= 0.5 * abs(self.coefficients[k])]
         if poor:
             lines.append(f"poorly identified (uncertainty > 50 % of the value): {', '.join(poor)}")
         if self.not_unique:
@@ -229,9 +256,11 @@ class MapFit:
             lines += [f"  {e.test}: {e.reason}" for e in self.excluded]
         return "\n".join(lines)
 
-    def _coefficient_lines(self, units: dict[str, str]) -> list[str]:
+    def _coefficient_lines(self, names: list[str]) -> list[str]:
         out = []
-        for k, u in units.items():
+        units = self.form.units
+        for k in names:
+            u = units[k]
             std = self.uncertainties[k]
             std_text = f"{std:.3g}" if math.isfinite(std) else "not identifiable"
             bound = "  (at bound)" if k in self.at_bounds else ""
@@ -239,16 +268,19 @@ class MapFit:
         return out
 
 
+def _cv_text(value: float | None) -> str:
+    return "" if value is None else f" (cross-validated {value:.2f} %)"
+
+
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
 # ---- map.json schema (pydantic), so a hand-edited or truncated file gives a one-line error ----
-_Coefficients = create_model("coefficients", __base__=StrictModel, **{f"{k}_{u}": (float, ...) for k, u in UNITS.items()})
-_CoefficientsStd = create_model("coefficients_std", __base__=StrictModel,
-                                **{f"{k}_{u}": (Optional[float], ...) for k, u in UNITS.items()})
+_CV_FIELDS = ("stiffness_cv_rms_error_pct", "damping_ratio_cv_rms_error_pct")  # absent in older files
 _Fit = create_model("fit", __base__=StrictModel, n_tests=(int, ...),
-                    **{k: (Optional[float], ...) for k in FitStats.__dataclass_fields__ if k != "n_tests"})
+                    **{k: (Optional[float], None if k in _CV_FIELDS else ...)
+                       for k in FitStats.__dataclass_fields__ if k != "n_tests"})
 _Range = create_model("range", __base__=StrictModel, **{k: (float, ...) for k in MapRange.__dataclass_fields__})
 
 
@@ -257,15 +289,23 @@ class _Excluded(StrictModel):
     reason: str
 
 
+class _Form(StrictModel):
+    name: str
+    stiffness_terms: list[str]
+    ratio_terms: list[str]
+
+
 class _MapFile(StrictModel):
     format: str
     format_version: int
     equations: dict[str, str] = {}
-    coefficients: _Coefficients  # type: ignore[valid-type]
-    coefficients_std: _CoefficientsStd  # type: ignore[valid-type]
+    form: Optional[_Form] = None
+    coefficients: dict[str, float]
+    coefficients_std: dict[str, Optional[float]]
     at_bounds: list[str] = []
     not_unique: list[str] = []
     fit: _Fit  # type: ignore[valid-type]
     range: _Range  # type: ignore[valid-type]
     excluded: list[_Excluded] = []
     source: Optional[str] = None
+    cross_validation: Optional[str] = None
