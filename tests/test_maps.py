@@ -265,14 +265,15 @@ def test_cli_json_keys(table4: pd.DataFrame, capsys: pytest.CaptureFixture[str])
     assert main(["map", str(TABLE4), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert set(data) == {"format", "format_version", "equations", "coefficients", "coefficients_std",
-                         "at_bounds", "not_unique", "fit", "range", "excluded", "source"}
+                         "at_bounds", "not_unique", "fit", "range", "excluded", "source", "form", "cross_validation"}
     assert list(data["coefficients"]) == [
         "k1_nm_per_deg", "k2_per_deg", "k3_nm_per_deg", "k4_per_deg", "k5_nm_per_deg_per_sqrt_hz",
         "k6_nm_per_deg", "k7_per_hz", "k8_nm_per_deg", "k9_per_deg", "k10_nm_per_deg", "k11_per_deg",
         "k12_nm_per_deg", "k13_per_deg"]
     assert set(data["fit"]) == {"n_tests", "stiffness_rms_error_pct", "stiffness_max_error_pct",
                                 "damping_ratio_rms_error_pct", "damping_ratio_max_error_pct",
-                                "stiffness_condition_number", "damping_condition_number"}
+                                "stiffness_condition_number", "damping_condition_number",
+                                "stiffness_cv_rms_error_pct", "damping_ratio_cv_rms_error_pct"}
     assert set(data["range"]) == {"amplitude_deg_min", "amplitude_deg_max", "frequency_hz_min", "frequency_hz_max"}
 
 

@@ -13,9 +13,13 @@ import click
                    "reads) or the coefficient table as .csv, .parquet or .xlsx.")
 @click.option("--plot", "plot_dir", type=click.Path(path_type=Path, file_okay=False), default=None,
               help="Write the paper's Fig. 10, 12 and 13 as PNG files into this folder.")
+@click.option("--form", type=click.Choice(["paper", "velocity", "auto"]), default="paper", show_default=True,
+              help="paper: seed 004 eq. 19/20; velocity: stiffness and c/d also fall with amplitude x frequency; "
+                   "auto: the terms with the least cross-validated error whose coefficients are all identifiable.")
 @click.option("--json", "as_json", is_flag=True, help="Print the map as JSON instead of the summary.")
-def map_command(results: Path, out: Path | None, plot_dir: Path | None, as_json: bool) -> None:
-    """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20).
+def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, as_json: bool) -> None:
+    """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20),
+    or another --form; the summary gives fit and cross-validated errors.
 
     RESULTS is a CSV or Parquet table from `droptower extract --out`, a `droptower campaign`
     folder (its results.parquet), or the paper's Table 4. Flagged tests (double_impact, poor_fit, short_window, clipping)
@@ -27,7 +31,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, as_json:
     if out is not None:
         check_table_path(out, "--out")
     table = read_results(results)
-    fit = fit_map(table, source=results)
+    fit = fit_map(table, source=results, form=form)
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
     elif out is not None:

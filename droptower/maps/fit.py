@@ -30,6 +30,7 @@ from scipy.stats import f as f_dist
 
 from droptower.errors import DroptowerError
 from droptower.maps import model
+from droptower.maps.forms import FORMS, PAPER, MapForm
 from droptower.maps.mapfit import FitStats, MapFit, MapRange
 from droptower.maps.results import REQUIRED, ExcludedTest, read_results, select_tests
 
@@ -50,8 +51,10 @@ N_POLISH = 8
 SINGULAR_RTOL = 1e-10
 
 
-def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None, form: str = "paper") -> MapFit:
-    """Fit eq. 19 and eq. 20 (``form="paper"``), another form of :data:`droptower.maps.forms.FORMS`,
+def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None,
+            form: str | MapForm = "paper") -> MapFit:
+    """Fit eq. 19 and eq. 20 (``form="paper"``), another form (a name of :data:`droptower.maps.forms.FORMS` or a
+    :class:`~droptower.maps.forms.MapForm`),
     or the terms chosen by cross-validation (``"auto"``, :mod:`droptower.maps.select`) to a
     results table (DataFrame, or a CSV/Parquet path); every form is cross-validated.
 
@@ -61,9 +64,8 @@ def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None
     amplitudes or frequencies) is a one-line :class:`DroptowerError` naming ``source``.
     """
     from droptower.maps import select  # select builds on this module's solver
-    from droptower.maps.forms import FORMS, PAPER
 
-    if form != "auto" and form not in FORMS:
+    if isinstance(form, str) and form != "auto" and form not in FORMS:
         raise DroptowerError(f"unknown map form {form!r} (use {', '.join([*FORMS, 'auto'])})", file=source)
     if not isinstance(results, pd.DataFrame):
         source = results if source is None else source
@@ -78,7 +80,8 @@ def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None
         y = model.stiffness(s19.params, a, f) / d  # eq. 20's target: the c/d that makes the map's damping ratio match
         fitted = select.fit_form(PAPER, a, f, c, d, groups, cv_method, s19, _fit_ratio(a, y))
     else:
-        fitted = select.fit_form(None if form == "auto" else FORMS[form], a, f, c, d, groups, cv_method)
+        chosen = form if isinstance(form, MapForm) else None if form == "auto" else FORMS[form]
+        fitted = select.fit_form(chosen, a, f, c, d, groups, cv_method)
     s19, s20 = fitted.stiffness, fitted.ratio
 
     names = [*fitted.form.stiffness_names, *fitted.form.ratio_names]

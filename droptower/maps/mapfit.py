@@ -158,11 +158,14 @@ class MapFit:
         ``not_unique``. Only ``map.json`` is read back (``validate --map``)."""
         import pandas as pd
 
+        paper = self.form == PAPER
+        stiffness = "seed 004 eq. 19" if paper else "stiffness"
+        ratio = "seed 004 eq. 20" if paper else "stiffness over damping ratio"
         return pd.DataFrame([{
-            "coefficient": k, "equation": "seed 004 eq. 19" if k in model.STIFFNESS_UNITS else "seed 004 eq. 20",
+            "coefficient": k, "equation": stiffness if k in self.form.stiffness_names else ratio,
             "unit": UNIT_TEXT[u], "value": self.coefficients[k],
             "std": self.uncertainties[k] if math.isfinite(self.uncertainties[k]) else math.nan,
-            "at_bound": k in self.at_bounds, "not_unique": k in self.not_unique} for k, u in UNITS.items()])
+            "at_bound": k in self.at_bounds, "not_unique": k in self.not_unique} for k, u in self.form.units.items()])
 
     def to_json(self, path: str | Path | None = None) -> str:
         """The map as JSON text; with ``path``, also written there (atomically)."""
@@ -190,9 +193,14 @@ class MapFit:
             raise DroptowerError(f"form: {exc}", file=file) from None
         units = form.units
         for part, given in (("coefficients", doc.coefficients), ("coefficients_std", doc.coefficients_std)):
-            if set(given) != {f"{k}_{u}" for k, u in units.items()}:
-                raise DroptowerError(f"{part}: expected the keys {', '.join(f'{k}_{u}' for k, u in units.items())} "
-                                     f"of the form {form.name!r}, got {', '.join(given) or 'none'}", file=file)
+            expected = [f"{k}_{u}" for k, u in units.items()]
+            for key in expected:
+                if key not in given:
+                    raise DroptowerError(f"field {part}: field {key}: missing field", file=file)
+            for key in given:
+                if key not in expected:
+                    raise DroptowerError(f"field {part}: field {key}: not a coefficient of the form {form.name!r} "
+                                         f"({', '.join(expected)})", file=file)
         coefficients = {k: doc.coefficients[f"{k}_{u}"] for k, u in units.items()}
         stds = {k: doc.coefficients_std[f"{k}_{u}"] for k, u in units.items()}
         cv = ("stiffness_cv_rms_error_pct", "damping_ratio_cv_rms_error_pct")

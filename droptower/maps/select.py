@@ -67,9 +67,10 @@ def fit_equation(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, ta
     """Fit one equation to ``target`` (c, or y = c_map/d for c/d) by variable projection."""
     points, grids = _exponent_grids(eq, a, f)
     residuals, jacobian = _residuals(eq, stiffness, a, f, target)
-    solutions = _variable_projection(
-        points, lambda ix: tuple(g[i] for g, i in zip(grids, ix)), lambda e: eq.basis(e, a, f), target,
-        eq.linear, eq.exponents, residuals, jacobian)
+    with np.errstate(over="ignore", invalid="ignore"):  # far trial steps of the solver; their residual is inf, rejected
+        solutions = _variable_projection(
+            points, lambda ix: tuple(g[i] for g, i in zip(grids, ix)), lambda e: eq.basis(e, a, f), target,
+            eq.linear, eq.exponents, residuals, jacobian)
     for s in solutions:  # terms of one kind by increasing exponent, so the names are unique
         s.permute(_canonical_order(eq, s.params))
     return _assess(solutions, residuals, jacobian)
@@ -90,7 +91,8 @@ def _canonical_order(eq: Equation, params: np.ndarray) -> list[int]:
 def polish(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, target: np.ndarray, p0: np.ndarray) -> np.ndarray:
     """Refit one equation from ``p0`` (a fold of the cross-validation: no new search)."""
     residuals, jacobian = _residuals(eq, stiffness, a, f, target)
-    return least_squares(residuals, p0, jac=jacobian, bounds=(0.0, np.inf), x_scale="jac", method="trf").x
+    with np.errstate(over="ignore", invalid="ignore"):
+        return least_squares(residuals, p0, jac=jacobian, bounds=(0.0, np.inf), x_scale="jac", method="trf").x
 
 
 def identifiable(fitted: _Fitted) -> bool:
