@@ -6,12 +6,15 @@ crashed on every non-editable install).
 """
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from droptower.cli.main import COMMANDS
@@ -45,3 +48,84 @@ def test_every_subcommand_help(name):
     proc = _run(name, "--help")
     assert proc.returncode == 0, proc.stderr
     assert "Usage:" in proc.stdout and "Traceback" not in proc.stderr
+
+
+def test_every_subcommand_help_has_examples_and_quiet():
+    for name in COMMANDS:
+        out = _run(name, "--help").stdout
+        assert "Examples:" in out and "--quiet" in out, name
+
+
+# ---- one real run of every command, as installed ------------------------------------------------
+LINEAR = 'name = "linear"\n[[element]]\nkind = "spring"\nstiffness = 14000.0\n' \
+         '[[element]]\nkind = "dashpot"\ndamping = 8.0\n'
+PLAN = 'name = "two"\nbase_seed = 1\nrepeats = 1\nheights_m = [0.5, 1.0]\npreloads_nm = [0.0]\n' \
+       '[[group]]\nname = "case 2"\ninertia_kgm2 = 0.359\ndrop_mass_kg = 2.0\n'
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("installed")
+    (root / "linear.toml").write_text(LINEAR)
+    (root / "two.toml").write_text(PLAN)
+    return root
+
+
+def _ok(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    proc = _run(*args) if cwd is None else subprocess.run([*_console_script(), *args], capture_output=True,
+                                                          text=True, timeout=300, cwd=cwd,
+                                                          env={**os.environ, "MPLBACKEND": "Agg"})
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    return proc
+
+
+def test_run_servo():
+    rows = json.loads(_ok("servo", "seed000_six_parameter", "--amplitude-deg", "0.5", "--frequency-hz", "10",
+                          "--cycles", "1", "--run-in-cycles", "1", "--json").stdout)
+    assert len(rows) == 1 and rows[0]["storage_stiffness_nm_per_deg"] > 0
+
+
+def test_run_simulate_channels_extract(folder):
+    log = folder / "t.csv"
+    s = json.loads(_ok("simulate", "--coupling", str(folder / "linear.toml"), "--inertia-kgm2", "0.359",
+                       "--drop-mass-kg", "2", "--height-m", "0.5", "--duration-s", "0.06", "--out", str(log),
+                       "--json").stdout)
+    assert s["contacts"] >= 1 and s["energy_balance_error_fraction"] < 0.01
+    channels = json.loads(_ok("channels", str(log), "--json").stdout)
+    assert {c["name"] for c in channels} >= {"angle_rad", "torque_nm"}
+    rows = json.loads(_ok("extract", str(log), "--json").stdout)
+    # Kelvin-Voigt coupling: c = J (omega^2 + delta^2) = k (seed 004 eq. 15)
+    assert rows[0]["stiffness_nm_per_rad"] == pytest.approx(14000.0, rel=0.01)
+
+
+def test_run_plan_campaign_map_validate(folder):
+    plan = json.loads(_ok("plan", "--coupling", str(folder / "linear.toml"), "--doe", str(folder / "two.toml"),
+                          "--json").stdout)
+    assert len(plan) == 2
+    camp = folder / "camp"
+    proc = _ok("campaign", "--coupling", str(folder / "linear.toml"), "--doe", str(folder / "two.toml"),
+               "--out", str(camp), "--workers", "1", "--duration-s", "0.06", "--quiet")
+    assert "2 tests, 2 extracted, 0 failed" in proc.stdout and proc.stderr == ""
+    assert len(pd.read_parquet(camp / "results.parquet")) == 2
+    map_file = folder / "map.json"
+    _ok("map", "rapp2022_table4", "--out", str(map_file))
+    servo = folder / "servo.csv"
+    pd.DataFrame({"amplitude_deg": [0.5, 1.5], "frequency_hz": [30.0, 30.0],
+                  "storage_stiffness_nm_per_deg": [250.0, 200.0], "loss_factor": [0.2, 0.25]}).to_csv(servo, index=False)
+    doc = json.loads(_ok("validate", "--map", str(map_file), "--servo-results", str(servo), "--json").stdout)
+    assert len(doc["points"]) == 2
+
+
+def test_run_identify_and_compare_models(folder):
+    # a sine on the linear coupling: T = k phi + c dphi/dt, sampled at 2048 Hz
+    t = np.arange(4096) / 2048.0
+    angle = np.radians(1.0) * np.sin(2 * np.pi * 5 * t)
+    torque = 14000.0 * angle + 8.0 * np.gradient(angle, t)
+    record = folder / "sine.csv"
+    pd.DataFrame({"time_s": t, "angle_rad": angle, "torque_nm": torque}).to_csv(record, index=False)
+    report = json.loads(_ok("identify", str(record), "--model", "pfeffer", "--json").stdout)
+    assert report["model"] == "pfeffer" and report["converged"]
+    proc = _ok("compare-models", str(record), "--models", "pfeffer,overlay", "--json")
+    assert [r["model"] for r in json.loads(proc.stdout)["ranking"]] == ["pfeffer"]
+    assert "skipped" in proc.stderr and "overlay" in proc.stderr

@@ -62,6 +62,28 @@ def test_out_table_and_plots(logs, tmp_path, suffix):
     assert not list(tmp_path.glob(".*.tmp"))  # written atomically, nothing left over
 
 
+def test_no_duplicated_metadata_columns(logs, tmp_path, capsys):
+    """The log's inertia is the inertia used: one column. Overridden, the log's value is kept
+    beside it under its own name (it differs), never twice the same value."""
+    path, drop = logs["fast.csv"]
+    out = tmp_path / "r.csv"
+    assert main(["extract", str(path), "--out", str(out)]) == 0
+    table = pd.read_csv(out)
+    assert table.loc[0, "inertia_kgm2"] == drop.metadata()["inertia_kgm2"]
+    assert not [c for c in table.columns if c.startswith(("meta_", "log_"))]
+    assert main(["extract", str(path), "--out", str(out), "--inertia-kgm2", "0.5"]) == 0
+    table = pd.read_csv(out)
+    assert table.loc[0, "inertia_kgm2"] == 0.5 and table.loc[0, "log_inertia_kgm2"] == drop.metadata()["inertia_kgm2"]
+
+
+def test_single_file_error_printed_once(tmp_path, capsys):
+    path = tmp_path / "empty.csv"
+    path.write_text("")
+    assert main(["extract", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count(str(path)) == 1 and "failed" not in err
+
+
 def test_rig_values_on_the_command_line(tmp_path, capsys):
     drop = SyntheticDrop(seed=5)
     meta = {k: v for k, v in drop.metadata().items() if k not in ("inertia_kgm2", "lever_length_m")}
@@ -69,7 +91,7 @@ def test_rig_values_on_the_command_line(tmp_path, capsys):
     path = write_log(tmp_path / "bare.csv", time, channels, meta)
     assert main(["extract", str(path), "--json"]) == 1
     assert "no rotating inertia" in capsys.readouterr().err
-    assert main(["extract", str(path), "--inertia", "0.359", "--lever-length", "0.2", "--json"]) == 0
+    assert main(["extract", str(path), "--inertia-kgm2", "0.359", "--lever-length-m", "0.2", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
     assert row["impact_velocity_from_force_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
@@ -131,7 +153,7 @@ def test_batch_with_a_bad_file_writes_the_good_ones(logs, tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--window", "fist-cycle"], "window 'fist-cycle'"),
     (["--out", "results.txt"], "unknown table format"),
-    (["--inertia", "-1"], "--inertia must be > 0"),
+    (["--inertia-kgm2", "-1"], "--inertia-kgm2 must be > 0"),
     (["--channel", "angel=x"], "unknown role"),
 ])
 def test_bad_options_exit_2(logs, capsys, args, message):

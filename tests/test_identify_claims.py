@@ -78,7 +78,7 @@ def test_round_trip_servo_bench_identify_drop_tower(tmp_path):
     stiffness = {}
     for label, c in (("original", "rapp2022_nr60"), ("identified", str(out))):
         log = tmp_path / f"drop_{label}.csv"
-        assert main(["simulate", "--coupling", c, "--inertia", "0.359", "--drop-mass", "2", "--height", "0.2",
+        assert main(["simulate", "--coupling", c, "--inertia-kgm2", "0.359", "--drop-mass-kg", "2", "--height-m", "0.2",
                      "--duration-s", "0.12", "--out", str(log)]) == 0
         _, result = extract_file(log, Settings(sensor_radius_m=rig.sensors.laser.radius_m))
         stiffness[label] = result.stiffness_nm_per_rad

@@ -5,10 +5,13 @@ from pathlib import Path
 
 import click
 
+from droptower.cli import options
+from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 
 
 @click.command()
+@quiet_option
 @click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True, help="Coupling TOML file or shipped preset name.")
 @click.option("--doe", default=DEFAULT_DOE, show_default=True, help="Test-plan TOML file or shipped preset name.")
@@ -44,12 +47,18 @@ def campaign(rig: str, coupling: str, doe: str, out: Path, workers: int | None, 
 
     A test whose simulation or extraction fails is listed at the end (exit code 1); the
     others are still written.
+
+    \b
+    Examples:
+      droptower campaign --out runs/table2
+      droptower campaign --coupling my.toml --doe my_plan.toml --out runs/mine --workers 2
+      droptower campaign --out runs/mine --resume
     """
     from droptower.campaign import run_campaign
 
     run = run_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
                        duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
-                       scheduler_timeout_s=scheduler_timeout_s)
+                       scheduler_timeout_s=scheduler_timeout_s, progress=not options.QUIET)
     for line in run.warnings:
         click.echo(f"droptower: warning: {line}", err=True)
     n = len(run.spec.tests)

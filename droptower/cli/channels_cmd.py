@@ -6,6 +6,8 @@ import math
 from typing import Any
 
 import click
+
+from droptower.cli.options import quiet_option
 import numpy as np
 
 from droptower.io.channels import Channel
@@ -50,6 +52,7 @@ def _cell(value: Any) -> str:
 
 
 @click.command()
+@quiet_option
 @click.argument("file", type=click.Path(dir_okay=False, path_type=str))
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list of channel objects instead of a table.")
 @click.option("--delimiter", default=None, help="CSV field separator (default: sniffed).")
@@ -64,6 +67,11 @@ def channels(file: str, as_json: bool, delimiter: str | None, decimal: str | Non
     Use the names with --channel ROLE=NAME[:UNIT] (roles: time, impact_force, angle, distance,
     torque). Formats: droptower logs (.csv/.parquet), CSV/ASCII (catman ASCII, MTS 793 .dat),
     HBM catman .BIN, MDF4, TDMS, Parquet.
+
+    \b
+    Examples:
+      droptower channels drop_017.bin
+      droptower channels export.csv --delimiter ";" --decimal , --json
     """
     if delimiter == "\\t":
         delimiter = "\t"

@@ -9,6 +9,7 @@ from typing import Any
 
 import click
 
+from droptower.cli.options import progress_disabled, quiet_option, renamed_option
 from droptower.errors import DroptowerError
 
 #: columns of the table printed when neither --out nor --json is given
@@ -43,14 +44,19 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 
 
 @click.command()
+@quiet_option
 @click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=str))
 @click.option("--rig", default=None, help="Rig TOML (or shipped preset name): lever length, laser radius, inertia.")
-@click.option("--inertia", type=float, default=None, help="Rotating inertia J in kg*m^2 (default: the log's metadata).")
-@click.option("--lever-length", type=float, default=None, help="Lever arm L in m (rotation axis to impact point).")
-@click.option("--sensor-radius", type=float, default=None, help="Laser spot radius in m, for a distance channel.")
+@renamed_option("--inertia-kgm2", "--inertia", "inertia", type=float,
+                help="Rotating inertia J in kg*m^2 (default: the log's metadata).")
+@renamed_option("--lever-length-m", "--lever-length", "lever_length", type=float,
+                help="Lever arm L in m (rotation axis to impact point).")
+@renamed_option("--sensor-radius-m", "--sensor-radius", "sensor_radius", type=float,
+                help="Laser spot radius in m, for a distance channel.")
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Map a channel to a role: time, impact_force, angle, distance, torque (repeatable).")
-@click.option("--sample-rate", type=float, default=None, help="Sample rate in Hz for files without a time base.")
+@renamed_option("--sample-rate-hz", "--sample-rate", "sample_rate", type=float,
+                help="Sample rate in Hz for files without a time base.")
 @click.option("--window", default="first-cycle", show_default=True,
               help="Fit window after the impact: first-cycle, N-cycles (e.g. 2-cycles) or seconds (e.g. 0.05).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -73,11 +79,18 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     φ̂_ref, f (seed 004 eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
     loss factor η and relative damping ψ (NOTES §1.7); standard uncertainties (*_std), the fit
     error and flags (double_impact, clipping, too_few_samples_per_period, short_window,
-    poor_fit). J and L: --inertia/--lever-length, else the log's metadata, else the rig
+    poor_fit). J and L: --inertia-kgm2/--lever-length-m, else the log's metadata, else the rig
     (its inertia only if it has a single lever fixture).
 
     A file that fails is reported on one line; the others are still evaluated and written, and
     the exit code is 1.
+
+    \b
+    Examples:
+      droptower extract logs/*.csv --out results.xlsx
+      droptower extract drop_017.bin --channel angle=Winkel:deg --channel torque=Md:kN*m \\
+          --inertia-kgm2 0.359 --lever-length-m 0.2 --json
+      droptower extract logs/*.parquet --rig rapp2022 --window 2-cycles --plot plots/
     """
     import pandas as pd
     from tqdm import tqdm
@@ -89,8 +102,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
 
     if out is not None:
         check_table_path(out, "--out")
-    for name, value in (("--inertia", inertia), ("--lever-length", lever_length), ("--sensor-radius", sensor_radius),
-                        ("--sample-rate", sample_rate)):
+    for name, value in (("--inertia-kgm2", inertia), ("--lever-length-m", lever_length),
+                        ("--sensor-radius-m", sensor_radius), ("--sample-rate-hz", sample_rate)):
         if value is not None and not value > 0:
             raise DroptowerError(f"{name} must be > 0, got {value}")
     rig_values = _rig_settings(rig)
@@ -108,7 +121,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     rows: list[dict[str, Any]] = []
     failures: list[str] = []
     plots: set[str] = set()
-    for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=None):
+    for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=progress_disabled()):
         try:
             signals, result = extract_file(path, settings)
             if plot_dir is not None:

@@ -14,6 +14,7 @@ found by name or given with ``--channel ROLE=NAME[:UNIT]``, roles ``time``, ``an
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -21,8 +22,13 @@ from typing import Any
 import click
 from pydantic import Field
 
+from droptower.cli.options import note, progress, progress_disabled, quiet_option
 from droptower.errors import DroptowerError
 from droptower.validation import StrictModel, validate
+
+
+#: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
+MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay")
 
 
 class InitFile(StrictModel):
@@ -69,9 +75,9 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 
 
 @click.command()
+@quiet_option
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--model", "kind", required=True,
-              help="Model family: zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay.")
+@click.option("--model", "kind", required=True, type=click.Choice(MODEL_KINDS), help="Model family.")
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque); repeatable.")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
@@ -99,73 +105,106 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
       tau2_s = [0.5, 100.0]
       [options]                   # family options; every family: max_nfev, skip_s, substeps
       tau_split_s = 0.1
+
+    \b
+    Examples:
+      droptower identify sweep.csv --model zerodim6 --out my_coupling.toml
+      droptower identify bench.bin --model elastoslide --channel angle=Winkel:deg \\
+          --channel torque=Md:kN*m --holdout check.csv --plot fits/
     """
-    from droptower.identify.families import family_class
     from droptower.identify.report import plot_identification, result_dict, result_text
     from droptower.identify.strategies import identify as run
 
-    family_class(kind)  # an unknown kind fails before any file is read
     init = _read_init(params_path)
     skip_s = float(init.options.get("skip_s", 0.0))
     segments = _read_data(data, channels, skip_s)
     held = _read_data((holdout,), channels, skip_s) if holdout else None
+    progress(f"identify: fitting {kind} to {len(segments)} record(s) ...")
+    start = time.perf_counter()
     result = run(kind, segments, init=init.initial, bounds=init.bounds, options=init.options, holdout=held,
                  file=params_path)
+    progress(f"identify: {kind} done in {time.perf_counter() - start:.1f} s")
     click.echo(json.dumps(result_dict(result), indent=1) if as_json else result_text(result))
     if plot_dir:
         for path in plot_identification(result, segments, plot_dir, held):
-            click.echo(f"plot: {path}", err=True)
+            note(f"plot: {path}")
     if not result.converged:
         bad = next(s for s in result.stages if not s.converged)
         raise DroptowerError(f"model {kind}: the fit did not converge (stage '{bad.stage}': {bad.message}); "
                              f"no coupling written", where=None)
     if out:
         _write_coupling(result, out, [Path(p).name for p in data])
-        click.echo(f"coupling: {out}", err=True)
+        note(f"coupling: {out}")
 
 
 @click.command()
+@quiet_option
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque); repeatable.")
 @click.option("--holdout", type=click.Path(dir_okay=False), help="Record kept out of the fits; ranks the models.")
-@click.option("--models", default="zerodim6,zerodim20,elastoslide,pfeffer,masing,overlay", show_default=True,
-              help="Families to fit, comma-separated.")
+@click.option("--models", default=",".join(MODEL_KINDS), show_default=True,
+              help=f"Families to fit, comma-separated (of {', '.join(MODEL_KINDS)}).")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the ranking to this table (.csv, .parquet, .json, .xlsx) and the per-record table "
+                   "beside it (<name>_per_record.<suffix>).")
 @click.option("--json", "as_json", is_flag=True, help="Print the tables as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False),
               help="Write the RMSE bars (seed 000 Fig. 8) and the overlaid loops to this folder.")
 def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str,
-                   as_json: bool, plot_dir: str | None) -> None:
+                   out: Path | None, as_json: bool, plot_dir: str | None) -> None:
     """Fit every model family on the same DATA and rank them.
 
     Prints a ranking (parameters, nRMSE on the fitting and hold-out data, fit time) and
     seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
-    relative to the worst model on that record). Families that fail or do not converge are
-    listed on stderr; the exit code is then 1.
+    relative to the worst model on that record). A family whose data requirement these
+    records do not meet (overlay: steady sine blocks at several amplitudes and frequencies)
+    is skipped with the reason and the others are ranked; families whose fit fails or does not
+    converge are listed on stderr and the exit code is then 1.
+
+    \b
+    Examples:
+      droptower compare-models sweep_*.csv --holdout check.csv --plot compare/
+      droptower compare-models sweep.csv --models zerodim6,elastoslide --out ranking.xlsx
     """
-    from droptower.identify.families import family_class
+    from tqdm import tqdm
+
     from droptower.identify.report import plot_comparison, ranking_table, record_table
     from droptower.identify.strategies import identify as run
+    from droptower.io.tables import check_table_path, write_table
 
     kinds = [k.strip() for k in models.split(",") if k.strip()]
-    for kind in kinds:
-        family_class(kind)
+    unknown = [k for k in kinds if k not in MODEL_KINDS]
+    if unknown or not kinds:
+        raise DroptowerError(f"unknown model famil{'ies' if len(unknown) > 1 else 'y'} {', '.join(unknown)} "
+                             f"(known: {', '.join(MODEL_KINDS)})" if unknown else "no model family given",
+                             where="--models")
+    if out is not None:
+        check_table_path(out, "--out")
     segments = _read_data(data, channels, 0.0)
     held = _read_data((holdout,), channels, 0.0) if holdout else None
-    results, failures = {}, []
-    for kind in kinds:
-        start = time.perf_counter()
-        try:
-            r = run(kind, segments, holdout=held, previous=results)
-        except DroptowerError as exc:
-            failures.append(f"{kind}: {exc.message}")
-            continue
-        r.time_s = time.perf_counter() - start
-        results[kind] = r
-        if not r.converged:
-            failures.append(f"{kind}: the fit did not converge")
+    results, failures, skipped = {}, [], []
+    with tqdm(kinds, desc="compare-models", unit="model", file=sys.stderr, disable=progress_disabled()) as bar:
+        for kind in bar:
+            bar.set_postfix_str(kind)
+            start = time.perf_counter()
+            try:
+                r = run(kind, segments, holdout=held, previous=results)
+            except DroptowerError as exc:  # compare-models takes no options: the data do not suit the family
+                skipped.append(f"{kind}: {exc.message}")
+                tqdm.write(f"droptower: skipped {skipped[-1]}", file=sys.stderr)
+                continue
+            r.time_s = time.perf_counter() - start
+            results[kind] = r
+            if not r.converged:
+                failures.append(f"{kind}: the fit did not converge")
+    if not results:
+        raise DroptowerError(f"no model family could be fitted to these records ({'; '.join(skipped)})")
     ranking = ranking_table(results)
     records = record_table(results, segments + (held or []))
+    if out is not None:
+        write_table(ranking.rename_axis("rank").reset_index(), out, "--out")
+        write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out")
     if as_json:
         click.echo(json.dumps({"ranking": json.loads(ranking.to_json(orient="records")),
                                "records": json.loads(records.to_json(orient="records"))}, indent=1))
@@ -180,7 +219,10 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     if plot_dir and results:
         loop_segment = (held or segments)[0]
         for path in plot_comparison(results, records, loop_segment, plot_dir):
-            click.echo(f"plot: {path}", err=True)
+            note(f"plot: {path}")
+    if skipped:
+        click.echo(f"droptower: skipped {len(skipped)} famil{'ies' if len(skipped) > 1 else 'y'} "
+                   f"(data requirement not met): {'; '.join(skipped)}", err=True)
     if failures:
         for line in failures:
             click.echo(f"droptower: failed: {line}", err=True)

@@ -12,6 +12,7 @@ import sys
 
 import click
 
+from droptower.cli import options
 from droptower.errors import DroptowerError
 
 #: name -> (module, attribute, one-line help). Data flows top to bottom.
@@ -49,11 +50,21 @@ class LazyGroup(click.Group):
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="droptower")
+@options.quiet_option
 def cli() -> None:
     """droptower: a virtual drop-tower rig and parameter extractor for elastomer couplings.
 
     SI units inside (rad, N*m, s, kg, m); degrees only at the edges, and every output field
-    names its unit.
+    names its unit. Plots: commands about one test or one table (simulate, plan, servo) take
+    --plot FILE.png; commands that draw several figures (extract, map, identify,
+    compare-models; validate --out) take a folder. Tables are written in the format of the
+    file's suffix (.csv, .parquet, .json, .xlsx).
+
+    \b
+    Examples:
+      droptower plan --out plan.xlsx
+      droptower campaign --out runs/table2 && droptower map runs/table2 --out map.json
+      droptower simulate --inertia-kgm2 0.359 --drop-mass-kg 2 --height-m 1 --plot test.png
     """
 
 
@@ -62,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else list(argv)
     if not args:  # bare `droptower` is a request for help, not a usage error
         args = ["--help"]
+    options.QUIET = False  # main() may run several times in one process (tests)
     try:
         # without standalone mode, click returns the code of a command's Exit(code)
         code = cli.main(args=args, prog_name="droptower", standalone_mode=False)
@@ -71,6 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     except click.exceptions.Abort:
         click.echo("droptower: aborted", err=True)
         return 130
+    except click.UsageError as exc:  # one line, like every other user error
+        where = f"droptower {exc.ctx.info_name}" if exc.ctx is not None and exc.ctx.parent is not None else "droptower"
+        click.echo(f"droptower: error: {exc.format_message()} (see: {where} --help)", err=True)
+        return 2
     except click.ClickException as exc:
         exc.show()
         return 2

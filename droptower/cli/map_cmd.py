@@ -5,8 +5,12 @@ from pathlib import Path
 
 import click
 
+from droptower.cli import options
+from droptower.cli.options import quiet_option
+
 
 @click.command("map")
+@quiet_option
 @click.argument("results", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Write the map: map.json (coefficients, uncertainties, errors, range; what validate --map "
@@ -24,6 +28,11 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     RESULTS is a CSV or Parquet table from `droptower extract --out`, a `droptower campaign`
     folder (its results.parquet), or the paper's Table 4. Flagged tests (double_impact, poor_fit, short_window, clipping)
     and incomplete rows are excluded and listed.
+
+    \b
+    Examples:
+      droptower map runs/table2 --out map.json --plot figs/
+      droptower map results.csv --out coefficients.xlsx
     """
     from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, read_results, select_tests
@@ -41,7 +50,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         from droptower.maps.plots import plot_all
 
         files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
-        for note in notes:
-            click.echo(f"note: {note}", err=True)
+        for line in notes:
+            options.note(f"note: {line}")
         if not as_json:
             click.echo(f"plots: {', '.join(str(p) for p in files)}")

@@ -6,6 +6,7 @@ import math
 
 import click
 
+from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 
 #: Columns printed as the table (all are in --out and --json).
@@ -15,6 +16,7 @@ TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "prelo
 
 
 @click.command()
+@quiet_option
 @click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
               help="Coupling TOML file or shipped preset name.")
@@ -33,7 +35,13 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     free decay on the nonlinear coupling (preload included), and the double-impact check of
     seed 004 (NOTES §1.3). Warns where a rig limit is broken: twist beyond the coupling limit,
     torque or impact force beyond the sensor range, fewer than 20 samples per period, a record
-    shorter than 3/4 period, a double impact."""
+    shorter than 3/4 period, a double impact.
+
+    \b
+    Examples:
+      droptower plan --plot plan.png
+      droptower plan --doe my_plan.toml --coupling my_coupling.toml --out plan.xlsx
+    """
     import pandas as pd
 
     from droptower.errors import DroptowerError
@@ -66,9 +74,10 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
                f"{model.name} on {rig_cfg.name}")
     with pd.option_context("display.width", 250, "display.max_columns", 40, "display.max_colwidth", 80,
                            "display.float_format", "{:.4g}".format):
-        click.echo(table[[c for c in TABLE_COLUMNS if c in table]].to_string(index=False))
+        shown = table[[c for c in TABLE_COLUMNS if c in table]].assign(warnings=table["warnings"].map("; ".join))
+        click.echo(shown.to_string(index=False))
     n_double = int(table["double_impact"].sum())
-    n_warn = int((table["warnings"] != "").sum())
+    n_warn = int((table["warnings"].map(len) > 0).sum())
     click.echo(f"{n_double} condition(s) double-impact, {n_warn} with warnings")
     for key, value in (("table", out), ("plot", plot_path)):
         if value:

@@ -6,6 +6,7 @@ import math
 
 import click
 
+from droptower.cli.options import note, quiet_option
 from droptower.errors import DroptowerError
 
 #: Columns of the default table (all are in the JSON output).
@@ -28,6 +29,7 @@ def _float_list(option: str, text: str) -> list[float]:
 
 
 @click.command()
+@quiet_option
 @click.argument("coupling")
 @click.option("--amplitude-deg", default="0.5,1.5", show_default=True, help="Amplitudes (deg), comma-separated.")
 @click.option("--frequency-hz", default="1,10,30", show_default=True, help="Frequencies (Hz), comma-separated.")
@@ -49,7 +51,13 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
     """Drive COUPLING (a coupling TOML file or a preset name) with sine tests on the virtual
     servo-hydraulic bench and evaluate each like a test lab: K', K'', |K*|, loss angle, loss
     factor, damping work (loop area), relative damping psi (DIN 740-2 style) and the
-    drop-tower-equivalent damping ratio (NOTES §1.7)."""
+    drop-tower-equivalent damping ratio (NOTES §1.7).
+
+    \b
+    Examples:
+      droptower servo rapp2022_nr60 --amplitude-deg 0.5,1.5 --frequency-hz 1,10,30 --plot loops.png
+      droptower servo my_coupling.toml --preload-nm 500 --json > servo.json
+    """
     from droptower.rheology import load_coupling
     from droptower.servo import run_bench
 
@@ -57,8 +65,8 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
     freqs = _float_list("--frequency-hz", frequency_hz)
     model = load_coupling(coupling)
     if model.units == "translational":
-        click.echo(f"droptower: note: {model.name} is in translational units: read rad as m, N*m as N "
-                   f"(and --amplitude-deg as the amplitude in m times 180/pi)", err=True)
+        note(f"note: {model.name} is in translational units: read rad as m, N*m as N "
+             f"(and --amplitude-deg as the amplitude in m times 180/pi)")
     result = run_bench(model, [math.radians(a) for a in amps], freqs, preload_nm, sample_rate_hz, cycles,
                        run_in_cycles=run_in_cycles, ramp_cycles=min(2, run_in_cycles),
                        simulation_rate_hz=simulation_rate_hz, smooth=not no_smoothing)
@@ -70,8 +78,8 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
                        f"for this loop); raise --run-in-cycles or --sample-rate-hz", err=True)
     unsmoothed = table.loc[table["smoothing_window_samples"] == 0, "frequency_hz"].unique()
     if unsmoothed.size and not no_smoothing:
-        click.echo(f"droptower: note: no smoothing at {', '.join(f'{f:g}' for f in unsmoothed)} Hz (one eighth of a "
-                   f"cycle is fewer than 5 samples at {sample_rate_hz:g} Hz)", err=True)
+        note(f"note: no smoothing at {', '.join(f'{f:g}' for f in unsmoothed)} Hz (one eighth of a "
+             f"cycle is fewer than 5 samples at {sample_rate_hz:g} Hz)")
     if as_json:
         records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
                    for rec in table.to_dict(orient="records")]
@@ -85,4 +93,4 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
         from droptower.servo.plots import plot_loops
 
         plot_loops(result, plot_path, title=f"{model.name}: hysteresis loops, preload {preload_nm:g} N*m")
-        click.echo(f"droptower: loops written to {plot_path}", err=True)
+        note(f"loops written to {plot_path}")

@@ -7,6 +7,7 @@ from typing import Any
 
 import click
 
+from droptower.cli.options import quiet_option, renamed_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 
 
@@ -24,12 +25,16 @@ def json_safe(value: Any) -> Any:
 
 
 @click.command()
+@quiet_option
 @click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
               help="Coupling TOML file or shipped preset name.")
-@click.option("--inertia", type=float, required=True, help="Lever inertia J about the axis (kg*m^2).")
-@click.option("--drop-mass", type=float, required=True, help="Drop mass m1 (kg).")
-@click.option("--height", type=float, required=True, help="Drop height h above the impact point (m).")
+@renamed_option("--inertia-kgm2", "--inertia", "inertia", type=float, required=True,
+                help="Lever inertia J about the axis (kg*m^2). [required]")
+@renamed_option("--drop-mass-kg", "--drop-mass", "drop_mass", type=float, required=True,
+                help="Drop mass m1 (kg). [required]")
+@renamed_option("--height-m", "--height", "height", type=float, required=True,
+                help="Drop height h above the impact point (m). [required]")
 @click.option("--preload-nm", type=float, default=0.0, show_default=True, help="Preload torque (N*m).")
 @click.option("--duration-s", type=float, default=0.25, show_default=True,
               help="Record length after the impact (s); the record starts the rig's pre-trigger before it.")
@@ -44,7 +49,15 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
     """Simulate one drop test: the drop mass falls from HEIGHT onto the lever (inertia J) and the
     coupling, pre-twisted to the preload, rings down. Prints the post-impact velocities (simulated
     and by the impact law), impact energy, contacts and double impact, peak angle and torque, and
-    the energy balance; writes the log the rig's sensors would record."""
+    the energy balance; writes the log the rig's sensors would record. A double impact is a
+    second contact within the lever's first oscillation period (seed 004, NOTES §1.3).
+
+    \b
+    Examples:
+      droptower simulate --inertia-kgm2 0.359 --drop-mass-kg 2 --height-m 1.0 --plot test.png
+      droptower simulate --inertia-kgm2 0.1557 --drop-mass-kg 2 --height-m 0.4 --preload-nm 500 \\
+          --out test.parquet --json
+    """
     from droptower.errors import DroptowerError
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_rig
@@ -55,7 +68,7 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
     rig_cfg = load_rig(rig)
     model = load_coupling(coupling)
     rig_cfg.check_test(inertia, drop_mass, height, preload_nm,
-                       labels={"inertia_kgm2": "--inertia", "drop_mass_kg": "--drop-mass", "drop_height_m": "--height",
+                       labels={"inertia_kgm2": "--inertia-kgm2", "drop_mass_kg": "--drop-mass-kg", "drop_height_m": "--height-m",
                                "preload_nm": "--preload-nm"})
     result = run(rig_cfg, model, [DropTest(inertia, drop_mass, height, preload_nm, 0, seed)], duration_s)[0]
     summary = result.summary()
@@ -75,11 +88,11 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
                f"(impact law {s['predicted_drop_mass_velocity_after_m_per_s']:+.4f}), lever tip "
                f"{s['lever_tip_velocity_after_m_per_s']:+.4f} m/s (impact law "
                f"{s['predicted_lever_tip_velocity_after_m_per_s']:+.4f}), restitution {s['effective_restitution']:.4f}")
-    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impulse_ns']:.4g} N*s, "
+    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impulse_n_s']:.4g} N*s, "
                f"{s['contacts']} contact(s), double impact: {'yes' if s['double_impact'] else 'no'}")
     click.echo(f"  max angle {s['max_angle_deg']:.3f} deg, max torque {s['max_torque_nm']:.1f} N*m, "
                f"first period {1e3 * s['period_s']:.2f} ms ({s['frequency_hz']:.2f} Hz), "
-               f"energy balance error {100 * s['energy_balance_error']:.3f} %")
+               f"energy balance error {100 * s['energy_balance_error_fraction']:.3f} %")
     for w in s["warnings"]:
         click.echo(f"droptower: warning: {w}", err=True)
     for key in ("log", "plot"):

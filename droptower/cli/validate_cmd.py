@@ -7,10 +7,12 @@ from pathlib import Path
 
 import click
 
+from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING
 
 
 @click.command()
+@quiet_option
 @click.option("--map", "map_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="The map (map.json from `droptower map --out`).")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
@@ -44,6 +46,11 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, referenc
     d = E_diss/E_el, eq. 16) against the servo's drop-tower-equivalent d; the loss factor and the
     relative damping psi of both are reported alongside. Deviations (map / servo - 1) are
     summarised inside and outside the drop tower's measured range.
+
+    \b
+    Examples:
+      droptower validate --map map.json --coupling rapp2022_nr60 --out validation/
+      droptower validate --map map.json --servo-results measured.csv --out validation/ --table-format xlsx
     """
     from droptower.compare import (compare_reference, format_comparison, format_summary, read_reference,
                                    read_servo_results, run_sweeps, validate_map)

@@ -143,7 +143,7 @@ def read_servo_results(path: str | Path) -> ServoPoints:
         if bad.any():
             row = int(np.argmax(bad))
             raise DroptowerError(f"column {column}: row {row + 1} is not a {'non-negative' if column == damping else 'positive'} "
-                                 f"number ({raw[column].iloc[row]!r})", file=path)
+                                 f"number ('{raw[column].iloc[row]}')", file=path)
         raw[column] = values
     if "sweep" in raw.columns:
         kinds = raw["sweep"].astype(str).str.strip().str.lower().str.replace(" sweep", "", regex=False)

@@ -40,14 +40,14 @@ def _check(signals: DropSignals) -> None:
             raise DroptowerError(f"{int(bad.sum())} NaN/missing values (a gap), first at sample {int(np.argmax(bad))}",
                                  where=name)
         if np.ptp(values) == 0.0:
-            raise DroptowerError(f"constant signal ({values[0]!r} throughout)", where=name)
+            raise DroptowerError(f"constant signal ({float(values[0])!r} throughout)", where=name)
     if time.size < 2 or not np.isfinite(time).all():
         raise DroptowerError("time: fewer than 2 samples or NaN")
     step = np.diff(time)
     if not (step > 0).all():
         i = int(np.argmax(step <= 0))
         kind = "duplicated" if step[i] == 0 else "non-monotonic (goes backwards)"
-        raise DroptowerError(f"time is {kind} at sample {i + 1} ({time[i]!r} s -> {time[i + 1]!r} s)")
+        raise DroptowerError(f"time is {kind} at sample {i + 1} ({float(time[i])!r} s -> {float(time[i + 1])!r} s)")
 
 
 def _longest_run_at_extreme(x: np.ndarray) -> int:
@@ -113,8 +113,8 @@ def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_le
     try:
         inertia = metadata_value(signals, inertia_kgm2, "inertia_kgm2")
         if inertia is None:
-            raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give --inertia KGM2 "
-                                 "or --rig RIG.toml")
+            raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give --inertia-kgm2 "
+                                 "(the lever fixture's J; --rig gives it only for a rig with a single fixture)")
         lever = metadata_value(signals, lever_length_m, "lever_length_m")
         return _extract(signals, inertia, lever, Window.parse(window))
     except DroptowerError as exc:

@@ -54,13 +54,26 @@ def _scalar(value: Any) -> Any:
     return json.dumps(value, default=str)
 
 
+def _same(a: Any, b: Any) -> bool:
+    try:
+        return math.isclose(float(a), float(b), rel_tol=1e-12)
+    except (TypeError, ValueError):
+        return a == b
+
+
 def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult) -> dict[str, Any]:
-    """One table row: ``file``, the log's metadata (nested values as JSON text; a key that
-    clashes with a result is prefixed ``meta_``), then every result of :meth:`ExtractionResult.as_dict`."""
+    """One table row: ``file``, the log's metadata (nested values as JSON text), then every result
+    of :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
+    the values agree (``inertia_kgm2`` used from the log) and kept as ``log_<key>`` when they
+    differ (``--inertia-kgm2`` overrode the log's)."""
     results = result.as_dict()
     row: dict[str, Any] = {"file": str(path)}
     for key, value in signals.metadata.items():
-        row[f"meta_{key}" if key in results or key == "file" else key] = _scalar(value)
+        if key in results or key == "file":
+            if _same(value, results.get(key)):
+                continue
+            key = f"log_{key}"
+        row[key] = _scalar(value)
     row.update(results)
     return row
 

@@ -38,7 +38,7 @@ OUTPUTS: dict[str, tuple[str, float]] = {
     "sample_rate_hz": ("sample_rate_hz", 1.0),
     "angle_offset_deg": ("angle_offset_rad", 1.0 / DEG),
     "torque_offset_nm": ("torque_offset_nm", 1.0),
-    "impact_impulse_ns": ("impact_impulse_ns", 1.0),
+    "impact_impulse_n_s": ("impact_impulse_ns", 1.0),
     "impact_velocity_rad_per_s": ("impact_velocity_rad_per_s", 1.0),
     "impact_velocity_from_force_rad_per_s": ("impact_velocity_from_force_rad_per_s", 1.0),
     "impact_energy_j": ("impact_energy_j", 1.0),

@@ -133,7 +133,7 @@ def _check_time(record: Record, name: str, time: np.ndarray) -> None:
         return
     i = int(np.flatnonzero(step <= 0)[0])
     kind = "duplicated" if step[i] == 0 else "non-monotonic (goes backwards)"
-    raise DroptowerError(f"time is {kind} at sample {i + 1} ({time[i]!r} s -> {time[i + 1]!r} s)",
+    raise DroptowerError(f"time is {kind} at sample {i + 1} ({float(time[i])!r} s -> {float(time[i + 1])!r} s)",
                          file=record.path, where=where)
 
 
@@ -206,7 +206,7 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
         values = to_si(channel.values, unit, KINDS[role], file=record.path, channel=channel.name)
         _check_values(record, channel, values)
         if np.ptp(values) == 0.0:
-            raise DroptowerError(f"constant signal ({channel.values[0]!r} {unit} throughout)",
+            raise DroptowerError(f"constant signal ({float(channel.values[0])!r} {unit} throughout)",
                                  file=record.path, where=f"channel '{channel.name}'")
         signals[role], channels[role] = values, channel
 

@@ -125,7 +125,7 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["lever_tip_velocity_after_m_per_s"] = iv.lever_tip_after_m_per_s
     out["lever_rate_after_rad_per_s"] = iv.rate_after_rad_per_s
     out["impact_energy_j"] = iv.impact_energy_j
-    out["impulse_ns"] = iv.impulse_ns
+    out["impulse_n_s"] = iv.impulse_ns
     out["impact_force_peak_n"] = force_peak
     out["pretwist_deg"] = np.degrees(twist.angle_rad)
     out["amplitude_deg"] = np.degrees(p1)
@@ -144,7 +144,7 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     return out
 
 
-def _warnings(rig: RigConfig, r, duration_s: float) -> str:
+def _warnings(rig: RigConfig, r, duration_s: float) -> list[str]:
     w = []
     if not any(math.isclose(r.inertia_kgm2, j, rel_tol=1e-9) for j in rig.inertias_kgm2):
         w.append(f"inertia {r.inertia_kgm2:g} kg*m^2 is not a lever fixture of the rig")
@@ -164,4 +164,4 @@ def _warnings(rig: RigConfig, r, duration_s: float) -> str:
         w.append(f"record {duration_s:g} s shorter than 3/4 period ({r.period_s:.3g} s)")
     if r.double_impact:
         w.append(f"double impact at {1e3 * r.second_impact_time_s:.1f} ms (period {1e3 * r.period_s:.1f} ms)")
-    return "; ".join(w)
+    return w

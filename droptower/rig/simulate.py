@@ -138,7 +138,7 @@ class DropResult:
             "impact_energy_j": 0.5 * self.test.inertia_kgm2 * rate ** 2,
             "predicted_impact_energy_j": float(p.impact_energy_j),
             "impact_time_s": self.impact_time_s,
-            "impulse_ns": first.impulse_ns,
+            "impulse_n_s": first.impulse_ns,
             "contacts": len(self.contacts),
             "contact_times_s": [c.start_s for c in self.contacts],
             "double_impact": self.double_impact,
@@ -149,7 +149,7 @@ class DropResult:
             "max_angle_deg": math.degrees(float(np.max(self.angle_rad))),
             "max_twist_deg": math.degrees(float(np.max(np.abs(twist)))),
             "max_torque_nm": float(np.max(np.abs(self.coupling_torque_nm))),
-            "energy_balance_error": self.energy_balance_error,
+            "energy_balance_error_fraction": self.energy_balance_error,
             "warnings": list(self.warnings),
         }
 
