@@ -275,3 +275,33 @@ def test_workers_and_scheduler_together_are_refused(inputs, tmp_path, capsys):
     assert "not both" in _one_line_error(capsys.readouterr().err)
     assert _cli(inputs, tmp_path / "y", "--workers", "0") == 2
     assert "--workers: must be at least 1" in _one_line_error(capsys.readouterr().err)
+
+
+def test_resume_from_the_manifest_alone(inputs, reference, tmp_path, capsys):
+    """A custom plan and coupling, interrupted; the inputs are then moved away. ``--resume``
+    with nothing but the folder restores them from the manifest and says what it will run."""
+    moved = tmp_path / "inputs"
+    moved.mkdir()
+    coupling, doe = shutil.copy(inputs["coupling"], moved), shutil.copy(inputs["doe"], moved)
+    out = tmp_path / "alone"
+    run_campaign(out, coupling=coupling, doe=doe, workers=1, max_chunks=1, **SETTINGS)
+    shutil.rmtree(moved)
+    code = main(["campaign", "--out", str(out), "--resume", "--workers", "1"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert f"resuming {out}: 3 of 8 tests finished, 5 to run" in captured.err
+    assert "8 tests, 8 extracted, 0 failed, 0 pending (5 run now" in captured.out
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "results.parquet"), reference.results, check_exact=True)
+    assert sorted(p.name for p in (out / "inputs").iterdir()) == ["linear.toml", "small.toml"]
+
+
+def test_holds_a_campaign_counts_the_records_on_disk(inputs, reference, tmp_path, capsys):
+    """After a kill the manifest lags behind the records: the message counts the records."""
+    out = tmp_path / "lagging"
+    shutil.copytree(reference.root, out)
+    manifest = json.loads((out / "manifest.json").read_text())
+    for test in manifest["tests"][3:]:
+        test["status"] = "pending"
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    assert _cli(inputs, out) == 2
+    assert "(8 of 8 tests finished)" in capsys.readouterr().err

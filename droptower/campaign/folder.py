@@ -126,6 +126,43 @@ def saved_settings(root: Path) -> dict[str, Any]:
     return dict(read_manifest(manifest).get("settings") or {}) if manifest.is_file() else {}
 
 
+def saved_inputs(root: Path) -> dict[str, Path]:
+    """Per input (``rig``, ``coupling``, ``doe``) of the campaign in ``root``, a TOML file holding
+    exactly the content its manifest records: the original file if it still reads the same, else
+    a copy written to ``root/inputs/`` (so a campaign resumes from its folder alone, whatever
+    was moved or edited since). Empty if ``root`` holds no campaign."""
+    import tomli_w
+
+    from droptower.configs import read_toml
+
+    manifest = Layout(root).manifest
+    if not manifest.is_file():
+        return {}
+    out = {}
+    for kind, entry in (read_manifest(manifest).get("inputs") or {}).items():
+        original, content = Path(str(entry.get("file"))), entry.get("content")
+        try:
+            same = original.is_file() and read_toml(original) == content
+        except DroptowerError:
+            same = False
+        if same:
+            out[kind] = original
+            continue
+        copy = Layout(root).root / "inputs" / original.name
+        try:
+            copy.parent.mkdir(exist_ok=True)
+            atomic_write(copy, lambda tmp: Path(tmp).write_text(tomli_w.dumps(content)))
+        except (OSError, TypeError, ValueError) as exc:
+            raise DroptowerError(f"cannot restore the campaign's {kind} from its manifest ({exc})", file=manifest) from None
+        out[kind] = copy
+    return out
+
+
+def count_finished(layout: Layout) -> int:
+    """Tests with a result record on disk (the manifest can lag behind after a kill)."""
+    return sum(read_record(path) is not None for path in layout.records.glob("test_*.json"))
+
+
 def _differences(old: dict[str, Any], spec: CampaignSpec) -> list[str]:
     """The parts of the identity in which the folder's campaign and ``spec`` differ, in words."""
     out = []
@@ -153,7 +190,7 @@ def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[
         raise DroptowerError("exists and is not a folder", file=root)
     if layout.manifest.is_file():
         old = read_manifest(layout.manifest)
-        done = sum(t.get("status") != "pending" for t in old.get("tests", []))
+        done = count_finished(layout)
         if not resume:
             raise DroptowerError(f"holds a campaign already ({done} of {len(old.get('tests', []))} tests finished); "
                                  "add --resume to continue it, or choose another --out folder", file=root)

@@ -18,7 +18,8 @@ import pandas as pd
 
 from droptower.campaign.chunk import ChunkOutcome, ChunkTask, peak_rss_mb, run_chunk
 from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
-from droptower.campaign.folder import Layout, finished, layout_for, open_folder, saved_settings, write_manifest
+from droptower.campaign.folder import (Layout, finished, layout_for, open_folder, saved_inputs, saved_settings,
+                                       write_manifest)
 from droptower.campaign.results import assemble, write_results
 from droptower.campaign.spec import PLAN_COLUMNS, CampaignSpec, prepare
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
@@ -54,13 +55,14 @@ class CampaignRun:
     warnings: list[str] = field(default_factory=list)
 
 
-def run_campaign(out: str | Path, rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING,
-                 doe: str | Path = DEFAULT_DOE, *, workers: int | None = None, scheduler: str | None = None,
+def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str | Path | None = None,
+                 doe: str | Path | None = None, *, workers: int | None = None, scheduler: str | None = None,
                  resume: bool = False, duration_s: float | None = None, chunk_size: int | None = None,
                  log_format: str | None = None, window: str | None = None, progress: bool = True,
                  max_chunks: int | None = None, scheduler_timeout_s: float = SCHEDULER_TIMEOUT_S) -> CampaignRun:
     """Simulate, log and extract every test of the plan ``doe`` on ``rig`` with ``coupling``
-    (files or shipped preset names) into the folder ``out``.
+    (files or shipped preset names; None: the shipped defaults, or with ``resume`` the
+    campaign's own, restored from its manifest) into the folder ``out``.
 
     workers: local processes (None: every local core; 1: this process); scheduler: a Dask
     scheduler address instead; resume: continue the campaign in ``out`` (same rig, coupling,
@@ -76,7 +78,13 @@ def run_campaign(out: str | Path, rig: str | Path = DEFAULT_RIG, coupling: str |
         raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
     given = {"duration_s": duration_s, "chunk_size": chunk_size, "log_format": log_format, "window": window}
     saved = saved_settings(Path(out)) if resume else {}
-    spec = prepare(rig, coupling, doe, **{k: saved.get(k) if v is None else v for k, v in given.items()})
+    inputs = {"rig": rig, "coupling": coupling, "doe": doe}
+    if resume and None in inputs.values():
+        inputs = {k: v for k, v in inputs.items() if v is not None} | {
+            k: v for k, v in saved_inputs(Path(out)).items() if inputs[k] is None}
+    defaults = {"rig": DEFAULT_RIG, "coupling": DEFAULT_COUPLING, "doe": DEFAULT_DOE}
+    spec = prepare(**{k: inputs.get(k) or v for k, v in defaults.items()},
+                   **{k: saved.get(k) if v is None else v for k, v in given.items()})
     layout = layout_for(out, spec)
     # a Dask scheduler is asked first: if it does not answer, the folder is not touched
     cluster = make_executor(workers, scheduler, scheduler_timeout_s) if scheduler is not None else None
@@ -107,6 +115,9 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
                                    log_format=spec.log_format, window=spec.window))
     if max_chunks is not None:
         tasks = tasks[:max_chunks]
+    if old is not None and progress:
+        print(f"droptower: resuming {layout.root}: {len(status)} of {len(spec.tests)} tests finished, "
+              f"{sum(sum(t.todo) for t in tasks)} to run", file=sys.stderr)
 
     run = CampaignRun(spec=spec, root=layout.root, executor="", results=pd.DataFrame(), failed=[], errors=[],
                       pending=0, ran_tests=0, wall_s=0.0, warnings=warnings)

@@ -12,9 +12,14 @@ from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 
 @click.command()
 @quiet_option
-@click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
-@click.option("--coupling", default=DEFAULT_COUPLING, show_default=True, help="Coupling TOML file or shipped preset name.")
-@click.option("--doe", default=DEFAULT_DOE, show_default=True, help="Test-plan TOML file or shipped preset name.")
+@click.option("--rig", default=None,
+              help=f"Rig TOML file or shipped preset name [default: {DEFAULT_RIG}; with --resume: the folder's].")
+@click.option("--coupling", default=None,
+              help=f"Coupling TOML file or shipped preset name [default: {DEFAULT_COUPLING}; with --resume: the "
+                   f"folder's].")
+@click.option("--doe", default=None,
+              help=f"Test-plan TOML file or shipped preset name [default: {DEFAULT_DOE}; with --resume: the "
+                   f"folder's].")
 @click.option("--out", type=click.Path(path_type=Path), required=True,
               help="Campaign folder: logs/, records/, results.parquet, results.csv, manifest.json.")
 @click.option("--workers", type=int, default=None, help="Local worker processes [default: every local core].")
@@ -32,7 +37,7 @@ from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 @click.option("--chunk-size", type=int, default=None,
               help="Tests per batched simulation, part of the campaign's identity [default: 25; with --resume: "
                    "the folder's].")
-def campaign(rig: str, coupling: str, doe: str, out: Path, workers: int | None, scheduler: str | None,
+def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, workers: int | None, scheduler: str | None,
              scheduler_timeout_s: float, resume: bool, duration_s: float | None, log_format: str | None,
              chunk_size: int | None) -> None:
     """Simulate every test of a plan on the virtual drop tower, write its log and extract it
@@ -41,8 +46,9 @@ def campaign(rig: str, coupling: str, doe: str, out: Path, workers: int | None, 
     Writes OUT/results.parquet and OUT/results.csv (one row per test: plan fields, the
     extracted values under the names of `droptower extract --json`, flags, log_file),
     OUT/logs/, and OUT/manifest.json (hashes and contents of rig, coupling and plan, versions,
-    per-test status). Resumable: with --resume, finished tests are kept and the rest is run;
-    a folder holding another campaign is never touched. Same plan and seeds, same results,
+    per-test status). Resumable: with --resume, finished tests are kept and the rest is run,
+    with the rig, coupling, plan and settings recorded in the folder's manifest (give none of
+    them again); a folder holding another campaign is never touched. Same plan and seeds, same results,
     whatever the number of workers.
 
     A test whose simulation or extraction fails is listed at the end (exit code 1); the
