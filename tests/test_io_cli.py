@@ -22,7 +22,8 @@ def test_channels_json_own_log(tmp_path, capsys):
     angle = rows[1]
     assert angle == {"name": "angle_rad", "unit": "rad", "samples": 5, "sample_rate_hz": pytest.approx(1000.0),
                      "first_time_s": 0.0, "last_time_s": 0.004, "first_value": 0.0, "last_value": 4.5,
-                     "invalid_markers": 0, "nan": 1}
+                     "invalid_markers": 0, "nan": 1, "role": "angle"}
+    assert rows[0]["role"] == "time"
 
 
 def test_channels_table_catman(capsys):
@@ -32,12 +33,34 @@ def test_channels_table_catman(capsys):
     assert "catman binary, 10 channels" in out[0]
     assert out[1].split()[:4] == ["name", "unit", "samples", "rate_hz"]
     thermo = next(line for line in out if line.startswith("Thermocouple Type K"))
-    assert thermo.split()[-2:] == ["100", "0"]  # 100 invalid markers, no NaN
+    assert thermo.split()[-3:] == ["100", "0", "-"]  # 100 invalid markers, no NaN, no role
     poti = next(line for line in out if line.startswith("poti5k "))
     assert poti.split()[1:4] == ["Ohm", "100", "300"] and "0.65018" in poti
     assert main(["channels", str(path), "--json"]) == 0
     rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
     assert rows["Thermocouple Type K"]["invalid_markers"] == 100 and rows["poti5k"]["sample_rate_hz"] == 300.0
+
+
+def test_channels_csv_time_base_suffix_units_and_roles(tmp_path, capsys):
+    """A lab CSV (';', decimal comma): the rate and time span come from its time column, a unit
+    from a name suffix (angle_deg), and each channel shows the role extract would give it."""
+    path = tmp_path / "lab.csv"
+    t = np.arange(8) / 2000.0
+    lines = ["Zeit [ms];angle_deg;Md [kN*m];torque_nm"] + [
+        f"{1e3 * x:.1f};{x:.6f};{2 * x:.6f};{3 * x:.6f}".replace(".", ",") for x in t]
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["channels", str(path), "--json"]) == 0
+    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
+    assert rows["angle_deg"]["unit"] == "deg" and rows["torque_nm"]["unit"] == "N*m"
+    assert rows["angle_deg"]["sample_rate_hz"] == pytest.approx(2000.0)
+    assert rows["angle_deg"]["last_time_s"] == pytest.approx(0.0035)  # ms converted to s
+    assert {n: r["role"] for n, r in rows.items()} == {"Zeit": "time", "angle_deg": "angle", "Md": None,
+                                                       "torque_nm": "torque"}
+    assert main(["channels", str(path), "--channel", "torque=Md"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "time base: channel 'Zeit'" in out[0]
+    assert out[1].split()[-1] == "role" and out[4].split()[0] == "Md" and out[4].split()[-1] == "torque"
+    assert "roles not found: impact_force" in out[-1]
 
 
 def test_channels_csv_options(tmp_path, capsys):

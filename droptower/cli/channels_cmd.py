@@ -10,16 +10,24 @@ import click
 from droptower.cli.options import quiet_option
 import numpy as np
 
-from droptower.io.channels import Channel
+from droptower.errors import DroptowerError
+from droptower.io.channels import Channel, Record
+from droptower.io.droptower_log import unit_from_name
+from droptower.io.mapping import ROLES, find_roles, parse_channel_options
 from droptower.io.readers import read_any
+from droptower.units import to_si
 
 
-def describe(channel: Channel) -> dict[str, Any]:
-    """One channel as a row: name, unit, samples, sample rate or time base, first/last value,
-    catman invalid markers and NaN counts. Keys carry their units."""
+def describe(channel: Channel, role: str | None = None, base_s: np.ndarray | None = None) -> dict[str, Any]:
+    """One channel as a row: name, unit (as written, else from a name suffix such as
+    ``torque_nm``), samples, sample rate and time span (its own time base, else ``base_s``, the
+    file's time channel in s, when the lengths agree), first/last value, catman invalid markers,
+    NaN counts and the role ``extract`` would give it. Keys carry their units."""
     values = channel.values
     invalid = int(channel.invalid.sum()) if channel.invalid is not None else 0
     time = channel.time()
+    if time is None and base_s is not None and base_s.size == values.size:
+        time = base_s
     rate = channel.sample_rate_hz
     if rate is None and time is not None and time.size > 1 and time[-1] != time[0]:
         step = np.diff(time)
@@ -31,7 +39,7 @@ def describe(channel: Channel) -> dict[str, Any]:
 
     return {
         "name": channel.name,
-        "unit": channel.unit,
+        "unit": channel.unit or unit_from_name(channel.name),
         "samples": int(values.size),
         "sample_rate_hz": number(rate),
         "first_time_s": number(time[0]) if time is not None and time.size else None,
@@ -40,7 +48,25 @@ def describe(channel: Channel) -> dict[str, Any]:
         "last_value": number(values[-1]) if values.size else None,
         "invalid_markers": invalid,
         "nan": int(np.isnan(values).sum()) - invalid,
+        "role": role,
     }
+
+
+def time_base(record: Record, roles: dict[str, str]) -> tuple[np.ndarray | None, str]:
+    """The file's time channel in s (None if there is none or it cannot be read) and, in words,
+    where the time of the samples comes from."""
+    if "time" in roles:
+        name, _, unit = roles["time"].partition(":") if roles["time"] not in record.channels else (roles["time"], "", "")
+        channel = record.channels.get(name)
+        if channel is not None:
+            unit = unit or channel.unit or unit_from_name(name)
+            try:
+                return to_si(channel.values, unit, "time", file=record.path, channel=name), f"channel '{name}'"
+            except DroptowerError as exc:
+                return None, f"channel '{name}', unreadable ({exc.problem})"
+    if any(c.time() is not None for c in record.channels.values()):
+        return None, "each channel's own sample rate"
+    return None, "none (give --sample-rate-hz to extract)"
 
 
 def _cell(value: Any) -> str:
@@ -54,15 +80,19 @@ def _cell(value: Any) -> str:
 @click.command()
 @quiet_option
 @click.argument("file", type=click.Path(dir_okay=False, path_type=str))
+@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="Try a channel mapping (as extract takes it): the roles column shows the result.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list of channel objects instead of a table.")
 @click.option("--delimiter", default=None, help="CSV field separator (default: sniffed).")
 @click.option("--decimal", type=click.Choice([".", ","]), default=None, help="CSV decimal separator (default: sniffed).")
 @click.option("--header-lines", type=int, default=None, help="CSV lines above the names row (default: sniffed).")
 @click.option("--unit-row/--no-unit-row", default=None, help="CSV has a units row under the names (default: sniffed).")
-def channels(file: str, as_json: bool, delimiter: str | None, decimal: str | None, header_lines: int | None,
+def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter: str | None, decimal: str | None, header_lines: int | None,
              unit_row: bool | None) -> None:
-    """List the channels of a log FILE: name, unit, samples, sample rate or time base, first and
-    last value, catman invalid markers (-1000000) and NaN counts.
+    """List the channels of a log FILE: name, unit (as written, else from a name suffix such as
+    angle_deg), samples, sample rate and time span (for CSV: from the time channel), first and
+    last value, catman invalid markers (-1000000), NaN counts, and the role each channel would
+    get in `droptower extract` (found by name, or as --channel gives it).
 
     Use the names with --channel ROLE=NAME[:UNIT] (roles: time, impact_force, angle, distance,
     torque). Formats: droptower logs (.csv/.parquet), CSV/ASCII (catman ASCII, MTS 793 .dat),
@@ -76,14 +106,25 @@ def channels(file: str, as_json: bool, delimiter: str | None, decimal: str | Non
     if delimiter == "\\t":
         delimiter = "\t"
     record = read_any(file, delimiter=delimiter, decimal=decimal, header_lines=header_lines, unit_row=unit_row)
-    rows = [describe(channel) for channel in record.channels.values()]
+    problems: list[str] = []
+    roles = find_roles(record, parse_channel_options(channel_specs), problems)
+    role_of = {spec if spec in record.channels else spec.rpartition(":")[0]: role for role, spec in roles.items()}
+    base_s, base_text = time_base(record, roles)
+    rows = [describe(channel, role_of.get(name), base_s) for name, channel in record.channels.items()]
     if as_json:
         click.echo(json.dumps(rows, indent=2))
         return
     header = ["name", "unit", "samples", "rate_hz", "first_time_s", "last_time_s", "first_value", "last_value",
-              "invalid", "nan"]
+              "invalid", "nan", "role"]
     table = [[_cell(v) for v in row.values()] for row in rows]
     widths = [max(len(h), *(len(r[i]) for r in table)) for i, h in enumerate(header)]
-    click.echo(f"{record.path} ({record.format}, {len(rows)} channels)")
+    left = {0, 1, len(header) - 1}
+    click.echo(f"{record.path} ({record.format}, {len(rows)} channels; time base: {base_text})")
     for line in [header, *table]:
-        click.echo("  ".join(cell.ljust(w) if i < 2 else cell.rjust(w) for i, (cell, w) in enumerate(zip(line, widths))).rstrip())
+        click.echo("  ".join(cell.ljust(w) if i in left else cell.rjust(w)
+                             for i, (cell, w) in enumerate(zip(line, widths))).rstrip())
+    missing = [role for role in ROLES if role not in roles and not (role == "distance" and "angle" in roles)]
+    if missing:
+        click.echo(f"roles not found: {', '.join(missing)} (name them with --channel ROLE=NAME[:UNIT])")
+    for problem in problems:
+        click.echo(f"roles: {problem}")

@@ -163,15 +163,12 @@ def _onto(record: Record, channel: Channel, values: np.ndarray, base_time: np.nd
     return np.interp(base_time, own, values)
 
 
-def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
-                 sample_rate_hz: float | None = None) -> DropSignals:
-    """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
-
-    roles: role -> ``NAME`` or ``NAME:UNIT``; roles not given are found by name; ``-`` leaves a
-        role out (e.g. a dead force sensor).
-    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``.
-    sample_rate_hz: builds the time base when the file has no time channel and no rate.
-    """
+def find_roles(record: Record, roles: dict[str, str] | None = None,
+               problems: list[str] | None = None) -> dict[str, str]:
+    """role -> ``NAME[:UNIT]`` of the channel :func:`map_channels` uses for it: the given
+    ``roles`` (``-`` leaves one out), the others found by name; roles found nowhere are absent.
+    An ambiguous name match is a :class:`DroptowerError`, or with a ``problems`` list, its
+    message is appended there and the role left out (``droptower channels`` shows them all)."""
     roles = dict(roles or {})
     unknown = set(roles) - set(ROLES)
     if unknown:
@@ -186,11 +183,31 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
         if role in specs or role in unused or (role == "distance" and "angle" in specs) or (
                 role == "angle" and "distance" in specs):
             continue
-        found = _find_default(record, role)
+        try:
+            found = _find_default(record, role)
+        except DroptowerError as exc:
+            if problems is None:
+                raise
+            problems.append(exc.problem)
+            continue
         if found is not None:
             specs[role] = found
     if "angle" in specs and "distance" in specs and "distance" not in explicit:
         del specs["distance"]  # both found by name: the angle channel is the direct measurement
+    return specs
+
+
+def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
+                 sample_rate_hz: float | None = None) -> DropSignals:
+    """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
+
+    roles: role -> ``NAME`` or ``NAME:UNIT``; roles not given are found by name; ``-`` leaves a
+        role out (e.g. a dead force sensor).
+    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``.
+    sample_rate_hz: builds the time base when the file has no time channel and no rate.
+    """
+    specs = find_roles(record, roles)
+    explicit = {role for role, spec in (roles or {}).items() if spec.strip() not in ("-", "none")}
     angle_role = "angle" if "angle" in specs else "distance"
     if angle_role not in specs:
         raise DroptowerError(
