@@ -196,6 +196,7 @@ class FitResult:
     time_s: float
     converged: bool
     message: str
+    non_identifiable: list[dict[str, float]] = field(default_factory=list)
 
     def params(self) -> dict[str, float]:
         return dict(zip(self.names, map(float, self.values)))
@@ -204,7 +205,7 @@ class FitResult:
         return {"stage": self.stage, "free": [n for n, f in zip(self.names, self.free) if f],
                 "nrmse": self.metrics.nrmse, "nfev": self.nfev, "njev": self.njev,
                 "evaluations": self.evaluations, "time_s": self.time_s, "converged": self.converged,
-                "message": self.message}
+                "message": self.message, "non_identifiable": self.non_identifiable}
 
 
 def check_in_bounds(parameters: list[Parameter], values: np.ndarray, file: str | None = None) -> None:
@@ -239,23 +240,14 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
     optimiser's function evaluations; reaching it means "not converged".
     """
     params = model.parameters
-    x_all = np.asarray(initial, dtype=float).copy()
     free = np.ones(len(params), bool) if free is None else np.asarray(free, bool)
-    idx = np.flatnonzero(free)
-    if idx.size == 0:
-        raise ValueError("no free parameter")
     counter = Counter()
     start = time.perf_counter()
     masks = [s.compared for s in segments]
     meas = [s.torque_nm[m] for s, m in zip(segments, masks)]
     n_seg = len(segments)
-    base = np.tile(x_all, (n_seg, 1)) if per_segment is None else np.array(per_segment, dtype=float)
-    lo, hi = np.array([params[i].z_bounds() for i in idx]).T
-
-    def values_of(z: np.ndarray) -> np.ndarray:
-        v = x_all.copy()
-        v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z)]
-        return v
+    base = np.tile(initial, (n_seg, 1)) if per_segment is None else np.array(per_segment, dtype=float)
+    idx = np.flatnonzero(free)
 
     def torques(rows: np.ndarray) -> list[list[np.ndarray]]:
         """Torque of each parameter set ``rows`` (M, n) on every segment, one core call."""
@@ -267,8 +259,99 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
 
     def residuals(rows: np.ndarray) -> np.ndarray:
         """(M, R) residual vectors of the parameter sets ``rows`` (M, n)."""
-        r = np.array([np.concatenate([t[m] - y for t, m, y in zip(per_set, masks, meas)]) for per_set in torques(rows)])
-        return np.where(np.isfinite(r), r, 1e30)  # a failed simulation is a terrible candidate
+        return np.array([np.concatenate([t[m] - y for t, m, y in zip(per_set, masks, meas)]) for per_set in torques(rows)])
+
+    sol = fit_rows(params, initial, residuals, free=free, max_nfev=max_nfev, tol=tol)
+    m = metrics(segments, torques(sol.values[None, :])[0])
+    std = sol.std_error(m.residual_lag1)
+    return FitResult(stage, [p.name for p in params], sol.values, free, std, sol.at_bounds, m, sol.nfev,
+                     sol.njev, counter.evaluations, counter.core_calls, time.perf_counter() - start,
+                     sol.converged, sol.message, sol.non_identifiable)
+
+
+@dataclass
+class RowsFit:
+    """The solution of :func:`fit_rows`: values (all parameters, physical), the optimiser's
+    word, the residual r and its Jacobian in the optimised variables (columns: free parameters)."""
+
+    parameters: list[Parameter]
+    values: np.ndarray
+    free: np.ndarray
+    residual: np.ndarray
+    jacobian: np.ndarray
+    at_bounds: list[str]
+    nfev: int
+    njev: int
+    converged: bool
+    message: str
+
+    def covariance_z(self, lag1: float = 0.0) -> np.ndarray:
+        """s^2 (J'J)^+ in the optimised variables, inflated by sqrt((1 + r1)/(1 - r1)) for the
+        residual's lag-1 autocorrelation r1 (an AR(1) effective sample size)."""
+        r, jac = self.residual, self.jacobian
+        dof = max(r.size - jac.shape[1], 1)
+        rho = min(max(lag1, 0.0), 0.99)
+        return float(r @ r) / dof * np.linalg.pinv(jac.T @ jac) * (1.0 + rho) / (1.0 - rho)
+
+    def std_error(self, lag1: float = 0.0, extra_z: np.ndarray | None = None) -> np.ndarray:
+        """Standard errors of the free parameters (physical units; NaN for fixed ones).
+        ``extra_z``: a further uncertainty per free parameter in the optimised variables (e.g.
+        the integration step's bias), added in quadrature."""
+        idx = np.flatnonzero(self.free)
+        var = np.clip(np.diag(self.covariance_z(lag1)), 0.0, None)
+        if extra_z is not None:
+            var = var + np.asarray(extra_z) ** 2
+        std = np.full(len(self.parameters), np.nan)
+        std[idx] = [self.parameters[i].dvalue_dz(self.values[i]) * s for i, s in zip(idx, np.sqrt(var))]
+        return std
+
+    @property
+    def non_identifiable(self) -> list[dict[str, float]]:
+        """Directions in parameter space the data do not pin down: right singular vectors of the
+        scaled Jacobian with singular value below ``NON_IDENTIFIABLE`` times the largest, each
+        as {parameter name: weight} in the optimised variables (ln value or value / scale);
+        moving the parameters along it leaves the fit unchanged."""
+        idx = np.flatnonzero(self.free)
+        if self.jacobian.size == 0:
+            return []
+        _, sv, vt = np.linalg.svd(self.jacobian, full_matrices=False)
+        out = []
+        for s, v in zip(sv, vt):
+            if s < NON_IDENTIFIABLE * sv[0]:
+                v = v / v[np.argmax(np.abs(v))]
+                out.append({self.parameters[i].name: float(w) for i, w in zip(idx, v) if abs(w) > 0.05})
+        return out
+
+
+#: Singular values of the Jacobian below this fraction of the largest mark a non-identifiable combination.
+NON_IDENTIFIABLE = 1e-4
+
+
+def fit_rows(parameters: list[Parameter], initial: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+             free: np.ndarray | None = None, max_nfev: int | None = None, tol: float = 1e-7) -> RowsFit:
+    """Bounded trust-region-reflective least squares on ``residuals``.
+
+    residuals(rows (M, n) physical parameter sets) -> (M, R) residual vectors: the function
+    evaluates many parameter sets at once, so the forward-difference Jacobian's columns go to
+    the model in ONE call. Non-finite residuals count as 1e30 (a failed simulation is a
+    terrible candidate). ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
+    optimiser's function evaluations; reaching it means "not converged".
+    """
+    x_all = np.asarray(initial, dtype=float).copy()
+    free = np.ones(len(parameters), bool) if free is None else np.asarray(free, bool)
+    idx = np.flatnonzero(free)
+    if idx.size == 0:
+        raise ValueError("no free parameter")
+    lo, hi = np.array([parameters[i].z_bounds() for i in idx]).T
+
+    def values_of(z: np.ndarray) -> np.ndarray:
+        v = x_all.copy()
+        v[idx] = [parameters[i].to_value(zi) for i, zi in zip(idx, z)]
+        return v
+
+    def safe(rows: np.ndarray) -> np.ndarray:
+        r = residuals(rows)
+        return np.where(np.isfinite(r), r, 1e30)
 
     cache: dict[bytes, np.ndarray] = {}
 
@@ -276,7 +359,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
         key = z.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = residuals(values_of(z)[None, :])[0]
+            cache[key] = safe(values_of(z)[None, :])[0]
         return cache[key]
 
     def jac(z: np.ndarray) -> np.ndarray:
@@ -284,27 +367,14 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
         h = 1e-6 * (1.0 + np.abs(z))
         h = np.where(z + h > hi, -h, h)  # step inward at an upper bound
         rows = np.array([values_of(z + h[j] * np.eye(z.size)[j]) for j in range(z.size)])
-        rj = residuals(rows)
-        return ((rj - r0) / h[:, None]).T
+        return ((safe(rows) - r0) / h[:, None]).T
 
-    z0 = np.array([params[i].to_z(x_all[i]) for i in idx])
+    z0 = np.array([parameters[i].to_z(x_all[i]) for i in idx])
     res = least_squares(fun, z0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, ftol=tol, xtol=tol,
                         gtol=tol * 1e-2, max_nfev=int(max_nfev or 20 * idx.size + 20))
-    values = values_of(res.x)
-    r = fun(res.x)
-    m = metrics(segments, torques(values[None, :])[0])
-    std = np.full(len(params), np.nan)
-    dof = r.size - idx.size
-    if dof > 0:
-        s2 = float(r @ r) / dof
-        rho = min(max(m.residual_lag1, 0.0), 0.99)
-        cov = s2 * np.linalg.pinv(res.jac.T @ res.jac) * (1.0 + rho) / (1.0 - rho)
-        sz = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        std[idx] = [params[i].dvalue_dz(values[i]) * s for i, s in zip(idx, sz)]
-    at_bounds = [params[i].name for i, a in zip(idx, res.active_mask) if a != 0]
-    return FitResult(stage, [p.name for p in params], values, free, std, at_bounds, m, int(res.nfev),
-                     int(res.njev or 0), counter.evaluations, counter.core_calls, time.perf_counter() - start,
-                     bool(res.status > 0), str(res.message))
+    at_bounds = [parameters[i].name for i, a in zip(idx, res.active_mask) if a != 0]
+    return RowsFit(parameters, values_of(res.x), free, fun(res.x), np.asarray(res.jac), at_bounds, int(res.nfev),
+                   int(res.njev or 0), bool(res.status > 0), str(res.message))
 
 
 def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,

@@ -64,8 +64,9 @@ def _conditioning(angle_end: np.ndarray) -> tuple[np.ndarray, float]:
     return angle_end[:, None] + wave[None, :], 1.0 / (CONDITIONING_FREQUENCY_HZ * CONDITIONING_STEPS_PER_CYCLE)
 
 
-def _hold(coupling: Coupling, angle_end: np.ndarray, ramp_s: float, hold_s: float) -> CouplingState:
-    """Ramp from a virgin state to ``angle_end``, condition and hold; returns the state at the end."""
+def hold_at(coupling: Coupling, angle_end: np.ndarray, ramp_s: float, hold_s: float) -> CouplingState:
+    """Ramp from a virgin state to ``angle_end`` (one twist per row of the batch), condition and
+    hold; returns the state at the end. Rows may be parameter sets of a stacked coupling."""
     ramp, dt_ramp, dt_hold = _history(angle_end, ramp_s, hold_s)
     state = coupling.new_state(angle_end.size)
     coupling.simulate(ramp, dt_ramp, state)
@@ -87,7 +88,7 @@ def pretwist(coupling: Coupling, preload_nm: np.ndarray, ramp_s: float, hold_s: 
     active = target != 0.0
     if np.any(active):
         angle[active] = _solve(coupling, target[active], ramp_s, hold_s)
-    state = _hold(coupling, angle, ramp_s, hold_s)
+    state = hold_at(coupling, angle, ramp_s, hold_s)
     full = coupling.new_state(preload.size)
     full.values[...] = state.values[inverse]
     full.angle_rad[...] = state.angle_rad[inverse]
@@ -99,7 +100,7 @@ def _solve(coupling: Coupling, tgt: np.ndarray, ramp_s: float, hold_s: float) ->
     """Twists (rad) at which the held torque equals ``tgt`` (N*m, all non-zero)."""
 
     def held(x):
-        return _hold(coupling, x, ramp_s, hold_s).torque_nm - tgt
+        return hold_at(coupling, x, ramp_s, hold_s).torque_nm - tgt
 
     # bracket: start from the stiffest guess (too small a twist), double until the torque passes
     lo = np.zeros(tgt.size)

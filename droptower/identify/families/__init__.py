@@ -1,7 +1,8 @@
 """The model families of the source papers, one module each (its parameters and its strategy).
 
 Families (NOTES §2): ``zerodim6`` and ``zerodim20`` (seed 000), ``elastoslide`` (seed 001),
-``pfeffer`` (seed 002), ``masing`` (seed 003), ``overlay`` (seed 004's map). Every module
+``pfeffer`` (seed 002), ``masing`` (seed 003), ``overlay`` (seed 004's map), ``template`` (any
+coupling file, its numbers scaled). Every module
 holds the family class (parameters, bounds, first guess, coupling) and its staged
 identification strategy; :mod:`.base` the family base class, :mod:`.stages` the stages they
 share.
@@ -11,17 +12,18 @@ from __future__ import annotations
 from typing import Callable
 
 from droptower.errors import DroptowerError
-from droptower.identify.families import elastoslide, masing, overlay, pfeffer, zerodim6, zerodim20
+from droptower.identify.families import elastoslide, masing, overlay, pfeffer, template, zerodim6, zerodim20
 from droptower.identify.families.base import COMMON_OPTIONS, Family
 from droptower.identify.families.elastoslide import ElastoslideFamily, loading_curve
 from droptower.identify.families.masing import MasingFamily
 from droptower.identify.families.overlay import OverlayFamily
 from droptower.identify.families.pfeffer import PfefferFamily
+from droptower.identify.families.template import TemplateFamily
 from droptower.identify.families.zerodim6 import ZeroDim6
 from droptower.identify.families.zerodim20 import ZeroDim20
 from droptower.identify.fit import Identification
 
-_MODULES = (zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay)
+_MODULES = (zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay, template)
 FAMILIES: dict[str, type[Family]] = {m.FAMILY.kind: m.FAMILY for m in _MODULES}
 STRATEGIES: dict[str, Callable[..., Identification]] = {m.FAMILY.kind: m.strategy for m in _MODULES}
 
@@ -34,4 +36,4 @@ def family_class(kind: str) -> type[Family]:
 
 
 __all__ = ["COMMON_OPTIONS", "FAMILIES", "STRATEGIES", "ElastoslideFamily", "Family", "MasingFamily", "OverlayFamily",
-           "PfefferFamily", "ZeroDim20", "ZeroDim6", "family_class", "loading_curve"]
+           "PfefferFamily", "TemplateFamily", "ZeroDim20", "ZeroDim6", "family_class", "loading_curve"]

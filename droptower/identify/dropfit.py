@@ -1,0 +1,329 @@
+"""A coupling model fitted to drop-test decays (``droptower identify --from-drop-tests``).
+
+Every test is re-simulated from its impact (:mod:`.lever`): the lever (inertia J) starts at
+rest position with the rate the impact gave it (:mod:`.droplogs`) and decays freely on the
+candidate coupling, which starts in the state the rig's conditioning leaves it in (seed 004's
+pre-straining; ``conditioning=False``: virgin). The residual is the angle over the compared
+window (and the torque where the log has it, weighted by ``torque_weight``), each test's part
+divided by its peak and by the square root of its sample count, so that small drops count as
+much as large ones. All tests of all parameter sets of a call (a candidate, or the columns of
+a forward-difference Jacobian) decay in ONE batched call of the core.
+
+The fit is bounded trust-region-reflective least squares (:func:`~droptower.identify.fit.fit_rows`).
+Standard errors: s^2 (J'J)^-1 inflated for the residual's lag-1 correlation, plus, in
+quadrature, the parameters' shift when the decays are integrated on half the step (the
+integration step's bias, Richardson-scaled for the second-order scheme), so they do not
+claim more than the simulation's accuracy supports. A fraction of the tests (spread over
+inertias and amplitudes) is held out and predicted.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+from droptower.identify.data import DataScale
+from droptower.identify.droplogs import DropDecay
+from droptower.identify.families import family_class
+from droptower.identify.families.base import Family
+from droptower.identify.fit import Counter, Parameter, check_in_bounds, clip_to_bounds, fit_rows
+from droptower.identify.lever import at_times, free_decay
+from droptower.rheology import Coupling
+
+#: Model kinds a drop-test campaign can identify (the servo-only families need steady sine blocks).
+DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer")
+#: Random starting points tried (in one batched call) before the least-squares fit.
+STARTS = 12
+
+
+@dataclass(frozen=True)
+class DropFitSettings:
+    """substeps: integration steps per sample; torque_weight: weight of the torque residual
+    against the angle's (0: angle only); conditioning: (ramp_s, hold_s) of the rig's preload
+    conditioning the coupling undergoes before each drop, or None (virgin coupling);
+    holdout_fraction: share of the tests held out; max_nfev: optimiser evaluation limit (0:
+    20 per parameter + 20); seed: of the random starting points."""
+
+    substeps: int = 2
+    torque_weight: float = 0.5
+    conditioning: tuple[float, float] | None = (2.0, 30.0)
+    holdout_fraction: float = 0.2
+    max_nfev: int = 0
+    seed: int = 0
+
+
+def drop_scale(decays: list[DropDecay]) -> DataScale:
+    """Typical magnitudes of a drop campaign, for the families' bounds and first guesses: the
+    linear stiffness J omega^2 of the first cycles, their amplitudes, rates and frequencies."""
+    k = np.array([d.inertia_kgm2 * (2 * np.pi * d.frequency_hz) ** 2 for d in decays])
+    amp = max(d.amplitude_rad for d in decays)
+    return DataScale(amp, amp, float(np.median(k)) * amp, float(np.median(k)),
+                     max(abs(d.rate0_rad_per_s) for d in decays), float(np.median([d.frequency_hz for d in decays])))
+
+
+class DropProblem:
+    """The fitting tests of a campaign bound to a family: parameter sets -> residuals, in one call."""
+
+    def __init__(self, family: Family, decays: list[DropDecay], settings: DropFitSettings):
+        self.family, self.decays, self.settings = family, decays, settings
+        dts = {round(d.dt_s, 15) for d in decays}
+        if len(dts) > 1:
+            raise DroptowerError(f"the logs differ in sample rate ({', '.join(f'{1 / d:.6g}' for d in sorted(dts))} Hz); "
+                                 "identify them in groups of one rate")
+        self.dt_s = decays[0].dt_s
+        n = max(d.time_s.size for d in decays)
+        self.times = np.array([np.pad(d.time_s, (0, n - d.time_s.size), mode="edge") for d in decays])
+        self.mask = np.array([np.arange(n) < d.time_s.size for d in decays])
+        self.angle = np.array([np.pad(d.angle_rad, (0, n - d.time_s.size)) for d in decays])
+        self.torque = np.array([np.pad(d.torque_nm, (0, n - d.time_s.size)) if d.torque_nm is not None
+                                else np.zeros(n) for d in decays])
+        self.has_torque = np.array([d.torque_nm is not None for d in decays])
+        counts = self.mask.sum(axis=1)
+        self.w_angle = 1.0 / (np.array([d.amplitude_rad for d in decays]) * np.sqrt(counts))
+        t_amp = np.array([d.torque_amplitude_nm if d.torque_nm is not None else 1.0 for d in decays])
+        self.w_torque = np.where(self.has_torque, settings.torque_weight, 0.0) / (t_amp * np.sqrt(counts))
+        self.counter = Counter()
+
+    def couplings(self, rows: np.ndarray) -> tuple[Coupling | None, np.ndarray]:
+        """One coupling over the rows' parameter sets, and which rows are admissible (a row the
+        core refuses, e.g. a falling table, gets the first admissible row's set and NaN results)."""
+        try:
+            return self.family.batch(rows), np.ones(len(rows), bool)
+        except DroptowerError:
+            pass
+        good, sets = np.zeros(len(rows), bool), []
+        for i, v in enumerate(rows):
+            try:
+                sets.append(self.family.coupling(v))
+                good[i] = True
+            except DroptowerError:
+                sets.append(None)
+        if not good.any():
+            return None, good
+        first = next(c for c in sets if c is not None)
+        return Coupling.stack([c if c is not None else first for c in sets]), good
+
+    def simulate(self, rows: np.ndarray, substeps: int | None = None, tests: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and torque (M, T, N) of each parameter set (rows (M, n)) on each test (T)."""
+        rows = np.atleast_2d(rows)
+        tests = np.arange(len(self.decays)) if tests is None else np.asarray(tests)
+        m, t = rows.shape[0], tests.size
+        sub = int(substeps or self.settings.substeps)
+        h = self.dt_s / sub
+        times = self.times[tests]
+        coupling, good = self.couplings(rows)
+        if coupling is None:
+            nan = np.full((m, t, times.shape[1]), np.nan)
+            return nan, nan
+        state = None
+        if self.settings.conditioning is not None:
+            from droptower.rig.preload import hold_at
+
+            cond = hold_at(coupling, np.zeros(m), *self.settings.conditioning)
+            which = np.repeat(np.arange(m), t)
+            state = type(cond)(cond.values[which].copy(), cond.angle_rad[which].copy(), cond.torque_nm[which].copy())
+        batch = Coupling(coupling.elements, name=coupling.name, params=np.repeat(coupling.params, t, axis=0))
+        inertia = np.tile([self.decays[i].inertia_kgm2 for i in tests], m)
+        rate0 = np.tile([self.decays[i].rate0_rad_per_s for i in tests], m)
+        n_steps = int(math.ceil(float(times.max()) / h)) + 1
+        angle, torque = free_decay(batch, inertia, rate0, n_steps, h, state)
+        grid = np.tile(times, (m, 1))
+        a = at_times(angle, h, grid).reshape(m, t, -1)
+        q = at_times(torque, h, grid).reshape(m, t, -1)
+        a[~good] = np.nan
+        self.counter.evaluations += m
+        self.counter.core_calls += 1
+        return a, q
+
+    def residuals(self, rows: np.ndarray, substeps: int | None = None) -> np.ndarray:
+        """(M, R) weighted residual vectors (angle part, then torque part for tests with torque)."""
+        a, q = self.simulate(rows, substeps)
+        ra = ((a - self.angle[None]) * self.w_angle[None, :, None])[:, self.mask]
+        sel = self.mask & self.has_torque[:, None]
+        rq = ((q - self.torque[None]) * self.w_torque[None, :, None])[:, sel]
+        return np.concatenate([ra, rq], axis=1)
+
+
+def test_errors(problem: DropProblem, values: np.ndarray) -> list[dict[str, Any]]:
+    """Per test: RMS angle (and torque) error over the compared window as a fraction of the
+    test's peak (``angle_nrmse``, ``torque_nrmse``)."""
+    a, q = problem.simulate(values[None])
+    out = []
+    for i, d in enumerate(problem.decays):
+        n = d.time_s.size
+        row = {"file": d.name, "inertia_kgm2": d.inertia_kgm2, "amplitude_deg": math.degrees(d.amplitude_rad),
+               "frequency_hz": d.frequency_hz, "rate0_rad_per_s": d.rate0_rad_per_s, "rate_source": d.rate_source,
+               "angle_nrmse": float(np.sqrt(np.mean((a[0, i, :n] - d.angle_rad) ** 2)) / d.amplitude_rad)}
+        if d.torque_nm is not None:
+            row["torque_nrmse"] = float(np.sqrt(np.mean((q[0, i, :n] - d.torque_nm) ** 2)) / d.torque_amplitude_nm)
+        out.append(row)
+    return out
+
+
+def summarise(per_test: list[dict[str, Any]]) -> dict[str, Any]:
+    """RMS over tests of the per-test errors, and the list."""
+    out: dict[str, Any] = {"tests": len(per_test)}
+    for key in ("angle_nrmse", "torque_nrmse"):
+        vals = [r[key] for r in per_test if key in r]
+        if vals:
+            out[key] = float(np.sqrt(np.mean(np.square(vals))))
+            out[f"{key}_max"] = float(np.max(vals))
+    out["per_test"] = per_test
+    return out
+
+
+def holdout_split(decays: list[DropDecay], fraction: float) -> tuple[list[int], list[int]]:
+    """(fitting, hold-out) test indices: every k-th test in the order of inertia and amplitude,
+    so the hold-out tests span the campaign; none below 5 tests."""
+    n = len(decays)
+    n_hold = int(math.floor(fraction * n)) if n >= 5 else 0
+    order = sorted(range(n), key=lambda i: (decays[i].inertia_kgm2, decays[i].amplitude_rad))
+    hold = sorted(order[int(j)] for j in np.round(np.linspace(1, n - 2, n_hold)).astype(int)) if n_hold else []
+    return [i for i in range(n) if i not in hold], hold
+
+
+@dataclass
+class DropIdentification:
+    """The result of fitting a family to drop-test decays (``--json`` keys: see :meth:`as_dict`)."""
+
+    model: str
+    family: Family
+    values: np.ndarray
+    std_error: np.ndarray
+    at_bounds: list[str]
+    non_identifiable: list[dict[str, float]]
+    converged: bool
+    message: str
+    fit_error: dict[str, Any]
+    holdout_error: dict[str, Any] | None
+    tests_used: list[str]
+    tests_held_out: list[str]
+    tests_excluded: list[dict[str, str]]
+    evaluations: int
+    nfev: int
+    wall_s: float
+    step_bias: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    coupling_file: str | None = None
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return dict(zip(self.family.names, map(float, self.values)))
+
+    def coupling(self, description: str = "") -> Coupling:
+        return self.family.coupling(self.values, description=description)
+
+    def as_dict(self) -> dict[str, Any]:
+        from droptower.identify.report import _clean
+
+        return _clean({
+            "converged": self.converged, "model": self.model, "message": self.message,
+            "parameters": {n: {"value": v, "std_error": s, "at_bound": n in self.at_bounds}
+                           for n, v, s in zip(self.family.names, self.values, self.std_error)},
+            "derived": self.family.derived(self.values), "at_bounds": self.at_bounds,
+            "non_identifiable": self.non_identifiable, "fit_error": self.fit_error,
+            "holdout_error": self.holdout_error, "tests_used": self.tests_used,
+            "tests_held_out": self.tests_held_out, "tests_excluded": self.tests_excluded,
+            "evaluations": self.evaluations, "nfev": self.nfev, "wall_s": self.wall_s,
+            "coupling_file": self.coupling_file})
+
+
+def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
+                   settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | None = None,
+                   options: dict[str, Any] | None = None) -> DropIdentification:
+    """Fit family ``kind`` (:data:`DROP_KINDS`; options as for ``identify``, e.g. ``template``)
+    to the free decays ``decays``."""
+    start = time.perf_counter()
+    if kind not in DROP_KINDS:
+        raise DroptowerError(f"model {kind!r} cannot be identified from drop tests (kinds: {', '.join(DROP_KINDS)})")
+    if len(decays) < 2:
+        raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
+                             + (f" ({len(excluded)} excluded)" if excluded else ""))
+    family = family_class(kind)(drop_scale(decays), options)
+    fit_idx, hold_idx = holdout_split(decays, settings.holdout_fraction)
+    problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
+    params = family.parameters
+    x0 = family.initial()
+    given = np.zeros(len(params), bool)
+    for name, value in (init or {}).items():
+        if name not in family.names:
+            raise DroptowerError(f"unknown parameter {name} for model {kind} (parameters: {', '.join(family.names)})")
+        i = family.names.index(name)
+        check_in_bounds([params[i]], np.array([float(value)]))
+        x0[i], given[i] = float(value), True
+    free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
+    x0 = start_search(problem, family, x0, free, settings.seed)
+    sol = fit_rows(params, x0, problem.residuals, free=free, max_nfev=settings.max_nfev)
+    if "p" in family.names and not given[family.names.index("p")]:
+        sol = walk_p(problem, family, sol, settings.max_nfev)
+    # the integration step's bias: the parameters' shift to the half step, Richardson-scaled (order 2)
+    r_fine = problem.residuals(sol.values[None], 2 * settings.substeps)[0]
+    bias_z = np.linalg.lstsq(sol.jacobian, -(r_fine - sol.residual), rcond=None)[0] * 4.0 / 3.0
+    r = sol.residual
+    lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
+    std = sol.std_error(lag1, extra_z=bias_z)
+    fit_err = summarise(test_errors(problem, sol.values))
+    hold_err = None
+    if hold_idx:
+        hold = DropProblem(family, [decays[i] for i in hold_idx], settings)
+        hold_err = summarise(test_errors(hold, sol.values))
+    return DropIdentification(
+        kind, family, sol.values, std, sol.at_bounds, sol.non_identifiable, sol.converged, sol.message, fit_err,
+        hold_err, [decays[i].name for i in fit_idx], [decays[i].name for i in hold_idx], list(excluded or []),
+        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z)
+
+
+def walk_p(problem: DropProblem, family: Family, sol: Any, max_nfev: int) -> Any:
+    """The elastoslide's odd exponent p: walk over ``p_candidates`` from the fitted one while the
+    cost falls (as the servo strategy does). Moving to p', v_r moves so that the slip-rate law
+    (v / v_r)^(1/p) keeps its value at the campaign's typical rate."""
+    jp, jv = family.names.index("p"), family.names.index("v_r_rad_per_s")
+    cands = sorted(int(v) for v in family.options["p_candidates"])
+    v_typ = float(np.median([abs(d.rate0_rad_per_s) for d in problem.decays]))
+    fits = {int(sol.values[jp]): sol}
+
+    def cost(s: Any) -> float:
+        return float(s.residual @ s.residual) if s.converged else math.inf
+
+    for direction in (-1, 1):
+        here = sol
+        while True:
+            p_old = int(here.values[jp])
+            i = cands.index(p_old) + direction if p_old in cands else -1
+            if not 0 <= i < len(cands):
+                break
+            p_new = cands[i]
+            if p_new not in fits:
+                x = here.values.copy()
+                x[jv] = v_typ * (x[jv] / v_typ) ** (p_new / p_old)
+                x[jp] = p_new
+                fits[p_new] = fit_rows(family.parameters, clip_to_bounds(family.parameters, x), problem.residuals,
+                                       free=sol.free, max_nfev=max_nfev)
+            if cost(fits[p_new]) >= cost(here):
+                break
+            here = fits[p_new]
+    return min(fits.values(), key=cost)
+
+
+def start_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray, seed: int) -> np.ndarray:
+    """The best of ``STARTS`` starting points (the first guess and random ones up to a factor
+    e^1.5 ~ 4.5 around it in every free logarithmic parameter; the elastoslide's p over its
+    candidates), all evaluated in one batched call on the fitting tests."""
+    rng = np.random.default_rng(seed)
+    params: list[Parameter] = family.parameters
+    cands = np.repeat(x0[None], STARTS, axis=0)
+    for j, p in enumerate(params):
+        if free[j] and p.log:
+            cands[1:, j] = x0[j] * np.exp(rng.uniform(-1.5, 1.5, STARTS - 1))
+    if "p" in family.names and "p_candidates" in family.options:
+        jp = family.names.index("p")
+        cands[:, jp] = rng.choice([int(v) for v in family.options["p_candidates"]], STARTS)
+        cands[0, jp] = x0[jp]
+    cands = np.array([clip_to_bounds(params, c) for c in cands])
+    r = problem.residuals(cands)
+    cost = np.where(np.isfinite(r).all(axis=1), np.sum(r * r, axis=1), np.inf)
+    return cands[int(np.argmin(cost))]

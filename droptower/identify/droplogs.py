@@ -1,0 +1,163 @@
+"""Drop-test logs -> the measured free decays a coupling model is fitted to (NOTES §1.3-1.4).
+
+Per log: channels mapped as for ``droptower extract``; the impact located by the extractor's
+:func:`~droptower.extract.impact.find_impact`; pre-trigger means removed (sensor offsets and
+the preload); the lever's rate just after the impact from
+
+- the impact-force channel: omega0 = L * (integral of F dt over the pulse) / J, the impulse's
+  moment about the pivot (the pivot's reaction has none), at the pulse's centroid; or
+- without a force channel (or lever length), the angle's slope after the onset: a cubic
+  through the angle over the first eighth of a period after the contact, its zero before
+  the contact is the impact instant and its slope there omega0.
+
+The compared window runs from the end of the contact over ``cycles`` periods. A log with a
+second impact inside that window is excluded (named, with the time), like a log that cannot
+be read or holds no impact; the others go on.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+from droptower.extract.decay import start_frequency_and_decay
+from droptower.extract.extractor import metadata_value
+from droptower.extract.impact import find_impact
+
+#: Fraction of the first period after the contact over which the angle's slope is fitted.
+SLOPE_WINDOW_PERIODS = 0.125
+
+
+@dataclass
+class DropDecay:
+    """One drop test's measured free decay (SI).
+
+    time_s (N,): compared samples, seconds after the impact instant; angle_rad (N,): angle
+    minus its pre-trigger mean; torque_nm (N,) or None: torque minus its pre-trigger mean;
+    inertia_kgm2: J; rate0_rad_per_s: the lever's rate just after the impact; rate_source:
+    ``impact_force`` or ``angle_slope``; frequency_hz, amplitude_rad: the first cycle's
+    frequency and peak angle (for scaling, grids and reports); dt_s: sample step.
+    """
+
+    name: str
+    time_s: np.ndarray
+    angle_rad: np.ndarray
+    torque_nm: np.ndarray | None
+    inertia_kgm2: float
+    rate0_rad_per_s: float
+    rate_source: str
+    frequency_hz: float
+    amplitude_rad: float
+    dt_s: float
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def torque_amplitude_nm(self) -> float:
+        return float(np.max(np.abs(self.torque_nm))) if self.torque_nm is not None else math.nan
+
+
+@dataclass(frozen=True)
+class ReadSettings:
+    """How to read drop-test logs: channel roles, J / L overrides and fallbacks (e.g. the rig's),
+    ``cycles`` periods compared after the impact, ``rate`` (``auto``: the impulse where the log
+    has a force channel and L is known, else the angle's slope; ``impulse``; ``slope``)."""
+
+    roles: dict[str, str] = field(default_factory=dict)
+    inertia_kgm2: float | None = None
+    lever_length_m: float | None = None
+    defaults: dict[str, float] = field(default_factory=dict)
+    sensor_radius_m: float | None = None
+    cycles: float = 3.0
+    rate: str = "auto"
+
+
+def _slope_rate(t: np.ndarray, y: np.ndarray, start: int, period_s: float) -> tuple[float, float]:
+    """(impact instant, rate just after it) from a cubic through the angle after the contact."""
+    sel = np.flatnonzero((t >= t[start]) & (t <= t[start] + SLOPE_WINDOW_PERIODS * period_s))
+    if sel.size < 6:
+        raise DroptowerError("too few samples after the impact to take the angle's slope "
+                             f"({sel.size} in the first eighth of a period)")
+    t0 = t[sel[0]]
+    c = np.polyfit(t[sel] - t0, y[sel], 3)
+    roots = np.roots(c)
+    real = roots[np.abs(roots.imag) < 1e-9 * max(1.0, float(np.max(np.abs(roots))))].real
+    before = real[(real <= 0.0) & (real >= -SLOPE_WINDOW_PERIODS * period_s)]
+    tc = float(before.max()) if before.size else 0.0
+    return t0 + tc, float(np.polyval(np.polyder(c), tc))
+
+
+def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropDecay:
+    """The free decay of one test's :class:`~droptower.io.signals.DropSignals`."""
+    inertia = metadata_value(signals, settings.inertia_kgm2, "inertia_kgm2") or settings.defaults.get("inertia_kgm2")
+    if inertia is None:
+        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give --inertia-kgm2 or --rig")
+    lever = metadata_value(signals, settings.lever_length_m, "lever_length_m") or settings.defaults.get("lever_length_m")
+    force = signals.impact_force_n if settings.rate != "slope" else None
+    if settings.rate == "impulse" and (signals.impact_force_n is None or lever is None):
+        raise DroptowerError("rate from the impulse needs an impact-force channel and the lever length")
+    t_all, angle = np.asarray(signals.time_s, float), np.asarray(signals.angle_rad, float)
+    impact = find_impact(t_all, angle, force)
+    pre = slice(0, impact.baseline_end)
+    y = angle - float(np.mean(angle[pre]))
+    t = t_all - t_all[impact.onset]
+    after = slice(impact.contact_end, None)
+    noise = float(np.std(angle[pre]))
+    try:
+        period = 2.0 * np.pi / start_frequency_and_decay(t[after], y[after], noise)[0]
+    except DroptowerError:
+        # no zero crossing: friction holds the lever off its rest (a model can still be fitted);
+        # the first extreme comes about a quarter period after the impact
+        period = 4.0 * float(t[impact.contact_end + int(np.argmax(np.abs(y[after])))])
+    if force is not None and lever is not None:
+        pulse = slice(impact.onset - 1, impact.contact_end + 1)
+        f = force[pulse] - float(np.median(force[pre]))
+        t_impact = float(np.sum(t[pulse] * f) / np.sum(f))   # the pulse's centroid (NOTES §1.2)
+        rate0, source = lever * impact.impulse_ns / inertia, "impact_force"
+    else:
+        t_impact, rate0 = _slope_rate(t, y, impact.contact_end, period)
+        source = "angle_slope"
+    end = t_impact + settings.cycles * period
+    if t[-1] < t_impact + 0.75 * period:
+        raise DroptowerError(f"the record ends {t[-1]:.4g} s after the impact, less than 3/4 of the period "
+                             f"({period:.4g} s)")
+    if impact.second_onset is not None and t[impact.second_onset] < end:
+        raise DroptowerError(f"double impact {1e3 * (t[impact.second_onset] - t_impact):.2f} ms after the impact "
+                             "(a second contact within the compared window)")
+    sel = np.flatnonzero((t >= t[impact.contact_end]) & (t <= end))
+    torque = None
+    if signals.torque_nm is not None:
+        torque = (np.asarray(signals.torque_nm, float) - float(np.mean(signals.torque_nm[pre])))[sel]
+    first = sel[t[sel] <= t_impact + 0.5 * period]
+    dt = float(np.median(np.diff(t_all)))
+    return DropDecay(name, t[sel] - t_impact, y[sel], torque, float(inertia), float(rate0), source,
+                     1.0 / period, float(np.max(np.abs(y[first]))), dt, dict(signals.metadata))
+
+
+def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[list[DropDecay], list[dict[str, str]]]:
+    """The free decays of drop-test logs and campaign folders (their ``logs/``), and the
+    excluded ones as {file, reason}. Every problem of one log excludes that log only."""
+    from droptower.io import read_any
+    from droptower.io.mapping import map_channels
+
+    files: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            logs = p / "logs" if (p / "logs").is_dir() else p
+            found = sorted(f for f in logs.iterdir() if f.suffix in (".parquet", ".csv") and f.is_file())
+            if not found:
+                raise DroptowerError("no logs (.parquet, .csv) in the folder", file=p)
+            files += found
+        else:
+            files.append(p)
+    decays, excluded = [], []
+    for f in files:
+        try:
+            signals = map_channels(read_any(f), settings.roles, sensor_radius_m=settings.sensor_radius_m)
+            decays.append(decay_from_signals(signals, settings, f.name))
+        except DroptowerError as exc:
+            excluded.append({"file": str(f), "reason": ": ".join(p for p in (exc.where, exc.problem) if p)})
+    return decays, excluded

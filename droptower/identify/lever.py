@@ -1,0 +1,61 @@
+"""The lever's free decay after the impact, with the coupling as its only torque (NOTES §1.3).
+
+J phi'' + T(phi, history) = 0, phi(0) = 0, phi'(0) = the rate the impact gave the lever. The
+coupling T is the rheological core: its state advances with the lever, one batched
+:meth:`Coupling.step` per time step for every row (a test under one parameter set), so all
+tests of all candidate parameter sets decay in one call. Integration: velocity Verlet
+(second order, explicit, symplectic) on a step ``dt_s / substeps``: the lever's highest
+frequency sqrt(K_max / J) times the step is ~0.02 at the rig's sample rate, far inside the
+scheme's stability limit 2, and the core's own updates (exact for the Maxwell branches,
+implicit for the sliders) have no stability limit. The rig (pymunk, ``droptower.rig``)
+integrates the same equation with symplectic Euler at the same step; the two agree to the
+step's second-order error (tested).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from droptower.rheology import Coupling, CouplingState
+
+
+def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int,
+               step_s: float, state: CouplingState | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Angle (rad) and coupling torque (N*m) of the free decay on the grid k * step_s, k = 0..n_steps.
+
+    coupling: one parameter set, or one per row (``coupling.n_sets == B``); inertia_kgm2,
+    rate0_rad_per_s: (B,); state: the coupling's state at rest before the impact (default
+    virgin), advanced in place. Angle and torque are changes from that rest (the screw holding
+    a preload keeps its torque, so the lever feels T - T_rest). Returns two (B, n_steps + 1) arrays.
+    """
+    inertia = np.asarray(inertia_kgm2, float)
+    v = np.array(rate0_rad_per_s, dtype=float)
+    b = v.size
+    state = coupling.new_state(b) if state is None else state
+    phi0 = state.angle_rad.copy()
+    rest = state.torque_nm.copy()
+    phi = phi0.copy()
+    acc = np.zeros(b)
+    angle = np.empty((b, n_steps + 1))
+    torque = np.empty((b, n_steps + 1))
+    angle[:, 0] = 0.0
+    torque[:, 0] = 0.0
+    h, half_h2 = step_s, 0.5 * step_s * step_s
+    for k in range(1, n_steps + 1):
+        phi = phi + h * v + half_h2 * acc
+        t = coupling.step(state, phi, h) - rest
+        acc_new = -t / inertia
+        v = v + 0.5 * h * (acc + acc_new)
+        acc = acc_new
+        angle[:, k] = phi - phi0
+        torque[:, k] = t
+    return angle, torque
+
+
+def at_times(history: np.ndarray, step_s: float, times_s: np.ndarray) -> np.ndarray:
+    """``history`` (B, K) on the grid k * step_s, linearly interpolated at ``times_s`` (B, N) (s)."""
+    pos = np.clip(times_s / step_s, 0.0, history.shape[1] - 1.000001)
+    lo = pos.astype(np.int64)
+    frac = pos - lo
+    a = np.take_along_axis(history, lo, axis=1)
+    c = np.take_along_axis(history, lo + 1, axis=1)
+    return a + frac * (c - a)
