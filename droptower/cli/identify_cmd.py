@@ -76,8 +76,8 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 
 @click.command()
 @quiet_option
-@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--model", "kind", required=True, type=click.Choice(MODEL_KINDS), help="Model family.")
+@click.argument("data", nargs=-1, required=True, type=click.Path())
+@click.option("--model", "kind", required=True, type=click.Choice(MODEL_KINDS + ("template",)), help="Model family.")
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque); repeatable.")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
@@ -86,8 +86,20 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 @click.option("--out", type=click.Path(dir_okay=False), help="Write the identified coupling (TOML) here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), help="Write torque and loop plots to this folder.")
+@click.option("--from-drop-tests", "drops", is_flag=True,
+              help="DATA are drop-test logs or campaign folders: fit the model to the free decays.")
+@click.option("--template", help="Coupling TOML or preset whose numbers --model template scales.")
+@click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
+              help="Drop tests: share of the tests held out and predicted.")
+@click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia).")
+@click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata.")
+@click.option("--lever-length-m", type=float, help="Drop tests: lever length L, overrides the logs' metadata.")
+@click.option("--predict-servo", type=click.Path(dir_okay=False),
+              help="Drop tests: write the fitted model's servo K' and loss factor next to the drop tower's values.")
 def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params_path: str | None,
-             holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None) -> None:
+             holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None, drops: bool,
+             template: str | None, holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
+             lever_length_m: float | None, predict_servo: str | None) -> None:
     """Identify a coupling model of family --model from imposed-angle / measured-torque DATA.
 
     Bounded trust-region-reflective least squares on the torque error, preceded by the
@@ -116,6 +128,13 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     from droptower.identify.strategies import identify as run
 
     init = _read_init(params_path)
+    if drops:
+        from droptower.cli.identify_drops_cmd import run as run_drops
+
+        return run_drops(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
+                         out, as_json, plot_dir, predict_servo)
+    if template is not None:
+        init.options["template"] = template
     skip_s = float(init.options.get("skip_s", 0.0))
     segments = _read_data(data, channels, skip_s)
     held = _read_data((holdout,), channels, skip_s) if holdout else None

@@ -10,9 +10,10 @@ the preload); the lever's rate just after the impact from
   through the angle over the first eighth of a period after the contact, its zero before
   the contact is the impact instant and its slope there omega0.
 
-The compared window runs from the end of the contact over ``cycles`` periods. A log with a
-second impact inside that window is excluded (named, with the time), like a log that cannot
-be read or holds no impact; the others go on.
+The compared window runs from the end of the contact over ``cycles`` periods, or up to a
+later contact of the drop mass (it falls back onto the lever); a log with a second impact
+within ``MIN_WINDOW_PERIODS`` periods (a double impact, NOTES §1.3) is excluded (named, with
+the time), like a log that cannot be read or holds no impact; the others go on.
 """
 from __future__ import annotations
 
@@ -28,6 +29,8 @@ from droptower.extract.decay import start_frequency_and_decay
 from droptower.extract.extractor import metadata_value
 from droptower.extract.impact import find_impact
 
+#: A later contact of the drop mass ends the compared window; one within this many periods excludes the test.
+MIN_WINDOW_PERIODS = 1.5
 #: Fraction of the first period after the contact over which the angle's slope is fitted.
 SLOPE_WINDOW_PERIODS = 0.125
 
@@ -125,8 +128,11 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
         raise DroptowerError(f"the record ends {t[-1]:.4g} s after the impact, less than 3/4 of the period "
                              f"({period:.4g} s)")
     if impact.second_onset is not None and t[impact.second_onset] < end:
-        raise DroptowerError(f"double impact {1e3 * (t[impact.second_onset] - t_impact):.2f} ms after the impact "
-                             "(a second contact within the compared window)")
+        second = t[impact.second_onset] - t_impact
+        if second < MIN_WINDOW_PERIODS * period:
+            raise DroptowerError(f"double impact {1e3 * second:.2f} ms after the impact ({second / period:.2f} periods; "
+                                 f"at least {MIN_WINDOW_PERIODS:g} free periods are needed)")
+        end = t[impact.second_onset - 1]  # the decay is free up to the next contact
     sel = np.flatnonzero((t >= t[impact.contact_end]) & (t <= end))
     torque = None
     if signals.torque_nm is not None:
