@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from droptower.errors import DroptowerError
+from droptower.limits import MAX_CONFIG_BYTES, MAX_CONFIG_DEPTH, format_bytes, nesting_depth
 
 #: Sub-folders of ``rig_configs``: couplings, rigs, test plans (design of experiments).
 KINDS = ("couplings", "rigs", "doe")
@@ -61,10 +62,19 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     try:
         with path.open("rb") as fh:
-            return tomllib.load(fh)
+            text = fh.read(MAX_CONFIG_BYTES + 1)
+        if len(text) > MAX_CONFIG_BYTES:  # a config is a few kB: this is not one (and would parse for minutes)
+            raise DroptowerError(f"larger than {format_bytes(MAX_CONFIG_BYTES)}: not a configuration file", file=path)
+        data = tomllib.loads(text.decode("utf-8"))
     except FileNotFoundError:
         raise DroptowerError("file not found", file=path) from None
     except tomllib.TOMLDecodeError as exc:
         raise DroptowerError(f"not valid TOML ({exc})", file=path) from None
+    except RecursionError:  # the parser recurses once per nested array or inline table
+        raise DroptowerError(f"nested too deeply (more than {MAX_CONFIG_DEPTH} levels of arrays or tables)",
+                             file=path) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise DroptowerError(f"cannot read file ({exc})", file=path) from None
+    if nesting_depth(data) > MAX_CONFIG_DEPTH:
+        raise DroptowerError(f"nested too deeply (more than {MAX_CONFIG_DEPTH} levels of arrays or tables)", file=path)
+    return data

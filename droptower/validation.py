@@ -64,7 +64,7 @@ def validate(model: type[M], data: dict[str, Any], file: str | Path | None,
         # a misspelt field shows as that field unknown and the right one missing: name the typo
         err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
         where = describe_location(tuple(err["loc"]), data, name_item) or None
-        msg = err["msg"]
+        msg = err["msg"].removeprefix("Value error, ")  # pydantic's prefix for a validator's ValueError
         if err["type"] == "extra_forbidden":
             msg = "unknown field"
         elif err["type"] == "missing":

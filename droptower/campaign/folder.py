@@ -110,7 +110,7 @@ def read_manifest(path: Path) -> dict[str, Any]:
     """A campaign folder's manifest; anything else is a one-line error (the folder is not touched)."""
     try:
         data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise DroptowerError(f"unreadable campaign manifest ({exc}); not touching this folder", file=path) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise DroptowerError("not a droptower campaign manifest; not touching this folder", file=path)
@@ -245,7 +245,7 @@ def read_record(path: Path) -> dict[str, Any] | None:
     """A test's result record, or None if it is absent or unreadable (then the test is redone)."""
     try:
         record = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError):
         return None
     return record if isinstance(record, dict) and record.get("status") in ("done", "failed") else None
 

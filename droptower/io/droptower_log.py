@@ -165,6 +165,8 @@ def read_log(path: str | Path) -> Record:
         return _read_csv(path)
     except DroptowerError as exc:
         raise exc.with_file(path) from None
+    except RecursionError:  # json: metadata nested thousands deep
+        raise DroptowerError("cannot read droptower log: metadata nested too deeply", file=path) from None
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise DroptowerError(f"cannot read droptower log: {exc}", file=path) from None
 

@@ -227,6 +227,8 @@ class MapFit:
             raise DroptowerError("file not found", file=path) from None
         except json.JSONDecodeError as exc:
             raise DroptowerError(f"not valid JSON ({exc})", file=path) from None
+        except RecursionError:
+            raise DroptowerError("not a map file (nested too deeply)", file=path) from None
         except (OSError, UnicodeDecodeError) as exc:
             raise DroptowerError(f"cannot read file ({exc})", file=path) from None
         if not isinstance(data, dict):

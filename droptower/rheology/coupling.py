@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from droptower.errors import DroptowerError
+from droptower.limits import MAX_COUPLING_STATE
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ElementSpec, KernelElement
 
@@ -98,6 +99,10 @@ class Coupling:
         self.codes = np.array([k.code for k in kernels], dtype=np.int64)
         self.p_off = np.concatenate([[0], np.cumsum([k.params.size for k in kernels])]).astype(np.int64)
         self.s_off = np.concatenate([[0], np.cumsum([k.n_state for k in kernels])]).astype(np.int64)
+        if self.s_off[-1] > MAX_COUPLING_STATE:
+            raise DroptowerError(f"{self.s_off[-1]} state variables per instance exceed the limit of "
+                                 f"{MAX_COUPLING_STATE} (run time and memory grow with them): use fewer or smaller "
+                                 "discretised elements", file=path)
         default = np.concatenate([k.params for k in kernels])[None, :].astype(np.float64)
         self.params = default if params is None else np.ascontiguousarray(params, dtype=np.float64)
         if self.params.ndim != 2 or self.params.shape[1] != default.shape[1]:

@@ -16,6 +16,7 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_validator, model_validator
 
+from droptower.limits import MAX_ELEMENT_N
 from droptower.rheology import kernels as K
 from droptower.validation import StrictModel
 
@@ -195,6 +196,14 @@ class Constriction(StrictModel):
     k: NonNegativeFloat            # -
 
 
+def _at_most_max_n(n: int) -> int:
+    """A discretised element's ``n``: memory and run time grow with it (32-100 resolve a distribution)."""
+    if n > MAX_ELEMENT_N:
+        raise ValueError(f"n = {n} exceeds the limit of {MAX_ELEMENT_N} elements (memory and run time grow "
+                         "with n; 32-100 resolve a yield distribution): use fewer")
+    return n
+
+
 def masing_yield_torques(max_yield_torque: float, alpha: float, n: int) -> np.ndarray:
     """Seed 003: R_i = R exp(alpha (eta_i - 1)), eta_i = (i - 1)/(n - 1), i = 1..n."""
     eta = np.arange(n) / max(n - 1, 1)
@@ -210,6 +219,8 @@ class Masing(ElementSpec):
     max_yield_torque: PositiveFloat  # N*m, R
     alpha: NonNegativeFloat          # -, spread of the limits
     constriction: Constriction | None = None
+
+    _n_limit = field_validator("n")(_at_most_max_n)
 
     def compile(self):
         yields = masing_yield_torques(self.max_yield_torque, self.alpha, self.n)
@@ -227,6 +238,7 @@ class YieldDistribution(StrictModel):
     def _same_length(self):
         if len(self.weight) != len(self.yield_torque) or not self.weight:
             raise ValueError("yield_torque and weight must be non-empty lists of the same length")
+        _at_most_max_n(len(self.weight))
         return self
 
 
@@ -274,6 +286,8 @@ class Elastoslide(ElementSpec):
     yield_min: NonNegativeFloat | None = None  # N*m
     yield_max: PositiveFloat | None = None     # N*m
     distribution: YieldDistribution | None = None
+
+    _n_limit = field_validator("n")(_at_most_max_n)
 
     @field_validator("p")
     @classmethod

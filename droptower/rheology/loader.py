@@ -20,6 +20,7 @@ from pydantic import Field
 
 from droptower.configs import read_toml, resolve
 from droptower.errors import DroptowerError
+from droptower.limits import MAX_ELEMENTS
 from droptower.rheology.coupling import Coupling
 from droptower.rheology.elements import ELEMENT_KINDS, ElementUnion
 from droptower.validation import StrictModel, validate
@@ -40,6 +41,10 @@ def _name_element(list_name: str, index: int, item: Any) -> str:
 
 def parse_coupling(data: dict[str, Any], file: str | Path | None = None) -> Coupling:
     """Build a coupling from the parsed contents of a coupling file."""
+    elements = data.get("element")
+    if isinstance(elements, list) and len(elements) > MAX_ELEMENTS:  # before validating a million of them
+        raise DroptowerError(f"{len(elements)} elements exceed the limit of {MAX_ELEMENTS} per coupling: "
+                             "combine them (e.g. one masing or elastoslide element with n sliders)", file=file)
     for i, item in enumerate(data.get("element", []) if isinstance(data.get("element"), list) else []):
         kind = item.get("kind") if isinstance(item, dict) else None
         if kind is None:
