@@ -61,12 +61,13 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
     from droptower.errors import DroptowerError
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_rig
-    from droptower.rig.simulate import DropTest, simulate as run
+    from droptower.rig.simulate import DropTest, check_size, simulate as run
 
     if not (math.isfinite(duration_s) and duration_s > 0):
         raise DroptowerError(f"must be positive, got {duration_s:g}", where="--duration-s")
     rig_cfg = load_rig(rig)
     model = load_coupling(coupling)
+    check_size(rig_cfg, model, 1, duration_s, where="--duration-s")
     rig_cfg.check_test(inertia, drop_mass, height, preload_nm,
                        labels={"inertia_kgm2": "--inertia-kgm2", "drop_mass_kg": "--drop-mass-kg", "drop_height_m": "--height-m",
                                "preload_nm": "--preload-nm"})

@@ -18,6 +18,7 @@ from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, Pos
 
 from droptower.configs import read_toml, resolve
 from droptower.errors import DroptowerError
+from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
 from droptower.validation import StrictModel, validate
 
 if TYPE_CHECKING:
@@ -237,9 +238,25 @@ class DOE(StrictModel):
     def path(self) -> Path | None:
         return self._path
 
+    @property
+    def n_conditions(self) -> int:
+        """Number of test conditions (group x heights x preloads), counted without expanding them."""
+        return sum(len(g.heights_m or self.heights_m) * len(g.preloads_nm or self.preloads_nm) for g in self.group)
+
+    @property
+    def n_tests(self) -> int:
+        """Number of tests (conditions x repeats), counted without expanding them."""
+        return sum(len(g.heights_m or self.heights_m) * len(g.preloads_nm or self.preloads_nm)
+                   * (g.repeats or self.repeats) for g in self.group)
+
     def tests(self) -> pd.DataFrame:
         """One row per test: test_id, case, inertia_kgm2, drop_mass_kg, drop_height_m,
-        preload_nm, repeat (0-based), seed (base_seed + test_id)."""
+        preload_nm, repeat (0-based), seed (base_seed + test_id). At most
+        :data:`~droptower.limits.MAX_CAMPAIGN_TESTS` rows (else a one-line error)."""
+        if self.n_tests > MAX_CAMPAIGN_TESTS:
+            raise DroptowerError(f"{self.n_tests} tests (groups x heights x preloads x repeats) exceed the limit of "
+                                 f"{MAX_CAMPAIGN_TESTS} per campaign: split the plan into several files (e.g. by "
+                                 "group or height range) and run one campaign folder each", file=self.path)
         rows = []
         for i, g in enumerate(self.group):
             for h in g.heights_m or self.heights_m:
@@ -254,8 +271,12 @@ class DOE(StrictModel):
 
     def conditions(self) -> pd.DataFrame:
         """The distinct test conditions (repeats collapsed), with their number of repeats."""
+        rows = [(g.name or f"group {i + 1}", g.inertia_kgm2, g.drop_mass_kg, h, p, g.repeats or self.repeats)
+                for i, g in enumerate(self.group)
+                for h in g.heights_m or self.heights_m for p in g.preloads_nm or self.preloads_nm]
         keys = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"]
-        return (self.tests().groupby(keys, sort=False).size().rename("repeats").reset_index())
+        # a condition listed twice (a height given twice) is one condition with the repeats of both
+        return pd.DataFrame(rows, columns=[*keys, "repeats"]).groupby(keys, sort=False)["repeats"].sum().reset_index()
 
     def check(self, rig: RigConfig) -> None:
         """Every test must be runnable on ``rig`` (else a one-line error naming this file and group)."""
@@ -276,6 +297,10 @@ def load_doe(path_or_name: str | Path) -> DOE:
     """Load a test-plan TOML file, or a shipped preset by name (``"rapp2022_table2"``)."""
     path = resolve(path_or_name, "doe")
     doe = validate(DOE, read_toml(path), path, _name_group)
+    if doe.n_conditions > MAX_PLAN_CONDITIONS:  # before anything loops over them
+        raise DroptowerError(f"{doe.n_conditions} test conditions (groups x heights x preloads) exceed the limit of "
+                             f"{MAX_PLAN_CONDITIONS} per plan: split the plan into several files (e.g. by group or "
+                             "height range)", file=path)
     doe._path = path
     doe.name = doe.name or path.stem
     return doe

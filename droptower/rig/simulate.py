@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError
+from droptower.limits import STEP_LIMIT, memory_limit_bytes, require_memory, require_steps
 from droptower.io.droptower_log import write_log
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
@@ -192,6 +193,28 @@ def as_tests(tests: Sequence[DropTest] | pd.DataFrame) -> list[DropTest]:
     return list(tests)
 
 
+#: float64 arrays per output sample and test: the scene's angle, torque, drop-mass path and
+#: impulse grid, the sensors' channels and noise, the log's columns (an upper estimate)
+ARRAYS_PER_SAMPLE = 16
+
+
+def check_size(rig: RigConfig, coupling: Coupling, batch: int, duration_s: float, where: str = "duration") -> None:
+    """Refuse ``batch`` drop tests of ``duration_s`` whose records would exceed the memory limit
+    or whose simulation would take more than :data:`~droptower.limits.STEP_LIMIT` coupling steps
+    (one line: the limit and the longest record that fits)."""
+    fs = rig.sensors.sample_rate_hz
+    per_second = batch * fs * 8.0 * ARRAYS_PER_SAMPLE
+    n_samples = (rig.sensors.pre_trigger_s + duration_s) * fs
+    longest = max(0.0, memory_limit_bytes() / per_second - rig.sensors.pre_trigger_s)
+    what = f"{batch} drop test(s) of {duration_s:g} s at {fs:g} Hz"
+    fewer = " or simulate fewer tests at once (a smaller --chunk-size)" if batch > 1 else ""
+    require_memory(batch * n_samples * (8.0 * ARRAYS_PER_SAMPLE) + 8.0 * batch * coupling.n_state, what,
+                   f"record at most {longest:.3g} s after the impact{fewer}", where=where)
+    steps = batch * n_samples * rig.simulation.steps_per_sample
+    longest = STEP_LIMIT / (batch * fs * rig.simulation.steps_per_sample) - rig.sensors.pre_trigger_s
+    require_steps(steps, what, f"record at most {longest:.3g} s after the impact{fewer}", where=where)
+
+
 def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.DataFrame,
              duration_s: float = 0.25, workers: int = 1) -> list[DropResult]:
     """Simulate drop tests, all in one batch (or split over ``workers`` processes); results in order.
@@ -203,6 +226,7 @@ def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.
         raise DroptowerError(f"record duration must be positive, got {duration_s} s", where="duration_s")
     for i, t in enumerate(tests):
         rig.check_test(t.inertia_kgm2, t.drop_mass_kg, t.drop_height_m, t.preload_nm, where=f"test {i + 1}")
+    check_size(rig, coupling, len(tests), duration_s)
     inertia = np.array([t.inertia_kgm2 for t in tests])
     twist = pretwist(coupling, np.array([t.preload_nm for t in tests]), rig.simulation.preload_ramp_s,
                      rig.simulation.preload_hold_s)

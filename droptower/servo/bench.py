@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError
+from droptower.limits import require_memory, require_steps
 from droptower.rheology import Coupling, load_coupling
 from droptower.servo import histories
 from droptower.servo.evaluate import MIN_SAMPLES_PER_CYCLE, CycleEvaluation, evaluate_cycles
@@ -162,6 +163,27 @@ def _run_frequency(coupling: Coupling, frequency_hz: float, amplitudes: np.ndarr
     return offsets, evals, time_lab, angle, torque
 
 
+def _check_size(coupling: Coupling, batch: int, freqs: np.ndarray, preload_nm: float, sample_rate_hz: float,
+                simulation_rate_hz: float, n_cycles: float) -> None:
+    """Refuse a grid whose records (memory) or coupling steps (run time) are out of reach, before
+    anything is allocated: the lowest frequency has the longest records."""
+    f = float(freqs.min())
+    fine = max(simulation_rate_hz, MIN_STEPS_PER_CYCLE * f)
+    substeps = max(1, math.ceil(fine / sample_rate_hz - 1e-9))
+    n_fine = n_cycles / f * sample_rate_hz * substeps
+    n_lab = n_fine / substeps
+    # fine: time, unit sine, unit ramp, one chunk of angles per instance; lab: time, angle,
+    # torque and the evaluation's smoothed copies per instance; the coupling's state
+    nbytes = 8.0 * (3 * n_fine + batch * (min(n_fine, CHUNK_SAMPLES) + 6 * n_lab + coupling.n_state))
+    what = f"the servo run at {f:g} Hz ({n_cycles:g} cycles of {1 / f:.3g} s, {batch} amplitude(s))"
+    split = "raise the lowest --frequency-hz, lower --cycles or --sample-rate-hz, or run fewer amplitudes at once"
+    require_memory(nbytes, what, split)
+    iterations = 1 + (PRELOAD_ITERATIONS if preload_nm != 0.0 else 0)
+    require_steps(batch * iterations * float(np.sum(n_cycles / freqs * np.maximum(simulation_rate_hz,
+                                                                              MIN_STEPS_PER_CYCLE * freqs))),
+                  f"the servo grid ({batch} amplitude(s) x {freqs.size} frequencies)", split)
+
+
 def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
           preload_nm: float, sample_rate_hz: float, cycles: int, run_in_cycles: int, ramp_cycles: int,
           simulation_rate_hz: float, smooth: bool) -> Iterator[tuple[BenchRecord, CycleEvaluation, float]]:
@@ -182,6 +204,8 @@ def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], freq
     if int(cycles) != cycles or cycles < 1 or int(run_in_cycles) != run_in_cycles or run_in_cycles < 1:
         raise DroptowerError(f"cycles ({cycles}) and run-in cycles ({run_in_cycles}) must be positive integers")
 
+    _check_size(c, amps.size, freqs, preload_nm, sample_rate_hz, simulation_rate_hz,
+                ramp_cycles + run_in_cycles + cycles + 0.5)
     for f in freqs:
         fine = max(simulation_rate_hz, MIN_STEPS_PER_CYCLE * f)
         substeps = max(1, math.ceil(fine / sample_rate_hz - 1e-9))

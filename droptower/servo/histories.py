@@ -23,6 +23,7 @@ import numpy as np
 from scipy import signal
 
 from droptower.errors import DroptowerError
+from droptower.limits import require_memory
 
 #: Part of a cycle the oscillation runs on after the last evaluation cycle, so that the
 #: smoothing filter and the interpolation see data beyond the evaluation window's end.
@@ -107,6 +108,10 @@ class _Program:
         self.t += duration_s
 
     def render(self, sample_rate_hz: float) -> History:
+        samples = self.t * sample_rate_hz + 1.0
+        # time and angle, float64
+        require_memory(16.0 * samples, f"a history of {self.t:.3g} s at {sample_rate_hz:g} Hz",
+                       "use fewer or shorter segments (fewer cycles, higher frequencies) or a lower sample rate")
         n = int(math.floor(self.t * sample_rate_hz + 1e-9)) + 1
         time = np.arange(n) / sample_rate_hz
         angle = np.zeros(n)
