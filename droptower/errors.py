@@ -7,6 +7,8 @@ go on with the other files and list the failures at the end.
 """
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 
@@ -40,3 +42,14 @@ class DroptowerError(Exception):
         if self.file is not None:
             return self
         return DroptowerError(self.problem, file=file, where=self.where)
+
+
+class WriteError(DroptowerError):
+    """The system refused to write a file (full disk, no permission, read-only file system)."""
+
+    @classmethod
+    def from_os_error(cls, exc: OSError, file: str | Path | None = None) -> "WriteError":
+        """``exc`` in one line, named by ``file`` (else the file the OS names)."""
+        code = exc.errno or next(map(int, re.findall(r"\[errno (\d+)\]", str(exc))), None)  # pyarrow: in the text
+        reason = os.strerror(code) if code else (exc.strerror or str(exc))
+        return cls(f"cannot write ({reason})", file=file if file is not None else exc.filename)

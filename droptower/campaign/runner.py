@@ -23,7 +23,7 @@ from droptower.campaign.folder import (Layout, finished, layout_for, open_folder
 from droptower.campaign.results import assemble, write_results
 from droptower.campaign.spec import PLAN_COLUMNS, CampaignSpec, prepare
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError
 
 
 @dataclass
@@ -90,6 +90,9 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     cluster = make_executor(workers, scheduler, scheduler_timeout_s) if scheduler is not None else None
     try:
         return _run(spec, layout, resume, workers, cluster, progress, max_chunks, t_start)
+    except WriteError as exc:
+        raise WriteError(f"{exc.problem}; the finished tests are kept: make room, then continue with --resume",
+                         file=exc.file) from None
     finally:
         if cluster is not None:
             cluster.close()
@@ -128,6 +131,7 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
             run.executor = executor.description
             bar = tqdm(total=len(spec.tests), initial=len(status), unit="test", desc="campaign", file=sys.stderr,
                        disable=None if progress else True)
+            stopped = False
             try:
                 for task, outcome in executor.run(run_chunk, tasks):
                     if isinstance(outcome, ChunkOutcome):
@@ -138,15 +142,21 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
                         run.extract_cpu_s += outcome.extract_cpu_s
                         run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, outcome.peak_rss_mb)
                         bar.update(len(outcome.status))
+                    elif isinstance(outcome, (WriteError, OSError)):  # the folder cannot take more: stop
+                        stopped = True
+                        raise outcome if isinstance(outcome, WriteError) else WriteError.from_os_error(outcome)
                     else:
                         ids = [r["test_id"] for r in task.plan]
                         run.errors.append(f"chunk {task.index} (tests {ids[0]}-{ids[-1]}): internal error "
-                                          f"({type(outcome).__name__}: {outcome})")
-                        tqdm.write(f"droptower: error: {run.errors[-1]}", file=sys.stderr)
+                                          f"({type(outcome).__name__}: {outcome})")  # listed once, at the end
                     write_manifest(layout, spec, status, created)
             finally:
                 bar.close()
-                write_manifest(layout, spec, status, created)
+                try:
+                    write_manifest(layout, spec, status, created)
+                except WriteError:
+                    if not stopped:  # else the error in flight says it already
+                        raise
 
     records = finished(layout, spec)
     run.results = assemble(list(records.values()))

@@ -92,6 +92,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except click.exceptions.Exit as exc:
         return exc.exit_code
+    except OSError as exc:  # the system refused a read or write (full disk, permissions) outside the atomic writer
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"droptower: error: {where}{exc.strerror or exc}", err=True)
+        return 2
     return code if isinstance(code, int) else 0
 
 

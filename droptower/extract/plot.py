@@ -4,8 +4,6 @@ Drawn with matplotlib's object API on the Agg canvas (no pyplot state, no displa
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +11,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from droptower.extract.result import DEG, ExtractionResult
+from droptower.io.droptower_log import atomic_write
 from droptower.io.signals import DropSignals
 
 
@@ -49,12 +48,5 @@ def plot_fit(signals: DropSignals, result: ExtractionResult, path: str | Path, t
         f"c = {result.stiffness_nm_per_rad * DEG:.1f} N·m/deg, d = {result.damping_ratio:.3f}"
         + (f"  [{', '.join(result.flags)}]" if result.flags else "")), fontsize=9)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110, format="png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     return path

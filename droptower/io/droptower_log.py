@@ -38,7 +38,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError
 from droptower.io.channels import Channel, Record
 
 MAGIC = "# droptower-log 1"
@@ -71,18 +71,41 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"metadata value of type {type(value).__name__} cannot be written as JSON")
 
 
-def atomic_write(path: Path, write: Callable[[str], None]) -> None:
+def current_umask() -> int:
+    """The process's file-mode creation mask, read without changing it where the OS allows."""
+    try:
+        with open("/proc/self/status") as fh:  # Linux >= 4.7: no window in which the mask is 0
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write(path: str | Path, write: Callable[[str], None]) -> None:
     """Write ``path`` all at once: ``write(tmp)`` fills a temporary file in the same folder, which
     then replaces ``path`` by :func:`os.replace` (atomic on one file system), so a reader never
     sees a half-written file and an interrupted write leaves the old file; the temporary file
-    is removed if ``write`` fails."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    is removed if ``write`` fails. The file gets the mode a plain ``open`` would give it (0666
+    less the umask; the temporary file is created 0600). A write the system refuses (full disk,
+    no permission, read-only file system) is a one-line :class:`~droptower.errors.WriteError` naming ``path``."""
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise WriteError.from_os_error(exc, path) from None
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o666 & ~current_umask())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise WriteError.from_os_error(exc, path) from None
         raise
 
 
