@@ -17,6 +17,7 @@ what it was asked, and refuses on one line that names the limit and how to split
 """
 from __future__ import annotations
 
+import math
 import os
 from typing import Any
 
@@ -47,6 +48,8 @@ def memory_limit_bytes() -> float:
 
 def format_bytes(n: float) -> str:
     """``n`` bytes in binary units: ``"279 TiB"``, ``"1.5 GiB"``."""
+    if not math.isfinite(n):
+        return "an unbounded amount"
     for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
         if abs(n) < 1024 or unit == "PiB":
             return f"{n:.3g} {unit}"
@@ -62,7 +65,7 @@ def require_memory(nbytes: float, what: str, split: str, **where: Any) -> None:
     :class:`DroptowerError`."""
     limit = memory_limit_bytes()
     if not nbytes <= limit:  # also refuses NaN
-        raise DroptowerError(f"{what} needs about {format_bytes(nbytes)} of memory, more than the limit of "
+        raise DroptowerError(f"{what} needs {'about ' * math.isfinite(nbytes)}{format_bytes(nbytes)} of memory, more than the limit of "
                              f"{format_bytes(limit)} (DROPTOWER_MEMORY_LIMIT_GB): {split}", **where)
 
 

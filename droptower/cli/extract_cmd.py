@@ -102,10 +102,10 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
 
     if out is not None:
         check_table_path(out, "--out")
-    for name, value in (("--inertia-kgm2", inertia), ("--lever-length-m", lever_length),
-                        ("--sensor-radius-m", sensor_radius), ("--sample-rate-hz", sample_rate)):
-        if value is not None and not value > 0:
-            raise DroptowerError(f"{name} must be > 0, got {value}")
+    for name, value, most in (("--inertia-kgm2", inertia, 1e3), ("--lever-length-m", lever_length, 10.0),
+                              ("--sensor-radius-m", sensor_radius, 10.0), ("--sample-rate-hz", sample_rate, 1e9)):
+        if value is not None and not 0 < value <= most:  # also refuses inf and nan
+            raise DroptowerError(f"{name} must be > 0 and at most {most:g}, got {value:g}")
     rig_values = _rig_settings(rig)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,

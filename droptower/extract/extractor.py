@@ -8,6 +8,8 @@ the fit window (:mod:`.window`), the angle fit and the torque fit (:mod:`.decay`
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from droptower.errors import DroptowerError
@@ -68,8 +70,8 @@ def metadata_value(signals: DropSignals, given: float | None, key: str) -> float
         value = float(value)
     except (TypeError, ValueError):
         raise DroptowerError(f"{key} {value!r} is not a number") from None
-    if not value > 0:
-        raise DroptowerError(f"{key} must be > 0, got {value}")
+    if not (math.isfinite(value) and value > 0):
+        raise DroptowerError(f"{key} must be positive and finite, got {value:g}")
     return value
 
 

@@ -31,6 +31,10 @@ PENETRATION_LIMIT = 0.1   # v1 dt / striker radius: the striker must not sink in
 PULSE_LIMIT = 0.1         # dt / contact duration: the impact time resolved within its force pulse
 
 
+#: How far a test's inertia and drop mass may lie outside the rig's fixtures (a factor either way).
+FIXTURE_FACTOR = 100.0
+
+
 def _range(values: list[float], what: str) -> list[float]:
     if len(values) != 2 or not values[0] <= values[1]:
         raise ValueError(f"{what} must be [min, max] with min <= max")
@@ -151,6 +155,14 @@ class RigConfig(StrictModel):
                             ("drop_height_m", drop_height_m)):
             if not (math.isfinite(value) and value > 0):
                 raise DroptowerError(f"must be positive, got {value:g}", file=file, where=at(name))
+        # far outside the rig's own levers and masses the impact law and the time step overflow
+        for name, value, fixtures, unit in (("inertia_kgm2", inertia_kgm2, self.inertias_kgm2, "kg*m^2"),
+                                            ("drop_mass_kg", drop_mass_kg, self.drop_masses_kg, "kg")):
+            lo, hi = min(fixtures) / FIXTURE_FACTOR, max(fixtures) * FIXTURE_FACTOR
+            if not lo <= value <= hi:
+                raise DroptowerError(f"{value:g} {unit} is outside {lo:.3g}-{hi:.3g} {unit}, 1/{FIXTURE_FACTOR:g} to "
+                                     f"{FIXTURE_FACTOR:g} times the fixtures of rig {self.path or self.name}",
+                                     file=file, where=at(name))
         lo, hi = self.drop_height_range_m
         if not lo <= drop_height_m <= hi:
             raise DroptowerError(f"drop height {drop_height_m:g} m is outside the range {lo:g}-{hi:g} m of rig "
