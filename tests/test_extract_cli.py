@@ -89,7 +89,7 @@ def test_rig_values_on_the_command_line(tmp_path, capsys):
     meta = {k: v for k, v in drop.metadata().items() if k not in ("inertia_kgm2", "lever_length_m")}
     time, channels = drop.channels()
     path = write_log(tmp_path / "bare.csv", time, channels, meta)
-    assert main(["extract", str(path), "--json"]) == 1
+    assert main(["extract", str(path), "--json"]) == 2
     assert "no rotating inertia" in capsys.readouterr().err
     assert main(["extract", str(path), "--inertia-kgm2", "0.359", "--lever-length-m", "0.2", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
@@ -126,7 +126,7 @@ BAD = {
 def test_bad_input_one_line(tmp_path, capsys, name):
     change, message = BAD[name]
     path = _bad_log(tmp_path, name, change)
-    assert main(["extract", str(path)]) == 1
+    assert main(["extract", str(path)]) == 2
     err = capsys.readouterr().err.splitlines()
     first = err[0]
     assert first.startswith(f"droptower: error: {path}") and message in first
@@ -135,7 +135,7 @@ def test_bad_input_one_line(tmp_path, capsys, name):
 
 def test_missing_mapped_channel(logs, capsys):
     path, _ = logs["fast.csv"]
-    assert main(["extract", str(path), "--channel", "torque=Drehmoment"]) == 1
+    assert main(["extract", str(path), "--channel", "torque=Drehmoment"]) == 2
     assert "no channel 'Drehmoment'" in capsys.readouterr().err
 
 
@@ -174,7 +174,7 @@ def test_rig_gives_laser_radius_and_lever_length(tmp_path, capsys):
     path = write_log(tmp_path / "laser.csv", time, {"laser_distance_m": ch["angle_rad"] * rig.sensors.laser.radius_m,
                                                     "torque_nm": ch["torque_nm"],
                                                     "impact_force_n": ch["impact_force_n"]}, meta)
-    assert main(["extract", str(path), "--json"]) == 1  # no sensor radius
+    assert main(["extract", str(path), "--json"]) == 2  # no sensor radius
     assert "sensor radius" in capsys.readouterr().err
     assert main(["extract", str(path), "--rig", "rapp2022", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]

@@ -82,8 +82,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     poor_fit). J and L: --inertia-kgm2/--lever-length-m, else the log's metadata, else the rig
     (its inertia only if it has a single lever fixture).
 
-    A file that fails is reported on one line; the others are still evaluated and written, and
-    the exit code is 1.
+    A file that fails is reported on one line; the others are still evaluated and written, the
+    failures are listed at the end and the exit code is 2 (a user error, as for a single file).
 
     \b
     Examples:
@@ -148,4 +148,4 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         for line in failures:
             click.echo(f"  {line}", err=True)
     if failures:
-        raise click.exceptions.Exit(1)
+        raise click.exceptions.Exit(2)

@@ -4,7 +4,12 @@ Each channel keeps its unit and the time stamps of its channel group (its master
 """
 from __future__ import annotations
 
+import functools
+import gc
+import re
+import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -20,6 +25,30 @@ def read_mdf(path: str | Path) -> Record:
     except ImportError:
         raise DroptowerError("reading MDF files needs asammdf: pip install 'droptower[formats]'", file=path) from None
     channels: dict[str, Channel] = {}
+    problem = None
+    hook = sys.unraisablehook
+    sys.unraisablehook = functools.partial(_quiet_asammdf_cleanup, hook)
+    try:
+        problem, metadata = _read(MDF, path, channels)
+        gc.collect()  # a reader that failed half-built is freed here: its __del__ fails inside asammdf
+    finally:
+        sys.unraisablehook = hook
+    if problem is not None:
+        raise DroptowerError(f"cannot read MDF file: {problem}", file=path)
+    if not channels:
+        raise DroptowerError("MDF file holds no numeric channels", file=path)
+    return Record(path=path, channels=channels, metadata=metadata, format="MDF")
+
+
+def _quiet_asammdf_cleanup(hook: Any, unraisable: Any) -> None:
+    """Drop the error asammdf's ``__del__`` raises for a file it failed to open; pass on the rest."""
+    if str(getattr(unraisable.object, "__module__", "")).startswith("asammdf"):  # the failing MDF4.__del__
+        return
+    hook(unraisable)
+
+
+def _read(MDF: Any, path: Path, channels: dict[str, Channel]) -> tuple[str | None, dict[str, str]]:
+    """Fill ``channels`` from the file; returns (the problem in words or None, metadata)."""
     try:
         with MDF(path) as mdf:
             for signal in mdf.iter_channels():
@@ -30,11 +59,7 @@ def read_mdf(path: str | Path) -> Record:
                     name=name, unit=signal.unit or "", values=np.asarray(signal.samples, dtype=np.float64),
                     time_s=np.asarray(signal.timestamps, dtype=np.float64),
                     metadata={"group": signal.group_index, "comment": signal.comment or ""})
-            metadata = {"version": str(mdf.version), "start_time": str(mdf.start_time)}
-    except DroptowerError:
-        raise
+            return None, {"version": str(mdf.version), "start_time": str(mdf.start_time)}
     except Exception as exc:  # asammdf raises many kinds of errors for a bad file
-        raise DroptowerError(f"cannot read MDF file: {exc}", file=path) from None
-    if not channels:
-        raise DroptowerError("MDF file holds no numeric channels", file=path)
-    return Record(path=path, channels=channels, metadata=metadata, format="MDF")
+        # it names the file by its memory map: "'<mmap.mmap closed=False, ...>' is not a valid MDF file"
+        return re.sub(r"'?<mmap\.mmap[^>]*>'?", "the file", " ".join(str(exc).split())), {}
