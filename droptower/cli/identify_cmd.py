@@ -76,7 +76,7 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 
 @click.command()
 @quiet_option
-@click.argument("data", nargs=-1, required=True, type=click.Path())
+@click.argument("data", nargs=-1, required=True, type=click.Path(readable=False))
 @click.option("--model", "kind", required=True, type=click.Choice(MODEL_KINDS + ("template",)), help="Model family.")
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque); repeatable.")
@@ -158,7 +158,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
 @click.command()
 @quiet_option
-@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False, readable=False))
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque); repeatable.")
 @click.option("--holdout", type=click.Path(dir_okay=False), help="Record kept out of the fits; ranks the models.")

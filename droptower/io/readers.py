@@ -29,6 +29,11 @@ def read_any(path: str | Path, **options: Any) -> Record:
         raise DroptowerError(f"unknown reader option(s): {', '.join(sorted(unknown))}", file=path)
     if not path.is_file():
         raise DroptowerError("no such file" if not path.exists() else "not a file", file=path)
+    try:  # one readable check for every format (the readers' own errors for it vary)
+        with open(path, "rb"):
+            pass
+    except OSError as exc:
+        raise DroptowerError(f"cannot read ({exc.strerror or exc})", file=path) from None
     suffix = path.suffix.lower()
     if suffix == ".bin":
         from droptower.io.catman import is_catman, read_catman

@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from droptower.rheology.numba_cache import cache_available
+
 # kernel codes
 LINEAR_SPRING = 0
 TABLE_SPRING = 1
@@ -37,7 +39,8 @@ PFEFFER = 7
 
 N_HEADER = 3  # stored, dissipated, torque
 
-JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+CACHE = cache_available()  # False where no cache folder is writable: compiled at every start instead
+JIT = dict(cache=CACHE, nogil=True, fastmath=False, error_model="numpy")
 
 
 # ---------------------------------------------------------------- helpers
@@ -253,7 +256,7 @@ def _bank_coulomb(ks, fs, elong, trial, n, dx):
         trial[i] = min(max(elong[i] + dx, -lim), lim)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc"})  # vectorised sums
+@njit(cache=CACHE, nogil=True, error_model="numpy", fastmath={"reassoc"})  # vectorised sums
 def _bank_commit(ks, elong, trial, n, dx):
     """Commit the trial elongations; return (force, stored energy, slider work of the step)."""
     force = 0.0
