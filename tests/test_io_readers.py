@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError
 from droptower.io import read_any, read_log, write_log
 from droptower.io.catman import read_catman
 from droptower.io.csvfmt import read_csv_log
@@ -139,7 +139,7 @@ def test_atomic_write_replaces_whole_or_not_at_all(tmp_path):
         Path(tmp).write_text("half")
         raise OSError("disk full")
 
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(WriteError, match=r"table\.csv: cannot write \(disk full\)"):  # one line naming the file
         atomic_write(path, fails)
     assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["table.csv"]
 
