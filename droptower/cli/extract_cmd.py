@@ -45,7 +45,8 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 
 @click.command()
 @quiet_option
-@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=str, readable=False))  # unreadable: reported per file
+# readable=False: an unreadable file is reported by the reader and the batch goes on
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=str, readable=False))
 @click.option("--rig", default=None, help="Rig TOML (or shipped preset name): lever length, laser radius, inertia.")
 @renamed_option("--inertia-kgm2", "--inertia", "inertia", type=float,
                 help="Rotating inertia J in kg*m^2 (default: the log's metadata).")
