@@ -79,7 +79,7 @@ def test_no_duplicated_metadata_columns(logs, tmp_path, capsys):
 def test_single_file_error_printed_once(tmp_path, capsys):
     path = tmp_path / "empty.csv"
     path.write_text("")
-    assert main(["extract", str(path)]) == 1
+    assert main(["extract", str(path)]) == 2
     err = capsys.readouterr().err
     assert err.count(str(path)) == 1 and "failed" not in err
 

@@ -77,7 +77,7 @@ def test_unwritable_target_is_one_line(tmp_path: Path) -> None:
     (tmp_path / "t.csv").mkdir()  # a folder where the file should go
     with pytest.raises(DroptowerError) as err:
         write_table(TABLE, tmp_path / "t.csv")
-    assert "cannot write the table" in err.value.message and "\n" not in err.value.message
+    assert "t.csv: cannot write" in err.value.message and "\n" not in err.value.message
 
 
 # ---- the commands ------------------------------------------------------------------------------
