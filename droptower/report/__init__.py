@@ -1,0 +1,177 @@
+"""``droptower report``: one self-contained HTML report of a campaign folder or of an
+``extract --out`` results table with its logs (issue 12).
+
+:func:`write_report` reads the run (:mod:`droptower.report.run`), fits the map
+(:func:`droptower.maps.fit_map`), draws the decay fit of every test again from its log
+(:mod:`droptower.report.figures`) and writes the page (:mod:`droptower.report.page`).
+"""
+from __future__ import annotations
+
+import html
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from droptower.errors import DroptowerError
+from droptower.io.droptower_log import atomic_write
+from droptower.maps import MapFit, fit_map, select_tests
+from droptower.maps.results import flag_list
+from droptower.report import figures
+from droptower.report.page import fit_link, map_section, page, plain_table, tests_table
+from droptower.report.run import FLAG_REASONS, Run, load_run
+
+#: Columns of the per-test table, in order, where the results have them (name shown: unit in brackets).
+TEST_COLUMNS = {
+    "case": "case", "inertia_kgm2": "J [kg·m²]", "drop_mass_kg": "m [kg]", "drop_height_m": "h [m]",
+    "preload_nm": "preload [N·m]", "amplitude_deg": "amplitude [deg]",
+    "frequency_hz": "f [Hz]", "stiffness_nm_per_deg": "c [N·m/deg]", "damping_ratio": "d [-]",
+    "fit_error": "fit error [-]",
+}
+#: Significant digits of the numbers in the per-test table (sorting uses the rounded numbers).
+DIGITS = 4
+
+
+def default_out(source: str | Path) -> Path:
+    """``DIR/report.html`` for a campaign folder, ``<table>.html`` beside a results table."""
+    source = Path(source)
+    return source / "report.html" if source.is_dir() else source.with_suffix(".html")
+
+
+def write_report(source: str | Path, out: str | Path | None = None, form: str = "paper",
+                 channels: dict[str, str] | None = None, extra_sections: list[tuple[str, str]] | None = None,
+                 title: str | None = None, progress: bool = False) -> Path:
+    """Write the report of ``source`` (campaign folder or results table) to ``out``.
+
+    form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
+    for reading real logs (as ``extract --channel``); extra_sections: (heading, HTML) pairs
+    appended (the study's); returns the path written."""
+    run = load_run(source)
+    out = Path(out) if out is not None else default_out(source)
+    table = run.table
+
+    fit, map_error, usable_mask, excluded_reason = None, None, np.zeros(len(table), bool), {}
+    try:
+        usable, excluded = select_tests(table, source)
+        usable_mask = table.index.isin(usable.index)
+        excluded_reason = dict(zip(np.flatnonzero(~usable_mask), (e.reason for e in excluded)))
+        fit = fit_map(table, source=_shown_source(source), form=form)
+    except DroptowerError as exc:
+        map_error = exc.message
+
+    fits = _decay_figures(run, channels or {}, progress)
+    problems = _problems(run, usable_mask, excluded_reason, fits)
+    map_figure = figures.map_figure(usable, [n for n, ok in zip(run.test, usable_mask) if ok], fit) if fit else None
+    text = page(title or f"droptower report: {run.name}", run.facts + _counts(run, usable_mask, fit), problems,
+                map_section(fit, map_error, map_figure), tests_table(_tests(run, usable_mask, excluded_reason, fit)),
+                fits, extra_sections or [])
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    return out
+
+
+def _shown_source(source: str | Path) -> str:
+    """The source as the user gave it if relative, else its name (no absolute paths in the page)."""
+    p = Path(source)
+    return p.name if p.is_absolute() else str(p)
+
+
+def _counts(run: Run, usable: np.ndarray, fit: MapFit | None) -> list[tuple[str, str]]:
+    flagged = sum(bool(flag_list(v)) for v in run.table.get("flags", []))
+    return [("map", f"{int(usable.sum())} tests used, {len(run.table) - int(usable.sum())} excluded, "
+                    f"{flagged} with flags" + (f"; form {fit.form.name}" if fit else ""))]
+
+
+def _problems(run: Run, usable: np.ndarray, excluded_reason: dict[int, str], fits: dict[str, object]) -> str:
+    """Failed tests, tests left out of the map and flagged tests, each with its reason."""
+    t = run.table
+    rows = []
+    for i, name in enumerate(run.test):
+        status = str(t["status"].iloc[i]) if "status" in t.columns else "done"
+        reasons = []
+        if status == "failed":
+            reasons.append(("failed", f"extraction failed: {t['error'].iloc[i]}" if "error" in t.columns else "failed"))
+        if i in excluded_reason and status != "failed":
+            reasons.append(("excluded from the map", excluded_reason[i]))
+        for flag in flag_list(t["flags"].iloc[i]) if "flags" in t.columns else []:
+            reasons.append((f"flag {flag}", FLAG_REASONS.get(flag, "see the extractor's documentation")))
+        warnings = t["simulation_warnings"].iloc[i] if "simulation_warnings" in t.columns else None
+        if isinstance(warnings, str) and warnings:
+            reasons.append(("simulation warning", warnings))
+        if isinstance(fits.get(name), str):
+            reasons.append(("no decay plot", fits[name]))
+        rows += [{"test": fit_link(name), "what": what, "reason": why} for what, why in reasons]
+    if not rows:
+        return "<p class='ok'>No failures, no flags: every test went into the map.</p>"
+    table = pd.DataFrame(rows)
+    order = {"failed": 0, "excluded from the map": 1}
+    table = table.iloc[sorted(range(len(table)), key=lambda k: order.get(table["what"].iloc[k], 2))]
+    n_failed = sum(table["what"] == "failed")
+    n_excluded = sum(table["what"] == "excluded from the map")
+    head = (f"<p><span class='{'bad' if n_failed else 'ok'}'>{n_failed} failed</span>, "
+            f"<span class='{'warn' if n_excluded else 'ok'}'>{n_excluded} excluded from the map</span>, "
+            f"{len(table) - n_failed - n_excluded} other notes.</p>")
+    return head + plain_table(table, html_columns=("test",))
+
+
+def _tests(run: Run, usable: np.ndarray, excluded_reason: dict[int, str], fit: MapFit | None) -> pd.DataFrame:
+    """The per-test table: link, status, flags, map use, plan and extracted values, map deviations."""
+    t = run.table
+    out = pd.DataFrame({"test": [fit_link(n) for n in run.test]})
+    out["status"] = t["status"].astype(str).to_numpy() if "status" in t.columns else "done"
+    out["flags"] = [", ".join(flag_list(v)) for v in t["flags"]] if "flags" in t.columns else ""
+    failed = out["status"].to_numpy() == "failed"
+    out["in map"] = ["yes" if ok else "no: failed" if failed[i] else f"no: {excluded_reason.get(i, '')}"
+                     for i, ok in enumerate(usable)]
+    for column, label in TEST_COLUMNS.items():
+        if column in t.columns:
+            values = pd.to_numeric(t[column], errors="coerce")
+            out[label] = _rounded(values.to_numpy(float)) if values.notna().any() or t[column].isna().all() else t[column]
+    if fit is not None:
+        a = pd.to_numeric(t["amplitude_deg"], errors="coerce").to_numpy(float)
+        f = pd.to_numeric(t["frequency_hz"], errors="coerce").to_numpy(float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out["map c dev. [%]"] = _rounded(100 * (fit.stiffness_nm_per_deg(a, f) / t["stiffness_nm_per_deg"].to_numpy(float) - 1))
+            out["map d dev. [%]"] = _rounded(100 * (fit.damping_ratio(a, f) / t["damping_ratio"].to_numpy(float) - 1))
+    return out
+
+
+def _rounded(x: np.ndarray) -> np.ndarray:
+    """To :data:`DIGITS` significant digits (NaN stays NaN)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = 10.0 ** (DIGITS - 1 - np.floor(np.log10(np.abs(x))))
+        r = np.round(x * scale) / scale
+    return np.where(np.isfinite(r), r, x)
+
+
+def _decay_figures(run: Run, channels: dict[str, str], progress: bool) -> dict[str, object]:
+    """Per test name: its decay-fit figure, or why there is none (a one-line text)."""
+    from tqdm import tqdm
+
+    from droptower.extract.files import Settings, extract_file
+    from droptower.extract.result import DEG
+    from droptower.extract.window import Window
+
+    base = dict(run.extract)
+    window = Window.parse(base.pop("window", "first-cycle"))
+    out: dict[str, object] = {}
+    inertia = pd.to_numeric(run.table.get("inertia_kgm2", pd.Series(np.nan, index=run.table.index)), errors="coerce")
+    for i, (name, log) in enumerate(tqdm(list(zip(run.test, run.logs)), desc="report", unit="test", file=sys.stderr,
+                                         disable=not progress)):
+        if log is None:
+            out[name] = "log not found"
+            continue
+        j = float(inertia.iloc[i])
+        settings = Settings(roles=channels, window=window, inertia_kgm2=j if math.isfinite(j) and j > 0 else None, **base)
+        try:
+            signals, result = extract_file(log, settings)
+        except DroptowerError as exc:
+            out[name] = f"the log cannot be extracted again: {exc.message.replace(str(log), log.name)}"
+            continue
+        title = (f"f = {result.frequency_hz:.2f} Hz, amplitude = {result.amplitude_ref_rad / DEG:.3f} deg, "
+                 f"c = {result.stiffness_nm_per_rad * DEG:.1f} N·m/deg, d = {result.damping_ratio:.3f}"
+                 + (f" [{', '.join(result.flags)}]" if result.flags else ""))
+        out[name] = figures.decay_figure(signals, result, html.escape(title))
+    return out

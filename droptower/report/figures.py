@@ -1,0 +1,102 @@
+"""The report's interactive figures (plotly): the map over the tests, and per test the measured
+angle and torque with their decay fits (seed 004 Fig. 9) and the fit window.
+
+Figures are plotly figure dicts; the page embeds plotly.js once and draws them.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import plotly.graph_objects as go
+from plotly.subplots import make_subplots
+
+from droptower.extract.result import DEG, ExtractionResult
+from droptower.io.signals import DropSignals
+from droptower.maps import MapFit
+from droptower.maps.plots import _frequency_along
+
+#: Most samples per drawn trace: a 0.25 s log at 38.4 kHz has 9600; every k-th is kept (the
+#: fit is drawn from its own smooth curve, so only the measured trace is thinned).
+MAX_POINTS = 800
+COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
+TEMPLATE = "plotly_white"
+
+
+def _groups(tests: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    if "inertia_kgm2" not in tests.columns or tests["inertia_kgm2"].isna().all():
+        return [("tests", tests)]
+    key = tests["inertia_kgm2"].astype(float).round(6)
+    return [(f"J = {j:.4g} kg·m²", rows) for j, rows in tests.groupby(key, sort=True)]
+
+
+def map_figure(tests: pd.DataFrame, names: list[str], fit: MapFit) -> go.Figure:
+    """Stiffness and damping ratio over amplitude: the usable tests (hover: test, values) and
+    the map along each inertia group's own frequency (log amplitude axis)."""
+    fig = make_subplots(rows=1, cols=2, horizontal_spacing=0.1,
+                        subplot_titles=("stiffness [N·m/deg]", "damping ratio [-]"))
+    tests = tests.assign(_name=names)
+    for (label, rows), color in zip(_groups(tests), _cycle()):
+        a = rows["amplitude_deg"].to_numpy(float)
+        grid = np.geomspace(a.min(), a.max(), 60) if a.size else a
+        f_grid = _frequency_along(rows, grid) if a.size > 1 else np.full_like(grid, rows["frequency_hz"].mean())
+        for col, (q, model) in enumerate((("stiffness_nm_per_deg", fit.stiffness_nm_per_deg),
+                                          ("damping_ratio", fit.damping_ratio)), start=1):
+            fig.add_trace(go.Scatter(
+                x=a, y=rows[q], mode="markers", name=label, legendgroup=label, showlegend=col == 1,
+                marker={"color": color, "size": 7}, customdata=np.stack([rows["_name"], rows["frequency_hz"]], axis=-1),
+                hovertemplate="%{customdata[0]}<br>amplitude %{x:.3f} deg<br>f %{customdata[1]:.1f} Hz<br>"
+                              "%{y:.4g}<extra></extra>"), row=1, col=col)
+            fig.add_trace(go.Scatter(x=grid, y=model(grid, f_grid), mode="lines", name=f"map, {label}",
+                                     legendgroup=label, showlegend=False, line={"color": color},
+                                     hovertemplate="map %{y:.4g} at %{x:.3f} deg<extra></extra>"), row=1, col=col)
+    fig.update_xaxes(type="log", title_text="angular amplitude [deg]")
+    fig.update_layout(template=TEMPLATE, height=420, margin={"l": 60, "r": 20, "t": 40, "b": 50},
+                      legend={"orientation": "h", "y": -0.2})
+    return fig
+
+
+def _cycle():
+    while True:
+        yield from COLORS
+
+
+def decay_figure(signals: DropSignals, result: ExtractionResult, title: str) -> dict[str, Any]:
+    """Angle (deg) and torque (N·m) minus their pre-trigger offsets over the time since the
+    impact (ms), with the fits: solid inside the fit window (shaded), dashed beyond it.
+    Returns the figure as a dict without its template (the page adds the shared one)."""
+    t = signals.time_s - result.impact_time_s
+    end = result.window_end_s
+    show = np.flatnonzero((t >= -0.1 * end) & (t <= 2.0 * end))
+    show = show[:: max(1, int(np.ceil(show.size / MAX_POINTS)))]
+    inside = np.linspace(result.window_start_s, end, 300)
+    beyond = np.linspace(end, 2.0 * end, 300)
+    panels = [("angle [deg]", (signals.angle_rad - result.angle_offset_rad) / DEG, result.angle_fit, 1.0 / DEG)]
+    if signals.torque_nm is not None and result.torque_fit is not None:
+        panels.append(("torque [N·m]", signals.torque_nm - result.torque_offset_nm, result.torque_fit, 1.0))
+    fig = make_subplots(rows=len(panels), cols=1, shared_xaxes=True, vertical_spacing=0.08)
+    for row, (label, measured, fit, scale) in enumerate(panels, start=1):
+        first = row == 1
+        fig.add_trace(go.Scatter(x=_f4(t[show] * 1e3), y=_f4(measured[show]), mode="lines", name="measured",
+                                 line={"color": "#888", "width": 1}, showlegend=first, legendgroup="m"), row=row, col=1)
+        fig.add_trace(go.Scatter(x=_f4(inside * 1e3), y=_f4(fit(inside) * scale), mode="lines", name="fit (window)",
+                                 line={"color": "#d62728", "width": 2}, showlegend=first, legendgroup="f"), row=row, col=1)
+        fig.add_trace(go.Scatter(x=_f4(beyond * 1e3), y=_f4(fit(beyond) * scale), mode="lines",
+                                 name="fit, extrapolated", line={"color": "#d62728", "width": 1, "dash": "dash"},
+                                 showlegend=first, legendgroup="e"), row=row, col=1)
+        fig.add_vrect(x0=result.window_start_s * 1e3, x1=end * 1e3, fillcolor="#1f77b4", opacity=0.08,
+                      line_width=0, row=row, col=1)
+        fig.update_yaxes(title_text=label, row=row, col=1)
+    fig.update_xaxes(title_text="time since impact [ms]", row=len(panels), col=1)
+    fig.update_layout(title={"text": title, "font": {"size": 13}}, height=240 * len(panels) + 80,
+                      margin={"l": 60, "r": 20, "t": 50, "b": 50}, legend={"orientation": "h", "y": 1.08, "x": 1,
+                                                                           "xanchor": "right"})
+    out = fig.to_plotly_json()
+    out["layout"].pop("template", None)
+    return out
+
+
+def _f4(x: np.ndarray) -> np.ndarray:
+    """float32 is plenty for drawing and halves the page."""
+    return np.asarray(x, dtype=np.float32)

@@ -1,0 +1,157 @@
+"""What a report is about: a campaign folder or an ``extract --out`` results table, read into
+one :class:`Run` (facts for the summary, the results table, where each test's log is, and how
+its log was extracted so the decay fit can be drawn again).
+
+Names shown in the report are relative (to the campaign folder, or as the results table lists
+them): a report never shows the machine's absolute paths.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from droptower.errors import DroptowerError
+
+#: Why a flag is raised (droptower.extract.extractor), shown next to every flagged test.
+FLAG_REASONS = {
+    "double_impact": "a second impact within the first period or the fit window restarts the decay (NOTES §1.3)",
+    "clipping": "a channel sits at its extreme: the peaks are cut",
+    "too_few_samples_per_period": "fewer than 20 samples per period",
+    "short_window": "the fit window is shorter than the requested one (three quarters of a period at least)",
+    "poor_fit": "the decay fit's RMS residual exceeds 5 % of the amplitude",
+    "double_impact_unchecked": "no impact-force channel: a second impact could not be checked (warning)",
+}
+
+
+@dataclass
+class Run:
+    """One campaign or results table.
+
+    kind: ``campaign`` or ``results table``; name: shown in the title; facts: (label, text)
+    pairs for the summary; table: one row per test (the extractor's columns); test: a short
+    name per row (``test_00042`` or the log's file name); logs: the log per row (None: not
+    found); extract: keyword arguments of :class:`droptower.extract.files.Settings` that
+    extract the logs as the run did.
+    """
+
+    kind: str
+    name: str
+    facts: list[tuple[str, str]]
+    table: pd.DataFrame
+    test: list[str]
+    logs: list[Path | None]
+    extract: dict[str, Any] = field(default_factory=dict)
+
+
+def load_run(source: str | Path) -> Run:
+    """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``) or a results table
+    (CSV, Parquet, JSON, xlsx) whose ``file`` column names the logs; one-line errors otherwise."""
+    source = Path(source)
+    if source.is_dir():
+        if (source / "manifest.json").is_file():
+            return _campaign(source)
+        raise DroptowerError("a folder without manifest.json (not a campaign folder); give a results table "
+                             "from `droptower extract --out` or a campaign folder", file=source)
+    if not source.is_file():
+        raise DroptowerError("file not found", file=source)
+    return _results_table(source)
+
+
+def _campaign(root: Path) -> Run:
+    from droptower.campaign.folder import read_manifest
+
+    manifest = read_manifest(root / "manifest.json")
+    table_path = root / "results.parquet"
+    if not table_path.is_file():
+        raise DroptowerError("campaign folder without results.parquet (no test finished yet?)", file=root)
+    table = pd.read_parquet(table_path)
+    inputs = manifest.get("inputs", {})
+    content = {k: (inputs.get(k) or {}).get("content") or {} for k in ("rig", "coupling", "doe")}
+    summary = manifest.get("summary", {})
+    settings = manifest.get("settings", {})
+    facts = [
+        ("rig", _described(content["rig"])),
+        ("coupling", _described(content["coupling"]) + " (simulated)"),
+        ("plan", f"{_described(content['doe'])}: {summary.get('n_tests', len(table))} tests"),
+        ("tests", f"{summary.get('done', 0)} extracted, {summary.get('failed', 0)} failed, "
+                  f"{summary.get('pending', 0)} pending"),
+        ("settings", ", ".join(f"{k} = {v}" for k, v in settings.items())),
+        ("run", f"created {manifest.get('created', '?')}, updated {manifest.get('updated', '?')}, droptower "
+                f"{manifest.get('versions', {}).get('droptower', '?')}"),
+    ]
+    rig = content["rig"]
+    extract: dict[str, Any] = {"window": settings.get("window", "first-cycle")}
+    if "lever_length_m" in rig:
+        extract["defaults"] = {"lever_length_m": float(rig["lever_length_m"])}
+    laser = (rig.get("sensors") or {}).get("laser") or {}
+    if "radius_m" in laser:
+        extract["sensor_radius_m"] = float(laser["radius_m"])
+    names = [Path(str(f)).stem if isinstance(f, str) and f else f"test_{t}" for f, t in
+             zip(table.get("log_file", [None] * len(table)), table.get("test_id", range(len(table))))]
+    logs = [root / f if isinstance(f, str) and f and (root / f).is_file() else None
+            for f in table.get("log_file", [None] * len(table))]
+    return Run("campaign", root.resolve().name, facts, table, names, logs, extract)
+
+
+def _described(content: dict[str, Any]) -> str:
+    name = content.get("name", "?")
+    description = content.get("description")
+    return f"{name} ({description})" if description else str(name)
+
+
+def _results_table(path: Path) -> Run:
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".csv":
+            table = pd.read_csv(path)
+        elif suffix in (".parquet", ".pq"):
+            table = pd.read_parquet(path)
+        elif suffix == ".json":
+            table = pd.read_json(path)
+        elif suffix == ".xlsx":
+            table = pd.read_excel(path)
+        else:
+            raise DroptowerError(f"unsupported results table {suffix or '(no suffix)'!r}: use .csv, .parquet, "
+                                 ".json or .xlsx, or give a campaign folder", file=path)
+    except DroptowerError:
+        raise
+    except Exception as exc:  # pandas, pyarrow and openpyxl raise many types for a broken file
+        raise DroptowerError(f"cannot read results table ({type(exc).__name__}: {exc})", file=path) from None
+    files = [str(f) if isinstance(f, str) and f else None for f in table.get("file", [None] * len(table))]
+    logs = [_find_log(f, path.parent) for f in files]
+    names = [_shown(f, path.parent) if f else f"row {i + 1}" for i, f in enumerate(files)]
+    simulated = "coupling" in table.columns and table["coupling"].notna().any()
+    source = (f"simulated logs (coupling {', '.join(map(str, table['coupling'].dropna().unique()))})"
+              if simulated else "real logs")
+    counts = f"{len(table)} tests, logs found for {sum(p is not None for p in logs)}"
+    facts = [("results table", path.name), ("logs", source), ("tests", counts)]
+    if "rig" in table.columns and table["rig"].notna().any():
+        facts.insert(1, ("rig", ", ".join(map(str, table["rig"].dropna().unique()))))
+    return Run("results table", path.stem, facts, table, names, logs, {})
+
+
+def _find_log(name: str | None, base: Path) -> Path | None:
+    """The log as listed (absolute, or relative to the working folder of the extraction, which
+    may be the table's folder or the current one)."""
+    if not name:
+        return None
+    for candidate in (Path(name), base / name):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _shown(name: str, base: Path) -> str:
+    """A log's name without the machine's absolute path: relative to the table's folder where
+    it lies below it, else the file name."""
+    p = Path(name)
+    if not p.is_absolute():
+        return name
+    try:
+        return os.path.relpath(p, base.resolve()) if p.is_relative_to(base.resolve()) else p.name
+    except ValueError:
+        return p.name
