@@ -5,8 +5,11 @@ from pathlib import Path
 
 import click
 
+from droptower.cli import options
+
 
 @click.command("report")
+@options.quiet_option
 @click.argument("source", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="The HTML file to write (default: DIR/report.html, or the results table's name with .html).")
@@ -21,9 +24,14 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     Summary of the run, failures and flags with their reasons, the map with its coefficients and
     fit and cross-validated errors, a sortable table of the tests, and per test the measured angle
     and torque with the decay fit and its window (the logs are extracted again for the plots).
+
+    \b
+    Examples:
+      droptower report runs/table2                      # -> runs/table2/report.html
+      droptower report results.csv --out report.html --form auto
     """
     from droptower.io.mapping import parse_channel_options
     from droptower.report import write_report
 
-    path = write_report(source, out, form=form, channels=parse_channel_options(channel_specs), progress=True)
+    path = write_report(source, out, form=form, channels=parse_channel_options(channel_specs), progress=options.progress_disabled() is None)
     click.echo(f"report: {path}")

@@ -159,7 +159,7 @@ def _decay_figures(run: Run, channels: dict[str, str], progress: bool) -> dict[s
     out: dict[str, object] = {}
     inertia = pd.to_numeric(run.table.get("inertia_kgm2", pd.Series(np.nan, index=run.table.index)), errors="coerce")
     for i, (name, log) in enumerate(tqdm(list(zip(run.test, run.logs)), desc="report", unit="test", file=sys.stderr,
-                                         disable=not progress)):
+                                         disable=None if progress else True)):  # None: a bar on a terminal only
         if log is None:
             out[name] = "log not found"
             continue
