@@ -94,21 +94,15 @@ def _table_html(table: pd.DataFrame, digits: int = 4) -> str:
 
 
 def write_index(out: Path, facts: dict[str, Any], sections: list[tuple[str, str]]) -> Path:
-    """``index.html``: a title, the facts, then (heading, html) sections."""
-    style = ("body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}"
-             "table.data{border-collapse:collapse;font-size:12px}table.data td,table.data th{border:1px solid #ccc;"
-             "padding:2px 6px;text-align:right}pre{background:#f6f6f6;padding:.6em;overflow-x:auto}img{max-width:100%}")
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>droptower study</title><style>{style}</style>"
-             "</head><body><h1>Drop-tower study of seed 004 on the virtual rig</h1><table class='data'>"]
-    parts += [f"<tr><th>{html.escape(k)}</th><td style='text-align:left'>{html.escape(str(v))}</td></tr>"
-              for k, v in facts.items()]
-    parts.append("</table>")
-    for heading, body in sections:
-        parts.append(f"<h2>{html.escape(heading)}</h2>{body}")
-    parts.append("</body></html>")
-    path = out / "index.html"
-    path.write_text("\n".join(parts))
-    return path
+    """``index.html``: the campaign's report (``droptower report``) followed by the study's
+    facts and (heading, html) sections."""
+    from droptower.report import write_report
+
+    study = "<table class='data'>" + "".join(
+        f"<tr><th>{html.escape(k)}</th><td style='text-align:left'>{html.escape(str(v))}</td></tr>"
+        for k, v in facts.items()) + "</table>"
+    return write_report(out / "campaign", out / "index.html", title="Drop-tower study of seed 004 on the virtual rig",
+                        extra_sections=[("The study", study), *sections])
 
 
 def by_preload_text(by_preload: dict[str, dict[str, Any]]) -> str:

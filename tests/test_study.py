@@ -72,6 +72,11 @@ def test_reduced_study_writes_the_report(tmp_path, capsys):
         assert (out / name).stat().st_size > 0, name
     for name in images:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # index.html is the campaign's report (droptower report) followed by the study's sections
+    for heading in ("Failures and flags", "Characteristic map", "Tests", "Decay fit", "The study",
+                    "Comparison with Table 4 of seed 004"):
+        assert f"<h2>{heading}</h2>" in index, heading
+    assert index.index("<h2>Decay fit</h2>") < index.index("<h2>The study</h2>")
 
 
 @pytest.fixture(scope="module")

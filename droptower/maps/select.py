@@ -67,7 +67,7 @@ def fit_equation(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, ta
     """Fit one equation to ``target`` (c, or y = c_map/d for c/d) by variable projection."""
     points, grids = _exponent_grids(eq, a, f)
     residuals, jacobian = _residuals(eq, stiffness, a, f, target)
-    with np.errstate(over="ignore", invalid="ignore"):  # far trial steps of the solver; their residual is inf, rejected
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # far trial steps of the solver; their residual is inf, rejected
         solutions = _variable_projection(
             points, lambda ix: tuple(g[i] for g, i in zip(grids, ix)), lambda e: eq.basis(e, a, f), target,
             eq.linear, eq.exponents, residuals, jacobian)
@@ -91,7 +91,7 @@ def _canonical_order(eq: Equation, params: np.ndarray) -> list[int]:
 def polish(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, target: np.ndarray, p0: np.ndarray) -> np.ndarray:
     """Refit one equation from ``p0`` (a fold of the cross-validation: no new search)."""
     residuals, jacobian = _residuals(eq, stiffness, a, f, target)
-    with np.errstate(over="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         return least_squares(residuals, p0, jac=jacobian, bounds=(0.0, np.inf), x_scale="jac", method="trf").x
 
 

@@ -19,7 +19,7 @@ from droptower.maps.plots import _frequency_along
 
 #: Most samples per drawn trace: a 0.25 s log at 38.4 kHz has 9600; every k-th is kept (the
 #: fit is drawn from its own smooth curve, so only the measured trace is thinned).
-MAX_POINTS = 800
+MAX_POINTS = 400
 COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
 TEMPLATE = "plotly_white"
 
@@ -70,8 +70,8 @@ def decay_figure(signals: DropSignals, result: ExtractionResult, title: str) -> 
     end = result.window_end_s
     show = np.flatnonzero((t >= -0.1 * end) & (t <= 2.0 * end))
     show = show[:: max(1, int(np.ceil(show.size / MAX_POINTS)))]
-    inside = np.linspace(result.window_start_s, end, 300)
-    beyond = np.linspace(end, 2.0 * end, 300)
+    inside = np.linspace(result.window_start_s, end, 150)
+    beyond = np.linspace(end, 2.0 * end, 150)
     panels = [("angle [deg]", (signals.angle_rad - result.angle_offset_rad) / DEG, result.angle_fit, 1.0 / DEG)]
     if signals.torque_nm is not None and result.torque_fit is not None:
         panels.append(("torque [N·m]", signals.torque_nm - result.torque_offset_nm, result.torque_fit, 1.0))

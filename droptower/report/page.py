@@ -32,6 +32,8 @@ table.facts,table.plain{border-collapse:collapse;margin:6px 0}
 table.facts th,table.facts td,table.plain th,table.plain td{border:1px solid #ddd;padding:3px 8px;text-align:left;
      vertical-align:top}
 table.plain td.num{text-align:right;font-variant-numeric:tabular-nums}
+table.data{border-collapse:collapse;font-size:13px}table.data td,table.data th{border:1px solid #ddd;padding:2px 6px;
+     text-align:right}
 .ok{color:#2a7d2a}.bad{color:#b00020;font-weight:600}.warn{color:#a05a00}
 .scroll{overflow-x:auto}
 pre{background:#f6f6f6;padding:.6em;white-space:pre-wrap;word-break:break-word}
