@@ -25,6 +25,10 @@ _ALIASES = [
 ]
 
 
+_NM_INSIDE = re.compile(r"(?<![A-Za-z])([kM]?)Nm(?![A-Za-z])")
+_GRAD_INSIDE = re.compile(r"(?<![A-Za-z])[Gg]rad(?![A-Za-z])")
+
+
 @lru_cache(maxsize=None)
 def _registry():
     import pint
@@ -37,6 +41,8 @@ def normalise_unit(unit: str) -> str:
     text = unit.strip().strip("[]()").strip()
     for pattern, replacement in _ALIASES:
         text = pattern.sub(replacement, text)
+    # the same spellings inside compound units: "Nm/°", "kNm/Grad"
+    text = _GRAD_INSIDE.sub("deg", _NM_INSIDE.sub(r"\1N*m", text.replace("°", "deg")))
     return text.replace("·", "*").replace("²", "**2")
 
 
@@ -80,6 +86,19 @@ def si_factor(unit: str, kind: str) -> float:
         return float(quantity.to(SI_UNITS[kind]).magnitude)
     except pint.errors.DimensionalityError:
         raise ValueError(f"unit '{unit}' is not a {kind} unit (expected e.g. {SI_UNITS[kind]})") from None
+
+
+def conversion_factor(unit: str, target: str) -> float:
+    """Factor from ``unit`` (a file's spelling; ``""`` or ``-``: already in ``target``) to the pint
+    unit ``target`` (``""``: a plain number). ValueError with the reason if it cannot be."""
+    text = normalise_unit(unit)
+    if text in ("", "-", "1"):
+        return 1.0
+    try:
+        return float(_registry().Quantity(1.0, text).to(target or "dimensionless").magnitude)
+    except Exception as exc:  # pint's errors: unknown unit, wrong dimension, bad syntax
+        raise ValueError(f"unit '{unit}' cannot be read as {target or 'a plain number'} "
+                         f"({type(exc).__name__})") from None
 
 
 def to_si(values: np.ndarray, unit: str, kind: str, *, file: object = None, channel: str | None = None) -> np.ndarray:

@@ -187,7 +187,7 @@ def test_results_file_missing_columns(tmp_path, capsys):
     line = _one_line_error(capsys.readouterr().err)
     assert str(bad) in line and "lack a stiffness column (storage_stiffness_nm_per_deg or" in line
     assert not out.exists()
-    pd.DataFrame({"amplitude": [1.0], "frequency_hz": [10.0]}).to_csv(bad, index=False)
+    pd.DataFrame({"twist": [1.0], "frequency_hz": [10.0]}).to_csv(bad, index=False)
     assert main(["validate", "--map", str(map_file), "--servo-results", str(bad)]) == 2
     line = _one_line_error(capsys.readouterr().err)
     assert "lack amplitude_deg; a stiffness column" in line and "a damping column" in line

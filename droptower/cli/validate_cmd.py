@@ -18,10 +18,15 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
               help="Coupling (TOML file or preset) to run the sweeps on the virtual servo bench.")
 @click.option("--servo-results", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Measured servo results (CSV/Parquet) instead of the virtual bench: amplitude_deg, "
+              help="Measured servo results (a table: CSV with any delimiter and decimal comma, Parquet, Excel) "
+                   "instead of the virtual bench: amplitude_deg, "
                    "frequency_hz, a stiffness column (storage_stiffness_nm_per_deg, ...), a damping column "
                    "(drop_tower_equivalent_damping_ratio, loss_factor, loss_angle_deg or relative_damping_psi), "
                    "optional sweep.")
+@click.option("--servo-column", "servo_columns", multiple=True, metavar="NAME=SOURCE[:UNIT]",
+              help="Map a column of --servo-results to a name above (e.g. loss_factor=Verlustfaktor, "
+                   "amplitude_deg=Amp:rad); repeatable. Lab names (Amplitude [°], Frequenz [Hz], Verlustfaktor, "
+                   "Speichersteifigkeit [Nm/°]) are found without it.")
 @click.option("--reference", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also compare with a measured map table (e.g. seed 004 Table 4: inertia_kgm2, amplitude_deg, "
                    "frequency_hz, stiffness_nm_per_deg, damping_ratio).")
@@ -35,7 +40,8 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--table-format", type=click.Choice(["csv", "parquet", "json", "xlsx"]), default="csv",
               show_default=True, help="Format of the tables written into --out.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
-def validate(map_path: Path, coupling: str, servo_results: Path | None, reference: Path | None,
+def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
+             reference: Path | None,
              results: Path | None, quick: bool, out: Path | None, table_format: str, as_json: bool) -> None:
     """Predict the servo-hydraulic sweeps of NOTES §1.6 from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
@@ -55,6 +61,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, referenc
     from droptower.compare import (compare_reference, format_comparison, format_summary, read_reference,
                                    read_servo_results, run_sweeps, validate_map)
     from droptower.errors import DroptowerError
+    from droptower.io.table_reader import parse_column_options
     from droptower.maps import MapFit, read_results
 
     if results is not None and reference is None:
@@ -66,7 +73,11 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, referenc
     fit = MapFit.from_json(map_path)
     reference_table = read_reference(reference) if reference is not None else None
     campaign = read_results(results) if results is not None else None
-    points = read_servo_results(servo_results) if servo_results is not None else run_sweeps(coupling, reduced=quick)
+    if servo_columns and servo_results is None:
+        raise DroptowerError("--servo-column needs --servo-results (the table whose columns it names)")
+    columns = parse_column_options(servo_columns, "--servo-column")
+    points = (read_servo_results(servo_results, columns) if servo_results is not None
+              else run_sweeps(coupling, reduced=quick))
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
     if out is not None:

@@ -24,6 +24,7 @@ import pandas as pd
 
 from droptower.compare.validation import deviation_stats
 from droptower.errors import DroptowerError
+from droptower.io.table_reader import COMMON_ALIASES, read_table
 from droptower.maps import MapFit, select_tests
 
 ACCEPT_STIFFNESS_RMS_PCT = 5.0
@@ -33,15 +34,11 @@ QUANTITIES = ("frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
 
 
 def read_reference(path: str | Path) -> pd.DataFrame:
-    """A measured map table (CSV or Parquet) with :data:`REQUIRED` columns (``case`` and
-    ``drop_mass_kg`` optional); problems are one-line errors naming the file."""
+    """A measured map table with :data:`REQUIRED` columns (``case`` and ``drop_mass_kg``
+    optional), read like every table (:func:`droptower.io.table_reader.read_table`); problems
+    are one-line errors naming the file."""
     path = Path(path)
-    if not path.is_file():
-        raise DroptowerError("file not found", file=path)
-    try:
-        table = pd.read_parquet(path) if path.suffix.lower() in (".parquet", ".pq") else pd.read_csv(path)
-    except Exception as exc:  # pandas and pyarrow raise many types for a broken file
-        raise DroptowerError(f"cannot read the reference map ({type(exc).__name__}: {exc})", file=path) from None
+    table = read_table(path, COMMON_ALIASES, what="reference map")
     missing = [c for c in REQUIRED if c not in table.columns]
     if missing:
         raise DroptowerError(f"reference map lacks column(s) {', '.join(missing)} "

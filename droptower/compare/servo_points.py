@@ -38,8 +38,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
 from droptower import sdof
+from droptower.errors import DroptowerError
+from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: NOTES §1.6: frequency sweeps at these amplitudes (deg) up to these frequencies (Hz) ...
 FREQUENCY_SWEEPS = {0.5: 100.0, 1.5: 60.0, 2.5: 20.0}
@@ -108,23 +109,13 @@ def run_sweeps(coupling, reduced: bool = False, sample_rate_hz: float = 2048.0) 
         "storage_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio"), raw=table)
 
 
-def read_servo_results(path: str | Path) -> ServoPoints:
-    """Measured servo results (columns in the module docstring); problems are one-line errors."""
+def read_servo_results(path: str | Path, columns: dict[str, str] | None = None) -> ServoPoints:
+    """Measured servo results (columns in the module docstring) read as
+    :func:`droptower.io.table_reader.read_table` reads tables: any delimiter, decimal comma,
+    units row or ``Name [unit]``, lab names (``Amplitude [°]; Frequenz [Hz]; Verlustfaktor``),
+    ``columns`` mapping NAME -> SOURCE[:UNIT]; problems are one-line errors."""
     path = Path(path)
-    if not path.is_file():
-        raise DroptowerError("file not found", file=path)
-    try:
-        if path.suffix.lower() == ".csv":
-            raw = pd.read_csv(path)
-        elif path.suffix.lower() in (".parquet", ".pq"):
-            raw = pd.read_parquet(path)
-        else:
-            raise DroptowerError(f"unsupported format {path.suffix or '(none)'!r}: use .csv or .parquet", file=path)
-    except DroptowerError:
-        raise
-    except Exception as exc:  # pandas and pyarrow raise many types for a broken file
-        raise DroptowerError(f"cannot read servo results ({type(exc).__name__}: {exc})", file=path) from None
-    raw = raw.copy()
+    raw = read_table(path, SERVO_COLUMNS, columns, what="servo results").copy()
     if "amplitude_deg" not in raw.columns and "amplitude_rad" in raw.columns:
         raw["amplitude_deg"] = np.degrees(pd.to_numeric(raw["amplitude_rad"], errors="coerce"))
     stiffness = next((c for c in STIFFNESS_COLUMNS if c in raw.columns), None)
@@ -154,6 +145,22 @@ def read_servo_results(path: str | Path) -> ServoPoints:
     else:
         raw["sweep"] = _infer_sweeps(raw["amplitude_deg"].to_numpy(float), raw["frequency_hz"].to_numpy(float))
     return ServoPoints(_servo_table(raw, stiffness, damping), str(path), *_definitions(stiffness, damping), raw=raw)
+
+
+#: the columns read_servo_results looks for, with the names labs give them
+SERVO_COLUMNS: dict[str, tuple[str, ...]] = {
+    "amplitude_deg": COMMON_ALIASES["amplitude_deg"], "amplitude_rad": (),
+    "frequency_hz": COMMON_ALIASES["frequency_hz"],
+    "storage_stiffness_nm_per_deg": ("storage stiffness", "k'", "speichersteifigkeit", "c'"),
+    "storage_stiffness_nm_per_rad": (),
+    "dynamic_stiffness_nm_per_deg": ("dynamic stiffness", "|k*|", "k*", "dynamische steifigkeit"),
+    "dynamic_stiffness_nm_per_rad": (),
+    "drop_tower_equivalent_damping_ratio": (),
+    "loss_factor": ("loss factor", "verlustfaktor", "eta", "tan delta"),
+    "loss_angle_deg": ("loss angle", "verlustwinkel"),
+    "relative_damping_psi": ("relative damping", "psi", "relative dämpfung", "verhältnismäßige dämpfung"),
+    "sweep": ("sweep type", "versuchsart"),
+}
 
 
 def _infer_sweeps(amplitude: np.ndarray, frequency: np.ndarray) -> list[str]:

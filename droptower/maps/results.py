@@ -1,8 +1,9 @@
 """Read a results table and pick the tests a map may be fitted to.
 
-A results table is what ``droptower extract --out`` and ``droptower campaign`` write (CSV or
-Parquet, one row per test, the extractor's column names), or the paper's Table 4
-(``rapp2022_table4_map.csv``). The map needs amplitude, frequency, stiffness and damping ratio;
+A results table is what ``droptower extract --out`` and ``droptower campaign`` write (CSV,
+Parquet, Excel, JSON; one row per test, the extractor's column names), or the paper's Table 4
+(``rapp2022_table4_map.csv``), or a lab's own table (read like logs: any delimiter, decimal
+comma, units in a row or in brackets, :mod:`droptower.io.table_reader`). The map needs amplitude, frequency, stiffness and damping ratio;
 inertia, drop mass, drop height, flags and file are used when present.
 """
 from __future__ import annotations
@@ -17,6 +18,7 @@ import pandas as pd
 
 from droptower.data import TABLE4_NAME, table4_path
 from droptower.errors import DroptowerError
+from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: Columns the map is fitted from (the extractor's output names).
 REQUIRED = ("amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
@@ -47,18 +49,7 @@ def read_results(path: str | Path) -> pd.DataFrame:
         path = path / "results.parquet"
     if not path.is_file():
         raise DroptowerError("file not found", file=path)
-    suffix = path.suffix.lower()
-    try:
-        if suffix == ".csv":
-            table = pd.read_csv(path)
-        elif suffix in (".parquet", ".pq"):
-            table = pd.read_parquet(path)
-        else:
-            raise DroptowerError(f"unsupported results format {suffix or '(none)'!r}: use .csv or .parquet", file=path)
-    except DroptowerError:
-        raise
-    except Exception as exc:  # pandas/pyarrow raise many types for a broken file
-        raise DroptowerError(f"cannot read results table ({type(exc).__name__}: {exc})", file=path) from None
+    table = read_table(path, COMMON_ALIASES, what="results table")
     check_columns(table, path)
     return table
 
