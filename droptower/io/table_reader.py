@@ -20,6 +20,7 @@ be in the wanted unit. Columns not wanted are kept under their own names.
 """
 from __future__ import annotations
 
+import csv
 import io
 import re
 from collections.abc import Iterable
@@ -71,7 +72,7 @@ def _normalise(name: str) -> str:
 
 
 def _fields(line: str, delimiter: str) -> list[str]:
-    return [f.strip().strip('"') for f in line.split(delimiter)]
+    return [f.strip() for f in next(csv.reader([line], delimiter=delimiter))]  # quoted fields may hold it
 
 
 def _layout(lines: list[str]) -> tuple[str, int]:
