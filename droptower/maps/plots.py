@@ -90,11 +90,11 @@ def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
     ax3.legend(loc="upper right")
     lo, hi = tests["stiffness_nm_per_deg"].min() * 0.95, tests["stiffness_nm_per_deg"].max() * 1.05
     ax.plot([lo, hi], [lo, hi], "k-", lw=1, label="model = test")
-    ax.set(xlabel="test stiffness [N·m/deg]", ylabel="eq. 19 stiffness [N·m/deg]", xlim=(lo, hi), ylim=(lo, hi),
+    ax.set(xlabel="test stiffness [N·m/deg]", ylabel=f"{_label(fit, 'eq. 19')} stiffness [N·m/deg]", xlim=(lo, hi), ylim=(lo, hi),
            title=f"rms {fit.stats.stiffness_rms_error_pct:.2f} %, max {fit.stats.stiffness_max_error_pct:.2f} %")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    fig.suptitle("Stiffness map, seed 004 eq. 19 (Fig. 12)")
+    fig.suptitle(f"Stiffness map, {_label(fit, 'seed 004 eq. 19')} (Fig. 12)")
     fig.savefig(path, dpi=120)
 
 
@@ -118,11 +118,11 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
         for f, color in zip(np.linspace(r.frequency_hz_min, r.frequency_hz_max, 3), ["C1", "C2", "C3"]):
             ax.plot(grid, fit.damping_ratio(grid, f), "-", color=color, label=f"map at {f:.3g} Hz")
     ax.set(xlabel="angular amplitude [deg]", ylabel="damping ratio [-]",
-           title=f"eq. 19 / eq. 20: rms {fit.stats.damping_ratio_rms_error_pct:.1f} %, "
+           title=f"{_label(fit, 'eq. 19 / eq. 20')}: rms {fit.stats.damping_ratio_rms_error_pct:.1f} %, "
                  f"max {fit.stats.damping_ratio_max_error_pct:.1f} %")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    fig.suptitle("Damping ratio map, seed 004 eq. 20 (Fig. 13)")
+    fig.suptitle(f"Damping ratio map, {_label(fit, 'seed 004 eq. 20')} (Fig. 13)")
     fig.savefig(path, dpi=120)
 
 
@@ -134,6 +134,11 @@ def _frequency_along(rows: pd.DataFrame, amplitude_deg: np.ndarray) -> np.ndarra
         return np.full_like(amplitude_deg, np.exp(lf.mean()))
     slope, intercept = np.polyfit(la, lf, 1)
     return np.exp(intercept + slope * np.log(amplitude_deg))
+
+
+def _label(fit: MapFit, paper: str) -> str:
+    """The equation's name: the paper's for its form, else the form's name."""
+    return paper if fit.form.name == "paper" else f"form {fit.form.name}"
 
 
 def _colors() -> itertools.cycle:

@@ -15,6 +15,7 @@ from typing import Any
 import pandas as pd
 
 from droptower.errors import DroptowerError
+from droptower.maps.results import read_results
 
 #: Why a flag is raised (droptower.extract.extractor), shown next to every flagged test.
 FLAG_REASONS = {
@@ -49,7 +50,8 @@ class Run:
 
 def load_run(source: str | Path) -> Run:
     """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``) or a results table
-    (CSV, Parquet, JSON, xlsx) whose ``file`` column names the logs; one-line errors otherwise."""
+    (CSV or Parquet, as ``droptower map`` reads) whose ``file`` column names the logs; one-line
+    errors otherwise."""
     source = Path(source)
     if source.is_dir():
         if (source / "manifest.json").is_file():
@@ -104,23 +106,7 @@ def _described(content: dict[str, Any]) -> str:
 
 
 def _results_table(path: Path) -> Run:
-    suffix = path.suffix.lower()
-    try:
-        if suffix == ".csv":
-            table = pd.read_csv(path)
-        elif suffix in (".parquet", ".pq"):
-            table = pd.read_parquet(path)
-        elif suffix == ".json":
-            table = pd.read_json(path)
-        elif suffix == ".xlsx":
-            table = pd.read_excel(path)
-        else:
-            raise DroptowerError(f"unsupported results table {suffix or '(no suffix)'!r}: use .csv, .parquet, "
-                                 ".json or .xlsx, or give a campaign folder", file=path)
-    except DroptowerError:
-        raise
-    except Exception as exc:  # pandas, pyarrow and openpyxl raise many types for a broken file
-        raise DroptowerError(f"cannot read results table ({type(exc).__name__}: {exc})", file=path) from None
+    table = read_results(path)
     files = [str(f) if isinstance(f, str) and f else None for f in table.get("file", [None] * len(table))]
     logs = [_find_log(f, path.parent) for f in files]
     names = [_shown(f, path.parent) if f else f"row {i + 1}" for i, f in enumerate(files)]
