@@ -154,7 +154,8 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "not a campaign folder" in err and err.count("\n") == 1
     (tmp_path / "r.txt").write_text("x")
     assert main(["report", str(tmp_path / "r.txt")]) == 2
-    assert "unsupported results format '.txt'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "r.txt: results table lacks column(s) amplitude_deg" in err and err.count("\n") == 1
 
 
 # ---- in the browser ---------------------------------------------------------------------------

@@ -50,8 +50,8 @@ class Run:
 
 def load_run(source: str | Path) -> Run:
     """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``) or a results table
-    (CSV or Parquet, as ``droptower map`` reads) whose ``file`` column names the logs; one-line
-    errors otherwise."""
+    (any format ``droptower map`` reads) whose ``file`` column names the logs; one-line errors
+    otherwise."""
     source = Path(source)
     if source.is_dir():
         if (source / "manifest.json").is_file():
