@@ -154,6 +154,9 @@ def test_interrupted_after_a_chunk_and_resumed(inputs, reference, tmp_path, caps
     code = _cli(inputs, out, "--resume", "--workers", "2")
     assert code == 0
     assert "(5 run now" in capsys.readouterr().out
+    summary = pd.read_csv(out / "summary.csv")  # per condition: 2 heights x 2 preloads, 2 repeats each
+    assert len(summary) == 4 and (summary["n_tests"] == 2).all()
+    assert (out / "fig11_preload_effect.png").stat().st_size > 20_000
     after = _snapshot(out / "records") | _snapshot(out / "logs")
     assert all(after[name] == finished[name] for name in finished)  # never rewritten
     pd.testing.assert_frame_equal(pd.read_parquet(out / "results.parquet"), reference.results, check_exact=True)

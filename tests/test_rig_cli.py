@@ -48,7 +48,8 @@ def test_simulate_table_on_the_shipped_presets(capsys):
     code, out, err = run(capsys, "simulate", "--inertia-kgm2", "0.1557", "--drop-mass-kg", "2", "--height-m", "0.4",
                          "--duration-s", "0.03")
     assert code == 0, err
-    assert "rapp2022_nr60 on rapp2022" in out and "double impact: yes" in out
+    assert "rapp2022_nr60 on rapp2022" in out and "2 contact(s) of drop mass and lever" in out
+    assert "double impact (a second contact within the first period" in out and "): yes" in out
     assert "warning: double impact" in err
 
 

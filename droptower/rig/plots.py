@@ -39,12 +39,14 @@ def plot_test(result: "DropResult", path: str | Path) -> Path:
     if result.double_impact:
         t_end = max(t_end, result.impact_time_s + result.second_impact_time_s + 0.005)
     win = result.time_s <= t_end
+    later = "double impact (2nd contact in the 1st period)" if result.double_impact else \
+        "later contact (after the 1st period: no double impact)"
     ax = axes[0]
     ax.plot(t_ms[win], -1e3 * result.drop_mass_m[win], label="drop mass")
     ax.plot(t_ms[win], -1e3 * result.lever_tip_m[win], label="lever tip")
     for n, c in enumerate(c for c in result.contacts if c.start_s <= t_end):
         ax.axvline(1e3 * c.start_s, color="r" if n else "k", lw=0.8, ls="--",
-                   label="1st impact" if n == 0 else ("further contacts" if n == 1 else None))
+                   label="1st impact" if n == 0 else (later if n == 1 else None))
     if np.isfinite(period):
         ax.axvspan(1e3 * result.impact_time_s, 1e3 * (result.impact_time_s + period), color="0.92",
                    label="1st period of the lever")
@@ -54,14 +56,19 @@ def plot_test(result: "DropResult", path: str | Path) -> Path:
     t = result.test
     ax.set_title(f"J = {t.inertia_kgm2:g} kg*m^2, m1 = {t.drop_mass_kg:g} kg, h = {t.drop_height_m:g} m, "
                  f"preload {t.preload_nm:g} N*m ({result.coupling_name} on {result.rig.name})", fontsize=9)
-    axes[1].plot(t_ms, np.degrees(ch.angle_rad), lw=0.8)
-    axes[1].set_ylabel("angle (laser) [deg]")
+    axes[1].plot(t_ms, np.degrees(ch.angle_rad), lw=0.8, label="angle (laser)")
+    axes[1].set_ylabel("angle [deg]")
     axes[2].plot(t_ms, ch.torque_nm, lw=0.6, label="flange torque (sensor)")
     axes[2].plot(t_ms, result.coupling_torque_nm, lw=1.0, label="coupling torque")
     axes[2].set_ylabel("torque [N*m]")
     axes[2].set_xlabel("time [ms]")
-    axes[2].legend(fontsize=8)
-    axes[1].set_title("recorded channels", fontsize=9)
+    # every contact on the traces too: a later one (the drop mass falling back) kicks the decay
+    for ax in axes[1:]:
+        for n, c in enumerate(result.contacts):
+            ax.axvline(1e3 * c.start_s, color="r" if n else "k", lw=0.8, ls="--",
+                       label="1st impact" if n == 0 else (later if n == 1 else None))
+        ax.legend(fontsize=8, loc="upper right")
+    axes[1].set_title(f"recorded channels; {len(result.contacts)} contact(s)", fontsize=9)
     for a in axes:
         a.grid(True, alpha=0.3)
     fig.tight_layout()
