@@ -152,10 +152,13 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert main(["report", str(tmp_path / "folder")]) == 2
     err = capsys.readouterr().err
     assert "not a campaign folder" in err and err.count("\n") == 1
-    (tmp_path / "r.txt").write_text("x")
+    (tmp_path / "r.txt").write_text("x")  # text tables are read (lab exports), this one has no results
     assert main(["report", str(tmp_path / "r.txt")]) == 2
     err = capsys.readouterr().err
     assert "r.txt: results table lacks column(s) amplitude_deg" in err and err.count("\n") == 1
+    (tmp_path / "r.yaml").write_text("x: 1")
+    assert main(["report", str(tmp_path / "r.yaml")]) == 2
+    assert "unsupported table format '.yaml'" in capsys.readouterr().err
 
 
 # ---- in the browser ---------------------------------------------------------------------------
