@@ -10,8 +10,9 @@ much as large ones. All tests of all parameter sets of a call (a candidate, or t
 a forward-difference Jacobian) decay in ONE batched call of the core.
 
 The fit is bounded trust-region-reflective least squares (:func:`~droptower.identify.fit.fit_rows`).
-Standard errors: s^2 (J'J)^-1 inflated for the residual's lag-1 correlation, plus, in
-quadrature, the parameters' shift when the decays are integrated on half the step (the
+Standard errors: the larger of s^2 (J'J)^-1 inflated for the residual's lag-1 correlation
+and the cluster-robust (sandwich) covariance with the tests as clusters (a test's systematic
+misfit counts once, not once per sample), plus, in quadrature, the parameters' shift when the decays are integrated on half the step (the
 integration step's bias, Richardson-scaled for a first-order error), so they do not
 claim more than the simulation's accuracy supports. A fraction of the tests (spread over
 inertias and amplitudes) is held out and predicted.
@@ -89,6 +90,9 @@ class DropProblem:
         t_amp = np.array([d.torque_amplitude_nm if d.torque_nm is not None else 1.0 for d in decays])
         self.w_torque = np.where(self.has_torque, settings.torque_weight, 0.0) / (t_amp * np.sqrt(counts))
         self.counter = Counter()
+        #: the test each residual belongs to (angle part, then torque part)
+        self.test_of_residual = np.concatenate([np.nonzero(self.mask)[0],
+                                                np.nonzero(self.mask & self.has_torque[:, None])[0]])
 
     def couplings(self, rows: np.ndarray) -> tuple[Coupling | None, np.ndarray]:
         """One coupling over the rows' parameter sets, and which rows are admissible (a row the
@@ -268,7 +272,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     bias_z = np.linalg.lstsq(sol.jacobian, -(r_fine - sol.residual), rcond=None)[0] * 2.0
     r = sol.residual
     lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
-    std = sol.std_error(lag1, extra_z=bias_z)
+    std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
     fit_err = summarise(test_errors(problem, sol.values))
     hold_err = None
     if hold_idx:

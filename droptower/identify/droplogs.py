@@ -31,6 +31,8 @@ from droptower.extract.impact import find_impact
 
 #: A later contact of the drop mass ends the compared window; one within this many periods excludes the test.
 MIN_WINDOW_PERIODS = 1.5
+#: Samples compared per oscillation period (at most; every sample at low sample rates).
+COMPARED_PER_PERIOD = 100
 #: Fraction of the first period after the contact over which the angle's slope is fitted.
 SLOPE_WINDOW_PERIODS = 0.125
 
@@ -133,7 +135,10 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
             raise DroptowerError(f"double impact {1e3 * second:.2f} ms after the impact ({second / period:.2f} periods; "
                                  f"at least {MIN_WINDOW_PERIODS:g} free periods are needed)")
         end = t[impact.second_onset - 1]  # the decay is free up to the next contact
-    sel = np.flatnonzero((t >= t[impact.contact_end]) & (t <= end))
+    # the decay is compared on COMPARED_PER_PERIOD samples per period (the simulation runs
+    # on every sample step): more adds no information on a smooth decay, only cost
+    stride = max(1, int(period / float(np.median(np.diff(t_all))) / COMPARED_PER_PERIOD))
+    sel = np.flatnonzero((t >= t[impact.contact_end]) & (t <= end))[::stride]
     torque = None
     if signals.torque_nm is not None:
         torque = (np.asarray(signals.torque_nm, float) - float(np.mean(signals.torque_nm[pre])))[sel]

@@ -16,7 +16,8 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, levels, result_of, steady_blocks
-from droptower.identify.fit import Identification, Parameter, clip_to_bounds, metrics, simulate_rows
+from droptower.identify.fit import (Identification, Parameter, at_bounds, clip_to_bounds, metrics, simulate,
+                                    simulate_rows)
 
 class MasingFamily(Family):
     """Seed 003's Masing model: n Prandtl elements (stiffness k each, limits R e^{alpha(eta-1)})
@@ -206,10 +207,12 @@ def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Ide
 
     extra["amplitude_functions"] = {n: {**fn, "variable": "amplitude_deg"} for n, fn in amp_fn.items()}
     extra["frequency_functions"] = {n: {**fn, "variable": "frequency_hz"} for n, fn in freq_fn.items()}
-    # fit quality of the amplitude/frequency-dependent model: each block with its own set
+    # fit quality of the amplitude/frequency-dependent model (each block with its own set): in
+    # the report's details; the reported fit and bounds are those of the coupling written
     rows = np.array([params_at(math.degrees(sb.amplitude_rad), sb.frequency_hz) for sb in steady])
     wins = [sb.window for sb in steady]
-    fit_metrics = metrics(wins, simulate_rows(fam, rows, wins, np.arange(len(wins))))
+    extra["amplitude_frequency_model_fit"] = metrics(wins, simulate_rows(fam, rows, wins, np.arange(len(wins)))).as_dict()
+    extra["stage_parameters_at_bounds"] = sorted({b for st in stages for b in st.at_bounds})
     amp_out, f_out = float(fam.options["amplitude_deg"]), float(fam.options["frequency_hz"])
     if amp_out or f_out:
         amp_out = amp_out or float(np.median(amp_x))
@@ -223,11 +226,12 @@ def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Ide
         v_out = x
         note = ("the global fit, one parameter set for all data; the amplitude- and frequency-dependent "
                 "parameters are in the report (options amplitude_deg / frequency_hz write them at one point)")
-    result = result_of(s, segments, v_out, stages, start, extra=extra, coupling_note=note, fit=fit_metrics)
+    written = metrics(segments, simulate(fam, v_out[None], segments)[0])
+    result = result_of(s, segments, v_out, stages, start, extra=extra, coupling_note=note, fit=written)
     # standard errors: the global fit's for the global set, else per level (in the report)
     result.std_error = dict(zip(fam.names, map(float, glob.std_error))) if v_out is x else \
         {n: float("nan") for n in fam.names}
-    result.at_bounds = sorted({b for st in stages for b in st.at_bounds})
+    result.at_bounds = at_bounds(fam.parameters, v_out)
     return result
 
 
