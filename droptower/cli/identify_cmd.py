@@ -174,7 +174,10 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
                    out: Path | None, as_json: bool, plot_dir: str | None) -> None:
     """Fit every model family on the same DATA and rank them.
 
-    Prints a ranking (parameters, nRMSE on the fitting and hold-out data, fit time) and
+    Prints a ranking (parameters, nRMSE on the fitting and hold-out data, fit time), best
+    first by the Bayesian information criterion on the fitting data with the residual's
+    effective sample size (a family with more parameters ranks higher only if it lowers the
+    error by more than its parameters cost; delta_bic: distance to the best), and
     seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
     relative to the worst model on that record). A family whose data requirement these
     records do not meet (overlay: steady sine blocks at several amplitudes and frequencies)
@@ -188,7 +191,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     """
     from tqdm import tqdm
 
-    from droptower.identify.report import plot_comparison, ranking_table, record_table
+    from droptower.identify.report import RANKING_RULE, plot_comparison, ranking_table, record_table
     from droptower.identify.strategies import identify as run
     from droptower.io.tables import check_table_path, write_table
 
@@ -225,10 +228,10 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
         write_table(ranking.rename_axis("rank").reset_index(), out, "--out")
         write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out")
     if as_json:
-        click.echo(json.dumps({"ranking": json.loads(ranking.to_json(orient="records")),
+        click.echo(json.dumps({"ranking_rule": RANKING_RULE, "ranking": json.loads(ranking.to_json(orient="records")),
                                "records": json.loads(records.to_json(orient="records"))}, indent=1))
     else:
-        click.echo("ranking (nRMSE: RMSE in % of the largest |torque|):")
+        click.echo(f"ranking ({RANKING_RULE}; nRMSE: RMSE in % of the largest |torque|):")
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.3f}"))
         click.echo("\nper record (seed 000 Fig. 8): nRMSE % / RMSE relative to the worst model")
         if not records.empty:

@@ -9,7 +9,9 @@ divided by its peak and by the square root of its sample count, so that small dr
 much as large ones. All tests of all parameter sets of a call (a candidate, or the columns of
 a forward-difference Jacobian) decay in ONE batched call of the core.
 
-The fit is bounded trust-region-reflective least squares (:func:`~droptower.identify.fit.fit_rows`).
+The fit is bounded trust-region-reflective least squares (:func:`~droptower.identify.fit.fit_rows`)
+from the best of a batch of random starts, with a weak prior toward the start that pins only
+the directions the data do not determine (reported as non-identifiable combinations).
 Standard errors: the larger of s^2 (J'J)^-1 inflated for the residual's lag-1 correlation
 and the cluster-robust (sandwich) covariance with the tests as clusters (a test's systematic
 misfit counts once, not once per sample), plus, in quadrature, the parameters' shift when the decays are integrated on half the step (the
@@ -19,6 +21,7 @@ inertias and amplitudes) is held out and predicted.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -39,6 +42,8 @@ from droptower.rheology import Coupling
 DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer")
 #: Relative tolerance of the fit (cost, step): far below the sensors' noise on the angle.
 TOL = 1e-6
+#: Weight of the prior toward the starting point, per square root of the number of tests.
+PRIOR_WEIGHT = 1e-3
 #: Random starting points tried (in one batched call) before the least-squares fit.
 STARTS = 12
 
@@ -155,6 +160,31 @@ class DropProblem:
         return np.concatenate([ra, rq], axis=1)
 
 
+    def with_prior(self, x0: np.ndarray, free: np.ndarray):
+        """The residual function with a weak prior toward ``x0`` appended: PRIOR_WEIGHT times
+        the square root of the number of tests times each free parameter's optimised-variable
+        distance from its start. It pins directions the data do not determine (the fit would
+        otherwise crawl along them until its evaluation limit) and moves the others far less
+        than their standard errors (the data's curvature there is larger by many orders)."""
+        params = self.family.parameters
+        idx = np.flatnonzero(free)
+        z0 = np.array([params[i].to_z(x0[i]) for i in idx])
+        w = PRIOR_WEIGHT * math.sqrt(len(self.decays))
+        self.n_prior = idx.size
+
+        def objective(rows: np.ndarray) -> np.ndarray:
+            rows = np.atleast_2d(rows)
+            z = np.array([[params[i].to_z(v[i]) for i in idx] for v in rows])
+            return np.concatenate([self.residuals(rows), w * (z - z0)], axis=1)
+
+        return objective
+
+    def without_prior(self, sol: Any) -> Any:
+        """A fit's residual and Jacobian without the prior's rows (for errors and uncertainties)."""
+        k = self.n_prior
+        return dataclasses.replace(sol, residual=sol.residual[:-k], jacobian=sol.jacobian[:-k])
+
+
 def test_errors(problem: DropProblem, values: np.ndarray) -> list[dict[str, Any]]:
     """Per test: RMS angle (and torque) error over the compared window as a fraction of the
     test's peak (``angle_nrmse``, ``torque_nrmse``)."""
@@ -263,9 +293,11 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         x0[i], given[i] = float(value), True
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     x0 = start_search(problem, family, x0, free, settings.seed)
-    sol = fit_rows(params, x0, problem.residuals, free=free, max_nfev=settings.max_nfev, tol=TOL)
+    objective = problem.with_prior(x0, free)
+    sol = fit_rows(params, x0, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
     if "p" in family.names and not given[family.names.index("p")]:
-        sol = walk_p(problem, family, sol, settings.max_nfev)
+        sol = walk_p(problem, family, sol, objective, settings.max_nfev)
+    sol = problem.without_prior(sol)
     # the integration step's bias: the parameters' shift to the half step, Richardson-scaled
     # for the first-order part of the error (the core's rate-dependent elements, see .lever)
     r_fine = problem.residuals(sol.values[None], 2 * settings.substeps)[0]
@@ -284,7 +316,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z)
 
 
-def walk_p(problem: DropProblem, family: Family, sol: Any, max_nfev: int) -> Any:
+def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int) -> Any:
     """The elastoslide's odd exponent p: walk over ``p_candidates`` from the fitted one while the
     cost falls (as the servo strategy does). Moving to p', v_r moves so that the slip-rate law
     (v / v_r)^(1/p) keeps its value at the campaign's typical rate."""
@@ -308,7 +340,7 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, max_nfev: int) -> Any
                 x = here.values.copy()
                 x[jv] = v_typ * (x[jv] / v_typ) ** (p_new / p_old)
                 x[jp] = p_new
-                fits[p_new] = fit_rows(family.parameters, clip_to_bounds(family.parameters, x), problem.residuals,
+                fits[p_new] = fit_rows(family.parameters, clip_to_bounds(family.parameters, x), objective,
                                        free=sol.free, max_nfev=max_nfev, tol=TOL)
             if cost(fits[p_new]) >= cost(here):
                 break

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.identify.data import Segment
-from droptower.identify.fit import Identification, metrics
+from droptower.identify.fit import Identification, Metrics, metrics
 
 
 def _clean(value: Any) -> Any:
@@ -96,20 +96,35 @@ def _brief(value: Any) -> str:
 
 
 # ---------------------------------------------------------------------------- comparison
+#: How ``compare-models`` ranks (printed with the ranking).
+RANKING_RULE = ("ranked by BIC = n_eff ln(RSS / n) + k ln(n_eff) on the fitting data (k parameters, n samples, "
+                "n_eff = n (1 - r1) / (1 + r1) for the residual's lag-1 correlation r1): more parameters rank "
+                "higher only if they lower the error by more than they cost; non-converged fits last")
+
+
+def bic(fit: Metrics, n_parameters: int) -> float:
+    """Bayesian information criterion of a least-squares fit with correlated residuals: the
+    Gaussian log-likelihood and the penalty on the effective number of independent samples."""
+    rho = min(max(fit.residual_lag1, 0.0), 0.99)
+    n_eff = max(fit.n_samples * (1.0 - rho) / (1.0 + rho), 1.0)
+    return n_eff * math.log(max(fit.rmse_nm, 1e-300) ** 2) + n_parameters * math.log(n_eff)
+
+
 def ranking_table(results: dict[str, Identification]) -> pd.DataFrame:
-    """One row per family, best first (hold-out nRMSE if there is one, else fit nRMSE;
-    non-converged fits last)."""
+    """One row per family, best first by :data:`RANKING_RULE`; ``delta_bic`` is the distance
+    to the best (above ~10: strong evidence against the family)."""
     rows = []
     for kind, r in results.items():
         rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
                      "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
+                     "bic": bic(r.fit, r.n_parameters),
                      "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
     table = pd.DataFrame(rows)
     if table.empty:
         return table
-    key = "holdout_nrmse_percent" if table["holdout_nrmse_percent"].notna().any() else "fit_nrmse_percent"
     table["_rank"] = ~table["converged"]
-    table = table.sort_values(["_rank", key]).drop(columns="_rank").reset_index(drop=True)
+    table = table.sort_values(["_rank", "bic"]).drop(columns="_rank").reset_index(drop=True)
+    table.insert(5, "delta_bic", table["bic"] - table["bic"].iloc[0])
     table.index = table.index + 1
     return table
 
