@@ -108,6 +108,13 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     hold-out data, the residual's lag-1 correlation and the effort. A fit that does not
     converge is reported and nothing is written (exit code 2).
 
+    With --from-drop-tests, DATA are drop-test logs or campaign folders: every test is
+    re-simulated from its impact (the lever J driven by the coupling alone, its initial rate
+    from the impact-force impulse or the angle's slope) and the model (elastoslide, zerodim6,
+    masing, pfeffer, or template with --template COUPLING) is fitted to the measured angle (and
+    torque) decays; a fraction of the tests is held out; --predict-servo writes the fitted
+    model's servo K' and loss factor next to the drop tower's first-cycle values.
+
     --params INIT.toml (parameter names as in the report):
 
     \b
@@ -123,6 +130,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
       droptower identify sweep.csv --model zerodim6 --out my_coupling.toml
       droptower identify bench.bin --model elastoslide --channel angle=Winkel:deg \\
           --channel torque=Md:kN*m --holdout check.csv --plot fits/
+      droptower identify --from-drop-tests runs/table2 --model template \\
+          --template rapp2022_nr60 --out fitted.toml --predict-servo servo.csv
     """
     from droptower.identify.report import plot_identification, result_dict, result_text
     from droptower.identify.strategies import identify as run

@@ -148,7 +148,8 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
     for e in excluded:
         click.echo(f"droptower: excluded {e['file']}: {e['reason']}", err=True)
     progress(f"identify: fitting {kind} to {len(decays)} drop test(s) ...")
-    result = identify_drops(kind, decays, excluded=excluded, settings=settings, init=init.initial, options=options)
+    result = identify_drops(kind, decays, excluded=excluded, settings=settings, init=init.initial, bounds=init.bounds,
+                            options=options)
     if result.converged and out:
         result.coupling_file = str(out)
     click.echo(json.dumps(result.as_dict(), indent=1) if as_json else drop_report_text(result))

@@ -34,7 +34,8 @@ from droptower.identify.data import DataScale
 from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
-from droptower.identify.fit import Counter, Parameter, check_in_bounds, clip_to_bounds, fit_rows
+from droptower.identify.families.stages import setup_family
+from droptower.identify.fit import Counter, Parameter, clip_to_bounds, fit_rows
 from droptower.identify.lever import at_times, free_decay
 from droptower.rheology import Coupling
 
@@ -270,9 +271,11 @@ class DropIdentification:
 
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
                    settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | None = None,
+                   bounds: dict[str, tuple[float, float]] | None = None,
                    options: dict[str, Any] | None = None) -> DropIdentification:
     """Fit family ``kind`` (:data:`DROP_KINDS`; options as for ``identify``, e.g. ``template``)
-    to the free decays ``decays``."""
+    to the free decays ``decays``; ``init`` / ``bounds``: starting values and bounds by
+    parameter name (``--params``)."""
     start = time.perf_counter()
     if kind not in DROP_KINDS:
         raise DroptowerError(f"model {kind!r} cannot be identified from drop tests (kinds: {', '.join(DROP_KINDS)})")
@@ -282,15 +285,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     family = family_class(kind)(drop_scale(decays), options)
     fit_idx, hold_idx = holdout_split(decays, settings.holdout_fraction)
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
-    params = family.parameters
-    x0 = family.initial()
-    given = np.zeros(len(params), bool)
-    for name, value in (init or {}).items():
-        if name not in family.names:
-            raise DroptowerError(f"unknown parameter {name} for model {kind} (parameters: {', '.join(family.names)})")
-        i = family.names.index(name)
-        check_in_bounds([params[i]], np.array([float(value)]))
-        x0[i], given[i] = float(value), True
+    s = setup_family(family, init, bounds)
+    params, x0, given = family.parameters, s.x0, s.given
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     x0 = start_search(problem, family, x0, free, settings.seed)
     objective = problem.with_prior(x0, free)

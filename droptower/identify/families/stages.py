@@ -73,7 +73,12 @@ def setup(family_cls: type[Family], segments: list[Segment], init: dict[str, flo
           file: str | None = None) -> Setup:
     """Bind family ``family_cls`` to ``segments``: scaled bounds (``bounds`` overrides some), the
     family's first guess, the user's initial values ``init`` (checked against the bounds)."""
-    family = family_cls(DataScale.of(segments), options)
+    return setup_family(family_cls(DataScale.of(segments), options), init, bounds, file)
+
+
+def setup_family(family: Family, init: dict[str, float] | None = None,
+                 bounds: dict[str, tuple[float, float]] | None = None, file: str | None = None) -> Setup:
+    """A family (already scaled to its data) with the user's bounds and initial values."""
     kind = family.kind
     names = family.names
     for what, given in (("initial values", init or {}), ("bounds", bounds or {})):
