@@ -6,6 +6,7 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import droptower as dt
@@ -152,10 +153,13 @@ def test_double_impact_is_excluded_and_named(tmp_path):
 def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     out = tmp_path / "fitted.toml"
     folder = str(logs["zerodim6"][0].parent)
+    pred = tmp_path / "servo.csv"
     code = main(["identify", "--from-drop-tests", folder, "--model", "zerodim6", "--json", "--out", str(out),
-                 "--holdout-fraction", "0.2"])
+                 "--holdout-fraction", "0.2", "--predict-servo", str(pred)])
     assert code == 0
     report = json.loads(capsys.readouterr().out)
+    servo = pd.read_csv(pred)  # the model over the tested range on a servo grid
+    assert len(servo) == 20 and {"model_storage_stiffness_nm_per_deg", "model_loss_factor"} <= set(servo)
     for key in ("converged", "model", "parameters", "fit_error", "holdout_error", "tests_used", "tests_excluded",
                 "wall_s", "coupling_file"):
         assert key in report

@@ -50,37 +50,45 @@ def drop_report_text(result: Any) -> str:
     return "\n".join(lines)
 
 
-def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any) -> Any:
-    """Per used test: what the drop tower measured (the first-cycle evaluation of seed 004 eq.
-    15-16, i.e. the map's data) next to the fitted model's servo K' and loss factor at the
-    test's amplitude and frequency."""
+def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any) -> tuple[Any, str]:
+    """The fitted model on a servo grid over the tested amplitude and frequency range (K', loss
+    factor, the drop-tower-equivalent damping ratio), next to the drop tower's map (seed 004
+    eq. 19-20 fitted to the first-cycle evaluations of the same logs) at the same points.
+    Returns the table and a note on the map."""
     import pandas as pd
 
-    from droptower.extract.files import Settings, extract_file
-    from droptower.identify.dropfit import servo_grid
+    from droptower.extract.files import Settings, extract_file, result_row
+    from droptower.identify.dropfit import servo_grid, tested_range
+    from droptower.maps.fit import fit_map
 
-    coupling = result.coupling()
+    (a0, a1), (f0, f1) = tested_range(decays)
+    grid = servo_grid(result.coupling(), np.geomspace(a0, a1, 5), np.geomspace(f0, f1, 4))
+    table = pd.DataFrame({
+        "amplitude_deg": grid["amplitude_deg"], "frequency_hz": grid["frequency_hz"],
+        "model_storage_stiffness_nm_per_deg": grid["storage_stiffness_nm_per_deg"],
+        "model_loss_factor": grid["loss_factor"],
+        "model_drop_tower_equivalent_damping_ratio": grid["drop_tower_equivalent_damping_ratio"]})
+    used = {d.name for d in decays}
     rows = []
-    by_name = {Path(p).name: p for p in paths}
-    for d in decays:
-        row = {"file": d.name, "inertia_kgm2": d.inertia_kgm2, "amplitude_deg": math.degrees(d.amplitude_rad),
-               "frequency_hz": d.frequency_hz}
-        try:
-            _, ex = extract_file(by_name[d.name], Settings(roles=settings.roles, defaults=settings.defaults))
-            got = ex.as_dict()
-            row["drop_tower_stiffness_nm_per_deg"] = got.get("stiffness_nm_per_deg")
-            row["drop_tower_loss_factor"] = got.get("loss_factor")
-        except (DroptowerError, KeyError):
-            pass
-        model = servo_grid(coupling, np.array([d.amplitude_rad]), np.array([d.frequency_hz])).iloc[0]
-        row["model_storage_stiffness_nm_per_deg"] = float(model["storage_stiffness_nm_per_deg"])
-        row["model_loss_factor"] = float(model["loss_factor"])
-        rows.append(row)
-    return pd.DataFrame(rows)
+    for p in paths:
+        if Path(p).name in used:
+            try:
+                rows.append(result_row(p, *extract_file(p, Settings(roles=settings.roles, defaults=settings.defaults))))
+            except DroptowerError:
+                continue
+    try:
+        fitted = fit_map(pd.DataFrame(rows), source="the drop tests")
+    except DroptowerError as exc:
+        return table, f"no drop-tower map: {exc.problem}"
+    a, f = table["amplitude_deg"].to_numpy(), table["frequency_hz"].to_numpy()
+    table["map_stiffness_nm_per_deg"] = fitted.stiffness_nm_per_deg(a, f)
+    table["map_damping_ratio"] = fitted.damping_ratio(a, f)
+    return table, f"drop-tower map (seed 004 eq. 19-20) from {len(rows)} first-cycle evaluations"
 
 
 def plot_servo_prediction(table: Any, out_dir: str) -> Path:
-    """K' and loss factor over amplitude: the drop tower's first-cycle values and the model's."""
+    """Stiffness and damping over amplitude, one line per frequency: the fitted model on the
+    servo bench (solid) and the drop tower's map (dashed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -88,18 +96,22 @@ def plot_servo_prediction(table: Any, out_dir: str) -> Path:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    fig, (ax_k, ax_e) = plt.subplots(1, 2, figsize=(12, 4.5))
-    for ax, drop, model, label in ((ax_k, "drop_tower_stiffness_nm_per_deg", "model_storage_stiffness_nm_per_deg",
-                                    "stiffness (N*m/deg)"), (ax_e, "drop_tower_loss_factor", "model_loss_factor",
-                                                             "loss factor")):
-        if drop in table:
-            ax.scatter(table["amplitude_deg"], table[drop], marker="o", label="drop tower (first cycle)")
-        sc = ax.scatter(table["amplitude_deg"], table[model], c=table["frequency_hz"], marker="x",
-                        label="fitted model, servo K' / eta")
+    fig, (ax_k, ax_d) = plt.subplots(1, 2, figsize=(12, 4.5))
+    for i, (f, part) in enumerate(table.groupby("frequency_hz")):
+        color = f"C{i}"
+        ax_k.plot(part["amplitude_deg"], part["model_storage_stiffness_nm_per_deg"], color=color,
+                  label=f"model K', {f:.3g} Hz")
+        ax_d.plot(part["amplitude_deg"], part["model_drop_tower_equivalent_damping_ratio"], color=color,
+                  label=f"model, {f:.3g} Hz")
+        if "map_stiffness_nm_per_deg" in part:
+            ax_k.plot(part["amplitude_deg"], part["map_stiffness_nm_per_deg"], "--", color=color, label=f"map, {f:.3g} Hz")
+            ax_d.plot(part["amplitude_deg"], part["map_damping_ratio"], "--", color=color, label=f"map, {f:.3g} Hz")
+    ax_k.set_ylabel("stiffness (N*m/deg)")
+    ax_d.set_ylabel("drop-tower damping ratio d (model: equivalent to its loss factor)")
+    for ax in (ax_k, ax_d):
         ax.set_xlabel("amplitude (deg)")
-        ax.set_ylabel(label)
-        ax.legend()
-    fig.colorbar(sc, ax=ax_e, label="frequency (Hz)")
+        ax.legend(fontsize=7)
+    fig.suptitle("fitted model on the servo bench (solid) vs the drop tower's map (dashed)")
     fig.tight_layout()
     path = out / "identify_drop_servo_prediction.png"
     fig.savefig(path, dpi=110)
@@ -157,7 +169,8 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         from droptower.io.tables import write_table
 
         paths = [str(p) for p in _log_paths(data)]
-        table = servo_prediction(result, decays, paths, read)
+        table, map_note = servo_prediction(result, decays, paths, read)
+        note(f"servo prediction: {map_note}")
         if predict_servo:
             note(f"servo prediction: {write_table(table, predict_servo, '--predict-servo')}")
         if plot_dir:

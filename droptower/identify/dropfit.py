@@ -148,6 +148,7 @@ class DropProblem:
         a = at_times(angle, h, grid).reshape(m, t, -1)
         q = at_times(torque, h, grid).reshape(m, t, -1)
         a[~good] = np.nan
+        q[~good] = np.nan
         self.counter.evaluations += m
         self.counter.core_calls += 1
         return a, q
@@ -186,7 +187,7 @@ class DropProblem:
         return dataclasses.replace(sol, residual=sol.residual[:-k], jacobian=sol.jacobian[:-k])
 
 
-def test_errors(problem: DropProblem, values: np.ndarray) -> list[dict[str, Any]]:
+def per_test_errors(problem: DropProblem, values: np.ndarray) -> list[dict[str, Any]]:
     """Per test: RMS angle (and torque) error over the compared window as a fraction of the
     test's peak (``angle_nrmse``, ``torque_nrmse``)."""
     a, q = problem.simulate(values[None])
@@ -288,6 +289,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     s = setup_family(family, init, bounds)
     params, x0, given = family.parameters, s.x0, s.given
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
+    if not free.any():
+        raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
     x0 = start_search(problem, family, x0, free, settings.seed)
     objective = problem.with_prior(x0, free)
     sol = fit_rows(params, x0, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
@@ -301,11 +304,11 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     r = sol.residual
     lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
     std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
-    fit_err = summarise(test_errors(problem, sol.values))
+    fit_err = summarise(per_test_errors(problem, sol.values))
     hold_err = None
     if hold_idx:
         hold = DropProblem(family, [decays[i] for i in hold_idx], settings)
-        hold_err = summarise(test_errors(hold, sol.values))
+        hold_err = summarise(per_test_errors(hold, sol.values))
     return DropIdentification(
         kind, family, sol.values, std, sol.at_bounds, sol.non_identifiable, sol.converged, sol.message, fit_err,
         hold_err, [decays[i].name for i in fit_idx], [decays[i].name for i in hold_idx], list(excluded or []),
