@@ -77,6 +77,11 @@ def test_validate_cli_takes_the_lab_file_and_servo_column(tmp_path: Path, capsys
                  "loss_factor=LF", "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
     assert got["points"] == expected["points"] and len(got["points"]) == 3
+    out = tmp_path / "validation"
+    assert main(["validate", "--map", str(map_file), "--servo-results", str(snake), "--out", str(out),
+                 "--table-format", "xlsx", "--quiet"]) == 0
+    sheet = pd.read_excel(out / "validation.xlsx", engine="openpyxl")
+    assert len(sheet) == 3 and (out / "servo_results.xlsx").is_file() and not (out / "validation.csv").exists()
     assert main(["validate", "--map", str(map_file), "--servo-results", str(lab), "--servo-column", "eta=LF"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unknown column name(s) eta" in err
