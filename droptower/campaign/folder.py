@@ -16,6 +16,8 @@ touched: the manifest's hashes decide.
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import json
 import math
@@ -24,13 +26,15 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from droptower.campaign.spec import CampaignSpec
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError
 from droptower.io.droptower_log import atomic_write
 
 FORMAT = "droptower-campaign"
+#: The lock file of a running campaign (see :func:`folder_lock`).
+LOCK_NAME = ".droptower.lock"
 FORMAT_VERSION = 1
 #: Packages whose versions the manifest records (results may change with any of them).
 PACKAGES = ("droptower", "numpy", "scipy", "pymunk", "numba", "pandas", "pyarrow")
@@ -178,6 +182,31 @@ def _differences(old: dict[str, Any], spec: CampaignSpec) -> list[str]:
     return out
 
 
+@contextlib.contextmanager
+def folder_lock(root: Path) -> Iterator[None]:
+    """Hold an OS-level lock on the campaign folder ``root`` (created if absent) while the block
+    runs: a second campaign into the same folder is refused at once, with a one-line error. The
+    lock is ``flock`` on ``root/.droptower.lock``; the OS releases it when the process ends,
+    however it ends, so a killed campaign never leaves a stale lock."""
+    if root.exists() and not root.is_dir():
+        raise DroptowerError("exists and is not a folder", file=root)
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        handle = open(root / LOCK_NAME, "a")
+    except OSError as exc:
+        raise WriteError.from_os_error(exc, root) from None
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise DroptowerError("another droptower campaign is running in this folder (it holds "
+                                 f"{LOCK_NAME}); wait for it to end, or choose another --out folder",
+                                 file=root) from None
+        yield
+    finally:
+        handle.close()  # releases the lock
+
+
 def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[str, Any] | None, list[str]]:
     """Check that the campaign may write into ``layout.root``; create it if new.
 
@@ -204,7 +233,7 @@ def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[
                     for name, now in versions().items()
                     if (was := old.get("versions", {}).get(name)) is not None and was != now]
         return old, warnings
-    if root.is_dir() and any(root.iterdir()):
+    if root.is_dir() and any(p.name != LOCK_NAME for p in root.iterdir()):
         raise DroptowerError("is not empty and holds no campaign (no manifest.json); choose an empty or new folder",
                              file=root)
     try:

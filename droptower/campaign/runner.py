@@ -18,8 +18,8 @@ import pandas as pd
 
 from droptower.campaign.chunk import ChunkOutcome, ChunkTask, peak_rss_mb, run_chunk
 from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
-from droptower.campaign.folder import (Layout, finished, layout_for, open_folder, saved_inputs, saved_settings,
-                                       write_manifest)
+from droptower.campaign.folder import (Layout, finished, folder_lock, layout_for, open_folder, saved_inputs,
+                                       saved_settings, write_manifest)
 from droptower.campaign.results import assemble, write_results
 from droptower.campaign.spec import PLAN_COLUMNS, CampaignSpec, prepare
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
@@ -77,6 +77,9 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     if workers is not None and workers < 1:
         raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
     given = {"duration_s": duration_s, "chunk_size": chunk_size, "log_format": log_format, "window": window}
+    if resume and not Layout(Path(out)).manifest.is_file():  # else --resume would start the default plan
+        raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
+                             file=out)
     saved = saved_settings(Path(out)) if resume else {}
     inputs = {"rig": rig, "coupling": coupling, "doe": doe}
     if resume and None in inputs.values():
@@ -89,7 +92,8 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     # a Dask scheduler is asked first: if it does not answer, the folder is not touched
     cluster = make_executor(workers, scheduler, scheduler_timeout_s) if scheduler is not None else None
     try:
-        return _run(spec, layout, resume, workers, cluster, progress, max_chunks, t_start)
+        with folder_lock(layout.root):
+            return _run(spec, layout, resume, workers, cluster, progress, max_chunks, t_start)
     except WriteError as exc:
         raise WriteError(f"{exc.problem}; the finished tests are kept: make room, then continue with --resume",
                          file=exc.file) from None
