@@ -65,7 +65,7 @@ def test_unknown_or_wrong_unit_is_an_error_naming_file_and_channel(unit, kind, m
 def test_own_format_default_roles(tmp_path):
     time, angle = _signals()
     path = write_log(tmp_path / "own.parquet", time, {
-        "angle_rad": angle, "torque_nm": 900 * angle, "impact_force_n": np.exp(-time), "laser_distance_m": 0.1 * angle},
+        "angle_rad": angle, "torque_nm": 900 * angle, "impact_force_n": np.exp(-time), "laser_distance_m": 0.1 * np.tan(angle)},
         {"inertia_kgm2": 0.01})
     signals = map_channels(read_any(path), sensor_radius_m=0.1)
     assert np.array_equal(signals.time_s, time) and np.array_equal(signals.angle_rad, angle)
@@ -94,7 +94,7 @@ def test_common_names_units_and_overrides():
 
 def test_distance_in_mm_needs_radius():
     time, angle = _signals()
-    record = _record({"t": ("s", time), "Laser": ("mm", 1e3 * 0.08 * angle)})
+    record = _record({"t": ("s", time), "Laser": ("mm", 1e3 * 0.08 * np.tan(angle))})  # R tan(phi)
     signals = map_channels(record, sensor_radius_m=0.08)
     np.testing.assert_allclose(signals.angle_rad, angle, rtol=1e-13, atol=1e-18)
     with pytest.raises(DroptowerError, match=r"drop_07\.csv: a laser distance channel needs the sensor radius"):

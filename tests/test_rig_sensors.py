@@ -67,8 +67,8 @@ def test_sample_is_seeded_and_converts_like_the_rig():
     for name in a.columns():
         np.testing.assert_array_equal(a.columns()[name], b.columns()[name])
         assert not np.array_equal(a.columns()[name], c.columns()[name])
-    np.testing.assert_allclose(a.laser_distance_m / sensors.laser.radius_m, a.angle_rad, rtol=1e-12)
-    assert np.std(a.laser_distance_m - sensors.laser.radius_m * twist) == pytest.approx(sensors.laser.noise_m, rel=0.1)
+    np.testing.assert_allclose(a.laser_distance_m / sensors.laser.radius_m, np.tan(a.angle_rad), rtol=1e-12)
+    assert np.std(a.laser_distance_m - sensors.laser.radius_m * np.tan(twist)) == pytest.approx(sensors.laser.noise_m, rel=0.1)
     assert np.std((a.torque_nm - torque)[:150]) == pytest.approx(sensors.torque.noise_nm, rel=0.2)
 
 

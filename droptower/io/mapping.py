@@ -1,7 +1,7 @@
 """Channel mapping: pick the channels of a :class:`Record` for each role and convert to SI.
 
 Roles: ``time``, ``impact_force``, ``angle``, ``distance`` (laser distance, turned into an
-angle with the sensor radius: angle = distance / radius), ``torque``. A role is given as
+angle with the sensor radius: angle = arctan(distance / radius), see :func:`laser_angle`), ``torque``. A role is given as
 ``NAME`` or ``NAME:UNIT`` (the unit overrides a missing or wrong unit in the file), or ``-`` to
 leave an optional role out; on the command line as ``--channel ROLE=NAME[:UNIT]``. Roles not given are found by name: first the
 droptower-log names (``time_s``, ``angle_rad``, ...), then common names matched
@@ -197,6 +197,19 @@ def find_roles(record: Record, roles: dict[str, str] | None = None,
     return specs
 
 
+def laser_distance(angle_rad: np.ndarray, radius_m: float) -> np.ndarray:
+    """What the laser reads (m) at the lever angle ``angle_rad``: it looks along a fixed vertical
+    line at the horizontal distance ``radius_m`` from the axis, as the drop mass falls along one at
+    the lever length L, so it sees the lever surface move by radius * tan(angle) (the impact
+    geometry's L tan(phi), NOTES §1.2), not the arc radius * angle (0.09 % apart at 3 deg)."""
+    return radius_m * np.tan(angle_rad)
+
+
+def laser_angle(distance_m: np.ndarray, radius_m: float) -> np.ndarray:
+    """The lever angle (rad) from the laser distance (m): the inverse of :func:`laser_distance`."""
+    return np.arctan(np.asarray(distance_m) / radius_m)
+
+
 def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
                  sample_rate_hz: float | None = None) -> DropSignals:
     """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
@@ -262,7 +275,7 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
         if not sensor_radius_m or sensor_radius_m <= 0:
             raise DroptowerError("a laser distance channel needs the sensor radius (m) of the rig, > 0",
                                  file=record.path)
-        angle = signals["distance"] / sensor_radius_m  # arc length on the sensor radius (small angles)
+        angle = laser_angle(signals["distance"], sensor_radius_m)
     return DropSignals(time_s=time, angle_rad=angle, torque_nm=signals.get("torque"),
                        impact_force_n=signals.get("impact_force"), metadata=dict(record.metadata),
                        source=record.path)

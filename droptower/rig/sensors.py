@@ -1,10 +1,11 @@
 """Sampling a simulated drop test like the real rig's sensors (seed 004 "Experimental Setup").
 
-- Laser distance sensor on the lever: ``laser_distance_m = radius * angle + noise``, the arc
-  length at the spot radius (the conversion the log post-processor inverts: angle =
-  distance / radius, :func:`droptower.io.mapping.map_channels`). The angle is the coupling's
-  total twist, preload twist included; ``angle_rad`` is the laser distance divided by the
-  radius, so it carries the laser's noise.
+- Laser distance sensor looking at the lever along a fixed vertical line at the spot radius:
+  ``laser_distance_m = radius * tan(angle) + noise`` (:func:`droptower.io.mapping.laser_distance`,
+  the geometry of the impact point's L tan(phi); the log reader inverts it with
+  :func:`~droptower.io.mapping.laser_angle`). The angle is the coupling's total twist, preload
+  twist included; ``angle_rad`` is the angle read back from the laser distance, so it carries
+  the laser's noise.
 - Flange torque (force sensor on the coupling flange): the coupling torque, preload included,
   seen through the optional test-setup resonance (seed 004 Fig. 8: ringing on the torque that
   the angle does not show): T_meas = T + s (H(T) - T), H the 2nd-order low-pass
@@ -28,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from droptower.io.mapping import laser_angle, laser_distance
 from droptower.rig.config import Resonance, Sensors
 
 
@@ -101,7 +103,7 @@ def sample(time_s: np.ndarray, twist_rad: np.ndarray, coupling_torque_nm: np.nda
     n = time_s.size
     laser_rng, torque_rng, force_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3))
     radius = sensors.laser.radius_m
-    distance = radius * twist_rad + laser_rng.normal(0.0, sensors.laser.noise_m, n)
+    distance = laser_distance(twist_rad, radius) + laser_rng.normal(0.0, sensors.laser.noise_m, n)
     torque = coupling_torque_nm
     if sensors.torque.resonance is not None:
         torque = resonance(torque, sensors.sample_rate_hz, sensors.torque.resonance)
@@ -115,5 +117,5 @@ def sample(time_s: np.ndarray, twist_rad: np.ndarray, coupling_torque_nm: np.nda
     if np.any(np.abs(force) > sensors.impact_force.range_n):
         saturated.append("impact_force_n")
         force = np.clip(force, -sensors.impact_force.range_n, sensors.impact_force.range_n)
-    return Channels(time_s=time_s, angle_rad=distance / radius, torque_nm=torque, impact_force_n=force,
+    return Channels(time_s=time_s, angle_rad=laser_angle(distance, radius), torque_nm=torque, impact_force_n=force,
                     laser_distance_m=distance, saturated=tuple(saturated))

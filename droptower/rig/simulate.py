@@ -193,6 +193,9 @@ def as_tests(tests: Sequence[DropTest] | pd.DataFrame) -> list[DropTest]:
     return list(tests)
 
 
+#: How far the first impact's separation/approach velocity ratio may differ from the rig's k.
+RESTITUTION_TOLERANCE = 1e-3
+
 #: float64 arrays per output sample and test: the scene's angle, torque, drop-mass path and
 #: impulse grid, the sensors' channels and noise, the log's columns (an upper estimate)
 ARRAYS_PER_SAMPLE = 16
@@ -296,6 +299,11 @@ def _warnings(result: DropResult) -> list[str]:
         out.append(f"impact force {force:.0f} N beyond the force sensor's range {rig.sensors.impact_force.range_n:g} N")
     if not result.contacts:
         out.append("the drop mass never hit the lever within the record")
+    elif abs(result.contacts[0].restitution - rig.restitution) > RESTITUTION_TOLERANCE:
+        # too few solver passes leave the impulse unconverged: the impact is softer or harder than k
+        out.append(f"the impact's realised restitution {result.contacts[0].restitution:.4f} differs from k = "
+                   f"{rig.restitution:g} by more than {RESTITUTION_TOLERANCE:g}: raise simulation.solver_iterations "
+                   f"(now {rig.simulation.solver_iterations})")
     if result.double_impact:
         out.append(f"double impact {1e3 * result.second_impact_time_s:.2f} ms after the impact")
     return out
