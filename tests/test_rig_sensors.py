@@ -133,3 +133,16 @@ def test_drop_mass_resting_on_the_lever_is_not_an_impact():
     assert not result.double_impact and not r.double_impact
     assert result.impact_impulse_ns == pytest.approx(impact.impulse_ns, rel=0.02)
     assert result.stiffness_nm_per_rad == pytest.approx(14000.0, rel=0.01)  # Kelvin-Voigt: J (omega² + delta²) = K
+
+
+def test_laser_reads_the_vertical_displacement_at_its_radius_and_back():
+    """Issue 11: the laser looks along a fixed vertical line at the spot radius R, as the drop mass
+    falls along one at L: it reads R tan(phi) (the impact geometry's L tan(phi)), not the arc
+    R phi, and the reader inverts exactly that, so writing and reading agree at any angle."""
+    from droptower.io.mapping import laser_angle, laser_distance
+
+    phi = np.radians(np.array([-10.0, -3.0, 0.0, 0.5, 3.0, 10.0]))
+    np.testing.assert_allclose(laser_distance(phi, 0.15), 0.15 * np.tan(phi), rtol=1e-15)
+    np.testing.assert_allclose(laser_angle(laser_distance(phi, 0.15), 0.15), phi, rtol=1e-14, atol=1e-18)
+    # at 3 deg the arc would be 0.09 % short: the two geometries are told apart
+    assert laser_distance(np.radians(3.0), 1.0) / np.radians(3.0) - 1 == pytest.approx(9.1e-4, rel=0.02)
