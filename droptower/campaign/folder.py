@@ -233,7 +233,9 @@ def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[
                     for name, now in versions().items()
                     if (was := old.get("versions", {}).get(name)) is not None and was != now]
         return old, warnings
-    if root.is_dir() and any(p.name != LOCK_NAME for p in root.iterdir()):
+    # the lock file and the empty folders of a start that could not write its manifest are no campaign
+    if root.is_dir() and any(p.name != LOCK_NAME and not (p in (layout.records, layout.logs) and not any(p.iterdir()))
+                             for p in root.iterdir()):
         raise DroptowerError("is not empty and holds no campaign (no manifest.json); choose an empty or new folder",
                              file=root)
     try:
