@@ -1,6 +1,4 @@
 """``python -m droptower``: the same command as the ``droptower`` console script."""
-import sys
+from droptower.cli.main import run
 
-from droptower.cli.main import main
-
-sys.exit(main())
+run()

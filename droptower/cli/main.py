@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import os
 import sys
 
 import click
@@ -100,5 +101,22 @@ def main(argv: list[str] | None = None) -> int:
     return code if isinstance(code, int) else 0
 
 
+def run() -> None:
+    """The console script: :func:`main`, then leave without the interpreter's teardown.
+
+    Native thread pools (Arrow's readers and writers, numba's) may still hold threads when the
+    interpreter finalises; tearing them down then aborted the process now and then ("terminate
+    called without an active exception", exit 134) after the command had written everything
+    (apache/arrow#34314). Every file is written and closed by then, so the streams are flushed
+    and the process ends with the command's exit code at once."""
+    code = main()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more can be said
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -44,6 +44,10 @@ from droptower.io.channels import Channel, Record
 MAGIC = "# droptower-log 1"
 PARQUET_KEY = b"droptower"
 TIME_COLUMN = "time_s"
+#: Arrow's thread pools stay unused: a log is small, and a pool's native threads still running
+#: when the interpreter exits made ``extract`` abort now and then ("terminate called without an
+#: active exception", exit 134, after its output was complete; apache/arrow#34314).
+ARROW_THREADS = False
 
 #: Unit implied by a column name's suffix, longest suffix first (``_nm`` before ``_m``).
 SUFFIX_UNITS: tuple[tuple[str, str], ...] = (
@@ -222,7 +226,8 @@ def _read_csv(path: Path) -> Record:
         except json.JSONDecodeError as exc:
             raise DroptowerError(f"metadata value is not JSON ({exc.msg})", where=f"line {lineno}") from None
     try:
-        table = pcsv.read_csv(stream, convert_options=pcsv.ConvertOptions(column_types=None))
+        table = pcsv.read_csv(stream, read_options=pcsv.ReadOptions(use_threads=ARROW_THREADS),
+                              convert_options=pcsv.ConvertOptions(column_types=None))
     except pa.ArrowInvalid as exc:
         raise DroptowerError(f"bad data rows: {str(exc).splitlines()[0]}") from None
     columns = {}
@@ -252,6 +257,6 @@ def _read_parquet(path: Path) -> Record:
         raise DroptowerError("not a droptower log (no 'droptower' schema metadata)")
     if block.get("version") != 1:
         raise DroptowerError(f"unsupported droptower-log version {block.get('version')!r}")
-    table = pq.read_table(path)
+    table = pq.read_table(path, use_threads=ARROW_THREADS)
     columns = {name: table.column(name).to_numpy().astype(np.float64, copy=False) for name in table.column_names}
     return _record(path, columns, dict(block.get("metadata", {})), "droptower-log parquet")

@@ -23,7 +23,7 @@ def read_parquet(path: str | Path) -> Record:
 
     path = Path(path)
     try:
-        table = pq.read_table(path)
+        table = pq.read_table(path, use_threads=False)  # see droptower_log.ARROW_THREADS
     except (OSError, pa.ArrowException) as exc:
         raise DroptowerError(f"cannot read Parquet file: {exc}", file=path) from None
     channels: dict[str, Channel] = {}
