@@ -182,14 +182,34 @@ def _differences(old: dict[str, Any], spec: CampaignSpec) -> list[str]:
     return out
 
 
+def has_campaign(root: Path) -> bool:
+    """True if ``root`` holds a campaign (its manifest)."""
+    return Layout(Path(root)).manifest.is_file()
+
+
+def check_folder(root: Path) -> None:
+    """Refuse ``root`` if it is a file, or a non-empty folder without a campaign (a user's folder).
+
+    The lock file and the empty ``logs/`` and ``records/`` of a start that could not write its
+    manifest do not count."""
+    root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise DroptowerError("exists and is not a folder", file=root)
+    if root.is_dir() and not has_campaign(root):
+        layout = Layout(root)
+        if any(p.name != LOCK_NAME and not (p in (layout.records, layout.logs) and not any(p.iterdir()))
+               for p in root.iterdir()):
+            raise DroptowerError("is not empty and holds no campaign (no manifest.json); choose an empty or new "
+                                 "folder", file=root)
+
+
 @contextlib.contextmanager
 def folder_lock(root: Path) -> Iterator[None]:
     """Hold an OS-level lock on the campaign folder ``root`` (created if absent) while the block
     runs: a second campaign into the same folder is refused at once, with a one-line error. The
     lock is ``flock`` on ``root/.droptower.lock``; the OS releases it when the process ends,
     however it ends, so a killed campaign never leaves a stale lock."""
-    if root.exists() and not root.is_dir():
-        raise DroptowerError("exists and is not a folder", file=root)
+    check_folder(root)  # a user's folder is refused before a lock file is put into it
     try:
         root.mkdir(parents=True, exist_ok=True)
         handle = open(root / LOCK_NAME, "a")
@@ -215,8 +235,7 @@ def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[
     and the same identity; a non-empty folder without a manifest is refused.
     """
     root = layout.root
-    if root.exists() and not root.is_dir():
-        raise DroptowerError("exists and is not a folder", file=root)
+    check_folder(root)
     if layout.manifest.is_file():
         old = read_manifest(layout.manifest)
         done = count_finished(layout)
@@ -233,11 +252,6 @@ def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[
                     for name, now in versions().items()
                     if (was := old.get("versions", {}).get(name)) is not None and was != now]
         return old, warnings
-    # the lock file and the empty folders of a start that could not write its manifest are no campaign
-    if root.is_dir() and any(p.name != LOCK_NAME and not (p in (layout.records, layout.logs) and not any(p.iterdir()))
-                             for p in root.iterdir()):
-        raise DroptowerError("is not empty and holds no campaign (no manifest.json); choose an empty or new folder",
-                             file=root)
     try:
         layout.records.mkdir(parents=True, exist_ok=True)
         layout.logs.mkdir(parents=True, exist_ok=True)

@@ -77,9 +77,6 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     if workers is not None and workers < 1:
         raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
     given = {"duration_s": duration_s, "chunk_size": chunk_size, "log_format": log_format, "window": window}
-    if resume and not Layout(Path(out)).manifest.is_file():  # else --resume would start the default plan
-        raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
-                             file=out)
     saved = saved_settings(Path(out)) if resume else {}
     inputs = {"rig": rig, "coupling": coupling, "doe": doe}
     if resume and None in inputs.values():

@@ -8,6 +8,7 @@ import click
 from droptower.cli import options
 from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
+from droptower.errors import DroptowerError
 
 
 @click.command()
@@ -61,7 +62,12 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
       droptower campaign --out runs/mine --resume
     """
     from droptower.campaign import run_campaign
+    from droptower.campaign.folder import check_folder, has_campaign
 
+    if resume and not has_campaign(out):  # else --resume would start the default plan in it
+        check_folder(out)  # a non-empty folder is named as such
+        raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
+                             file=out)
     run = run_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
                        duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
                        scheduler_timeout_s=scheduler_timeout_s, progress=not options.QUIET)

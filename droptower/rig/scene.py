@@ -256,11 +256,12 @@ class _Contacts:
         keep = self.touching[scenes]  # arbiters kept for persistence after separation report stale impulses
         self.pending = (scenes[keep], values[keep].copy())
 
-    def account(self, bodies: _FewBodies | _ManyBodies, sample_position: float) -> bool:
+    def account(self, bodies: _FewBodies | _ManyBodies, sample_position: float, step_samples: float) -> bool:
         """Book the pending impulses with the velocities just after them (the bodies' current state).
 
-        sample_position: the end of the step that gave them, in output samples from the first.
-        Returns True if it moved bodies (an impact's penetration removed: see :meth:`_undo_penetration`).
+        sample_position: the end of the step that gave them, in output samples from the first;
+        step_samples: one step in output samples. Returns True if it moved bodies (an impact's
+        penetration removed: see :meth:`_undo_penetration`).
         """
         if self.pending is None:
             return False
@@ -284,13 +285,6 @@ class _Contacts:
         np.add.at(self.loss_total, scenes, loss)
         impulse = np.hypot(px, py)
         np.add.at(self.impulse, scenes, impulse)
-        # shared between the samples around the step's end: sum and centroid (the timing) stay exact
-        n = self.history.shape[1]
-        lo = min(int(sample_position), n - 1)
-        share = sample_position - lo if lo + 1 < n else 0.0
-        np.add.at(self.history, (scenes, lo), (1.0 - share) * impulse)
-        if share:
-            np.add.at(self.history, (scenes, lo + 1), share * impulse)
         # the impact: the first step of the contact that pushed (the solver resolves it within the step)
         first = pushed & np.isnan(self.approach[scenes])
         hit = scenes[first]
@@ -298,14 +292,22 @@ class _Contacts:
         self.separation[hit] = normal_velocity(v_after, w_after)[first]
         self.v_after[hit] = v_after[first]
         self.w_after[hit] = w_after[first]
+        # how long before the step's end the striker touched: the test's impact only (its first
+        # contact) and an overlap reached in the last step; later, slow contacts are left alone
+        tau = np.zeros(scenes.size)
         if hit.size:
-            # the test's impact only (its first contact), and an overlap reached in the last step
-            # (tau <= dt); the later, slow contacts of a returning or resting drop mass are left alone
-            tau = self.depth[hit] / self.approach[hit]
+            t = self.depth[hit] / self.approach[hit]
             impact = np.array([not self.events[i] for i in hit.tolist()])
-            tau = np.where(impact & (tau > 0) & (tau <= self.dt * (1 + 1e-9)), tau, 0.0)
-            self._undo_penetration(hit, tau, (v_after - v_before)[first],
-                                   (w_after - w_before)[first])
+            tau[first] = np.where(impact & (t > 0) & (t <= self.dt * (1 + 1e-9)), t, 0.0)
+            self._undo_penetration(hit, tau[first], (v_after - v_before)[first], (w_after - w_before)[first])
+        # shared between the samples around the impulse's time (the step's end, or an impact's
+        # touch, where the bodies' motion now starts): sum and centroid (the timing) stay exact
+        n = self.history.shape[1]
+        position = sample_position - tau / self.dt * step_samples
+        lo = np.minimum(position.astype(int), n - 1)
+        share = np.where(lo + 1 < n, position - lo, 0.0)
+        np.add.at(self.history, (scenes, lo), (1.0 - share) * impulse)
+        np.add.at(self.history, (scenes, np.minimum(lo + 1, n - 1)), share * impulse)
         return bool(hit.size)
 
     def _undo_penetration(self, scenes: np.ndarray, tau_s: np.ndarray, dv: np.ndarray, dw: np.ndarray) -> None:
@@ -424,11 +426,12 @@ class DropTowerScenes:
         bodies, contacts = self.bodies, self.contacts
         step = self.space.step
         contacts.start_history(n_samples)
+        step_samples = 1.0 / steps_per_sample
         k = 0
         for n in range(n_samples):
             for s in range(steps_per_sample):
                 bodies.refresh()
-                if contacts.pending is not None and contacts.account(bodies, k / steps_per_sample):
+                if contacts.pending is not None and contacts.account(bodies, k / steps_per_sample, step_samples):
                     bodies.refresh()  # an impact moved bodies
                 # the coupling angle this step will reach (pymunk moves positions first, with the old rate)
                 bodies.predict(dt, twist_arg, pred)
@@ -454,7 +457,7 @@ class DropTowerScenes:
                 if contacts.open:
                     contacts.query()
         bodies.refresh()
-        contacts.account(bodies, k / steps_per_sample)
+        contacts.account(bodies, k / steps_per_sample, step_samples)
         time_s = self.t0 + np.arange(n_samples) * steps_per_sample * dt
         return SceneRecord(time_s=time_s, angle_rad=angle, coupling_torque_nm=torque_hist, drop_mass_m=self.r - mass_hist,
                            energy_time_s=time_s[::energy_every], kinetic_j=kinetic, potential_j=potential,
