@@ -65,8 +65,9 @@ def require_memory(nbytes: float, what: str, split: str, **where: Any) -> None:
     :class:`DroptowerError`."""
     limit = memory_limit_bytes()
     if not nbytes <= limit:  # also refuses NaN
-        raise DroptowerError(f"{what} needs {'about ' * math.isfinite(nbytes)}{format_bytes(nbytes)} of memory, more than the limit of "
-                             f"{format_bytes(limit)} (DROPTOWER_MEMORY_LIMIT_GB): {split}", **where)
+        amount = ("about " if math.isfinite(nbytes) else "") + format_bytes(nbytes)
+        raise DroptowerError(f"{what} needs {amount} of memory, more than the limit of {format_bytes(limit)} "
+                             f"(DROPTOWER_MEMORY_LIMIT_GB): {split}", **where)
 
 
 def require_steps(steps: float, what: str, split: str, **where: Any) -> None:
