@@ -37,7 +37,8 @@ from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
 from droptower.identify.fit import Counter, Parameter, clip_to_bounds, fit_rows
 from droptower.identify.lever import at_times, free_decay
-from droptower.rheology import Coupling
+from droptower.rheology import Coupling, CouplingState
+from droptower.rig.preload import hold_at
 
 #: Model kinds a drop-test campaign can identify (the servo-only families need steady sine blocks).
 DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer")
@@ -119,29 +120,24 @@ class DropProblem:
         first = next(c for c in sets if c is not None)
         return Coupling.stack([c if c is not None else first for c in sets]), good
 
-    def simulate(self, rows: np.ndarray, substeps: int | None = None, tests: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def simulate(self, rows: np.ndarray, substeps: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Angle and torque (M, T, N) of each parameter set (rows (M, n)) on each test (T)."""
         rows = np.atleast_2d(rows)
-        tests = np.arange(len(self.decays)) if tests is None else np.asarray(tests)
-        m, t = rows.shape[0], tests.size
-        sub = int(substeps or self.settings.substeps)
-        h = self.dt_s / sub
-        times = self.times[tests]
+        m, t = rows.shape[0], len(self.decays)
+        h = self.dt_s / int(substeps or self.settings.substeps)
+        times = self.times
         coupling, good = self.couplings(rows)
         if coupling is None:
             nan = np.full((m, t, times.shape[1]), np.nan)
             return nan, nan
         state = None
         if self.settings.conditioning is not None:
-            from droptower.rig.preload import hold_at
-
             cond = hold_at(coupling, np.zeros(m), *self.settings.conditioning)
             which = np.repeat(np.arange(m), t)
-            state = type(cond)(cond.values[which].copy(), cond.angle_rad[which].copy(), cond.torque_nm[which].copy())
+            state = CouplingState(cond.values[which], cond.angle_rad[which], cond.torque_nm[which])
         batch = Coupling(coupling.elements, name=coupling.name, params=np.repeat(coupling.params, t, axis=0))
-        inertia = np.tile([self.decays[i].inertia_kgm2 for i in tests], m)
-        rate0 = np.tile([self.decays[i].rate0_rad_per_s for i in tests], m)
+        inertia = np.tile([d.inertia_kgm2 for d in self.decays], m)
+        rate0 = np.tile([d.rate0_rad_per_s for d in self.decays], m)
         n_steps = int(math.ceil(float(times.max()) / h)) + 1
         angle, torque = free_decay(batch, inertia, rate0, n_steps, h, state)
         grid = np.tile(times, (m, 1))
@@ -160,7 +156,6 @@ class DropProblem:
         sel = self.mask & self.has_torque[:, None]
         rq = ((q - self.torque[None]) * self.w_torque[None, :, None])[:, sel]
         return np.concatenate([ra, rq], axis=1)
-
 
     def with_prior(self, x0: np.ndarray, free: np.ndarray):
         """The residual function with a weak prior toward ``x0`` appended: PRIOR_WEIGHT times
