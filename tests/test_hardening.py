@@ -362,6 +362,20 @@ def test_absurd_test_values_are_refused_without_overflow(capsys, option, value):
     assert "steps_per_sample" not in line  # the value is named, not the time step
 
 
+@pytest.mark.parametrize("args, needle", [
+    (["--amplitude-deg", "1e308"], "every amplitude must lie within 1e-06-90 deg, got 1e+308 deg"),
+    (["--amplitude-deg", "1e-308"], "got 1e-308 deg"),   # underflow: once blamed the sample rate
+    (["--amplitude-deg", "0.5,180"], "got 0.5, 180 deg"),
+    (["--preload-nm", "1e308"], "preload 1e+308 N*m is beyond +-1e+06 N*m"),
+])
+def test_servo_refuses_absurd_amplitudes_and_preloads(capsys, args, needle):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["servo", "rapp2022_nr60", "--frequency-hz", "10", *args]) == 2
+    line = one_line_error(capsys, needle)
+    assert "sample-rate" not in line and "NaN" not in line
+
+
 @pytest.mark.parametrize("content, needle", [
     ("time_s,angle_rad,torque_nm\n0,0.045,1\n0.001,0.046,2\n0.0005,0.047,3\n", "(0.001 s -> 0.0005 s)"),
     ("".join(f"{i / 1000},0.045,1\n" for i in range(400)), "constant signal (0.045"),

@@ -43,6 +43,9 @@ PRELOAD_TOLERANCE = 1e-4
 PRELOAD_ITERATIONS = 12
 #: The fewest simulation steps per cycle of the excitation (see the module docstring).
 MIN_STEPS_PER_CYCLE = 4096
+#: Amplitudes a bench can drive (rad): 1e-6 deg to 90 deg; preloads (N*m) up to 1 MN*m.
+AMPLITUDE_RANGE_RAD = (math.radians(1e-6), math.radians(90.0))
+MAX_PRELOAD_NM = 1e6
 #: Samples per simulate() call and batch row bound the memory of long, finely stepped runs.
 CHUNK_SAMPLES = 1 << 21
 
@@ -191,9 +194,16 @@ def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], freq
     evaluation and the fine simulation rate (Hz) it ran with."""
     c = _as_coupling(coupling)
     amps = _positive_list(amplitudes_rad, "amplitude", "rad")
+    # beyond these the torque under- or overflows and the evaluation blames the record, not the value
+    if not np.all((amps >= AMPLITUDE_RANGE_RAD[0]) & (amps <= AMPLITUDE_RANGE_RAD[1])):
+        raise DroptowerError(f"every amplitude must lie within {math.degrees(AMPLITUDE_RANGE_RAD[0]):g}-"
+                             f"{math.degrees(AMPLITUDE_RANGE_RAD[1]):g} deg, got "
+                             f"{', '.join(f'{math.degrees(a):g}' for a in amps)} deg")
     freqs = _positive_list(frequencies_hz, "frequency", "Hz")
     if not (math.isfinite(preload_nm)):
         raise DroptowerError(f"preload must be finite, got {preload_nm}")
+    if abs(preload_nm) > MAX_PRELOAD_NM:
+        raise DroptowerError(f"preload {preload_nm:g} N*m is beyond +-{MAX_PRELOAD_NM:g} N*m")
     if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0 and math.isfinite(simulation_rate_hz)
             and simulation_rate_hz > 0):
         raise DroptowerError("sample rate and simulation rate must be positive")
