@@ -26,7 +26,6 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError
