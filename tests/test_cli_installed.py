@@ -108,6 +108,9 @@ def test_run_plan_campaign_map_validate(folder):
                "--out", str(camp), "--workers", "1", "--duration-s", "0.06", "--quiet")
     assert "2 tests, 2 extracted, 0 failed" in proc.stdout and proc.stderr == ""
     assert len(pd.read_parquet(camp / "results.parquet")) == 2
+    assert len(pd.read_csv(camp / "summary.csv")) == 2  # one row per condition
+    _ok("report", str(camp))
+    assert (camp / "report.html").stat().st_size > 100_000
     map_file = folder / "map.json"
     _ok("map", "rapp2022_table4", "--out", str(map_file))
     servo = folder / "servo.csv"
