@@ -64,7 +64,7 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     if plot_path:
         from droptower.rig.plots import plot_plan
 
-        plot_plan(table, rig_cfg, plot_path)
+        plot_plan(table, rig_cfg, plot_path, model.name)
     if as_json:
         records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
                    for rec in table.to_dict(orient="records")]

@@ -77,7 +77,7 @@ def plot_test(result: "DropResult", path: str | Path) -> Path:
     return Path(path)
 
 
-def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path) -> Path:
+def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path, coupling_name: str | None = None) -> Path:
     """Four panels over drop height, a line per (case, preload): twist against the coupling
     limit, frequency, peak torque against the sensor range, and the clearance of the drop mass
     to the lever tip in the first period (negative: double impact)."""
@@ -101,14 +101,18 @@ def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path) -> Path:
                 ax.plot(sub["drop_height_m"][bad], sub[col][bad], "x", color="k", ms=7)
         if limit is not None:
             ax.axhline(limit, color="r", lw=1, ls="--", label=limit_label)
+            ax.legend(handles=ax.get_lines()[-1:], fontsize=7, loc="lower right")  # each panel's limit
         ax.set_ylabel(label)
         ax.set_xscale("log")
         ax.grid(True, which="both", alpha=0.3)
     for ax in axes[1]:
         ax.set_xlabel("drop height [m]")
-    axes[0, 0].legend(fontsize=7, ncol=1)
-    fig.suptitle(f"test plan on rig '{rig.name}' (x: double impact)")
+    axes[0, 1].plot([], [], "x", color="k", label="double impact")
+    conditions = [h for h in axes[0, 1].get_lines() if not h.get_label().startswith("_")]
+    fig.legend(handles=conditions, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))  # beside, not on, the data
+    coupling = f"coupling {coupling_name}, " if coupling_name else ""
+    fig.suptitle(f"test plan: {coupling}rig '{rig.name}' (one line per case, drop mass and preload)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
     return Path(path)

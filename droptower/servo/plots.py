@@ -31,8 +31,8 @@ def plot_loops(result: BenchResult, path: str | Path, title: str = "") -> Path:
             ax.plot(np.degrees(ev.loop_angle_rad), ev.loop_torque_nm, lw=1.2,
                     label=f"{row['frequency_hz']:g} Hz, psi {row['relative_damping_psi']:.2f}")
         ax.set_title(f"amplitude {amp:g} deg")
-        ax.set_xlabel("angle (deg)")
-        ax.set_ylabel("torque (N*m)")
+        ax.set_xlabel("angle [deg]")
+        ax.set_ylabel("torque [N*m]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     for ax in list(axes.flat)[len(amps):]:
