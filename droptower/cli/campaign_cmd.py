@@ -68,9 +68,17 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
         check_folder(out)  # a non-empty folder is named as such
         raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
                              file=out)
-    run = run_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
-                       duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
-                       scheduler_timeout_s=scheduler_timeout_s, progress=not options.QUIET)
+    try:
+        run = run_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
+                           duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
+                           scheduler_timeout_s=scheduler_timeout_s, progress=not options.QUIET)
+    except KeyboardInterrupt:  # Ctrl-C: say what is kept (the records on disk) and how to go on
+        from droptower.campaign.folder import Layout, count_finished
+
+        if (out / "manifest.json").is_file():
+            click.echo(f"droptower: interrupted; {count_finished(Layout(out))} test(s) of the campaign are finished "
+                       f"and kept; continue with: droptower campaign --out {out} --resume", err=True)
+        raise click.exceptions.Exit(130) from None
     for line in run.warnings:
         click.echo(f"droptower: warning: {line}", err=True)
     n = len(run.spec.tests)
