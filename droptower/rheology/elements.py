@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Annotated, Literal, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_validator, model_validator
 
 from droptower.limits import MAX_ELEMENT_N
@@ -520,11 +521,51 @@ class Pfeffer(ElementSpec):
         return self.k1 * (1.0 + iw * (1.0 - 1.0 / (1.0 + self.beta + self.alpha / iw)))
 
 
+
+# ------------------------------------------------------------------ Payne effect (NOTES 1.8)
+class Payne(ElementSpec):
+    """Kraus-type amplitude-dependent complex stiffness (the Payne effect of filled rubber).
+
+    K'(A) = stiffness / (1 + (A/critical_angle)^(2 exponent)) and
+    K''(A) = loss_stiffness + 2 loss_peak_stiffness (A/A_c)^m / (1 + (A/A_c)^(2m))
+    (Kraus 1984), rate-independent, with exactly elliptic loops in a harmonic motion. The
+    amplitude A and the frequency are read from the motion (envelopes of the half cycle under
+    way), so a free decay stays a single damped mode; see :func:`kernels.payne`.
+    """
+
+    kind: Literal["payne"]
+    stiffness: PositiveFloat               # N*m/rad, dK' at zero amplitude
+    critical_angle: PositiveFloat          # rad, A_c: half of dK' is lost there
+    exponent: PositiveFloat = 0.6          # -, m (Kraus: ~0.5-0.7 for filled rubber)
+    loss_stiffness: NonNegativeFloat = 0.0       # N*m/rad, K'' at zero amplitude
+    loss_peak_stiffness: NonNegativeFloat = 0.0  # N*m/rad, dK''_m: the loss peak at A_c
+    centre_relaxation_time: PositiveFloat = 10.0  # s, the centre follows a held mean angle
+    memory_time: PositiveFloat = 2.0        # s, longest half period read as an oscillation
+    storage_frequency_exponent: NonNegativeFloat = 0.0  # -, K' ~ f^beta_s
+    loss_frequency_exponent: NonNegativeFloat = 0.0     # -, K'' ~ f^beta_l
+    reference_frequency: PositiveFloat = 30.0           # Hz, where the stiffnesses above hold
+
+    def compile(self):
+        params = np.array([self.stiffness, self.critical_angle, self.exponent, self.loss_stiffness,
+                           self.loss_peak_stiffness, self.centre_relaxation_time, self.memory_time,
+                           self.storage_frequency_exponent, self.loss_frequency_exponent,
+                           2 * np.pi * self.reference_frequency])
+        return [KernelElement(K.PAYNE, params, 11)]
+
+    def complex_stiffness(self, amplitude_rad: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """K'(A, f) + i K''(A, f) (N*m/rad) in a harmonic motion of amplitude A (rad) and
+        frequency f (Hz) about the centre (the centre's slow relaxation left out)."""
+        u = (np.asarray(amplitude_rad, float) / self.critical_angle) ** self.exponent
+        ratio = np.asarray(frequency_hz, float) / self.reference_frequency
+        return (self.stiffness / (1 + u * u) * ratio ** self.storage_frequency_exponent
+                + 1j * (self.loss_stiffness + 2 * self.loss_peak_stiffness * u / (1 + u * u))
+                * ratio ** self.loss_frequency_exponent)
+
 ElementUnion = Annotated[
     Union[Spring, SpringTable, CubicSpring, Dashpot, Maxwell, Prony, Prandtl, Masing, Elastoslide,
-          Mullins, VariableMaxwell, Pfeffer],
+          Mullins, VariableMaxwell, Pfeffer, Payne],
     Field(discriminator="kind"),
 ]
 
 ELEMENT_KINDS = ("spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl",
-                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer")
+                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne")

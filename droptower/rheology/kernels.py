@@ -36,6 +36,7 @@ MAXWELL = 4
 SLIDER_BANK = 5
 VARIABLE_MAXWELL = 6
 PFEFFER = 7
+PAYNE = 8
 
 N_HEADER = 3  # stored, dissipated, torque
 
@@ -496,6 +497,128 @@ def pfeffer(p, po, s, so, x0, x1, h):
     return t1
 
 
+
+# ---------------------------------------------------------------- amplitude envelope (Payne effect)
+MIN_OMEGA = 2.0 * np.pi * 0.01  # rad/s: below 0.01 Hz a half cycle is not an oscillation
+
+
+@njit(**JIT)
+def _kraus(amp, angle_c, m):
+    """(1 / (1 + u^2), 2 u / (1 + u^2)) with u = (amp / angle_c)^m: Kraus's (1984) storage and
+    loss-peak shapes (1 and 0 at zero amplitude, 1/2 and 1 at angle_c)."""
+    u = (amp / angle_c) ** m
+    inv = 1.0 / (1.0 + u * u)
+    return inv, 2.0 * u * inv
+
+
+@njit(**JIT)
+def payne(p, po, s, so, x0, x1, h):
+    """Kraus-type amplitude-dependent complex stiffness, causal and passive (NOTES 1.8).
+
+    A spring k(A) acting on the elongation e = x - x_c about a centre x_c that follows the
+    mean angle (a Maxwell relaxation of time ``centre_tau``, so a held preload relaxes it),
+    in parallel with a dashpot c = K''(A) / w. A is the amplitude of the half cycle under
+    way and w the oscillation's angular frequency, both read from the motion itself:
+
+    - a half cycle runs from one zero crossing of e to the next; w is the ratio of the
+      velocity and elongation peaks of the last completed one (amplitude-independent, so it
+      does not lag a decaying oscillation); before one is known (from rest, or after
+      ``memory_s`` without a crossing) the running peaks of the current one are used;
+    - A = max(running |e| peak, running |de/dt| peak / w): for a harmonic motion the
+      velocity peak at the crossing already gives the half cycle's amplitude.
+
+    In a harmonic motion of amplitude A about the centre the loop is an exact ellipse:
+    K' = dK / (1 + u^2), K'' = loss_0 + 2 loss_peak u / (1 + u^2), u = (A/A_c)^m (Kraus 1984)
+    at every frequency: rate-independent, as filled rubber's Payne effect is to first order.
+    Passivity: the dashpot dissipates c v^2 >= 0. The spring's stiffness falls only in steps
+    where e keeps its sign and rises only in the step where e changes sign; the trapezoidal
+    work then exceeds the change of stored energy by e0 e1 (k_old - k_new) / 2 >= 0 in both
+    cases (the filler network breaks down under load and re-forms unstrained).
+
+    A weak frequency dependence (filled rubber's K' and K'' rise slowly with frequency) scales
+    K' by (w/w_ref)^beta_s and K'' by (w/w_ref)^beta_l, w again the oscillation's own frequency
+    (no relaxation time is involved, so a free decay stays one damped mode).
+
+    params: [dK, angle_c, m, loss_0, loss_peak, centre_tau, memory_s, beta_s, beta_l, w_ref]
+    internal: e, k, c, w, peak_e, peak_v, time since the crossing, sign of the half cycle,
+    initialised flag, cached exp(-h/centre_tau) and h.
+    """
+    dk = p[po + 0]
+    angle_c = p[po + 1]
+    m = p[po + 2]
+    loss0 = p[po + 3]
+    loss_peak = p[po + 4]
+    tau = p[po + 5]
+    memory = p[po + 6]
+    beta_s = p[po + 7]
+    beta_l = p[po + 8]
+    omega_ref = p[po + 9]
+    if s[so + 13] != h:
+        s[so + 13] = h
+        s[so + 12] = np.exp(-h / tau)
+    decay = s[so + 12]
+    e0 = s[so + 3]
+    k_old = s[so + 4]
+    dx = x1 - x0
+    # centre relaxation: de/dt = dx/dt - e / tau, exact for the step's constant rate
+    e1 = e0 * decay + dx * tau * (1.0 - decay) / h
+    rate_e = (e1 - e0) / h
+    w = s[so + 6]
+    peak_e = s[so + 7]
+    peak_v = s[so + 8]
+    elapsed = s[so + 9] + h
+    sign = s[so + 10]
+    crossed = (e1 > 0.0 and sign < 0.0) or (e1 < 0.0 and sign > 0.0) or (sign == 0.0 and e1 != 0.0)
+    if crossed:
+        # a completed half cycle gives the frequency; one longer than memory_s (a rest) does not
+        # (its duration: the zero crossings of a damped sinusoid are exactly pi/w_d apart)
+        valid = sign != 0.0 and elapsed <= memory and peak_e > 0.0
+        w = max(np.pi / elapsed, MIN_OMEGA) if valid else 0.0
+        peak_e = 0.0
+        peak_v = 0.0
+        elapsed = 0.0
+        sign = 1.0 if e1 > 0.0 else -1.0
+    elif elapsed > memory:
+        # at rest: forget the frequency and restart the running peaks (a rest is no oscillation)
+        w = 0.0
+        peak_e = 0.0
+        peak_v = 0.0
+    peak_e = max(peak_e, abs(e1))
+    peak_v = max(peak_v, abs(rate_e))
+    # no completed half cycle yet (from rest): the running peaks' ratio, exact at the reversal
+    omega = w if w > 0.0 else (peak_v / peak_e if peak_e > 0.0 else 0.0)
+    amp = peak_e
+    if omega > 0.0:
+        amp = max(amp, peak_v / max(omega, MIN_OMEGA))
+    storage, peak_shape = _kraus(amp, angle_c, m)
+    # weak frequency dependence at the oscillation's own frequency (a completed half cycle's;
+    # the reference frequency before one is known): K' ~ w^beta_s, K'' ~ w^beta_l
+    ratio = w / omega_ref if w > 0.0 else 1.0
+    k_new = dk * storage * ratio ** beta_s
+    if crossed and e0 * e1 < 0.0:
+        k_new = max(k_new, k_old)  # a fall waits for the next step (keeps the step passive)
+    elif s[so + 11] > 0.0:
+        k_new = min(k_new, k_old)  # within a half cycle the network only breaks down
+    c = (loss0 + loss_peak * peak_shape) * ratio ** beta_l / max(omega, MIN_OMEGA) if omega > 0.0 else 0.0
+    t1 = k_new * e1 + c * dx / h
+    stored1 = 0.5 * k_new * e1 * e1
+    # dissipated = trapezoidal work of the step - change of stored energy (dashpot, centre
+    # relaxation, breakdown and re-forming of the network all included)
+    s[so + 1] += 0.5 * (s[so + 2] + t1) * dx - (stored1 - s[so + 0])
+    s[so + 0] = stored1
+    s[so + 2] = t1
+    s[so + 3] = e1
+    s[so + 4] = k_new
+    s[so + 5] = c
+    s[so + 6] = w
+    s[so + 7] = peak_e
+    s[so + 8] = peak_v
+    s[so + 9] = elapsed
+    s[so + 10] = sign
+    s[so + 11] = 1.0  # initialised
+    return t1
+
+
 # ---------------------------------------------------------------- the compiled coupling
 @njit(inline="always", **JIT)
 def step_element(code, p, po, s, so, x0, x1, h):
@@ -516,6 +639,8 @@ def step_element(code, p, po, s, so, x0, x1, h):
         return variable_maxwell(p, po, s, so, x0, x1, h)
     if code == PFEFFER:
         return pfeffer(p, po, s, so, x0, x1, h)
+    if code == PAYNE:
+        return payne(p, po, s, so, x0, x1, h)
     return np.nan
 
 
