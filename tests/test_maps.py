@@ -104,10 +104,26 @@ def test_table4_map_is_physically_sane(table4_map: MapFit) -> None:
     assert m.at_bounds == ("k9",)  # eq. 20 wants a constant term: 10^(-0*a)
 
 
-def test_in_range_is_the_measured_rectangle(table4_map: MapFit) -> None:
-    inside = table4_map.in_range([0.144, 1.0, 3.201, 0.1, 1.0, 1.0], [30.0, 21.04, 60.18, 30.0, 70.0, 20.0])
+def test_rectangle_is_the_tests_extremes(table4_map: MapFit) -> None:
+    inside = table4_map.in_rectangle([0.144, 1.0, 3.201, 0.1, 1.0, 1.0], [30.0, 21.04, 60.18, 30.0, 70.0, 20.0])
     assert inside.tolist() == [True, True, True, False, False, False]
     assert table4_map.in_range(np.ones((2, 3)), 30.0).shape == (2, 3)
+
+
+def test_in_range_is_the_hull_of_the_tested_points(table4_map: MapFit, table4: pd.DataFrame) -> None:
+    # Table 4's points lie on three curves (one per inertia): large amplitudes only at low
+    # frequencies. (3.2 deg, 60 Hz) is a corner of the rectangle that no test came near.
+    hull = table4_map.range.hull
+    tested = list(zip(table4["amplitude_deg"], table4["frequency_hz"]))
+    assert len(hull) >= 4 and all(min(abs(p[0] - a) + abs(p[1] - f) for a, f in tested) < 1e-9 for p in hull)
+    a, f = table4["amplitude_deg"].to_numpy(), table4["frequency_hz"].to_numpy()
+    assert table4_map.in_range(a, f).all()                      # every tested point, vertices included
+    assert table4_map.in_range([1.0, 0.5], [30.0, 40.0]).tolist() == [True, True]
+    assert table4_map.in_range([3.2, 0.15, 1.0, 1.0], [60.0, 22.0, 70.0, 15.0]).tolist() == [False] * 4
+    assert table4_map.in_rectangle([3.2, 0.15], [60.0, 22.0]).tolist() == [True, True]
+    # the hull goes through map.json and back
+    again = MapFit.from_dict(json.loads(table4_map.to_json()))
+    assert again.range == table4_map.range
 
 
 # ---- synthetic round trips ---------------------------------------------------------------------
@@ -274,7 +290,8 @@ def test_cli_json_keys(table4: pd.DataFrame, capsys: pytest.CaptureFixture[str])
                                 "damping_ratio_rms_error_pct", "damping_ratio_max_error_pct",
                                 "stiffness_condition_number", "damping_condition_number",
                                 "stiffness_cv_rms_error_pct", "damping_ratio_cv_rms_error_pct"}
-    assert set(data["range"]) == {"amplitude_deg_min", "amplitude_deg_max", "frequency_hz_min", "frequency_hz_max"}
+    assert set(data["range"]) == {"amplitude_deg_min", "amplitude_deg_max", "frequency_hz_min", "frequency_hz_max",
+                                  "hull_amplitude_deg_frequency_hz"}
 
 
 def test_cli_summary_out_and_plots(table4: pd.DataFrame, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

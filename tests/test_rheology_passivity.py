@@ -162,6 +162,20 @@ def element(draw, kind):
             el["friction"] = {"max_torque": draw(log_float(1e-2, 1e3)), "min_yield_angle": lo,
                               "max_yield_angle": lo * draw(st.floats(1.5, 1e3)), "n": draw(st.integers(1, 16))}
         return el
+    if kind == "payne":
+        el = {"kind": kind, "stiffness": draw(stiffness), "critical_angle": draw(log_float(1e-4, 0.1)),
+              "exponent": draw(st.floats(0.2, 2.0)), "loss_stiffness": draw(st.floats(0.0, 1e4)),
+              "loss_peak_stiffness": draw(st.floats(0.0, 1e4)), "centre_relaxation_time": draw(log_float(1e-3, 100.0)),
+              "memory_time": draw(log_float(1e-3, 10.0))}
+        if draw(st.booleans()):
+            el.update(storage_frequency_exponent=draw(st.floats(0.0, 1.0)), loss_frequency_exponent=draw(st.floats(0.0, 1.0)),
+                      reference_frequency=draw(log_float(0.1, 1e3)))
+        return el
+    if kind == "power_law":
+        lo = draw(log_float(1e-2, 1e3))
+        return {"kind": kind, "storage_stiffness": draw(stiffness), "loss_factor": draw(log_float(1e-2, 3.0)),
+                "reference_frequency": draw(log_float(0.1, 1e3)), "min_frequency": lo,
+                "max_frequency": lo * draw(log_float(1.5, 1e5)), "terms_per_decade": draw(st.floats(0.5, 3.0))}
     raise ValueError(kind)
 
 
@@ -254,7 +268,7 @@ def check_energy(coupling, element_dicts, x, dt):
 
 
 KINDS = ["spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl", "masing",
-         "elastoslide", "mullins", "variable_maxwell", "pfeffer"]
+         "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law"]
 
 
 def test_every_kind_is_covered():

@@ -100,12 +100,14 @@ def test_cli_writes_table_figure_and_summary(kv_file, tmp_path, capsys):
     out = tmp_path / "validation"
     assert main(["validate", "--map", str(map_file), "--coupling", str(kv_file), "--quick", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "inside the range" in text and "outside the range" in text and "drop-tower-equivalent d" in text
+    assert "inside the hull" in text and "inside the rectangle" in text and "outside the hull" in text
+    assert "drop-tower-equivalent d" in text
     for name in ("validation.csv", "validation_summary.json", "servo_results.csv"):
         assert (out / name).stat().st_size > 0
     assert (out / "fig14_servo_validation.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     table = pd.read_csv(out / "validation.csv")
-    assert {"sweep", "in_range", "stiffness_deviation_pct", "damping_deviation_pct", "servo_relative_damping_psi",
+    assert {"sweep", "in_range", "in_rectangle", "stiffness_deviation_pct", "damping_deviation_pct",
+            "loss_factor_deviation_pct", "decay_ratio_deviation_pct", "servo_relative_damping_psi",
             "map_relative_damping_psi"} <= set(table.columns)
     # the bench's table reads back as measured results: the same comparison
     assert main(["validate", "--map", str(map_file), "--servo-results", str(out / "servo_results.csv"), "--json"]) == 0

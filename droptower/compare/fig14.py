@@ -54,8 +54,8 @@ def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
             ax.legend(fontsize=7)
     s = validation.summary
     fig.suptitle("Map (lines; dashed: extrapolated) vs servo-hydraulic sweeps (markers), seed 004 Fig. 14\n"
-                 f"inside the range: stiffness rms {s['inside']['stiffness_rms_deviation_pct']:.1f} %, damping rms "
-                 f"{s['inside']['damping_rms_deviation_pct']:.1f} %; outside: {s['outside']['stiffness_rms_deviation_pct']:.1f} %, "
+                 f"inside the tested hull: stiffness rms {s['inside']['stiffness_rms_deviation_pct']:.1f} %, damping rms "
+                 f"{s['inside']['damping_rms_deviation_pct']:.1f} %; outside it: {s['outside']['stiffness_rms_deviation_pct']:.1f} %, "
                  f"{s['outside']['damping_rms_deviation_pct']:.1f} %", fontsize=10)
     fig.savefig(path, dpi=110)
     return path

@@ -97,7 +97,7 @@ def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None
             stiffness_cv_rms_error_pct=_rms(fitted.stiffness_cv_errors) * 100,
             damping_ratio_cv_rms_error_pct=_rms(fitted.damping_cv_errors) * 100,
         ),
-        range=MapRange(float(a.min()), float(a.max()), float(f.min()), float(f.max())),
+        range=MapRange.of_points(a, f),
         excluded=excluded,
         at_bounds=tuple(n for n, flag in zip(names, both["at_bound"]) if flag),
         not_unique=tuple(n for n, flag in zip(names, both["not_unique"]) if flag),

@@ -25,7 +25,9 @@ measured, and the ``map.json`` file that carries them.
   map fitted without its group, see ``cross_validation``: the error to expect between tests).
 - ``cross_validation``: how the tests were grouped (``leave-one-drop-height-out (15 folds)``).
 - ``range``: ``amplitude_deg_min``, ``amplitude_deg_max``, ``frequency_hz_min``,
-  ``frequency_hz_max``: the measured range (the map interpolates inside, extrapolates outside).
+  ``frequency_hz_max``: the rectangle of the tests' extremes; ``hull_amplitude_deg_frequency_hz``:
+  the vertices of the convex hull of the tested points in (log amplitude, frequency), where the
+  map interpolates (outside it, it extrapolates).
 - ``excluded``: ``[{"test": file or "row N", "reason": ...}]``; ``source``: the results file.
 """
 from __future__ import annotations
@@ -73,12 +75,55 @@ class FitStats:
 
 @dataclass(frozen=True)
 class MapRange:
-    """The measured amplitude (deg) and frequency (Hz) range of the tests."""
+    """The measured amplitude (deg) and frequency (Hz) range of the tests: the rectangle of
+    their extremes and ``hull``, the vertices (amplitude_deg, frequency_hz) of the convex hull
+    of the tested points in (log amplitude, frequency) (empty: unknown, e.g. an older file)."""
 
     amplitude_deg_min: float
     amplitude_deg_max: float
     frequency_hz_min: float
     frequency_hz_max: float
+    hull: tuple[tuple[float, float], ...] = ()
+
+    @classmethod
+    def of_points(cls, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> "MapRange":
+        """The range of tested points: the rectangle and the hull (in log10 amplitude, since
+        drop heights spread the amplitudes over decades)."""
+        a, f = np.asarray(amplitude_deg, float), np.asarray(frequency_hz, float)
+        hull: tuple[tuple[float, float], ...] = ()
+        pts = np.column_stack([np.log10(a), f])
+        if len(np.unique(pts, axis=0)) >= 3:
+            from scipy.spatial import ConvexHull, QhullError
+            try:
+                hull = tuple((float(10 ** x), float(y)) for x, y in pts[ConvexHull(pts).vertices])
+            except QhullError:  # the points lie on a line: no area, only the rectangle
+                hull = ()
+        return cls(float(a.min()), float(a.max()), float(f.min()), float(f.max()), hull)
+
+    def in_rectangle(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """Inside the rectangle of the tests' extremes (bounds included), as the paper states
+        its range ("~20-60 Hz and ~0.15-3.2 deg")."""
+        a, f = np.broadcast_arrays(np.asarray(amplitude_deg, float), np.asarray(frequency_hz, float))
+        return ((a >= self.amplitude_deg_min) & (a <= self.amplitude_deg_max)
+                & (f >= self.frequency_hz_min) & (f <= self.frequency_hz_max))
+
+    def in_hull(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """Inside the convex hull of the tested points (bounds included, 1e-9 relative slack);
+        the rectangle where the hull is unknown. A drop tower's tests lie on one curve per
+        inertia (larger drops: larger amplitude, lower frequency), so the rectangle's corners
+        hold no test: only the hull is where the map interpolates."""
+        if not self.hull:
+            return self.in_rectangle(amplitude_deg, frequency_hz)
+        a, f = np.broadcast_arrays(np.asarray(amplitude_deg, float), np.asarray(frequency_hz, float))
+        verts = np.array([(np.log10(x), y) for x, y in self.hull])
+        q = np.column_stack([np.log10(np.where(a > 0, a, np.nan)).ravel(), f.ravel()])
+        # counter-clockwise vertices (ConvexHull's order in 2-D): inside = left of every edge
+        edges = np.roll(verts, -1, axis=0) - verts
+        rel = q[:, None, :] - verts[None, :, :]
+        cross = edges[None, :, 0] * rel[:, :, 1] - edges[None, :, 1] * rel[:, :, 0]
+        scale = np.linalg.norm(edges, axis=1)[None, :] * (1 + np.abs(verts).max())
+        inside = np.all(cross >= -1e-9 * scale, axis=1) & np.all(np.isfinite(q), axis=1)
+        return inside.reshape(a.shape)
 
 
 @dataclass
@@ -124,13 +169,14 @@ class MapFit:
             self.ratio_params, amplitude_deg, frequency_hz)
 
     def in_range(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
-        """True where (amplitude, frequency) lies inside the measured range (bounds included).
+        """True where (amplitude, frequency) lies inside the measured range: the convex hull of
+        the tested points (:meth:`MapRange.in_hull`; the rectangle for a map without one)."""
+        return self.range.in_hull(amplitude_deg, frequency_hz)
 
-        The range is the rectangle of the tests' amplitude and frequency extremes, as the paper
-        states it ("~20-60 Hz and ~0.15-3.2 deg", seed 004, validation section)."""
-        a, f = np.broadcast_arrays(np.asarray(amplitude_deg, float), np.asarray(frequency_hz, float))
-        r = self.range
-        return (a >= r.amplitude_deg_min) & (a <= r.amplitude_deg_max) & (f >= r.frequency_hz_min) & (f <= r.frequency_hz_max)
+    def in_rectangle(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """True inside the rectangle of the tests' extremes, the paper's statement of the range
+        ("~20-60 Hz and ~0.15-3.2 deg", seed 004, validation section)."""
+        return self.range.in_rectangle(amplitude_deg, frequency_hz)
 
     # ---- map.json ----------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -147,7 +193,8 @@ class MapFit:
             "not_unique": list(self.not_unique),
             "fit": {k: v if isinstance(v, int) or v is None else _finite(v) for k, v in asdict(self.stats).items()},
             "cross_validation": self.cross_validation,
-            "range": asdict(self.range),
+            "range": {**{k: v for k, v in asdict(self.range).items() if k != "hull"},
+                      "hull_amplitude_deg_frequency_hz": [list(v) for v in self.range.hull]},
             "excluded": [asdict(e) for e in self.excluded],
             "source": self.source,
         }
@@ -208,7 +255,8 @@ class MapFit:
             coefficients=coefficients,
             uncertainties={k: math.inf if v is None else v for k, v in stds.items()},
             stats=FitStats(**{k: v if k in cv else math.inf if v is None else v for k, v in doc.fit.model_dump().items()}),
-            range=MapRange(**doc.range.model_dump()),
+            range=MapRange(**{k: v for k, v in doc.range.model_dump().items() if k != "hull_amplitude_deg_frequency_hz"},
+                           hull=tuple(tuple(v) for v in doc.range.hull_amplitude_deg_frequency_hz)),
             excluded=[ExcludedTest(**e.model_dump()) for e in doc.excluded],
             at_bounds=tuple(doc.at_bounds),
             not_unique=tuple(doc.not_unique),
@@ -291,7 +339,8 @@ _CV_FIELDS = ("stiffness_cv_rms_error_pct", "damping_ratio_cv_rms_error_pct")  #
 _Fit = create_model("fit", __base__=StrictModel, n_tests=(int, ...),
                     **{k: (Optional[float], None if k in _CV_FIELDS else ...)
                        for k in FitStats.__dataclass_fields__ if k != "n_tests"})
-_Range = create_model("range", __base__=StrictModel, **{k: (float, ...) for k in MapRange.__dataclass_fields__})
+_Range = create_model("range", __base__=StrictModel, hull_amplitude_deg_frequency_hz=(list[tuple[float, float]], []),
+                      **{k: (float, ...) for k in MapRange.__dataclass_fields__ if k != "hull"})
 
 
 class _Excluded(StrictModel):

@@ -170,6 +170,65 @@ class Prony(ElementSpec):
         return out
 
 
+class PowerLaw(ElementSpec):
+    """A power-law (fractional, "springpot") viscoelastic branch over a frequency band, as a
+    Prony series spread over the decades of the band.
+
+    Inside [min_frequency, max_frequency] the complex stiffness follows
+    K*(f) = storage_stiffness (1 + i loss_factor) (f / reference_frequency)^alpha with
+    alpha = (2/pi) atan(loss_factor): the broad, weak frequency dependence of a rubber matrix
+    (Bagley & Torvik's fractional derivative model). It is realised as Maxwell terms with
+    relaxation times 1/(2 pi f) log-spaced over the band, ``terms_per_decade`` of them per
+    decade, each weighted by the springpot's relaxation spectrum
+    H(tau) = K0 sin(alpha pi)/pi (tau0/tau)^alpha times the spacing in ln tau (the midpoint
+    rule in log time, whose aliasing error falls like exp(-pi^2 / spacing): 2e-4 of the loss at
+    two terms per decade). Below the band the branch relaxes completely (no equilibrium
+    stiffness: a held preload relaxes it), above it it stiffens no further.
+    """
+
+    kind: Literal["power_law"]
+    storage_stiffness: PositiveFloat       # N*m/rad, K' at the reference frequency
+    loss_factor: PositiveFloat             # -, K''/K' inside the band
+    reference_frequency: PositiveFloat     # Hz
+    min_frequency: PositiveFloat           # Hz, lowest relaxation frequency of the band
+    max_frequency: PositiveFloat           # Hz, highest
+    terms_per_decade: PositiveFloat = 2.0  # -
+
+    @model_validator(mode="after")
+    def _band(self):
+        if not self.max_frequency > self.min_frequency:
+            raise ValueError("max_frequency must exceed min_frequency")
+        if self.terms().shape[0] > 200:
+            raise ValueError("the band needs more than 200 terms: narrow it or use fewer terms per decade")
+        return self
+
+    @property
+    def alpha(self) -> float:
+        """The power-law exponent (2/pi) atan(loss_factor)."""
+        return float(2 / np.pi * np.arctan(self.loss_factor))
+
+    def terms(self) -> np.ndarray:
+        """(n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term."""
+        alpha = self.alpha
+        k0 = self.storage_stiffness / np.cos(alpha * np.pi / 2)  # K0 (i w tau0)^alpha has K' = K0 cos(alpha pi/2) at w tau0 = 1
+        tau0 = 1 / (2 * np.pi * self.reference_frequency)
+        lo, hi = np.log(1 / (2 * np.pi * self.max_frequency)), np.log(1 / (2 * np.pi * self.min_frequency))
+        n = int(np.ceil((hi - lo) / np.log(10) * self.terms_per_decade)) + 1
+        log_tau = np.linspace(lo, hi, n)
+        tau = np.exp(log_tau)
+        weight = k0 * np.sin(alpha * np.pi) / np.pi * (tau0 / tau) ** alpha * (log_tau[1] - log_tau[0])
+        return np.column_stack([weight, tau])
+
+    def compile(self):
+        return [KernelElement(K.MAXWELL, np.array([k, k * tau]), 5) for k, tau in self.terms()]
+
+    def complex_stiffness(self, frequency_hz: ArrayLike) -> np.ndarray:
+        """K*(f) (N*m/rad) of the Prony series as compiled."""
+        s = 2j * np.pi * np.asarray(frequency_hz, float)[..., None]
+        k, tau = self.terms().T
+        return np.sum(k * s * tau / (1 + s * tau), axis=-1)
+
+
 # ------------------------------------------------------------------ friction
 def _bank(stiffness: np.ndarray, yield_torque: np.ndarray, rate: float = 0.0, exponent: int = 0,
           constriction: tuple[float, float] = (0.0, 0.0)) -> KernelElement:
@@ -563,9 +622,9 @@ class Payne(ElementSpec):
 
 ElementUnion = Annotated[
     Union[Spring, SpringTable, CubicSpring, Dashpot, Maxwell, Prony, Prandtl, Masing, Elastoslide,
-          Mullins, VariableMaxwell, Pfeffer, Payne],
+          Mullins, VariableMaxwell, Pfeffer, Payne, PowerLaw],
     Field(discriminator="kind"),
 ]
 
 ELEMENT_KINDS = ("spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl",
-                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne")
+                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law")

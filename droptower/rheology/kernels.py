@@ -530,10 +530,12 @@ def payne(p, po, s, so, x0, x1, h):
     In a harmonic motion of amplitude A about the centre the loop is an exact ellipse:
     K' = dK / (1 + u^2), K'' = loss_0 + 2 loss_peak u / (1 + u^2), u = (A/A_c)^m (Kraus 1984)
     at every frequency: rate-independent, as filled rubber's Payne effect is to first order.
-    Passivity: the dashpot dissipates c v^2 >= 0. The spring's stiffness falls only in steps
-    where e keeps its sign and rises only in the step where e changes sign; the trapezoidal
-    work then exceeds the change of stored energy by e0 e1 (k_old - k_new) / 2 >= 0 in both
-    cases (the filler network breaks down under load and re-forms unstrained).
+    Passivity (exact for the trapezoidal work the core books): the spring's stiffness falls
+    only in steps where e keeps its sign and rises only in the step where e changes sign; the
+    trapezoidal work then exceeds the change of stored energy by e0 e1 (k_old - k_new) / 2 >= 0
+    in both cases (the filler network breaks down under load and re-forms unstrained). The
+    dashpot's coefficient falls only in steps where the rate keeps its sign, which keeps the
+    trapezoidal work of c v non-negative over any history.
 
     A weak frequency dependence (filled rubber's K' and K'' rise slowly with frequency) scales
     K' by (w/w_ref)^beta_s and K'' by (w/w_ref)^beta_l, w again the oscillation's own frequency
@@ -585,11 +587,16 @@ def payne(p, po, s, so, x0, x1, h):
         peak_v = 0.0
     peak_e = max(peak_e, abs(e1))
     peak_v = max(peak_v, abs(rate_e))
-    # no completed half cycle yet (from rest): the running peaks' ratio, exact at the reversal
-    omega = w if w > 0.0 else (peak_v / peak_e if peak_e > 0.0 else 0.0)
     amp = peak_e
-    if omega > 0.0:
-        amp = max(amp, peak_v / max(omega, MIN_OMEGA))
+    omega = w
+    if w > 0.0:
+        amp = max(amp, peak_v / w)
+    elif peak_e > 0.0:
+        # no completed half cycle yet (from rest): the running peaks (virgin loading; their
+        # ratio is the frequency at the reversal, above it before: a little less damping in
+        # this first half cycle. The motion itself cannot tell the frequency earlier: a free
+        # decay's rate first falls by its damping, only later by its stiffness)
+        omega = peak_v / peak_e
     storage, peak_shape = _kraus(amp, angle_c, m)
     # weak frequency dependence at the oscillation's own frequency (a completed half cycle's;
     # the reference frequency before one is known): K' ~ w^beta_s, K'' ~ w^beta_l
@@ -600,6 +607,12 @@ def payne(p, po, s, so, x0, x1, h):
     elif s[so + 11] > 0.0:
         k_new = min(k_new, k_old)  # within a half cycle the network only breaks down
     c = (loss0 + loss_peak * peak_shape) * ratio ** beta_l / max(omega, MIN_OMEGA) if omega > 0.0 else 0.0
+    # the dashpot's coefficient may fall only while the rate keeps its sign: then the
+    # trapezoidal work of its force c v is >= 0 over any history (each step's c v^2 h / 2
+    # covers the cross terms of the reversals next to it)
+    c_old = s[so + 5]
+    if c < c_old and (s[so + 2] - k_old * e0) * dx < 0.0:
+        c = c_old
     t1 = k_new * e1 + c * dx / h
     stored1 = 0.5 * k_new * e1 * e1
     # dissipated = trapezoidal work of the step - change of stored energy (dashpot, centre
