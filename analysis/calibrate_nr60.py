@@ -30,8 +30,8 @@ Candidates: the same model fitted with different weights (and without the power-
 show the trade-off between the targets; each candidate's figures come from the reduced
 pipeline (30 drop tests -> logs -> extraction -> map -> servo sweeps on the virtual bench) and
 are written as a table (``--candidates``, default ``analysis/results/nr60_candidates.csv``).
-The candidate that meets the most targets (then the smallest excess over them) becomes the
-preset, written to ``--out`` (the repository's rig_configs/ by default, never the installed
+The candidate with the smallest summed relative excess over the targets (zero: all met) becomes
+the preset, written to ``--out`` (the repository's rig_configs/ by default, never the installed
 package). The acceptance numbers of the preset come from the full study
 (``analysis/run_study.py``).
 """
@@ -59,7 +59,8 @@ from droptower.rig.impact import impact_velocities
 from droptower.rig.planner import free_decay
 from droptower.rig.preload import pretwist
 from droptower.sdof import damping_ratio, drop_tower_equivalent_damping_ratio, stiffness
-from droptower.servo.steady import steady_state
+from droptower.servo.steady import rubber_figures, steady_state
+from run_study import real_time_factor
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (NOTES §1.1)
@@ -152,23 +153,6 @@ def servo_at(coupling: Coupling, points: pd.DataFrame) -> pd.DataFrame:
                          "servo_damping_ratio": drop_tower_equivalent_damping_ratio(ss.loss_factor)})
 
 
-def rubber_figures(coupling: Coupling) -> dict[str, float]:
-    """Loss factor ratio 1 Hz / 30 Hz and the third harmonic (percent of the fundamental) at
-    1.5 deg, 30 Hz; the core's speed (real-time factor, 1 s at 38.4 kHz, single instance)."""
-    a = math.radians(1.5)
-    at30 = steady_state(coupling, [a], [30.0], harmonics=3)
-    at1 = steady_state(coupling, [a], [1.0])
-    x = 0.01 * np.sin(2 * np.pi * 30 * np.arange(1, int(RATE_HZ) + 1) / RATE_HZ)
-    coupling.simulate(x[:100], 1 / RATE_HZ, record_energy=False)  # compile
-    best = math.inf
-    for _ in range(3):
-        t0 = time.perf_counter()
-        coupling.simulate(x, 1 / RATE_HZ, record_energy=False)
-        best = min(best, time.perf_counter() - t0)
-    return {"loss_factor_ratio_1hz_30hz": float(at1.loss_factor[0] / at30.loss_factor[0]),
-            "third_harmonic_pct": float(100 * at30.harmonic_ratio[0, 3]), "real_time_factor": 1.0 / best}
-
-
 @dataclass
 class Weights:
     """Residual scales (relative deviations): smaller means heavier."""
@@ -198,11 +182,9 @@ def residuals(log_values: np.ndarray, weights: Weights, table: pd.DataFrame,
             parts.append((points["stiffness_nm_per_deg"] / servo["servo_stiffness_nm_per_deg"] - 1) / weights.servo_stiffness)
         if weights.servo_damping:
             parts.append((points["damping_ratio"] / servo["servo_damping_ratio"] - 1) / weights.servo_damping)
-    a = math.radians(1.5)
-    at30 = steady_state(coupling, [a], [30.0], harmonics=3)
-    at1 = steady_state(coupling, [a], [1.0])
-    ratio = at1.loss_factor[0] / at30.loss_factor[0]
-    parts.append(np.array([max(0.0, 0.75 - ratio) / 0.02, max(0.0, at30.harmonic_ratio[0, 3] - 0.045) / 0.005]))
+    rubber = rubber_figures(coupling)
+    parts.append(np.array([max(0.0, 0.75 - rubber["loss_factor_ratio"]) / 0.02,
+                           max(0.0, rubber["third_harmonic_pct"] - 4.5) / 0.5]))
     return np.concatenate([np.asarray(p, float) for p in parts])
 
 
@@ -253,6 +235,7 @@ def pipeline_figures(coupling: Coupling, table: pd.DataFrame, folder: Path) -> d
     validation = validate_map(fit_map(results), run_sweeps(coupling, reduced=False))
     inside = validation.summary["inside"]
     servo = servo_at(coupling, results)
+    rubber = rubber_figures(coupling)
     dc = results["stiffness_nm_per_deg"].to_numpy() / servo["servo_stiffness_nm_per_deg"].to_numpy() - 1
     dd = results["damping_ratio"].to_numpy() / servo["servo_damping_ratio"].to_numpy() - 1
     rms = lambda x: float(100 * np.sqrt(np.mean(np.square(x))))  # noqa: E731
@@ -263,13 +246,18 @@ def pipeline_figures(coupling: Coupling, table: pd.DataFrame, folder: Path) -> d
             "servo_inside_loss_factor_rms_pct": inside["loss_factor_rms_deviation_pct"],
             "servo_inside_points": inside["n_points"],
             "decay_vs_servo_stiffness_rms_pct": rms(dc), "decay_vs_servo_damping_rms_pct": rms(dd),
-            **rubber_figures(coupling)}
+            "loss_factor_ratio_1hz_30hz": rubber["loss_factor_ratio"], "third_harmonic_pct": rubber["third_harmonic_pct"],
+            "real_time_factor": real_time_factor(coupling)}
 
 
 def target_excess(figures: dict[str, float]) -> tuple[int, float]:
-    """(number of targets missed, summed relative excess over them): smaller is better."""
+    """(number of targets missed, summed relative excess over them): smaller is better. The
+    speed is not ranked: every candidate has the same elements (or fewer), and a timing taken
+    while the machine does other work says little (benchmarks/bench_core.py measures it)."""
     excess = []
     for key, limit in TARGETS.items():
+        if key == "real_time_factor_min":
+            continue
         name = key.removesuffix("_min").removesuffix("_max")
         value = figures[name] if name in figures else figures[key]
         over = limit / value - 1 if key.endswith("_min") else value / limit - 1
@@ -343,7 +331,7 @@ def main() -> None:
         rows.append({"candidate": cand.name, "targets_missed": missed, "target_excess": excess, **cand.figures,
                      **{f"param_{k}": v for k, v in cand.values.items()}, "wall_s": time.perf_counter() - t0})
         print("    " + ", ".join(f"{k} {v:.3g}" for k, v in cand.figures.items()), flush=True)
-    trade = pd.DataFrame(rows).sort_values(["targets_missed", "target_excess"], kind="stable")
+    trade = pd.DataFrame(rows).sort_values(["target_excess", "targets_missed"], kind="stable")
     args.candidates.parent.mkdir(parents=True, exist_ok=True)
     trade.to_csv(args.candidates, index=False)
     best = next(c for c in chosen if c.name == trade.iloc[0]["candidate"])

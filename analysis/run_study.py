@@ -36,11 +36,15 @@ from droptower.campaign import run_campaign
 from droptower.campaign.folder import write_json
 from droptower.compare import compare_reference, format_comparison, format_summary, run_sweeps, validate_map
 from droptower.compare.files import write_csv, write_validation
+from droptower.compare.mapfree import MapFreeCheck, format_check, run_check
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG, read_toml, resolve
 from droptower.data import table4_path
 from droptower.errors import DroptowerError
 from droptower.maps import fit_map, select_tests
 from droptower.maps.plots import plot_all
+from droptower.rheology import load_coupling
+from droptower.rig.config import load_rig
+from droptower.servo.steady import rubber_figures
 
 REFERENCE = table4_path()  # seed 004 Table 4, shipped with the package
 REDUCED_HEIGHTS_M = [0.05, 0.4, 1.0, 3.5, 6.0]
@@ -144,6 +148,15 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     validation = validate_map(fit, points)
     write_validation(out, validation, fit, points)
 
+    # 3b. map-free check: drop tests placed on the servo points inside the tested hull
+    inside = validation.table[validation.table["in_range"]].drop_duplicates(["amplitude_deg", "frequency_hz"])
+    coupling_model = load_coupling(run.spec.coupling.path)
+    check = run_check(coupling_model, run.spec.coupling.path, run.spec.rig.path, load_rig(run.spec.rig.path),
+                      inside, fit, out / "map_free_check", workers=workers, progress=progress) if len(inside) else None
+    if check is not None:
+        write_csv(out / "map_free_check.csv", check.table)
+    rubber = {**rubber_figures(coupling_model), "real_time_factor": real_time_factor(coupling_model)}
+
     # 4. Table 4
     table4 = pd.read_csv(REFERENCE)
     comparison, comparison_summary = compare_reference(table4, fit, results)
@@ -160,9 +173,11 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
         "tests_pending": run.pending, "tests_excluded_from_map": len(excluded),
         "campaign_hashes": run.spec.hashes(), "record_duration_s": run.spec.duration_s,
         "map_fit": {k: v for k, v in fit.to_dict()["fit"].items()}, "map_range": fit.to_dict()["range"],
-        "servo_validation": validation.summary, "table4": comparison_summary, "table4_by_preload_nm": by_preload,
+        "servo_validation": validation.summary, "map_free_check": check.summary if check is not None else None,
+        "coupling_figures": rubber, "table4": comparison_summary, "table4_by_preload_nm": by_preload,
         "campaign_wall_s": t_campaign, "study_wall_s": time.perf_counter() - t0,
     }
+    summary["targets"] = target_table(summary)
     write_json(out / "summary.json", summary)
 
     excluded_table = pd.DataFrame([{"test": e.test, "reason": e.reason} for e in excluded], columns=["test", "reason"])
@@ -179,12 +194,58 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
          + "<p><a href='table4_comparison.csv'>table4_comparison.csv</a></p>" + _table_html(comparison)),
         ("Characteristic map (seed 004 eq. 19, eq. 20)", _pre(fit.summary()) + "<p><a href='map.json'>map.json</a></p>"
          + "".join(_img(p.name) for p in map_figures)),
+        ("Targets of the reference coupling (issue 9)", _pre(format_targets(summary["targets"]))),
+        ("Map-free check: drop tests placed on the servo points", _pre(format_check(check)) if check is not None
+         else "<p>no servo point inside the tested hull</p>"),
         ("Servo-hydraulic validation (seed 004 Fig. 14)", _pre(format_summary(validation)) + _img("fig14_servo_validation.png")
          + "<p><a href='validation.csv'>validation.csv</a>, <a href='servo_results.csv'>servo_results.csv</a></p>"
          + _table_html(validation.table)),
         ("Tests excluded from the map", _table_html(excluded_table) if len(excluded_table) else "<p>none</p>"),
     ])
     return summary
+
+
+def real_time_factor(coupling, rate_hz: float = 38_400.0, repeats: int = 5) -> float:
+    """Simulated seconds per second of wall time: 1 s of a 30 Hz, 1.5 deg sine at 38.4 kHz,
+    single instance, best of ``repeats`` (benchmarks/bench_core.py measures it against its
+    baseline)."""
+    x = np.radians(1.5) * np.sin(2 * np.pi * 30.0 * np.arange(1, int(rate_hz) + 1) / rate_hz)
+    coupling.simulate(x[:100], 1 / rate_hz, record_energy=False)  # compiled before timing
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        coupling.simulate(x, 1 / rate_hz, record_energy=False)
+        best = min(best, time.perf_counter() - t0)
+    return float(1.0 / best)
+
+
+#: issue 9's targets: (summary path, limit, "max" or "min", what)
+TARGETS = [
+    (("table4", "campaign", "stiffness_rms_deviation_pct"), 5.0, "max", "campaign vs Table 4, stiffness rms %"),
+    (("table4", "campaign", "damping_rms_deviation_pct"), 12.0, "max", "campaign vs Table 4, damping ratio rms %"),
+    (("servo_validation", "inside", "stiffness_rms_deviation_pct"), 6.0, "max", "map vs servo inside the hull, stiffness rms %"),
+    (("servo_validation", "inside", "damping_rms_deviation_pct"), 7.0, "max", "map vs servo inside the hull, damping ratio rms %"),
+    (("coupling_figures", "loss_factor_ratio"), 0.7, "min", "loss factor 1 Hz / 30 Hz at 1.5 deg"),
+    (("coupling_figures", "third_harmonic_pct"), 5.0, "max", "third harmonic at 1.5 deg, 30 Hz, % of fundamental"),
+    (("coupling_figures", "real_time_factor"), 100.0, "min", "real-time factor, 1 s at 38.4 kHz, single instance"),
+]
+
+
+def target_table(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    """Each target of issue 9 with the study's figure and whether it is met."""
+    rows = []
+    for path, limit, kind, what in TARGETS:
+        value = summary
+        for key in path:
+            value = value[key]
+        met = value <= limit if kind == "max" else value >= limit
+        rows.append({"target": what, "value": float(value), "limit": limit, "kind": kind, "met": bool(met)})
+    return rows
+
+
+def format_targets(rows: list[dict[str, Any]]) -> str:
+    return "\n".join(f"{r['target']:<58}{r['value']:>9.3g}  ({'<=' if r['kind'] == 'max' else '>='} {r['limit']:g})"
+                     f"  {'met' if r['met'] else 'MISSED'}" for r in rows)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -209,6 +270,10 @@ def main(argv: list[str] | None = None) -> int:
           f" / {s['inside']['damping_rms_deviation_pct']:.2f}, outside {s['outside']['stiffness_rms_deviation_pct']:.2f} / "
           f"{s['outside']['damping_rms_deviation_pct']:.2f}")
     print(format_comparison(summary["table4"]) + by_preload_text(summary["table4_by_preload_nm"]))
+    if summary["map_free_check"] is not None:
+        print(format_check(MapFreeCheck(pd.DataFrame(), summary["map_free_check"])))
+    print("targets of the reference coupling (issue 9):")
+    print(format_targets(summary["targets"]))
     print(f"report: {args.out / 'index.html'}")
     return 0
 

@@ -1,13 +1,15 @@
-"""The shipped reference coupling and its calibration to seed 004 Table 4 (issue 5, part 4).
+"""The shipped reference coupling ``rapp2022_nr60`` and its calibration (issue 9).
 
-The calibration (analysis/calibrate_nr60.py) stores its fast-loop comparison with Table 4 in
-analysis/results/nr60_fast_loop_table4.csv. These tests recompute that comparison for the
-shipped preset (so preset and stored result cannot drift apart) and hold it to the issue's
-acceptance: RMS relative deviation <= 5 % for stiffness and <= 10 % for the damping ratio.
+The calibration (analysis/calibrate_nr60.py) stores every candidate's figures in
+analysis/results/nr60_candidates.csv and writes the best as the preset; the full study's
+figures are checked in tests/test_study.py. Here: the shipped preset is the stored best
+candidate, it is rubber-like (items 1 and 2 of the issue), its drop-tower decays agree with the
+servo bench at their own points (the map-free part of item 4) and the preload does not change it.
 """
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -15,48 +17,69 @@ import pandas as pd
 import pytest
 
 import droptower as dt
-from droptower.data import table4_path
 from droptower.extract import Settings, extract_file
 from droptower.rig import load_rig, simulate
+from droptower.servo.steady import rubber_figures
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = table4_path()
-STORED = ROOT / "analysis" / "results" / "nr60_fast_loop_table4.csv"
+CANDIDATES = ROOT / "analysis" / "results" / "nr60_candidates.csv"
 
 
 def _calibration_module():
     spec = importlib.util.spec_from_file_location("calibrate_nr60", ROOT / "analysis" / "calibrate_nr60.py")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    import sys
+    sys.path.insert(0, str(ROOT / "analysis"))  # it takes real_time_factor from run_study
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(ROOT / "analysis"))
     return module
 
 
 @pytest.fixture(scope="module")
-def recomputed() -> pd.DataFrame:
-    calibration = _calibration_module()
+def calibration():
+    return _calibration_module()
+
+
+def test_shipped_preset_is_the_stored_best_candidate(calibration):
+    table = pd.read_csv(CANDIDATES)
+    best = table.iloc[0]
+    assert best["target_excess"] == table["target_excess"].min()
+    values = {name: best[f"param_{name}"] for name in calibration.NAMES}
+    matrix = best["candidate"] != "joint_without_matrix"
+    shipped = dt.load_coupling("rapp2022_nr60")
+    rebuilt = calibration.build(values, matrix)
+    np.testing.assert_allclose(shipped.params, rebuilt.params, rtol=1e-9)
+
+
+def test_the_preset_is_rubber_like():
+    """Loss factor at 1 Hz >= 0.7x that at 30 Hz and a third harmonic <= 5 % of the
+    fundamental (1.5 deg, 30 Hz): elliptic loops, weak frequency dependence."""
+    figures = rubber_figures(dt.load_coupling("rapp2022_nr60"))
+    assert figures["loss_factor_ratio"] >= 0.7
+    assert figures["third_harmonic_pct"] <= 5.0
+    assert 0.1 < figures["loss_factor"] < 0.35  # Table 4's d of 0.5-2 is eta 0.1-0.25 (NOTES 1.7)
+
+
+def test_decays_agree_with_the_bench_at_their_own_points(calibration):
+    """The fast loop's 30 decays (3 cases x Table 2's heights) against the steady state at each
+    decay's amplitude and frequency: the stiffness within 3 % RMS, the damping ratio within
+    10 % RMS (the old preset: 58 %; the decay's first cycle spans amplitudes a factor ~2 apart,
+    so an amplitude-dependent loss is read a little differently than a steady sine reads it)."""
     coupling = dt.load_coupling("rapp2022_nr60")
-    return calibration.compare_coupling(coupling, pd.read_csv(REFERENCE))
-
-
-def test_stored_calibration_result_belongs_to_the_shipped_preset(recomputed):
-    stored = pd.read_csv(STORED)
-    for column in ("model_stiffness_nm_per_deg", "model_damping_ratio", "model_frequency_hz"):
-        np.testing.assert_allclose(recomputed[column], stored[column], rtol=1e-6)
-
-
-def test_fast_loop_meets_the_acceptance_against_table4(recomputed):
-    rms_stiffness = np.sqrt(np.mean(recomputed["stiffness_deviation"] ** 2))
-    rms_damping = np.sqrt(np.mean(recomputed["damping_deviation"] ** 2))
-    assert rms_stiffness <= 0.05
-    assert rms_damping <= 0.10
-    # frequencies follow from the stiffness (f = sqrt(c/J)/2pi): a check that the cases are right
-    assert np.sqrt(np.mean(recomputed["frequency_deviation"] ** 2)) <= 0.03
+    points = calibration.predict(coupling)
+    servo = calibration.servo_at(coupling, points)
+    dc = points["stiffness_nm_per_deg"] / servo["servo_stiffness_nm_per_deg"] - 1
+    dd = points["damping_ratio"] / servo["servo_damping_ratio"] - 1
+    assert math.sqrt(np.mean(dc ** 2)) <= 0.03
+    assert math.sqrt(np.mean(dd ** 2)) <= 0.10
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
-    """Seed 004 Fig. 11: no influence of the preload on the coupling's behaviour. The softening
-    branch relaxes during the preload hold and the conditioning oscillation wipes the friction
-    elements' memory of the preload ramp, so the extracted values agree within 1 %."""
+    """Seed 004 Fig. 11: no influence of the preload on the coupling's behaviour. The payne
+    element's centre and the matrix branch relax during the preload hold, so the extracted
+    values agree within 1 %."""
     rig = load_rig("rapp2022")
     coupling = dt.load_coupling("rapp2022_nr60")
     tests = pd.DataFrame([dict(inertia_kgm2=0.359, drop_mass_kg=2.0, drop_height_m=h, preload_nm=p, repeat=0, seed=1)

@@ -572,16 +572,23 @@ def payne(p, po, s, so, x0, x1, h):
     sign = s[so + 10]
     crossed = (e1 > 0.0 and sign < 0.0) or (e1 < 0.0 and sign > 0.0) or (sign == 0.0 and e1 != 0.0)
     if crossed:
-        # a completed half cycle gives the frequency; one longer than memory_s (a rest) does not
-        # (its duration: the zero crossings of a damped sinusoid are exactly pi/w_d apart)
-        valid = sign != 0.0 and elapsed <= memory and peak_e > 0.0
-        w = max(np.pi / elapsed, MIN_OMEGA) if valid else 0.0
+        # a completed half cycle gives the frequency by its duration (the zero crossings of a
+        # damped sinusoid are exactly pi/w_d apart) if it was an oscillation: not longer than
+        # memory_s, and its peaks' ratio (w e^(delta T/4) for a damped sinusoid) agrees within a
+        # factor 2 (a rest between a stray crossing and an impact is no half cycle)
+        w = 0.0
+        if sign != 0.0 and elapsed <= memory and peak_e > 0.0:
+            w_time = np.pi / elapsed
+            if 0.5 * w_time <= peak_v / peak_e <= 2.0 * w_time:
+                w = max(w_time, MIN_OMEGA)
         peak_e = 0.0
         peak_v = 0.0
         elapsed = 0.0
         sign = 1.0 if e1 > 0.0 else -1.0
-    elif elapsed > memory:
-        # at rest: forget the frequency and restart the running peaks (a rest is no oscillation)
+    rest = not crossed and elapsed > memory
+    if rest:
+        # at rest: forget the frequency and restart the running peaks (a rest is no oscillation,
+        # so it carries no hysteretic loss either: the dashpot relaxes to zero below)
         w = 0.0
         peak_e = 0.0
         peak_v = 0.0
@@ -606,7 +613,9 @@ def payne(p, po, s, so, x0, x1, h):
         k_new = max(k_new, k_old)  # a fall waits for the next step (keeps the step passive)
     elif s[so + 11] > 0.0:
         k_new = min(k_new, k_old)  # within a half cycle the network only breaks down
-    c = (loss0 + loss_peak * peak_shape) * ratio ** beta_l / max(omega, MIN_OMEGA) if omega > 0.0 else 0.0
+    c = 0.0
+    if omega > 0.0 and not rest:
+        c = (loss0 + loss_peak * peak_shape) * ratio ** beta_l / max(omega, MIN_OMEGA)
     # the dashpot's coefficient may fall only while the rate keeps its sign: then the
     # trapezoidal work of its force c v is >= 0 over any history (each step's c v^2 h / 2
     # covers the cross terms of the reversals next to it)

@@ -70,3 +70,16 @@ def steady_state(coupling: Coupling, amplitudes_rad: ArrayLike, frequencies_hz: 
             storage[i], loss[i] = first.real / amps[i], first.imag / amps[i]
             ratio[i] = np.abs(coef) / abs(coef[1])
     return SteadyState(storage, loss, ratio)
+
+
+def rubber_figures(coupling: Coupling, amplitude_rad: float = np.radians(1.5), frequency_hz: float = 30.0,
+                   low_frequency_hz: float = 1.0) -> dict[str, float]:
+    """How rubber-like a coupling's steady state is (issue 9's criteria, at 1.5 deg by default):
+    ``loss_factor_ratio`` eta(low_frequency_hz) / eta(frequency_hz) (filled rubber: weakly
+    frequency dependent, >= 0.7 from 1 to 30 Hz) and ``third_harmonic_pct``, the torque's third
+    harmonic in percent of its fundamental at (amplitude, frequency_hz) (elliptic loops: small)."""
+    at = steady_state(coupling, [amplitude_rad], [frequency_hz], harmonics=3)
+    low = steady_state(coupling, [amplitude_rad], [low_frequency_hz])
+    return {"loss_factor_ratio": float(low.loss_factor[0] / at.loss_factor[0]),
+            "third_harmonic_pct": float(100 * at.harmonic_ratio[0, 3]),
+            "loss_factor": float(at.loss_factor[0])}
