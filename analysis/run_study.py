@@ -138,7 +138,8 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     t_campaign = time.perf_counter() - t0
 
     # 2. map
-    fit = fit_map(results, source=str(out / "campaign" / "results.parquet"))
+    # paths in stored results are relative (to the report folder, or the package's presets)
+    fit = fit_map(results, source="campaign/results.parquet")
     fit.to_json(out / "map.json")
     usable, excluded = select_tests(results)
     map_figures, _ = plot_all(usable, fit, out)
@@ -167,7 +168,7 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     plot_table4(comparison, results, out / TABLE4_FIGURE)
 
     summary = {
-        "reduced": reduced, "coupling": run.spec.coupling.name, "coupling_file": str(run.spec.coupling.path),
+        "reduced": reduced, "coupling": run.spec.coupling.name, "coupling_file": portable_path(run.spec.coupling.path),
         "rig": run.spec.rig.name, "plan": run.spec.doe.name, "tests": len(run.spec.tests),
         "tests_extracted": int((results["status"] == "done").sum()), "tests_failed": len(run.failed),
         "tests_pending": run.pending, "tests_excluded_from_map": len(excluded),
@@ -203,6 +204,18 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
         ("Tests excluded from the map", _table_html(excluded_table) if len(excluded_table) else "<p>none</p>"),
     ])
     return summary
+
+
+def portable_path(path: Path) -> str:
+    """A path without this machine's folders: relative to the repository or the installed
+    package's presets (``rig_configs/couplings/x.toml``) when inside them, else the file name."""
+    path = Path(path).resolve()
+    for root in (Path(__file__).resolve().parents[1], Path(resolve(DEFAULT_RIG, "rigs")).resolve().parents[1].parent):
+        try:
+            return path.relative_to(root).as_posix()
+        except ValueError:
+            continue
+    return path.name
 
 
 def real_time_factor(coupling, rate_hz: float = 38_400.0, repeats: int = 5) -> float:

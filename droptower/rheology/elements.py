@@ -171,19 +171,19 @@ class Prony(ElementSpec):
 
 
 class PowerLaw(ElementSpec):
-    """A power-law (fractional, "springpot") viscoelastic branch over a frequency band, as a
-    Prony series spread over the decades of the band.
+    """A power-law (fractional, "springpot") viscoelastic branch over a band of relaxation
+    frequencies, as a Prony series spread over the decades of the band.
 
-    Inside [min_frequency, max_frequency] the complex stiffness follows
-    K*(f) = storage_stiffness (1 + i loss_factor) (f / reference_frequency)^alpha with
-    alpha = (2/pi) atan(loss_factor): the broad, weak frequency dependence of a rubber matrix
-    (Bagley & Torvik's fractional derivative model). It is realised as Maxwell terms with
-    relaxation times 1/(2 pi f) log-spaced over the band, ``terms_per_decade`` of them per
-    decade, each weighted by the springpot's relaxation spectrum
-    H(tau) = K0 sin(alpha pi)/pi (tau0/tau)^alpha times the spacing in ln tau (the midpoint
-    rule in log time, whose aliasing error falls like exp(-pi^2 / spacing): 2e-4 of the loss at
-    two terms per decade). Below the band the branch relaxes completely (no equilibrium
-    stiffness: a held preload relaxes it), above it it stiffens no further.
+    The springpot K*(f) = storage_stiffness (1 + i loss_factor) (f / reference_frequency)^alpha,
+    alpha = (2/pi) atan(loss_factor) (Bagley & Torvik's fractional derivative model), has the
+    relaxation spectrum H(tau) = K0 sin(alpha pi)/pi (tau0/tau)^alpha over every time scale.
+    This branch keeps the part of it whose relaxation frequencies 1/(2 pi tau) lie in
+    [min_frequency, max_frequency]: Maxwell terms log-spaced over the band, ``terms_per_decade``
+    per decade, each weighted by H times the spacing in ln tau (the midpoint rule in log time,
+    whose aliasing error falls like exp(-pi^2 / spacing): 2e-4 at two terms per decade). Inside
+    the band, away from its edges, the loss follows the springpot's; the storage lacks the
+    spectrum's slower part (for a small alpha most of it: the branch relaxes completely below
+    the band, so a held preload relaxes it). :meth:`complex_stiffness` gives K* as compiled.
     """
 
     kind: Literal["power_law"]
@@ -598,7 +598,8 @@ class Payne(ElementSpec):
     exponent: PositiveFloat = 0.6          # -, m (Kraus: ~0.5-0.7 for filled rubber)
     loss_stiffness: NonNegativeFloat = 0.0       # N*m/rad, K'' at zero amplitude
     loss_peak_stiffness: NonNegativeFloat = 0.0  # N*m/rad, dK''_m: the loss peak at A_c
-    centre_relaxation_time: PositiveFloat = 10.0  # s, the centre follows a held mean angle
+    centre_relaxation_time: PositiveFloat = 10.0  # s, the centre follows the mean angle
+    rest_relaxation_time: PositiveFloat = 0.1     # s, ... and at rest, a held one
     memory_time: PositiveFloat = 2.0        # s, longest half period read as an oscillation
     storage_frequency_exponent: NonNegativeFloat = 0.0  # -, K' ~ f^beta_s
     loss_frequency_exponent: NonNegativeFloat = 0.0     # -, K'' ~ f^beta_l
@@ -608,8 +609,8 @@ class Payne(ElementSpec):
         params = np.array([self.stiffness, self.critical_angle, self.exponent, self.loss_stiffness,
                            self.loss_peak_stiffness, self.centre_relaxation_time, self.memory_time,
                            self.storage_frequency_exponent, self.loss_frequency_exponent,
-                           2 * np.pi * self.reference_frequency])
-        return [KernelElement(K.PAYNE, params, 11)]
+                           2 * np.pi * self.reference_frequency, self.rest_relaxation_time])
+        return [KernelElement(K.PAYNE, params, 12)]
 
     def complex_stiffness(self, amplitude_rad: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
         """K'(A, f) + i K''(A, f) (N*m/rad) in a harmonic motion of amplitude A (rad) and

@@ -500,6 +500,7 @@ def pfeffer(p, po, s, so, x0, x1, h):
 
 # ---------------------------------------------------------------- amplitude envelope (Payne effect)
 MIN_OMEGA = 2.0 * np.pi * 0.01  # rad/s: below 0.01 Hz a half cycle is not an oscillation
+REST_EXIT = 100.0  # a rest ends when the rate exceeds the largest rate seen while resting this much
 
 
 @njit(**JIT)
@@ -541,9 +542,15 @@ def payne(p, po, s, so, x0, x1, h):
     K' by (w/w_ref)^beta_s and K'' by (w/w_ref)^beta_l, w again the oscillation's own frequency
     (no relaxation time is involved, so a free decay stays one damped mode).
 
-    params: [dK, angle_c, m, loss_0, loss_peak, centre_tau, memory_s, beta_s, beta_l, w_ref]
+    At rest (no zero crossing for ``memory_s``) the centre follows the angle with the short
+    ``rest_tau`` (a held preload leaves no offset) and the network re-forms completely,
+    unstrained at the current angle (the centre moves so that the torque stays; the stored energy
+    falls): a drop test after a rest starts from the virgin element, whatever the preload.
+
+    params: [dK, angle_c, m, loss_0, loss_peak, centre_tau, memory_s, beta_s, beta_l, w_ref, rest_tau]
     internal: e, k, c, w, peak_e, peak_v, time since the crossing, sign of the half cycle,
-    initialised flag, cached exp(-h/centre_tau) and h.
+    mode (0 virgin, 1 oscillating, 2 at rest: no crossing for memory_s, until the rate exceeds
+    100x the largest rate seen resting), cached exp(-h/centre_tau), h and exp(-h/rest_tau).
     """
     dk = p[po + 0]
     angle_c = p[po + 1]
@@ -555,10 +562,17 @@ def payne(p, po, s, so, x0, x1, h):
     beta_s = p[po + 7]
     beta_l = p[po + 8]
     omega_ref = p[po + 9]
+    rest_tau = p[po + 10]
     if s[so + 13] != h:
         s[so + 13] = h
         s[so + 12] = np.exp(-h / tau)
-    decay = s[so + 12]
+        s[so + 14] = np.exp(-h / rest_tau)
+    resting = s[so + 11] == 2.0
+    if resting:  # at rest the centre follows the angle fast: a held preload leaves no offset
+        tau = rest_tau
+        decay = s[so + 14]
+    else:
+        decay = s[so + 12]
     e0 = s[so + 3]
     k_old = s[so + 4]
     dx = x1 - x0
@@ -585,13 +599,21 @@ def payne(p, po, s, so, x0, x1, h):
         peak_v = 0.0
         elapsed = 0.0
         sign = 1.0 if e1 > 0.0 else -1.0
-    rest = not crossed and elapsed > memory
-    if rest:
-        # at rest: forget the frequency and restart the running peaks (a rest is no oscillation,
-        # so it carries no hysteretic loss either: the dashpot relaxes to zero below)
-        w = 0.0
-        peak_e = 0.0
-        peak_v = 0.0
+    mode = s[so + 11]  # 0: virgin, 1: oscillating, 2: at rest
+    rest = False
+    if crossed:
+        mode = 1.0
+    elif mode == 2.0:
+        if abs(rate_e) > REST_EXIT * peak_v:
+            # motion starts from rest (an impact, a test's ramp): a half cycle begins here
+            mode, peak_e, peak_v, elapsed = 1.0, 0.0, 0.0, 0.0
+        else:
+            rest = True
+    elif elapsed > memory:
+        # no crossing for memory_s: a rest. It is no oscillation, so it carries no hysteretic
+        # loss and forgets the frequency; the largest rate seen while resting (creep of the
+        # centre, a rig's jitter) is what the start of a motion must exceed
+        mode, rest, w, peak_e, peak_v = 2.0, True, 0.0, 0.0, 0.0
     peak_e = max(peak_e, abs(e1))
     peak_v = max(peak_v, abs(rate_e))
     amp = peak_e
@@ -605,11 +627,21 @@ def payne(p, po, s, so, x0, x1, h):
         # decay's rate first falls by its damping, only later by its stiffness)
         omega = peak_v / peak_e
     storage, peak_shape = _kraus(amp, angle_c, m)
+    storage_at_rest = 1.0  # Kraus's storage shape at zero amplitude
     # weak frequency dependence at the oscillation's own frequency (a completed half cycle's;
     # the reference frequency before one is known): K' ~ w^beta_s, K'' ~ w^beta_l
     ratio = w / omega_ref if w > 0.0 else 1.0
     k_new = dk * storage * ratio ** beta_s
-    if crossed and e0 * e1 < 0.0:
+    if rest:
+        # at rest the network re-forms completely, unstrained at the current angle: the centre
+        # moves so that the torque stays the same (k e is kept, the stored energy k e^2 / 2
+        # falls): passive anywhere, not only at a zero crossing
+        k_new = dk * storage_at_rest
+        if k_new > k_old and k_old > 0.0:
+            e1 = e1 * k_old / k_new
+        else:
+            k_new = min(k_new, k_old) if s[so + 11] > 0.0 else k_new
+    elif crossed and e0 * e1 < 0.0:
         k_new = max(k_new, k_old)  # a fall waits for the next step (keeps the step passive)
     elif s[so + 11] > 0.0:
         k_new = min(k_new, k_old)  # within a half cycle the network only breaks down
@@ -637,7 +669,7 @@ def payne(p, po, s, so, x0, x1, h):
     s[so + 8] = peak_v
     s[so + 9] = elapsed
     s[so + 10] = sign
-    s[so + 11] = 1.0  # initialised
+    s[so + 11] = max(mode, 1.0)
     return t1
 
 
