@@ -501,6 +501,7 @@ def pfeffer(p, po, s, so, x0, x1, h):
 # ---------------------------------------------------------------- amplitude envelope (Payne effect)
 MIN_OMEGA = 2.0 * np.pi * 0.01  # rad/s: below 0.01 Hz a half cycle is not an oscillation
 REST_EXIT = 100.0  # a rest ends when the rate exceeds the largest rate seen while resting this much
+MIN_HALF_CYCLE_STEPS = 8  # a half cycle of fewer steps cannot tell a frequency (nor is one resolved)
 
 
 @njit(**JIT)
@@ -588,10 +589,11 @@ def payne(p, po, s, so, x0, x1, h):
     if crossed:
         # a completed half cycle gives the frequency by its duration (the zero crossings of a
         # damped sinusoid are exactly pi/w_d apart) if it was an oscillation: not longer than
-        # memory_s, and its peaks' ratio (w e^(delta T/4) for a damped sinusoid) agrees within a
-        # factor 2 (a rest between a stray crossing and an impact is no half cycle)
+        # memory_s nor shorter than a few steps (a rig's jitter about a relaxed centre crosses
+        # zero from step to step), and its peaks' ratio (w e^(delta T/4) for a damped sinusoid)
+        # agrees within a factor 2 (a rest between a stray crossing and an impact is no half cycle)
         w = 0.0
-        if sign != 0.0 and elapsed <= memory and peak_e > 0.0:
+        if sign != 0.0 and MIN_HALF_CYCLE_STEPS * h <= elapsed <= memory and peak_e > 0.0:
             w_time = np.pi / elapsed
             if 0.5 * w_time <= peak_v / peak_e <= 2.0 * w_time:
                 w = max(w_time, MIN_OMEGA)
@@ -601,12 +603,16 @@ def payne(p, po, s, so, x0, x1, h):
         sign = 1.0 if e1 > 0.0 else -1.0
     mode = s[so + 11]  # 0: virgin, 1: oscillating, 2: at rest
     rest = False
+    started = False
     if crossed:
+        started = mode == 2.0  # a crossing out of a rest starts the motion too
         mode = 1.0
     elif mode == 2.0:
         if abs(rate_e) > REST_EXIT * peak_v:
-            # motion starts from rest (an impact, a test's ramp): a half cycle begins here
-            mode, peak_e, peak_v, elapsed = 1.0, 0.0, 0.0, 0.0
+            # motion starts from rest (an impact, a test's ramp): a half cycle begins here. This
+            # step's rate is not the motion's (an impact is a jump in rate; a rig may even move
+            # the struck body within the step), so the velocity peak is read from the next step
+            mode, peak_e, peak_v, elapsed, started = 1.0, 0.0, 0.0, 0.0, True
         else:
             rest = True
     elif elapsed > memory:
@@ -615,7 +621,8 @@ def payne(p, po, s, so, x0, x1, h):
         # centre, a rig's jitter) is what the start of a motion must exceed
         mode, rest, w, peak_e, peak_v = 2.0, True, 0.0, 0.0, 0.0
     peak_e = max(peak_e, abs(e1))
-    peak_v = max(peak_v, abs(rate_e))
+    if not started:
+        peak_v = max(peak_v, abs(rate_e))
     amp = peak_e
     omega = w
     if w > 0.0:
