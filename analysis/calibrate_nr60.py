@@ -30,8 +30,8 @@ Candidates: the same model fitted with different weights (and without the power-
 show the trade-off between the targets; each candidate's figures come from the reduced
 pipeline (30 drop tests -> logs -> extraction -> map -> servo sweeps on the virtual bench) and
 are written as a table (``--candidates``, default ``analysis/results/nr60_candidates.csv``).
-The candidate with the smallest summed relative excess over the targets (zero: all met) becomes
-the preset, written to ``--out`` (the repository's rig_configs/ by default, never the installed
+The eligible candidate with the smallest summed relative excess over the targets (zero: all met)
+becomes the preset, written to ``--out`` (the repository's rig_configs/ by default, never the installed
 package). The acceptance numbers of the preset come from the full study
 (``analysis/run_study.py``).
 """
@@ -270,6 +270,7 @@ def target_excess(figures: dict[str, float]) -> tuple[int, float]:
 class Candidate:
     name: str
     weights: Weights
+    eligible: bool = True
     values: dict[str, float] = field(default_factory=dict)
     figures: dict[str, float] = field(default_factory=dict)
 
@@ -278,7 +279,9 @@ CANDIDATES = [
     Candidate("table4_only", Weights(servo_stiffness=None, servo_damping=None)),
     Candidate("joint", Weights()),
     Candidate("joint_servo_heavy", Weights(servo_stiffness=0.02, servo_damping=0.02)),
-    Candidate("joint_without_matrix", Weights(matrix=False)),
+    # shown for the trade-off only: without the matrix branch the model has no frequency
+    # dependence at all (issue 9, item 2), so it is not eligible as the preset
+    Candidate("joint_without_matrix", Weights(matrix=False), eligible=False),
 ]
 
 
@@ -330,10 +333,12 @@ def main() -> None:
         print(f"candidate {cand.name}:", flush=True)
         calibrate(cand, table, args.work / cand.name, args.pipeline_rounds, args.max_evaluations)
         missed, excess = target_excess(cand.figures)
-        rows.append({"candidate": cand.name, "targets_missed": missed, "target_excess": excess, **cand.figures,
+        rows.append({"candidate": cand.name, "eligible": cand.eligible, "targets_missed": missed,
+                     "target_excess": excess, **cand.figures,
                      **{f"param_{k}": v for k, v in cand.values.items()}, "wall_s": time.perf_counter() - t0})
         print("    " + ", ".join(f"{k} {v:.3g}" for k, v in cand.figures.items()), flush=True)
-    trade = pd.DataFrame(rows).sort_values(["target_excess", "targets_missed"], kind="stable")
+    trade = pd.DataFrame(rows).sort_values(["eligible", "target_excess", "targets_missed"], ascending=[False, True, True],
+                                           kind="stable")
     args.candidates.parent.mkdir(parents=True, exist_ok=True)
     trade.to_csv(args.candidates, index=False)
     best = next(c for c in chosen if c.name == trade.iloc[0]["candidate"])
