@@ -13,8 +13,10 @@ comparison with the paper's measured map (Table 4), into one report folder.
    (``droptower validate``; ``--reduced``: fewer steps): ``OUT/validation.csv``, Fig. 14;
 4. the comparison with Table 4 (shipped: ``droptower/data/rapp2022_table4_map.csv``): per row the
    map at the row's amplitude and frequency and the campaign's tests interpolated at the row's
-   case and amplitude: ``OUT/table4_comparison.csv``, printed with the acceptance of issue 5
-   (RMS <= 5 % stiffness, <= 10 % damping ratio);
+   case and amplitude: ``OUT/table4_comparison.csv``, printed with the acceptance (RMS <= 5 %
+   stiffness, <= 12 % damping ratio); the map-free check (drop tests placed on the servo points
+   inside the tested hull: ``OUT/map_free_check.csv``), the coupling's loss-factor ratio, third
+   harmonic and speed, and the targets of issue 9, each met or missed;
 5. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json``.
 """
 from __future__ import annotations

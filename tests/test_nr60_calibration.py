@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ CANDIDATES = ROOT / "analysis" / "results" / "nr60_candidates.csv"
 def _calibration_module():
     spec = importlib.util.spec_from_file_location("calibrate_nr60", ROOT / "analysis" / "calibrate_nr60.py")
     module = importlib.util.module_from_spec(spec)
-    import sys
+    sys.modules["calibrate_nr60"] = module  # its dataclasses look their module up
     sys.path.insert(0, str(ROOT / "analysis"))  # it takes real_time_factor from run_study
     try:
         spec.loader.exec_module(module)

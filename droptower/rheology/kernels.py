@@ -592,14 +592,17 @@ def payne(p, po, s, so, x0, x1, h):
         # memory_s nor shorter than a few steps (a rig's jitter about a relaxed centre crosses
         # zero from step to step), and its peaks' ratio (w e^(delta T/4) for a damped sinusoid)
         # agrees within a factor 2 (a rest between a stray crossing and an impact is no half cycle)
+        # the crossing's time inside the step, e linear in between: the half period to O(h^2)
+        theta = e0 / (e0 - e1) if e0 * e1 < 0.0 else 1.0
+        duration = elapsed - (1.0 - theta) * h
         w = 0.0
-        if sign != 0.0 and MIN_HALF_CYCLE_STEPS * h <= elapsed <= memory and peak_e > 0.0:
-            w_time = np.pi / elapsed
+        if sign != 0.0 and MIN_HALF_CYCLE_STEPS * h <= duration <= memory and peak_e > 0.0:
+            w_time = np.pi / duration
             if 0.5 * w_time <= peak_v / peak_e <= 2.0 * w_time:
                 w = max(w_time, MIN_OMEGA)
         peak_e = 0.0
         peak_v = 0.0
-        elapsed = 0.0
+        elapsed = (1.0 - theta) * h  # from the crossing to the end of this step
         sign = 1.0 if e1 > 0.0 else -1.0
     mode = s[so + 11]  # 0: virgin, 1: oscillating, 2: at rest
     rest = False
