@@ -38,7 +38,6 @@ package). The acceptance numbers of the preset come from the full study
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path

@@ -18,7 +18,6 @@ rig's drop masses that still rebounds clearly (m1 <= k m2 / 2), so no second imp
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any

@@ -591,8 +591,9 @@ def payne(p, po, s, so, x0, x1, h):
         # damped sinusoid are exactly pi/w_d apart) if it was an oscillation: not longer than
         # memory_s nor shorter than a few steps (a rig's jitter about a relaxed centre crosses
         # zero from step to step), and its peaks' ratio (w e^(delta T/4) for a damped sinusoid)
-        # agrees within a factor 2 (a rest between a stray crossing and an impact is no half cycle)
-        # the crossing's time inside the step, e linear in between: the half period to O(h^2)
+        # agrees within a factor 2 (a rest between a stray crossing and an impact is no half
+        # cycle). The crossing's time inside the step (e linear in between) gives the half
+        # period to O(h^2).
         theta = e0 / (e0 - e1) if e0 * e1 < 0.0 else 1.0
         duration = elapsed - (1.0 - theta) * h
         w = 0.0
@@ -637,7 +638,6 @@ def payne(p, po, s, so, x0, x1, h):
         # decay's rate first falls by its damping, only later by its stiffness)
         omega = peak_v / peak_e
     storage, peak_shape = _kraus(amp, angle_c, m)
-    storage_at_rest = 1.0  # Kraus's storage shape at zero amplitude
     # weak frequency dependence at the oscillation's own frequency (a completed half cycle's;
     # the reference frequency before one is known): K' ~ w^beta_s, K'' ~ w^beta_l
     ratio = w / omega_ref if w > 0.0 else 1.0
@@ -645,8 +645,8 @@ def payne(p, po, s, so, x0, x1, h):
     if rest:
         # at rest the network re-forms completely, unstrained at the current angle: the centre
         # moves so that the torque stays the same (k e is kept, the stored energy k e^2 / 2
-        # falls): passive anywhere, not only at a zero crossing
-        k_new = dk * storage_at_rest
+        # falls): passive anywhere, not only at a zero crossing. A rest has zero amplitude.
+        k_new = dk
         if k_new > k_old and k_old > 0.0:
             e1 = e1 * k_old / k_new
         else:
