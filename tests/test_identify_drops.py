@@ -178,3 +178,21 @@ def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     assert code == 2
     assert "NOT CONVERGED" in captured.out and "did not converge" in captured.err and not bad.exists()
     assert math.isfinite(report["wall_s"])
+
+
+def test_template_of_the_reference_coupling_keeps_its_structure():
+    """The template family on rapp2022_nr60: element settings (the power-law band that fixes its
+    number of Maxwell terms, the payne element's bookkeeping times) are not fitted, so every
+    candidate has the template's structure and a batch of them stacks."""
+    from droptower.identify.data import DataScale
+    from droptower.identify.families.template import TemplateFamily
+    from droptower.rheology import Coupling
+
+    family = TemplateFamily(DataScale(0.05, 0.05, 500.0, 1e4, 5.0, 30.0), {"template": "rapp2022_nr60"})
+    names = [p.name for p in family.parameters]
+    assert not any(k in n for n in names for k in ("min_frequency", "max_frequency", "terms_per_decade",
+                                                   "memory_time", "relaxation_time", "reference_frequency"))
+    assert any("payne" in n or "filler" in n for n in names) and any("matrix" in n for n in names)
+    rng = np.random.default_rng(1)
+    sets = [family.coupling(np.exp(rng.uniform(-1, 1, len(names)))) for _ in range(3)]
+    assert Coupling.stack(sets).n_sets == 3

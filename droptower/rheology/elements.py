@@ -11,7 +11,7 @@ bank of rate-dependent sliders, ``mullins`` a spring (or static table) and a Max
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Literal, Union
+from typing import Annotated, ClassVar, Literal, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -37,8 +37,11 @@ class KernelElement:
 
 
 class ElementSpec(StrictModel):
-    """Common fields: ``kind`` and an optional ``name`` for reports."""
+    """Common fields: ``kind`` and an optional ``name`` for reports. ``SETTINGS``: fields that
+    set up the element rather than describe the material (time constants of its bookkeeping, a
+    band that fixes the number of internal terms): identification keeps them as they are."""
 
+    SETTINGS: ClassVar[frozenset[str]] = frozenset()
     name: str = ""
 
     def compile(self) -> list[KernelElement]:  # pragma: no cover - abstract
@@ -186,6 +189,8 @@ class PowerLaw(ElementSpec):
     the band, so a held preload relaxes it). :meth:`complex_stiffness` gives K* as compiled.
     """
 
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"reference_frequency", "min_frequency", "max_frequency",
+                                                     "terms_per_decade"})
     kind: Literal["power_law"]
     storage_stiffness: PositiveFloat       # N*m/rad, K' at the reference frequency
     loss_factor: PositiveFloat             # -, K''/K' inside the band
@@ -592,6 +597,8 @@ class Payne(ElementSpec):
     way), so a free decay stays a single damped mode; see :func:`kernels.payne`.
     """
 
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"centre_relaxation_time", "rest_relaxation_time", "memory_time",
+                                                     "reference_frequency"})
     kind: Literal["payne"]
     stiffness: PositiveFloat               # N*m/rad, dK' at zero amplitude
     critical_angle: PositiveFloat          # rad, A_c: half of dK' is lost there

@@ -4,7 +4,8 @@ Option ``template`` names a coupling TOML (a preset name such as ``rapp2022_nr60
 path). Every non-zero real number of every element becomes a free scale factor (bounds
 1/``factor_range`` .. ``factor_range``, optimised as its logarithm); a lookup table gets one
 factor for all its values (the breakpoints stay), so a monotone table stays monotone.
-Integers (counts, exponents such as the elastoslide's p) and zeros stay as they are. The
+Integers (counts, exponents such as the elastoslide's p), zeros and an element's settings (its
+``SETTINGS``: bookkeeping time constants, a band fixing its number of terms) stay as they are. The
 family follows whatever the template becomes: nothing here knows its elements. Strategy:
 joint least squares from the template (all factors 1).
 """
@@ -50,7 +51,10 @@ class TemplateFamily(Family):
         names = []
         for i, el in enumerate(self.base):
             label = f"e{i + 1}_{_slug(str(el.get('name') or el['kind']))}"
+            settings = type(self.template.elements[i]).SETTINGS
             for key, value in el.items():
+                if key in settings:  # set-up, not material: e.g. a band fixing the number of terms
+                    continue
                 if isinstance(value, float) and value != 0.0:
                     self.fields.append((i, key, False))
                 elif isinstance(value, dict) and isinstance(value.get("y"), list) and any(value["y"]):
