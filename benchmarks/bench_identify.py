@@ -31,7 +31,9 @@ Identification from drop tests (issue 10; ``--drops`` runs only these, ``--servo
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -89,19 +91,7 @@ def run(kind: str, truth, scale: float) -> tuple[float, object, list, float]:
 
 
 #: Couplings of three families for the drop-test acceptance (none a preset; issue 10).
-DROP_TRUTHS = {
-    "elastoslide": {"name": "unknown_elastoslide", "element": [
-        {"kind": "elastoslide", "phi0": 0.012, "k": 25000.0, "k0": 6000.0, "v_r": 0.3, "p": 5, "n": 32}]},
-    "zerodim6": {"name": "unknown_zerodim6", "element": [
-        {"kind": "spring", "stiffness": 7000.0},
-        {"kind": "maxwell", "stiffness": 2500.0, "damping": 1250.0},
-        {"kind": "variable_maxwell", "stiffness": 5000.0, "stiffness_gain": 1.5e5, "damping": 9.0}]},
-    "masing": {"name": "unknown_masing", "element": [
-        {"kind": "cubic_spring", "a": 2.0e6, "b": 6000.0},
-        {"kind": "masing", "n": 7, "stiffness": 3000.0, "max_yield_torque": 15.0, "alpha": 2.0},
-        {"kind": "maxwell", "stiffness": 2000.0, "damping": 4.0},
-        {"kind": "maxwell", "stiffness": 1500.0, "damping": 150.0}]},
-}
+DROP_TRUTHS = json.loads((Path(__file__).resolve().parents[1] / "tests" / "data" / "unknown_couplings.json").read_text())
 
 
 def drops() -> None:

@@ -3,13 +3,13 @@ round trips on couplings the fit does not know (noisy rig logs), exclusions, ang
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import math
 
 import numpy as np
 import pandas as pd
 import pytest
 
-import droptower as dt
 from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.cli.main import main
 from droptower.identify.dropfit import DropFitSettings, identify_drops, servo_agreement
@@ -23,19 +23,7 @@ RIG = load_rig("rapp2022")
 CASES = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
 
 #: Couplings of several families, none a preset: the fits start from generic guesses.
-TRUTHS = {
-    "elastoslide": {"name": "unknown_elastoslide", "element": [
-        {"kind": "elastoslide", "phi0": 0.012, "k": 25000.0, "k0": 6000.0, "v_r": 0.3, "p": 5, "n": 32}]},
-    "zerodim6": {"name": "unknown_zerodim6", "element": [
-        {"kind": "spring", "stiffness": 7000.0},
-        {"kind": "maxwell", "stiffness": 2500.0, "damping": 1250.0},
-        {"kind": "variable_maxwell", "stiffness": 5000.0, "stiffness_gain": 1.5e5, "damping": 9.0}]},
-    "masing": {"name": "unknown_masing", "element": [
-        {"kind": "cubic_spring", "a": 2.0e6, "b": 6000.0},
-        {"kind": "masing", "n": 7, "stiffness": 3000.0, "max_yield_torque": 15.0, "alpha": 2.0},
-        {"kind": "maxwell", "stiffness": 2000.0, "damping": 4.0},
-        {"kind": "maxwell", "stiffness": 1500.0, "damping": 150.0}]},
-}
+TRUTHS = json.loads((Path(__file__).parent / "data" / "unknown_couplings.json").read_text())
 
 
 def _campaign(coupling, folder, heights=(0.2, 3.0), duration_s=0.1):
