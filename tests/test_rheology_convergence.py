@@ -15,12 +15,14 @@ from test_rheology_support import preset_paths, preset_scale, random_smooth
 #: 2048 Hz (seed000_six_parameter, its variable Maxwell branch at 15 Hz); the tolerances give
 #: room for recalibrated presets of the same kind.
 TOLERANCE = {38400.0: 1e-3, 2048.0: 1e-2}
-#: The ``payne`` element reads the amplitude of each half cycle from the motion at the steps (its
-#: attack follows the sampled elongation): first order too, and larger where its stiffness
-#: depends strongly on the amplitude. rapp2022_nr60 (17 300 N*m/rad of it): 4.7e-4 at 38.4 kHz,
-#: where rig and bench run it, and 1.06e-2 at 2048 Hz (its loss alone: 4.7e-4). Known, reported
-#: in the issue-9 closing note; the 38.4 kHz limit stands.
-PAYNE_TOLERANCE_2048 = 1.5e-2
+#: The ``payne`` element reads the amplitude of each half cycle from the motion at the steps:
+#: the peak rate near a zero crossing and the peak elongation are sampled step by step. On
+#: rapp2022_nr60 (17 300 N*m/rad of it) this history's content up to ~3x its 40 Hz makes the
+#: sampled velocity peak differ by 1.8 % between h and h/2 at 2048 Hz, and the torque by
+#: 1.06e-2 (its loss alone: 4.7e-4); at 38.4 kHz, where rig and bench run it, 4.7e-4. Not
+#: mended (interpolating the rate at the crossing, or the peak by a parabola, did not lower it);
+#: the limit here is just above the measured value, so a regression still fails.
+PAYNE_TOLERANCE_2048 = 1.2e-2
 
 
 def _change_on_halving(coupling, rate_hz):
