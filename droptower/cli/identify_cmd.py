@@ -1,8 +1,9 @@
-"""``droptower identify`` and ``droptower compare-models``: coupling models from torque-angle data.
+"""``droptower identify`` and ``droptower compare-models``: coupling models from servo records.
 
-DATA are imposed-angle / measured-torque records in any format the readers take (channels
-found by name or given with ``--channel ROLE=NAME[:UNIT]``, roles ``time``, ``angle``,
-``torque``). ``--params INIT.toml`` holds up to three tables::
+DATA are imposed-angle / measured-torque records, or imposed-displacement / measured-force
+records of mounts, bushings and dampers (translational), in any format the readers take
+(channels found by name or given with ``--channel ROLE=NAME[:UNIT]``, roles ``time``,
+``angle``, ``torque``, ``displacement``, ``force``). ``--params INIT.toml`` holds up to three tables::
 
     [initial]                 # starting values, by parameter name (see the report)
     k1_nm_per_rad = 8000.0
@@ -49,13 +50,13 @@ def _read_init(path: str | None) -> InitFile:
 
 def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float):
     from droptower.identify.data import segments_from_files
-    from droptower.io import parse_channel_options
+    from droptower.io.mapping import SERVO_ROLES, parse_channel_options
 
-    roles = parse_channel_options(channels)
-    unknown = set(roles) - {"time", "angle", "torque"}
-    if unknown:
-        raise DroptowerError(f"--channel: identification uses the roles time, angle and torque, not {', '.join(sorted(unknown))}")
-    return segments_from_files(paths, roles, skip_s=skip_s)
+    notes: list[str] = []
+    segments = segments_from_files(paths, parse_channel_options(channels, SERVO_ROLES), skip_s=skip_s, notes=notes)
+    for text in notes:
+        note(f"note: {text}")
+    return segments
 
 
 def _write_coupling(result, out: str, sources: list[str]) -> None:
@@ -79,7 +80,7 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 @click.argument("data", nargs=-1, required=True, type=click.Path(readable=False))
 @click.option("--model", "kind", required=True, type=click.Choice(MODEL_KINDS + ("template",)), help="Model family.")
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
-              help="Channel for a role (time, angle, torque); repeatable.")
+              help="Channel for a role (time, angle, torque; or displacement, force); repeatable.")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="TOML with [initial], [bounds], [options] (see below).")
 @click.option("--holdout", type=click.Path(dir_okay=False), help="Record kept out of the fit, for the hold-out RMSE.")
@@ -100,7 +101,10 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
              holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None, drops: bool,
              template: str | None, holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
              lever_length_m: float | None, predict_servo: str | None) -> None:
-    """Identify a coupling model of family --model from imposed-angle / measured-torque DATA.
+    """Identify a coupling model of family --model from imposed-angle / measured-torque DATA,
+    or imposed-displacement / measured-force DATA (translational: mounts, bushings, dampers;
+    any length and force units, e.g. mm, in, kN, kip; parameters then named k1_n_per_m, ...
+    and --out writes a coupling with units = "translational", in N/m and N*s/m).
 
     Bounded trust-region-reflective least squares on the torque error, preceded by the
     family's staged strategy (seeds 000-004). Reports the parameters with standard errors,
@@ -114,6 +118,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     masing, pfeffer, or template with --template COUPLING) is fitted to the measured angle (and
     torque) decays; a fraction of the tests is held out; --predict-servo writes the fitted
     model's servo K' and loss factor next to the drop tower's first-cycle values.
+
+    Time stamps printed with few decimals (steps that differ only by the printed precision)
+    are taken as a constant sample rate estimated from the whole record (a note says so).
 
     --params INIT.toml (parameter names as in the report):
 
@@ -130,6 +137,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
       droptower identify sweep.csv --model zerodim6 --out my_coupling.toml
       droptower identify bench.bin --model elastoslide --channel angle=Winkel:deg \\
           --channel torque=Md:kN*m --holdout check.csv --plot fits/
+      droptower identify damper_sine_*.csv --model elastoslide --channel displacement=Stroke:in \\
+          --channel force=Load:kip --holdout damper_random.csv --out damper.toml
       droptower identify --from-drop-tests runs/table2 --model template \\
           --template rapp2022_nr60 --out fitted.toml --predict-servo servo.csv
     """
@@ -169,7 +178,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 @quiet_option
 @click.argument("data", nargs=-1, required=True, type=click.Path(dir_okay=False, readable=False))
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
-              help="Channel for a role (time, angle, torque); repeatable.")
+              help="Channel for a role (time, angle, torque; or displacement, force); repeatable.")
 @click.option("--holdout", type=click.Path(dir_okay=False), help="Record kept out of the fits; ranks the models.")
 @click.option("--models", default=",".join(MODEL_KINDS), show_default=True,
               help=f"Families to fit, comma-separated (of {', '.join(MODEL_KINDS)}).")
@@ -181,7 +190,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="Write the RMSE bars (seed 000 Fig. 8) and the overlaid loops to this folder.")
 def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str,
                    out: Path | None, as_json: bool, plot_dir: str | None) -> None:
-    """Fit every model family on the same DATA and rank them.
+    """Fit every model family on the same DATA (torsional or translational servo records) and
+    rank them.
 
     Prints a ranking (parameters, nRMSE on the fitting and hold-out data, fit time), best
     first by the Bayesian information criterion on the fitting data with the residual's

@@ -5,6 +5,12 @@ through from its virgin state, and the measured torque to compare with, NaN wher
 compared (a lead-in, skipped transients, the parts of a record outside a block). Records come
 from any file the readers take (:func:`segments_from_files`) or straight from arrays
 (:func:`make_segment`).
+
+A translational record (a mount, bushing or damper: displacement in m, force in N) is a
+segment with ``units = "translational"`` whose ``angle_rad`` holds the displacement (m) and
+``torque_nm`` the force (N): the models' equations do not change, only their reading (as in a
+coupling file with ``units = "translational"``); reports name the fields for the record's
+units (:mod:`droptower.io.fields`).
 """
 from __future__ import annotations
 
@@ -16,6 +22,8 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 from droptower.identify.cycles import turning_points
+from droptower.io.fields import UNITS
+from droptower.io.timebase import regular_time
 
 #: Duration of the half-cosine ramp from 0 rad to a record's first angle (s). The core starts
 #: every history at 0 rad in its virgin state; a record that starts preloaded is reached
@@ -24,8 +32,6 @@ from droptower.identify.cycles import turning_points
 LEAD_IN_S = 1.0
 #: Fewest samples a record may have.
 MIN_SAMPLES = 32
-#: Largest deviation of one time step from the median step (relative) still taken as uniform.
-DT_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -34,7 +40,9 @@ class Segment:
     every ``dt_s`` s; ``torque_nm`` (N,) is the measured torque, NaN where not compared.
 
     lead_in: number of leading samples that are the added ramp from 0 rad (not measured);
-    metadata: the file's metadata; name: where it came from (file name, block label).
+    metadata: the file's metadata; name: where it came from (file name, block label);
+    units: ``"torsional"``, or ``"translational"`` (``angle_rad`` then holds the displacement
+    in m, ``torque_nm`` the force in N).
     """
 
     name: str
@@ -43,6 +51,7 @@ class Segment:
     dt_s: float
     lead_in: int = 0
     metadata: dict[str, Any] = field(default_factory=dict)
+    units: str = "torsional"
 
     @property
     def n(self) -> int:
@@ -76,10 +85,12 @@ class Segment:
 
 def make_segment(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.ndarray, *, name: str = "",
                  metadata: dict[str, Any] | None = None, file: str | Path | None = None,
-                 lead_in_s: float = LEAD_IN_S, skip_s: float = 0.0) -> Segment:
+                 lead_in_s: float = LEAD_IN_S, skip_s: float = 0.0, units: str = "torsional") -> Segment:
     """Check one record and turn it into a :class:`Segment`.
 
-    time_s, angle_rad, torque_nm: (N,) SI arrays; the time step must be constant. The record
+    time_s, angle_rad, torque_nm: (N,) SI arrays (units ``"translational"``: displacement in
+    m, force in N); the time step must be constant (time stamps rounded to their printed
+    precision are, see :func:`droptower.io.timebase.regular_time`). The record
     must hold at least one load cycle (the angle reverses at least once by more than its
     noise). A record that does not start at 0 rad gets a half-cosine lead-in of ``lead_in_s``
     seconds from 0 rad; ``skip_s`` seconds at its start are not compared (transients).
@@ -94,11 +105,13 @@ def make_segment(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.ndarra
         raise DroptowerError(f"record too short: {x.size} samples, at least {MIN_SAMPLES} needed", file=file)
     if not (np.isfinite(x).all() and np.isfinite(t).all()):
         raise DroptowerError("the angle or the time holds NaN values", file=file)
+    if units not in UNITS:
+        raise DroptowerError(f"units must be one of {', '.join(UNITS)}, got {units!r}", file=file)
     steps = np.diff(t)
-    dt = float(np.median(steps))
-    if not dt > 0 or np.max(np.abs(steps - dt)) > DT_TOLERANCE * dt:
-        raise DroptowerError(f"the time step is not constant (median {dt:.6g} s, range {steps.min():.6g} .. "
-                             f"{steps.max():.6g} s); identification needs a constant sample rate", file=file)
+    if not (steps > 0).all():
+        raise DroptowerError("the time is not strictly increasing", file=file)
+    t, _ = regular_time(t, file=file)
+    dt = float((t[-1] - t[0]) / (t.size - 1))
     if turning_points(x).size < 1:
         raise DroptowerError(f"record too short to hold one load cycle: the angle never reverses "
                              f"({x.size} samples, {x.size * dt:.3g} s)", file=file)
@@ -114,29 +127,48 @@ def make_segment(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.ndarra
         x = np.concatenate([ramp[:-1], x])
         y = np.concatenate([np.full(n_lead - 1, np.nan), y])
         n_lead -= 1
-    return Segment(name or (Path(file).name if file else "record"), x, y, dt, n_lead, dict(metadata or {}))
+    return Segment(name or (Path(file).name if file else "record"), x, y, dt, n_lead, dict(metadata or {}), units)
 
 
 def segments_from_files(paths: Iterable[str | Path], roles: dict[str, str] | None = None, *,
-                        skip_s: float = 0.0) -> list[Segment]:
-    """Read imposed-angle / measured-torque records from files of any format the readers take.
+                        skip_s: float = 0.0, notes: list[str] | None = None) -> list[Segment]:
+    """Read servo records from files of any format the readers take: imposed angle and measured
+    torque, or imposed displacement and measured force (a translational record).
 
     roles: channel roles as from ``--channel ROLE=NAME[:UNIT]`` (``time``, ``angle``,
-    ``torque``); missing roles are found by name (see :mod:`droptower.io.mapping`).
+    ``torque``, ``displacement``, ``force``); missing roles are found by name and units
+    converted to SI (see :func:`droptower.io.mapping.map_servo_channels`). Every record must be
+    of the same kind. notes: gets ``"<file>: <note>"`` for what was assumed in reading a file
+    (rounded time stamps taken as a constant rate).
     """
     from droptower.io import read_any
-    from droptower.io.mapping import map_channels
+    from droptower.io.mapping import SERVO_KINDS, map_servo_channels
 
     out = []
     for path in paths:
         record = read_any(path)
-        signals = map_channels(record, roles, sensor_radius_m=None)
-        if signals.torque_nm is None:
-            raise DroptowerError("no torque channel found; name it with --channel torque=NAME[:UNIT] "
+        signals = map_servo_channels(record, roles)
+        if signals.load_si is None:
+            role = SERVO_KINDS[signals.units][1]
+            raise DroptowerError(f"no {role} channel found; name it with --channel {role}=NAME[:UNIT] "
                                  f"(the file has: {', '.join(repr(n) for n in record.channels)})", file=path)
-        out.append(make_segment(signals.time_s, signals.angle_rad, signals.torque_nm, name=Path(path).name,
-                                metadata=signals.metadata, file=path, skip_s=skip_s))
+        if out and signals.units != out[0].units:
+            raise DroptowerError(f"a {signals.units} record among {out[0].units} ones ({out[0].name}): "
+                                 "identify from records of one kind", file=path)
+        if notes is not None:
+            notes.extend(f"{path}: {text}" for text in signals.notes)
+        out.append(make_segment(signals.time_s, signals.motion_si, signals.load_si, name=Path(path).name,
+                                metadata=signals.metadata, file=path, skip_s=skip_s, units=signals.units))
     return out
+
+
+def common_units(segments: list[Segment], what: str = "records") -> str:
+    """The units shared by all ``segments`` (a mix is a one-line error)."""
+    kinds = sorted({s.units for s in segments})
+    if len(kinds) > 1:
+        raise DroptowerError(f"the {what} mix torsional and translational records "
+                             f"({', '.join(s.name for s in segments if s.units == kinds[1])} translational)")
+    return kinds[0] if kinds else "torsional"
 
 
 @dataclass(frozen=True)
@@ -146,7 +178,8 @@ class DataScale:
     angle_rad: largest |angle|; amplitude_rad: largest half swing of a record;
     torque_nm: largest |torque|; stiffness_nm_per_rad: rms torque / rms angle (a secant
     stiffness); rate_rad_per_s: largest |d angle / dt|; frequency_hz: median characteristic
-    frequency (rms rate / (2 pi rms angle swing)).
+    frequency (rms rate / (2 pi rms angle swing)); units: the records' (for a translational
+    record read m for rad and N for N*m).
     """
 
     angle_rad: float
@@ -155,6 +188,7 @@ class DataScale:
     stiffness_nm_per_rad: float
     rate_rad_per_s: float
     frequency_hz: float
+    units: str = "torsional"
 
     @classmethod
     def of(cls, segments: list[Segment]) -> "DataScale":
@@ -166,7 +200,7 @@ class DataScale:
         amp = max(0.5 * float(np.ptp(s.measured_angle)) for s in segments)
         stiff = float(np.sqrt(np.mean(y[ok] ** 2) / max(np.mean(x[ok] ** 2), 1e-300)))
         return cls(float(np.max(np.abs(x))), amp, float(np.max(np.abs(y[ok]))), stiff,
-                   float(max(r.max() for r in rates)), float(np.median(freqs)))
+                   float(max(r.max() for r in rates)), float(np.median(freqs)), common_units(segments))
 
 
 def characteristic_frequency(segment: Segment) -> float:

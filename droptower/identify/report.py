@@ -1,7 +1,9 @@
 """Reports of identifications: dictionaries (JSON), text, comparison tables and plots.
 
-Every field carries its unit in its name; RMSE values are given as the fraction ``nrmse`` and
-as ``nrmse_percent`` of the largest measured |torque| (seed 000's measure).
+Every field carries its unit in its name, for the records' units (``k1_nm_per_rad`` for
+torsional records, ``k1_n_per_m`` for translational ones, see :mod:`droptower.io.fields`);
+RMSE values are given as the fraction ``nrmse`` and as ``nrmse_percent`` of the largest
+measured |torque| or |force| (seed 000's measure).
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import pandas as pd
 
 from droptower.identify.data import Segment
 from droptower.identify.fit import Identification, Metrics, metrics
+from droptower.io.fields import field_name, translate_fields
 
 
 def _clean(value: Any) -> Any:
@@ -34,8 +37,8 @@ def _clean(value: Any) -> Any:
 
 
 def result_dict(ident: Identification) -> dict[str, Any]:
-    """Everything an identification reports, JSON-ready."""
-    return _clean({
+    """Everything an identification reports, JSON-ready, fields named for the records' units."""
+    return translate_fields(_clean({
         "model": ident.family,
         "converged": ident.converged,
         "n_parameters": ident.n_parameters,
@@ -50,27 +53,33 @@ def result_dict(ident: Identification) -> dict[str, Any]:
         "stages": [s.summary() for s in ident.stages],
         "coupling_note": ident.coupling_note,
         "details": ident.extra,
-    })
+    }), ident.coupling.units) | {"units": ident.coupling.units}
 
 
 def result_text(ident: Identification) -> str:
-    """A human-readable report of one identification."""
+    """A human-readable report of one identification (names for the records' units)."""
+    units = ident.coupling.units
+    load, unit = ("force", "N") if units == "translational" else ("torque", "N*m")
     lines = [f"model {ident.family}: {ident.n_parameters} parameters, "
-             f"{'converged' if ident.converged else 'NOT CONVERGED'}"]
-    width = max(len(n) for n in list(ident.parameters) + list(ident.derived) + ["x"])
-    for name, value in ident.parameters.items():
-        std = ident.std_error.get(name, float("nan"))
-        flag = "  (at bound)" if name in ident.at_bounds else ""
+             f"{'converged' if ident.converged else 'NOT CONVERGED'}"
+             + (" (translational: displacement in m, force in N)" if units == "translational" else "")]
+    values = translate_fields({"parameters": ident.parameters, "std_error": ident.std_error,
+                               "derived": ident.derived}, units)
+    at_bounds = {field_name(n, units) for n in ident.at_bounds}
+    width = max(len(n) for n in list(values["parameters"]) + list(values["derived"]) + ["x"])
+    for name, value in values["parameters"].items():
+        std = values["std_error"].get(name, float("nan"))
+        flag = "  (at bound)" if name in at_bounds else ""
         unc = f" +- {std:.3g}" if math.isfinite(std) else ""
         lines.append(f"  {name:<{width}} = {value:.6g}{unc}{flag}")
-    for name, value in ident.derived.items():
+    for name, value in values["derived"].items():
         lines.append(f"  {name:<{width}} = {float(value):.6g}  (derived)")
-    lines.append(f"fit:     nRMSE {100 * ident.fit.nrmse:.3f} % of max |torque| {ident.fit.max_torque_nm:.4g} N*m "
-                 f"(RMSE {ident.fit.rmse_nm:.4g} N*m), residual lag-1 correlation {ident.fit.residual_lag1:.3f}")
+    lines.append(f"fit:     nRMSE {100 * ident.fit.nrmse:.3f} % of max |{load}| {ident.fit.max_torque_nm:.4g} {unit} "
+                 f"(RMSE {ident.fit.rmse_nm:.4g} {unit}), residual lag-1 correlation {ident.fit.residual_lag1:.3f}")
     if ident.holdout:
         h = ident.holdout
-        lines.append(f"holdout: nRMSE {100 * h.nrmse:.3f} % of max |torque| {h.max_torque_nm:.4g} N*m "
-                     f"(RMSE {h.rmse_nm:.4g} N*m), residual lag-1 correlation {h.residual_lag1:.3f}")
+        lines.append(f"holdout: nRMSE {100 * h.nrmse:.3f} % of max |{load}| {h.max_torque_nm:.4g} {unit} "
+                     f"(RMSE {h.rmse_nm:.4g} {unit}), residual lag-1 correlation {h.residual_lag1:.3f}")
     lines.append(f"effort:  {ident.evaluations} model evaluations, {ident.nfev} optimiser steps, "
                  f"{ident.time_s:.2f} s")
     for s in ident.stages:
@@ -79,9 +88,10 @@ def result_text(ident: Identification) -> str:
                      f"{'converged' if s.converged else 'not converged: ' + s.message}")
     if ident.coupling_note:
         lines.append(f"coupling: {ident.coupling_note}")
+    extra = translate_fields(ident.extra, units)
     for key in ("analytic", "loading_curve", "p_walk", "amplitude_functions", "frequency_functions"):
-        if key in ident.extra:
-            lines.append(f"{key.replace('_', ' ')}: {_brief(ident.extra[key])}")
+        if key in extra:
+            lines.append(f"{key.replace('_', ' ')}: {_brief(extra[key])}")
     return "\n".join(lines)
 
 
@@ -143,7 +153,7 @@ def record_table(results: dict[str, Identification], segments: list[Segment]) ->
     table = pd.DataFrame(rows)
     if not table.empty:
         table["rmse_over_max_rmse"] = table["rmse_nm"] / table.groupby("record")["rmse_nm"].transform("max")
-    return table
+    return table.rename(columns=lambda c: field_name(c, segments[0].units))
 
 
 # ---------------------------------------------------------------------------- plots
@@ -154,6 +164,14 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def _axes(units: str) -> tuple[str, str, float]:
+    """Plot labels and scale for the records' units: load axis, motion axis, motion factor
+    from SI (rad -> deg, m -> mm)."""
+    if units == "translational":
+        return "force [N]", "displacement [mm]", 1e3
+    return "torque [N*m]", "angle [deg]", 180.0 / math.pi
 
 
 def _safe(name: str) -> str:
@@ -169,6 +187,7 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     groups = [("fit", segments)] + ([("holdout", holdout)] if holdout else [])
+    load, motion, to_display = _axes(ident.coupling.units)
     for label, segs in groups:
         for seg, pred in zip(segs, ident.predict(segs)):
             fig = plt.figure(figsize=(12, 5.5))
@@ -180,19 +199,19 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
             ok = seg.compared
             ax_t.plot(t[ok], seg.torque_nm[ok], lw=0.8, label="measured")
             ax_t.plot(t[ok], pred[ok], lw=0.8, label=f"model {ident.family}")
-            ax_t.set_ylabel("torque [N*m]")
+            ax_t.set_ylabel(load)
             ax_t.legend()
             # the residual: structure in it is what the model misses
             ax_r.plot(t[ok], seg.torque_nm[ok] - pred[ok], lw=0.6, color="C2", label="measured - model")
             ax_r.axhline(0.0, color="0.3", lw=0.6)
             ax_r.set_xlabel("time [s]")
-            ax_r.set_ylabel("residual [N*m]")
+            ax_r.set_ylabel(f"residual [{load.split('[')[1]}")
             ax_r.legend(fontsize=8)
-            deg = np.degrees(seg.angle_rad)
+            deg = to_display * seg.angle_rad
             ax_l.plot(deg[ok], seg.torque_nm[ok], lw=0.6, label="measured")
             ax_l.plot(deg[ok], pred[ok], lw=0.6, label=f"model {ident.family}")
-            ax_l.set_xlabel("angle [deg]")
-            ax_l.set_ylabel("torque [N*m]")
+            ax_l.set_xlabel(motion)
+            ax_l.set_ylabel(load)
             ax_l.legend()
             m = metrics([seg], [pred])
             fig.suptitle(f"{ident.family} on {seg.name} ({label}): nRMSE {100 * m.nrmse:.2f} %")
@@ -227,12 +246,13 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
 
     fig, ax = plt.subplots(figsize=(7, 6))
     ok = segment.compared
-    deg = np.degrees(segment.angle_rad)
+    load, motion, to_display = _axes(segment.units)
+    deg = to_display * segment.angle_rad
     ax.plot(deg[ok], segment.torque_nm[ok], color="k", lw=1.2, label="measured")
     for kind, r in results.items():
         ax.plot(deg[ok], r.predict([segment])[0][ok], lw=0.7, label=kind)
-    ax.set_xlabel("angle (deg)")
-    ax.set_ylabel("torque (N*m)")
+    ax.set_xlabel(motion)
+    ax.set_ylabel(load)
     ax.set_title(f"hysteresis loops on {segment.name}")
     ax.legend()
     fig.tight_layout()

@@ -11,10 +11,11 @@ import time
 from typing import Any
 
 from droptower.errors import DroptowerError
-from droptower.identify.data import Segment
+from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.stages import setup
 from droptower.identify.fit import Identification
+from droptower.io.fields import torsional_fields
 
 
 def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | None = None,
@@ -26,11 +27,15 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     init, bounds, options: from ``--params INIT.toml`` (parameter name -> initial value;
     name -> [lower, upper]; family options); holdout: data for the hold-out RMSE;
     previous: results of other families on the same data (zerodim20 starts from zerodim6's).
-    A fit that does not converge is returned with ``converged`` False: the caller decides.
+    Translational records (``Segment.units``) may name parameters and options for their units
+    (``k1_n_per_m``, ``amplitude_mm``) or the torsional way. A fit that does not converge is
+    returned with ``converged`` False: the caller decides.
     """
     start = time.perf_counter()
     if not segments:
         raise DroptowerError("no data to identify from")
+    units = common_units(segments + list(holdout or []), "fitting and hold-out records")
+    init, bounds, options = (torsional_fields(given or {}, units) for given in (init, bounds, options))
     s = setup(family_class(kind), segments, init, bounds, options, file)
     result = STRATEGIES[kind](s, segments, start, previous=previous)
     if holdout:

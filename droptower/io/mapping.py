@@ -1,7 +1,11 @@
 """Channel mapping: pick the channels of a :class:`Record` for each role and convert to SI.
 
-Roles: ``time``, ``impact_force``, ``angle``, ``distance`` (laser distance, turned into an
-angle with the sensor radius: angle = arctan(distance / radius), see :func:`laser_angle`), ``torque``. A role is given as
+Drop tests (:func:`map_channels`): roles ``time``, ``impact_force``, ``angle``, ``distance``
+(laser distance, turned into an angle with the sensor radius: angle = arctan(distance / radius),
+see :func:`laser_angle`), ``torque``. Servo records (:func:`map_servo_channels`): ``time`` and
+either ``angle`` and ``torque`` (torsional) or ``displacement`` and ``force`` (translational:
+mounts, bushings, dampers), each checked against its dimension (m, mm, µm, in; N, kN, lbf,
+kip) and converted to SI. A role is given as
 ``NAME`` or ``NAME:UNIT`` (the unit overrides a missing or wrong unit in the file), or ``-`` to
 leave an optional role out; on the command line as ``--channel ROLE=NAME[:UNIT]``. Roles not given are found by name: first the
 droptower-log names (``time_s``, ``angle_rad``, ...), then common names matched
@@ -10,7 +14,8 @@ case-insensitively (``Time``, ``Winkel``, ``Torque [N*m]``, ...).
 Every check names the file: a missing channel (with the list of what the file has), NaN gaps
 or catman invalid markers in a used channel, non-monotonic or duplicated time, channels on
 different time bases (resampled onto the angle's time base only when the rates differ by an
-integer factor), a constant signal.
+integer factor), a constant signal, a time base that is not uniform (time stamps rounded to
+their printed precision are a uniform one, see :mod:`droptower.io.timebase`).
 """
 from __future__ import annotations
 
@@ -22,15 +27,23 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
-from droptower.io.signals import DropSignals
+from droptower.io.signals import DropSignals, ServoSignals
+from droptower.io.timebase import regular_time
 from droptower.units import to_si
 
+#: roles of a drop test (:func:`map_channels`)
 ROLES = ("time", "impact_force", "angle", "distance", "torque")
-KINDS = {"time": "time", "impact_force": "force", "angle": "angle", "distance": "length", "torque": "torque"}
+#: roles of a servo record (:func:`map_servo_channels`): torsional or translational
+SERVO_ROLES = ("time", "angle", "torque", "displacement", "force")
+#: units -> (motion role, load role) of a servo record
+SERVO_KINDS = {"torsional": ("angle", "torque"), "translational": ("displacement", "force")}
+KINDS = {"time": "time", "impact_force": "force", "angle": "angle", "distance": "length", "torque": "torque",
+         "displacement": "length", "force": "force"}
 
 #: role -> droptower-log column name (first choice when no role is given).
 OWN_NAMES = {"time": "time_s", "impact_force": "impact_force_n", "angle": "angle_rad",
-             "distance": "laser_distance_m", "torque": "torque_nm"}
+             "distance": "laser_distance_m", "torque": "torque_nm", "displacement": "displacement_m",
+             "force": "force_n"}
 
 #: role -> common channel names (lower case, unit and separators stripped), matched when the
 #: own-format name is absent. A name matches if it equals one of these or starts with one
@@ -41,16 +54,20 @@ COMMON_NAMES = {
     "angle": ("angle", "winkel", "torsion angle", "verdrehwinkel", "drehwinkel", "phi", "rotation"),
     "distance": ("laser distance", "laser", "distance", "abstand", "weg", "displacement"),
     "torque": ("torque", "drehmoment", "moment", "md"),
+    "displacement": ("displacement", "weg", "verschiebung", "position", "stroke", "travel", "deflection",
+                     "auslenkung", "x"),
+    "force": ("force", "kraft", "load", "f"),
 }
 
 _UNIT_IN_NAME = re.compile(r"\s*[\[(][^\])]*[\])]\s*$")
 
 
-def parse_channel_options(options: Iterable[str]) -> dict[str, str]:
+def parse_channel_options(options: Iterable[str], roles_known: tuple[str, ...] = ROLES) -> dict[str, str]:
     """``["angle=Winkel:deg", "time=t"]`` -> ``{"angle": "Winkel:deg", "time": "t"}``.
 
-    Parses ``--channel ROLE=NAME[:UNIT]`` options; an unknown role, a missing ``=`` or a role
-    given twice is a :class:`DroptowerError`.
+    Parses ``--channel ROLE=NAME[:UNIT]`` options; a role not in ``roles_known`` (the drop
+    test's by default; :data:`SERVO_ROLES` for servo records), a missing ``=`` or a role given
+    twice is a :class:`DroptowerError`.
     """
     roles: dict[str, str] = {}
     for option in options:
@@ -58,8 +75,8 @@ def parse_channel_options(options: Iterable[str]) -> dict[str, str]:
         role = role.strip()
         if not sep or not spec.strip():
             raise DroptowerError(f"--channel {option!r}: expected ROLE=NAME[:UNIT]")
-        if role not in ROLES:
-            raise DroptowerError(f"--channel {option!r}: unknown role '{role}' (roles: {', '.join(ROLES)})")
+        if role not in roles_known:
+            raise DroptowerError(f"--channel {option!r}: unknown role '{role}' (roles: {', '.join(roles_known)})")
         if role in roles:
             raise DroptowerError(f"--channel: role '{role}' given twice")
         roles[role] = spec.strip()
@@ -137,7 +154,8 @@ def _check_time(record: Record, name: str, time: np.ndarray) -> None:
                          file=record.path, where=where)
 
 
-def _onto(record: Record, channel: Channel, values: np.ndarray, base_time: np.ndarray) -> np.ndarray:
+def _onto(record: Record, channel: Channel, values: np.ndarray, base_time: np.ndarray, base: str = "angle"
+          ) -> np.ndarray:
     """``values`` on the time base ``base_time`` (the angle's): as is if the lengths and time
     stamps agree, interpolated if the channel's own rate differs by an integer factor (or it is
     offset in time), else an error."""
@@ -148,17 +166,17 @@ def _onto(record: Record, channel: Channel, values: np.ndarray, base_time: np.nd
             return values
     where = f"channel '{channel.name}'"
     if own is None or own.size != values.size:
-        raise DroptowerError(f"has {values.size} samples, the angle has {base_time.size}, and no time base of its own",
+        raise DroptowerError(f"has {values.size} samples, the {base} has {base_time.size}, and no time base of its own",
                              file=record.path, where=where)
     rate = (own.size - 1) / (own[-1] - own[0])
     base_rate = (base_time.size - 1) / (base_time[-1] - base_time[0])
     ratio = max(rate, base_rate) / min(rate, base_rate)
     if abs(ratio - round(ratio)) > 1e-6 * ratio:
-        raise DroptowerError(f"sampled at {rate:.6g} Hz, the angle at {base_rate:.6g} Hz: not an integer ratio, "
+        raise DroptowerError(f"sampled at {rate:.6g} Hz, the {base} at {base_rate:.6g} Hz: not an integer ratio, "
                              "cannot put them on one time base", file=record.path, where=where)
     half = 0.5 / min(rate, base_rate)
     if own[0] > base_time[0] + half or own[-1] < base_time[-1] - half:
-        raise DroptowerError(f"covers {own[0]:.6g}..{own[-1]:.6g} s, the angle {base_time[0]:.6g}..{base_time[-1]:.6g} s",
+        raise DroptowerError(f"covers {own[0]:.6g}..{own[-1]:.6g} s, the {base} {base_time[0]:.6g}..{base_time[-1]:.6g} s",
                              file=record.path, where=where)
     return np.interp(base_time, own, values)
 
@@ -241,28 +259,8 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
         signals[role], channels[role] = values, channel
 
     angle_channel = channels[angle_role]
-    n = signals[angle_role].size
-    # time: an explicit time channel, else the given sample rate, else the angle channel's own
-    # time base, else a time channel found by name
+    time, notes = _time_base(record, specs, explicit, angle_channel, signals[angle_role].size, sample_rate_hz)
     own_time = angle_channel.time()
-    if "time" in explicit or ("time" in specs and sample_rate_hz is None and own_time is None):
-        time_channel, unit = _resolve(record, "time", specs["time"])
-        time = to_si(time_channel.values, unit, "time", file=record.path, channel=time_channel.name)
-        _check_values(record, time_channel, time)
-        if time.size != n:
-            raise DroptowerError(f"time channel '{time_channel.name}' has {time.size} samples, "
-                                 f"the angle channel '{angle_channel.name}' has {n}", file=record.path)
-        time_name = time_channel.name
-    elif sample_rate_hz is not None:
-        if not sample_rate_hz > 0:
-            raise DroptowerError(f"sample rate must be > 0 Hz, got {sample_rate_hz}", file=record.path)
-        time, time_name = np.arange(n) / float(sample_rate_hz), f"{sample_rate_hz} Hz"
-    elif own_time is not None:
-        time, time_name = np.asarray(own_time, dtype=np.float64), angle_channel.name
-    else:
-        raise DroptowerError("no time channel and no sample rate; give --channel time=NAME[:UNIT] or a sample rate",
-                             file=record.path)
-    _check_time(record, time_name, time)
 
     # the angle defines the time base; other channels are aligned with its samples (through its
     # own time stamps if it has them, since the time channel may be a rounded copy of them)
@@ -278,4 +276,137 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
         angle = laser_angle(signals["distance"], sensor_radius_m)
     return DropSignals(time_s=time, angle_rad=angle, torque_nm=signals.get("torque"),
                        impact_force_n=signals.get("impact_force"), metadata=dict(record.metadata),
-                       source=record.path)
+                       source=record.path, notes=notes)
+
+
+def _time_base(record: Record, specs: dict[str, str], explicit: set[str], reference: Channel, n: int,
+               sample_rate_hz: float | None, role: str = "angle") -> tuple[np.ndarray, list[str]]:
+    """The time base (s) of the ``n`` samples of the ``reference`` channel (of ``role``): an explicit time
+    channel, else the given sample rate, else the channel's own time base, else a time channel
+    found by name; checked (strictly increasing, uniform up to the stamps' printed precision)
+    and with the notes of what was assumed."""
+    own_time = reference.time()
+    if "time" in explicit or ("time" in specs and sample_rate_hz is None and own_time is None):
+        time_channel, unit = _resolve(record, "time", specs["time"])
+        time = to_si(time_channel.values, unit, "time", file=record.path, channel=time_channel.name)
+        _check_values(record, time_channel, time)
+        if time.size != n:
+            raise DroptowerError(f"time channel '{time_channel.name}' has {time.size} samples, "
+                                 f"the {role} channel '{reference.name}' has {n}", file=record.path)
+        time_name = time_channel.name
+    elif sample_rate_hz is not None:
+        if not sample_rate_hz > 0:
+            raise DroptowerError(f"sample rate must be > 0 Hz, got {sample_rate_hz}", file=record.path)
+        time, time_name = np.arange(n) / float(sample_rate_hz), f"{sample_rate_hz} Hz"
+    elif own_time is not None:
+        time, time_name = np.asarray(own_time, dtype=np.float64), reference.name
+    else:
+        raise DroptowerError("no time channel and no sample rate; give --channel time=NAME[:UNIT] or a sample rate",
+                             file=record.path)
+    _check_time(record, time_name, time)
+    time, note = regular_time(time, file=record.path, where=f"time of channel '{time_name}'")
+    return time, [note] if note else []
+
+
+def find_servo_roles(record: Record, roles: dict[str, str] | None = None,
+                     problems: list[str] | None = None) -> tuple[str, dict[str, str]]:
+    """The kind of a servo record (``"torsional"`` or ``"translational"``) and role ->
+    ``NAME[:UNIT]`` of the channels :func:`map_servo_channels` uses: the given ``roles`` (of
+    :data:`SERVO_ROLES`; ``-`` leaves one out), the others of the same kind found by name. The
+    kind is the given roles' (a mix of the two is an error), else that of the one motion channel
+    found by name (an angle or a displacement). With a ``problems`` list, an ambiguity is
+    appended there instead of raised."""
+    roles = dict(roles or {})
+    unknown = set(roles) - set(SERVO_ROLES)
+    if unknown:
+        raise DroptowerError(f"unknown channel role(s) {', '.join(sorted(unknown))} for a servo record "
+                             f"(roles: {', '.join(SERVO_ROLES)})", file=record.path)
+    unused = {role for role, spec in roles.items() if spec.strip() in ("-", "none")}
+    specs = {role: spec for role, spec in roles.items() if role not in unused}
+    kinds = sorted({units for units, pair in SERVO_KINDS.items() for role in pair if role in specs})
+    if len(kinds) > 1:
+        raise DroptowerError("give angle and torque (torsional) or displacement and force (translational) channels, "
+                             f"not a mix ({', '.join(sorted(set(specs) - {'time'}))})", file=record.path)
+
+    def by_name(role: str) -> str | None:
+        try:
+            return _find_default(record, role)
+        except DroptowerError as exc:
+            if problems is None:
+                raise
+            problems.append(exc.problem)
+            return None
+
+    if kinds:
+        units = kinds[0]
+    else:
+        found = {units: by_name(pair[0]) for units, pair in SERVO_KINDS.items()}
+        found = {units: name for units, name in found.items() if name is not None}
+        if len(found) > 1:
+            text = (f"both an angle channel '{found['torsional']}' and a displacement channel "
+                    f"'{found['translational']}'; choose one with --channel angle=NAME or --channel displacement=NAME")
+            if problems is None:
+                raise DroptowerError(text, file=record.path)
+            problems.append(text)
+        units = next(iter(found), "torsional")
+    for role in ("time", *SERVO_KINDS[units]):
+        if role not in specs and role not in unused:
+            name = by_name(role)
+            if name is not None:
+                specs[role] = name
+    return units, specs
+
+
+def map_servo_channels(record: Record, roles: dict[str, str] | None = None, *,
+                       sample_rate_hz: float | None = None) -> ServoSignals:
+    """A servo record's imposed motion and measured load in SI on one uniform time base.
+
+    Torsional (``angle`` in rad, ``torque`` in N*m) or translational (``displacement`` in m,
+    ``force`` in N), as :func:`find_servo_roles` finds them; every unit through pint and checked
+    against the role's dimension. A record without a load channel gets ``load_si`` None (the
+    caller says whether it needs one).
+    """
+    units, specs = find_servo_roles(record, roles)
+    motion_role, load_role = SERVO_KINDS[units]
+    if motion_role not in specs:
+        raise DroptowerError("no angle channel found (nor a displacement channel); name it with --channel angle=NAME[:UNIT] or "
+                             f"--channel displacement=NAME[:UNIT] (the file has: "
+                             f"{', '.join(repr(n) for n in record.channels) or 'none'})", file=record.path)
+    explicit = {role for role, spec in (roles or {}).items() if spec.strip() not in ("-", "none")}
+    values: dict[str, np.ndarray] = {}
+    channels: dict[str, Channel] = {}
+    for role in (motion_role, load_role):
+        if role not in specs:
+            continue
+        channel, unit = _resolve(record, role, specs[role])
+        values[role] = _servo_si(record, role, channel, unit)
+        channels[role] = channel
+    motion = channels[motion_role]
+    time, notes = _time_base(record, specs, explicit, motion, values[motion_role].size, sample_rate_hz, motion_role)
+    own_time = motion.time()
+    reference = time if own_time is None else np.asarray(own_time, dtype=np.float64)
+    load = (_onto(record, channels[load_role], values[load_role], reference, motion_role)
+            if load_role in values else None)
+    return ServoSignals(time_s=time, motion_si=values[motion_role], load_si=load, units=units,
+                        metadata=dict(record.metadata), source=record.path, notes=notes)
+
+
+def _servo_si(record: Record, role: str, channel: Channel, unit: str) -> np.ndarray:
+    """A servo channel in SI; a unit of the other kind's dimension (``in`` for an angle) gets
+    the role to use instead."""
+    other = {"angle": "displacement", "displacement": "angle", "torque": "force", "force": "torque"}[role]
+    try:
+        values = to_si(channel.values, unit, KINDS[role], file=record.path, channel=channel.name)
+    except DroptowerError as exc:
+        try:
+            to_si(channel.values[:1], unit, KINDS[other])
+        except DroptowerError:
+            raise exc from None
+        raise DroptowerError(f"{exc.problem}; a {KINDS[other]} unit: give it as --channel {other}="
+                             f"{channel.name}:{unit} (a {'translational' if other in ('displacement', 'force') else 'torsional'} record)",
+                             file=record.path, where=exc.where) from None
+    _check_values(record, channel, values)
+    if np.ptp(values) == 0.0:
+        raise DroptowerError(f"constant signal ({float(channel.values[0])!r} {unit} throughout)",
+                             file=record.path, where=f"channel '{channel.name}'")
+    return values

@@ -83,7 +83,7 @@ class Family:
     def coupling(self, v: np.ndarray, *, name: str = "", description: str = "") -> Coupling:
         """The coupling of one parameter vector."""
         data = {"name": name or f"identified_{self.kind}", "description": description or self.title,
-                "source": self.source, "units": "torsional", "element": self.elements(np.asarray(v, float))}
+                "source": self.source, "units": self.scale.units, "element": self.elements(np.asarray(v, float))}
         return parse_coupling(data)
 
     def batch(self, values: np.ndarray) -> Coupling:

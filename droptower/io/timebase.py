@@ -1,0 +1,123 @@
+"""Time stamps as lab software prints them: a constant sample rate behind rounded stamps.
+
+Lab exports print time with a fixed number of decimals (``0.0010``, ``0.0020`` at 1024 Hz),
+so the steps between stamps differ by up to one printed digit although the rate is
+constant. :func:`regular_time` recognises that case: every stamp lies within half a printed
+digit of one straight line through the whole record. The rate is then estimated from the
+whole record (the least-squares line; its error is about one digit over the record's
+duration, so a rate that close to a whole number of Hz is taken as that number) and the
+stamps are replaced by the uniform ones, with a note saying so. Any other non-uniform time
+base is truly irregular and refused with one line naming the file.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from droptower.errors import DroptowerError
+
+#: Largest deviation of one time step from the mean step (relative) still taken as uniform
+#: without looking at the printed precision (float round-off of computed stamps).
+DT_TOLERANCE = 1e-3
+#: Most decimals looked for in printed time stamps (1 ns).
+MAX_DECIMALS = 9
+
+
+def _exact(scaled: np.ndarray) -> bool:
+    """Every value a whole number, up to the few ulps of a stamp parsed from text."""
+    slack = 1e-9 + 8 * np.finfo(float).eps * float(np.max(np.abs(scaled)))
+    return float(np.max(np.abs(scaled - np.round(scaled)))) <= slack
+
+
+def printed_precision(time_s: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """How the stamps may have been printed: (description, each stamp's last digit in s), for
+    the fewest fixed decimals (0..9) and the fewest significant digits (1..15) that print
+    every stamp exactly (either may be absent)."""
+    t = np.asarray(time_s, dtype=np.float64)
+    out = []
+    decimals = next((d for d in range(MAX_DECIMALS + 1) if _exact(t * 10.0 ** d)), None)
+    if decimals is not None:
+        out.append((f"{decimals} decimals", np.full(t.size, 10.0 ** -decimals)))
+    nonzero = t != 0.0
+    exponent = np.floor(np.log10(np.abs(np.where(nonzero, t, 1.0))))
+    for digits in range(1, 16):
+        digit = np.where(nonzero, 10.0 ** (exponent + 1 - digits), 0.0)
+        if _exact(np.where(nonzero, t / np.where(nonzero, digit, 1.0), 0.0)):
+            out.append((f"{digits} significant digits", digit))
+            break
+    return out
+
+
+def _start_interval(t: np.ndarray, digit: np.ndarray, step: float) -> tuple[float, float]:
+    """The first stamps t0 for which every stamp i lies within half its last printed digit
+    (plus float round-off) of t0 + i step: (lower, upper), empty if lower > upper."""
+    half = 0.5 * digit + 8 * np.finfo(float).eps * np.abs(t)
+    shifted = t - step * np.arange(t.size)
+    return float(np.max(shifted - half)), float(np.min(shifted + half))
+
+
+def _rate_within(t: np.ndarray, digit: np.ndarray) -> float | None:
+    """The sample rate (Hz) of a uniform time base that rounds to the stamps ``t`` (each to its
+    last printed digit), None if there is none: a whole number of Hz if one is consistent,
+    else the middle of the consistent rates (two small linear programs over start and step)."""
+    from scipy.optimize import linprog
+
+    mean_rate = (t.size - 1) / (t[-1] - t[0])
+    lo, hi = _start_interval(t, digit, 1.0 / round(mean_rate)) if round(mean_rate) > 0 else (1.0, 0.0)
+    if lo <= hi:
+        return float(round(mean_rate))
+    half = 0.5 * digit + 8 * np.finfo(float).eps * np.abs(t)
+    index = np.arange(t.size, dtype=np.float64) / (t.size - 1)
+    scale = t[-1] - t[0]  # variables: start and duration, in units of the record's duration
+    upper, lower = (t + half) / scale, (t - half) / scale
+    # only the stamps on the convex hulls of the bounds can be binding: keeps the programs small
+    keep = np.union1d(_hull(index, upper), _hull(index, lower))
+    ones = np.ones(keep.size)
+    a_ub = np.vstack([np.column_stack([ones, index[keep]]), -np.column_stack([ones, index[keep]])])
+    b_ub = np.concatenate([upper[keep], -lower[keep]])
+    steps = []
+    for sign in (1.0, -1.0):
+        res = linprog([0.0, sign], A_ub=a_ub, b_ub=b_ub, bounds=[(None, None), (0.5, 2.0)], method="highs")
+        if res.status != 0:
+            return None
+        steps.append(res.x[1] * scale / (t.size - 1))
+    return 2.0 / (steps[0] + steps[1])
+
+
+def _hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Indices of the points (x, y) on their convex hull (x increasing, as sample indices are)."""
+    from scipy.spatial import ConvexHull
+
+    points = np.column_stack([x, (y - y[0]) - (y[-1] - y[0]) * x])  # detrended: a well-shaped hull
+    try:
+        return np.sort(ConvexHull(points).vertices)
+    except Exception:  # qhull: all points on one line (a flat hull): any two of them bind
+        return np.array([0, x.size - 1])
+
+
+def regular_time(time_s: np.ndarray, *, file: object = None, where: str | None = None
+                 ) -> tuple[np.ndarray, str | None]:
+    """A strictly increasing time base (s) as uniform stamps, and a note if they were rounded.
+
+    Returns ``time_s`` itself when its steps agree to :data:`DT_TOLERANCE`; the uniform stamps
+    ``t0 + i / rate`` with a note when the stamps are a constant rate rounded to their printed
+    precision; raises :class:`DroptowerError` (naming ``file`` and ``where``) otherwise.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    n = t.size
+    steps = np.diff(t)
+    mean_step = (t[-1] - t[0]) / (n - 1)
+    if np.max(np.abs(steps - mean_step)) <= DT_TOLERANCE * mean_step:
+        return t, None
+    for printed, digit in printed_precision(t):
+        rate = _rate_within(t, digit)
+        if rate is not None:
+            index = np.arange(n, dtype=np.float64)
+            lo, hi = _start_interval(t, digit, 1.0 / rate)
+            note = (f"time stamps printed to {printed} (steps {steps.min():.6g} .. {steps.max():.6g} s): "
+                    f"taken as a constant {rate:.10g} Hz estimated from the whole record")
+            return 0.5 * (lo + hi) + index / rate, note
+    precisions = printed_precision(t)
+    shown = " or ".join(p for p, _ in precisions) or "any number of decimals"
+    raise DroptowerError(f"the time step is not constant (median {float(np.median(steps)):.6g} s, range "
+                         f"{steps.min():.6g} .. {steps.max():.6g} s), more than rounding to the stamps' printed "
+                         f"precision ({shown}) explains; a constant sample rate is needed", file=file, where=where)
