@@ -180,3 +180,29 @@ def test_rig_gives_laser_radius_and_lever_length(tmp_path, capsys):
     row = json.loads(capsys.readouterr().out)[0]
     assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
     assert row["impact_velocity_from_force_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+
+
+@pytest.mark.parametrize("decimals", [4, 5])
+def test_time_printed_with_few_decimals_extracts_as_the_exact_log(tmp_path, capsys, decimals):
+    """A lab export's time column with 4 or 5 decimals at 2048 Hz: a constant rate rounded for
+    printing (steps 0.0004 / 0.0005 s), evaluated exactly as the log with exact stamps; a
+    truly irregular time base is refused."""
+    exact = _bad_log(tmp_path, "exact.csv", lambda t, c: (t, c))
+    rounded = _bad_log(tmp_path, "rounded.csv", lambda t, c: (np.round(t, decimals), c))
+    assert main(["extract", str(exact), str(rounded), "--json"]) == 0
+    captured = capsys.readouterr()
+    a, b = json.loads(captured.out)
+    assert set(a) == set(b)
+    for key in set(a) - {"file"}:  # stamps t0 + i / rate: equal to round-off
+        assert b[key] == (pytest.approx(a[key], rel=1e-8, abs=1e-15) if isinstance(a[key], float) else a[key]), key
+    assert f"rounded.csv: time stamps printed to {decimals} decimals" in captured.err
+    assert "constant 2048 Hz estimated from the whole record" in captured.err
+
+    def jitter(t, c):
+        t[200:] += 0.3 / 2048.0
+        return t, c
+
+    irregular = _bad_log(tmp_path, "irregular.csv", jitter)
+    assert main(["extract", str(irregular)]) == 2
+    err = capsys.readouterr().err
+    assert "irregular.csv" in err and "the time step is not constant" in err and "Traceback" not in err

@@ -83,6 +83,10 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     poor_fit). J and L: --inertia-kgm2/--lever-length-m, else the log's metadata, else the rig
     (its inertia only if it has a single lever fixture).
 
+    Time stamps printed with few decimals (steps that differ only by the printed precision)
+    are taken as a constant sample rate estimated from the whole log (a note says so); a truly
+    irregular time base is refused.
+
     A file that fails is reported on one line; the others are still evaluated and written, the
     failures are listed at the end and the exit code is 2 (a user error, as for a single file).
 
@@ -125,6 +129,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=progress_disabled()):
         try:
             signals, result = extract_file(path, settings)
+            for text in signals.notes if not progress_disabled() else ():
+                tqdm.write(f"droptower: note: {path}: {text}", file=sys.stderr)
             if plot_dir is not None:
                 stem = Path(path).stem
                 name = stem if stem not in plots else f"{stem}_{len(plots)}"
