@@ -22,7 +22,7 @@ def test_channels_json_own_log(tmp_path, capsys):
     angle = rows[1]
     assert angle == {"name": "angle_rad", "unit": "rad", "samples": 5, "sample_rate_hz": pytest.approx(1000.0),
                      "first_time_s": 0.0, "last_time_s": 0.004, "first_value": 0.0, "last_value": 4.5,
-                     "invalid_markers": 0, "nan": 1, "role": "angle"}
+                     "invalid_markers": 0, "nan": 1, "role": "angle", "servo_role": "angle"}
     assert rows[0]["role"] == "time"
 
 
@@ -33,12 +33,31 @@ def test_channels_table_catman(capsys):
     assert "catman binary, 10 channels" in out[0]
     assert out[1].split()[:4] == ["name", "unit", "samples", "rate_hz"]
     thermo = next(line for line in out if line.startswith("Thermocouple Type K"))
-    assert thermo.split()[-3:] == ["100", "0", "-"]  # 100 invalid markers, no NaN, no role
+    assert thermo.split()[-4:] == ["100", "0", "-", "-"]  # 100 invalid markers, no NaN, no roles
     poti = next(line for line in out if line.startswith("poti5k "))
     assert poti.split()[1:4] == ["Ohm", "100", "300"] and "0.65018" in poti
     assert main(["channels", str(path), "--json"]) == 0
     rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
     assert rows["Thermocouple Type K"]["invalid_markers"] == 100 and rows["poti5k"]["sample_rate_hz"] == 300.0
+
+
+def test_channels_of_a_translational_lab_export(tmp_path, capsys):
+    """A damper's servo record as exported (time printed to 4 decimals at 1024 Hz, inches and
+    kips): the rate behind the rounded stamps and the servo roles identify would give."""
+    path = tmp_path / "damper.csv"
+    t = np.arange(64) / 1024.0
+    lines = ["time [s],displacement [in],force [kip]"] + [f"{x:.4f},{0.01 * np.sin(40 * x):.10g},{np.cos(40 * x):.10g}"
+                                                         for x in t]
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["channels", str(path), "--json"]) == 0
+    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
+    assert rows["displacement"]["sample_rate_hz"] == 1024.0
+    assert {n: r["servo_role"] for n, r in rows.items()} == {"time": "time", "displacement": "displacement",
+                                                             "force": "force"}
+    assert main(["channels", str(path)]) == 0
+    assert "servo record: translational (displacement and force)" in capsys.readouterr().out
+    assert main(["channels", str(path), "--channel", "angle=displacement"]) == 0
+    assert "servo record: torsional (angle and torque; no torque channel found)" in capsys.readouterr().out
 
 
 def test_channels_csv_time_base_suffix_units_and_roles(tmp_path, capsys):
@@ -59,8 +78,9 @@ def test_channels_csv_time_base_suffix_units_and_roles(tmp_path, capsys):
     assert main(["channels", str(path), "--channel", "torque=Md"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert "time base: channel 'Zeit'" in out[0]
-    assert out[1].split()[-1] == "role" and out[4].split()[0] == "Md" and out[4].split()[-1] == "torque"
-    assert "roles not found: impact_force" in out[-1]
+    assert out[1].split()[-2:] == ["role", "servo_role"] and out[4].split()[0] == "Md"
+    assert out[4].split()[-2:] == ["torque", "torque"]
+    assert "roles not found: impact_force" in out[-2] and out[-1] == "servo record: torsional (angle and torque)"
 
 
 def test_channels_csv_options(tmp_path, capsys):

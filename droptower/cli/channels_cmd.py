@@ -13,26 +13,32 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
-from droptower.io.mapping import ROLES, find_roles, parse_channel_options
+from droptower.io.mapping import ROLES, SERVO_KINDS, SERVO_ROLES, find_roles, find_servo_roles, parse_channel_options
 from droptower.io.readers import read_any
+from droptower.io.timebase import regular_time
 from droptower.units import to_si
 
 
-def describe(channel: Channel, role: str | None = None, base_s: np.ndarray | None = None) -> dict[str, Any]:
+def describe(channel: Channel, role: str | None = None, base_s: np.ndarray | None = None,
+             servo_role: str | None = None) -> dict[str, Any]:
     """One channel as a row: name, unit (as written, else from a name suffix such as
     ``torque_nm``), samples, sample rate and time span (its own time base, else ``base_s``, the
-    file's time channel in s, when the lengths agree), first/last value, catman invalid markers,
-    NaN counts and the role ``extract`` would give it. Keys carry their units."""
+    file's time channel in s, when the lengths agree; time stamps rounded to their printed
+    precision give the constant rate behind them), first/last value, catman invalid markers,
+    NaN counts, the role ``extract`` would give it and the one ``identify`` would (a servo
+    record: angle/torque or displacement/force). Keys carry their units."""
     values = channel.values
     invalid = int(channel.invalid.sum()) if channel.invalid is not None else 0
     time = channel.time()
     if time is None and base_s is not None and base_s.size == values.size:
         time = base_s
     rate = channel.sample_rate_hz
-    if rate is None and time is not None and time.size > 1 and time[-1] != time[0]:
-        step = np.diff(time)
-        if np.allclose(step, step.mean(), rtol=1e-6, atol=0):
-            rate = (time.size - 1) / (time[-1] - time[0])
+    if rate is None and time is not None and time.size > 1 and np.all(np.diff(time) > 0):
+        try:
+            uniform, _ = regular_time(time)
+            rate = (uniform.size - 1) / (uniform[-1] - uniform[0])
+        except DroptowerError:
+            rate = None  # truly irregular: no one rate
 
     def number(x: float | None) -> float | None:
         return None if x is None or not math.isfinite(x) else float(x)
@@ -49,6 +55,7 @@ def describe(channel: Channel, role: str | None = None, base_s: np.ndarray | Non
         "invalid_markers": invalid,
         "nan": int(np.isnan(values).sum()) - invalid,
         "role": role,
+        "servo_role": servo_role,
     }
 
 
@@ -95,7 +102,9 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
     get in `droptower extract` (found by name, or as --channel gives it).
 
     Use the names with --channel ROLE=NAME[:UNIT] (roles: time, impact_force, angle, distance,
-    torque). Formats: droptower logs (.csv/.parquet), CSV/ASCII (catman ASCII, MTS 793 .dat),
+    torque). The servo_role column is the role `identify` and `compare-models` would give it
+    (time, angle, torque; or displacement, force for a translational record of a mount, bushing
+    or damper in any length and force units: m, mm, µm, in; N, kN, lbf, kip). Formats: droptower logs (.csv/.parquet), CSV/ASCII (catman ASCII, MTS 793 .dat),
     HBM catman .BIN, MDF4, TDMS, Parquet.
 
     \b
@@ -107,18 +116,28 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
         delimiter = "\t"
     record = read_any(file, delimiter=delimiter, decimal=decimal, header_lines=header_lines, unit_row=unit_row)
     problems: list[str] = []
-    roles = find_roles(record, parse_channel_options(channel_specs), problems)
-    role_of = {spec if spec in record.channels else spec.rpartition(":")[0]: role for role, spec in roles.items()}
+    given = parse_channel_options(channel_specs, tuple(dict.fromkeys(ROLES + SERVO_ROLES)))
+    roles = find_roles(record, {r: v for r, v in given.items() if r in ROLES}, problems)
+    servo_problems: list[str] = []
+    servo_units, servo_roles = find_servo_roles(record, {r: v for r, v in given.items() if r in SERVO_ROLES},
+                                                servo_problems)
+
+    def channel_of(spec: str) -> str:
+        return spec if spec in record.channels else spec.rpartition(":")[0]
+
+    role_of = {channel_of(spec): role for role, spec in roles.items()}
+    servo_role_of = {channel_of(spec): role for role, spec in servo_roles.items()}
     base_s, base_text = time_base(record, roles)
-    rows = [describe(channel, role_of.get(name), base_s) for name, channel in record.channels.items()]
+    rows = [describe(channel, role_of.get(name), base_s, servo_role_of.get(name))
+            for name, channel in record.channels.items()]
     if as_json:
         click.echo(json.dumps(rows, indent=2))
         return
     header = ["name", "unit", "samples", "rate_hz", "first_time_s", "last_time_s", "first_value", "last_value",
-              "invalid", "nan", "role"]
+              "invalid", "nan", "role", "servo_role"]
     table = [[_cell(v) for v in row.values()] for row in rows]
     widths = [max(len(h), *(len(r[i]) for r in table)) for i, h in enumerate(header)]
-    left = {0, 1, len(header) - 1}
+    left = {0, 1, len(header) - 2, len(header) - 1}
     click.echo(f"{record.path} ({record.format}, {len(rows)} channels; time base: {base_text})")
     for line in [header, *table]:
         click.echo("  ".join(cell.ljust(w) if i in left else cell.rjust(w)
@@ -128,3 +147,9 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
         click.echo(f"roles not found: {', '.join(missing)} (name them with --channel ROLE=NAME[:UNIT])")
     for problem in problems:
         click.echo(f"roles: {problem}")
+    motion, load = SERVO_KINDS[servo_units]
+    if motion in servo_roles:
+        click.echo(f"servo record: {servo_units} ({motion} and {load}"
+                   f"{'' if load in servo_roles else f'; no {load} channel found'})")
+    for problem in servo_problems:
+        click.echo(f"servo roles: {problem}")
