@@ -77,3 +77,29 @@ def test_missing_coupling_is_exit_2(tmp_path, capsys):
     code = main(["servo", str(tmp_path / "nope.toml")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "nope.toml" in err
+
+
+def test_translational_coupling_in_mm_and_n(tmp_path, capsys):
+    """A translational Kelvin-Voigt mount (k in N/m, c in N*s/m): driven by --amplitude-mm, its
+    fields named for it, K' = k and K'' = c omega; torsional options refused for it."""
+    path = tmp_path / "mount.toml"
+    path.write_text('name = "mount"\nunits = "translational"\n' + KV.split("\n", 1)[1])
+    code = main(["servo", str(path), "--amplitude-mm", "0.2,1", "--frequency-hz", "2,20", "--preload-n", "0",
+                 "--json"])
+    rows = json.loads(capsys.readouterr().out)
+    assert code == 0 and len(rows) == 4
+    assert {"amplitude_mm", "preload_n", "storage_stiffness_n_per_m", "loss_stiffness_n_per_m",
+            "dynamic_stiffness_n_per_mm", "loss_angle_deg", "offset_mm"} <= set(rows[0])
+    assert not any(token in key.split("_") for r in rows for key in r if not key.startswith("loss_angle")
+               for token in ("nm", "rad", "deg", "torque", "angle"))
+    assert sorted((r["amplitude_mm"], r["frequency_hz"]) for r in rows) == [(0.2, 2), (0.2, 20), (1, 2), (1, 20)]
+    for r in rows:
+        assert r["storage_stiffness_n_per_m"] == pytest.approx(12000.0, rel=2e-3)
+        assert r["loss_stiffness_n_per_m"] == pytest.approx(15.0 * 2 * math.pi * r["frequency_hz"], rel=2e-3)
+        assert r["dynamic_stiffness_n_per_mm"] == pytest.approx(r["dynamic_stiffness_n_per_m"] / 1e3)
+        assert r["force_amplitude_n"] == pytest.approx(r["dynamic_stiffness_n_per_m"] * r["amplitude_mm"] / 1e3,
+                                                       rel=2e-3)
+    assert main(["servo", str(path), "--amplitude-deg", "1"]) == 2
+    assert "translational coupling: give --amplitude-mm" in capsys.readouterr().err
+    assert main(["servo", "rapp2022_nr60", "--amplitude-mm", "1"]) == 2
+    assert "torsional coupling: --amplitude-mm is for translational ones" in capsys.readouterr().err

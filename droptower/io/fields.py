@@ -13,7 +13,10 @@ becomes the millimetre (values scaled: ``amplitude_deg`` -> ``amplitude_mm``,
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 UNITS = ("torsional", "translational")
 
@@ -65,6 +68,24 @@ def translate_fields(value: Any, units: str) -> Any:
     if units == "torsional":
         return value
     return _translate(value, 1.0, _UNIT_TOKENS, _WORDS)
+
+
+def translate_table(table: "pd.DataFrame", units: str) -> "pd.DataFrame":
+    """A table with its columns named for ``units`` and the degree columns in millimetres (from
+    the column in rad beside it where there is one: no round-off of the degrees on the way)."""
+    _check(units)
+    if units == "torsional":
+        return table
+    out = table.copy()
+    for column in table.columns:
+        name, factor = _convert(str(column), _UNIT_TOKENS, _WORDS)
+        if factor != 1.0:
+            si = str(column).replace("_deg", "_rad")
+            if si in table.columns:
+                out[column] = table[si] * (1e3 if factor > 1.0 else 1e-3)
+            else:
+                out[column] = table[column] * factor
+    return out.rename(columns=lambda c: _convert(str(c), _UNIT_TOKENS, _WORDS)[0])
 
 
 def torsional_fields(values: dict[str, Any], units: str) -> dict[str, Any]:
