@@ -203,6 +203,22 @@ def test_results_file_missing_columns(tmp_path, capsys):
     assert "column frequency_hz: row 1 is not a positive number" in _one_line_error(capsys.readouterr().err)
 
 
+def test_translational_servo_results_are_refused_with_the_reason(tmp_path, capsys):
+    """The map is the torsional drop tower's: a displacement test's results (as droptower servo
+    writes them for a translational coupling) and a translational coupling are refused, naming why."""
+    map_file = tmp_path / "map.json"
+    constant_map().to_json(map_file)
+    bushing = tmp_path / "bushing.csv"
+    pd.DataFrame({"amplitude_mm": [0.1], "frequency_hz": [10.0], "loss_factor": [0.1],
+                  "storage_stiffness_n_per_m": [1e6]}).to_csv(bushing, index=False)
+    assert main(["validate", "--map", str(map_file), "--servo-results", str(bushing)]) == 2
+    line = _one_line_error(capsys.readouterr().err)
+    assert str(bushing) in line and "translational servo results (amplitude_mm, storage_stiffness_n_per_m)" in line
+    assert "torsional drop tower" in line
+    assert main(["validate", "--map", str(map_file), "--coupling", "seed002_bushing", "--quick"]) == 2
+    assert "seed002_bushing is a translational coupling" in _one_line_error(capsys.readouterr().err)
+
+
 def test_bad_map_and_reference(tmp_path, capsys):
     assert main(["validate", "--map", str(tmp_path / "none.json")]) == 2
     assert "none.json: file not found" in _one_line_error(capsys.readouterr().err)

@@ -27,7 +27,10 @@ Measured results (CSV or Parquet), accepted columns (units in the names):
   with more points through it (its amplitude's frequencies vs. its frequency's amplitudes).
 
 ``droptower servo --json`` output saved as a table, and the ``servo_results.csv`` that
-``droptower validate --out`` writes, are accepted as they are.
+``droptower validate --out`` writes, are accepted as they are. Results of a translational
+servo test (``amplitude_mm``, ``storage_stiffness_n_per_m``, ...: a mount, bushing or damper)
+are recognised and refused with the reason: the map is the torsional drop tower's, and no
+lever turns a displacement into its angle.
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ import pandas as pd
 
 from droptower import sdof
 from droptower.errors import DroptowerError
+from droptower.io.fields import field_name
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: NOTES §1.6: frequency sweeps at these amplitudes (deg) up to these frequencies (Hz) ...
@@ -96,6 +100,9 @@ def run_sweeps(coupling, reduced: bool = False, sample_rate_hz: float = 2048.0) 
     from droptower.servo import run_grid
 
     model = coupling if isinstance(coupling, Coupling) else load_coupling(coupling)
+    if model.units == "translational":
+        raise DroptowerError(f"{model.name} is a translational coupling: the sweeps are the torsional drop tower's "
+                             "(amplitudes in deg); run it with droptower servo --amplitude-mm instead")
     points = sweep_points(reduced)
     runs = []
     for frequency, rows in points.groupby("frequency_hz"):
@@ -115,7 +122,14 @@ def read_servo_results(path: str | Path, columns: dict[str, str] | None = None) 
     units row or ``Name [unit]``, lab names (``Amplitude [°]; Frequenz [Hz]; Verlustfaktor``),
     ``columns`` mapping NAME -> SOURCE[:UNIT]; problems are one-line errors."""
     path = Path(path)
-    raw = read_table(path, SERVO_COLUMNS, columns, what="servo results").copy()
+    translational = {field_name(name, "translational"): () for name in SERVO_COLUMNS} | {"amplitude_m": ()}
+    translational = {k: v for k, v in translational.items() if k not in SERVO_COLUMNS}
+    raw = read_table(path, {**SERVO_COLUMNS, **translational}, columns, what="servo results").copy()
+    found = [c for c in translational if c in raw.columns]
+    if found:
+        raise DroptowerError(f"translational servo results ({', '.join(found)}): the map is the torsional drop "
+                             "tower's and cannot be compared with a displacement test; identify a model from the "
+                             "translational records instead (droptower identify, droptower servo)", file=path)
     if "amplitude_deg" not in raw.columns and "amplitude_rad" in raw.columns:
         raw["amplitude_deg"] = np.degrees(pd.to_numeric(raw["amplitude_rad"], errors="coerce"))
     stiffness = next((c for c in STIFFNESS_COLUMNS if c in raw.columns), None)
