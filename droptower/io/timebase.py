@@ -6,8 +6,9 @@ constant. :func:`regular_time` recognises that case: every stamp lies within hal
 digit of one straight line through the whole record. The rate is then estimated from the
 whole record (the least-squares line; its error is about one digit over the record's
 duration, so a rate that close to a whole number of Hz is taken as that number) and the
-stamps are replaced by the uniform ones, with a note saying so. Any other non-uniform time
-base is truly irregular and refused with one line naming the file.
+stamps are replaced by the uniform ones, with a note saying so. Steps that rounding does not
+explain but that agree to 0.1 % (stamps stored as float32) are kept as they are; any other
+time base is truly irregular and refused with one line naming the file.
 """
 from __future__ import annotations
 
@@ -15,8 +16,11 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 
+#: Steps that differ from their mean by at most this (relative) are uniform as they are
+#: (float round-off of computed stamps).
+EXACT = 1e-9
 #: Largest deviation of one time step from the mean step (relative) still taken as uniform
-#: without looking at the printed precision (float round-off of computed stamps).
+#: when rounding to the printed precision does not explain it (stamps stored as float32).
 DT_TOLERANCE = 1e-3
 #: Most decimals looked for in printed time stamps (1 ns).
 MAX_DECIMALS = 9
@@ -98,15 +102,17 @@ def regular_time(time_s: np.ndarray, *, file: object = None, where: str | None =
                  ) -> tuple[np.ndarray, str | None]:
     """A strictly increasing time base (s) as uniform stamps, and a note if they were rounded.
 
-    Returns ``time_s`` itself when its steps agree to :data:`DT_TOLERANCE`; the uniform stamps
-    ``t0 + i / rate`` with a note when the stamps are a constant rate rounded to their printed
-    precision; raises :class:`DroptowerError` (naming ``file`` and ``where``) otherwise.
+    Returns ``time_s`` itself when its steps agree to round-off (:data:`EXACT`); the uniform
+    stamps ``t0 + i / rate`` with a note when the stamps are a constant rate rounded to their
+    printed precision; ``time_s`` itself when its steps still agree to :data:`DT_TOLERANCE`;
+    raises :class:`DroptowerError` (naming ``file`` and ``where``) otherwise.
     """
     t = np.asarray(time_s, dtype=np.float64)
     n = t.size
     steps = np.diff(t)
     mean_step = (t[-1] - t[0]) / (n - 1)
-    if np.max(np.abs(steps - mean_step)) <= DT_TOLERANCE * mean_step:
+    deviation = float(np.max(np.abs(steps - mean_step)))
+    if deviation <= EXACT * mean_step + 8 * np.finfo(float).eps * float(np.max(np.abs(t))):
         return t, None
     for printed, digit in printed_precision(t):
         rate = _rate_within(t, digit)
@@ -116,6 +122,8 @@ def regular_time(time_s: np.ndarray, *, file: object = None, where: str | None =
             note = (f"time stamps printed to {printed} (steps {steps.min():.6g} .. {steps.max():.6g} s): "
                     f"taken as a constant {rate:.10g} Hz estimated from the whole record")
             return 0.5 * (lo + hi) + index / rate, note
+    if deviation <= DT_TOLERANCE * mean_step:
+        return t, None  # e.g. stamps stored as float32: uniform enough, kept as they are
     precisions = printed_precision(t)
     shown = " or ".join(p for p, _ in precisions) or "any number of decimals"
     raise DroptowerError(f"the time step is not constant (median {float(np.median(steps)):.6g} s, range "

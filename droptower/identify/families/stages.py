@@ -21,6 +21,7 @@ from droptower.identify.data import DataScale, Segment, characteristic_frequency
 from droptower.identify.families.base import Family
 from droptower.identify.fit import (FitResult, Identification, Metrics, Parameter, check_in_bounds, clip_to_bounds,
                                     least_squares_fit, simulate)
+from droptower.io.fields import field_name
 
 #: Records whose characteristic frequency is below this count as quasi-static ramps (Hz).
 SLOW_FREQUENCY_HZ = 0.5
@@ -84,8 +85,10 @@ def setup_family(family: Family, init: dict[str, float] | None = None,
     for what, given in (("initial values", init or {}), ("bounds", bounds or {})):
         unknown = sorted(set(given) - set(names))
         if unknown:
-            raise DroptowerError(f"unknown parameter(s) {', '.join(unknown)} in the {what} for model {kind} "
-                                 f"(parameters: {', '.join(names)})", file=file)
+            units = family.scale.units  # named as the user names them for these records
+            raise DroptowerError(f"unknown parameter(s) {', '.join(field_name(n, units) for n in unknown)} in the "
+                                 f"{what} for model {kind} (parameters: "
+                                 f"{', '.join(field_name(n, units) for n in names)})", file=file)
     bounded = np.zeros(len(names), bool)
     for name, (lo, hi) in (bounds or {}).items():
         i = names.index(name)

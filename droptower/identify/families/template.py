@@ -42,6 +42,9 @@ class TemplateFamily(Family):
         if not isinstance(template, (str, Coupling)):
             raise DroptowerError(f"option template must be a coupling preset name or file, got {template!r}")
         self.template = template if isinstance(template, Coupling) else load_coupling(str(template))
+        if self.template.units != self.scale.units:
+            raise DroptowerError(f"the template {self.template.name} is {self.template.units}, the records are "
+                                 f"{self.scale.units}: use a template of the records' kind")
         self.base = [el.model_dump(exclude_none=True) for el in self.template.elements]
         r = float(self.options["factor_range"])
         if not r > 1:
