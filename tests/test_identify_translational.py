@@ -130,11 +130,11 @@ def test_identify_cli_on_an_inch_kip_export_writes_a_translational_coupling(case
     assert 'units = "translational"' in out.read_text()
 
 
+@pytest.mark.parametrize("case", ["seed002_bushing"], indirect=True)
 def test_translational_names_in_the_params_file(case, tmp_path, capsys):
-    """Initial values and bounds may be named for the translational reading (k1_n_per_m)."""
+    """Initial values and bounds may be named for the translational reading (k1_n_per_m);
+    an unknown name is listed with the names for that reading."""
     preset, family, twin, exports = case
-    if family != "pfeffer":
-        pytest.skip("one family is enough")
     files = exports["mm"]
     init = tmp_path / "init.toml"
     init.write_text("[initial]\nk1_n_per_m = 9.0e5\n[bounds]\nk1_n_per_m = [1.0e5, 1.0e7]\n")
@@ -143,6 +143,43 @@ def test_translational_names_in_the_params_file(case, tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["converged"]
     assert report["parameters"]["k1_n_per_m"]["value"] == pytest.approx(twin.parameters["k1_nm_per_rad"], rel=1e-3)
+    init.write_text("[initial]\nk2_n_per_m = 9.0e5\n")
+    code = main(["identify", str(files["ramps"]), "--model", "pfeffer", "--params", str(init)])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown parameter(s) k2_n_per_m" in err and "(parameters: k1_n_per_m, alpha, beta, gamma_s)" in err
+
+
+def test_compare_models_on_translational_records(case, capsys):
+    preset, family, twin, exports = case
+    files = exports["in"]
+    code = main(["compare-models", *[str(files[k]) for k in files if k != "random"], "--holdout", str(files["random"]),
+                 "--models", f"zerodim6,{family}", "--json"])
+    tables = json.loads(capsys.readouterr().out)
+    assert code == 0
+    ranking = {row["model"]: row for row in tables["ranking"]}
+    assert ranking[family]["holdout_nrmse_percent"] == pytest.approx(100 * twin.holdout.nrmse, rel=1e-6)
+    assert {"rmse_n", "nrmse_percent"} <= set(tables["records"][0]) and "rmse_nm" not in tables["records"][0]
+
+
+def test_bad_translational_records(case, tmp_path, capsys):
+    """A length unit on the angle role names the role to use; torsional and translational
+    records are not mixed."""
+    preset, family, twin, exports = case
+    files = exports["in"]
+    code = main(["identify", str(files["ramps"]), "--model", family, "--channel", "angle=displacement",
+                 "--channel", "torque=force"])
+    err = capsys.readouterr().err
+    assert code == 2 and "\n" not in err.strip()
+    assert "unit 'in' is not an angle unit" in err and "give it as --channel displacement=displacement:in" in err
+    torsional = tmp_path / "torsional.csv"
+    t, x = np.arange(512) / FS, 0.01 * np.sin(2 * np.pi * 2 * np.arange(512) / FS)
+    torsional.write_text("time [s],angle [rad],torque [N*m]\n" + "".join(f"{a!r},{b!r},{1e3 * b!r}\n"
+                                                                       for a, b in zip(t.tolist(), x.tolist())))
+    code = main(["identify", str(files["ramps"]), str(torsional), "--model", family])
+    err = capsys.readouterr().err
+    assert code == 2 and "a torsional record among translational ones" in err
+    code = main(["identify", str(files["ramps"]), "--model", family, "--holdout", str(torsional)])
+    assert code == 2 and "mix torsional and translational records" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("fs", [1024.0, 2048.0])
