@@ -105,6 +105,8 @@ def test_translational_records_identify_as_their_torsional_twin(case, length_uni
     names = set(report["parameters"]) | set(report["derived"]) | set(report["fit"])
     assert not any(token in name.split("_") for name in names for token in ("nm", "rad", "nms", "torque"))
     assert "max_force_n" in report["fit"] and "rmse_n" in report["fit"]
+    free = {name for stage in report["stages"] for name in stage["free"]} | set(report["at_bounds"])
+    assert free and free <= set(report["parameters"])
     assert r.coupling.units == "translational"
     if family == "elastoslide":
         assert report["parameters"]["k_n_per_m"]["value"] == pytest.approx(r.parameters["k_nm_per_rad"])

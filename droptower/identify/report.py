@@ -37,23 +37,29 @@ def _clean(value: Any) -> Any:
 
 
 def result_dict(ident: Identification) -> dict[str, Any]:
-    """Everything an identification reports, JSON-ready, fields named for the records' units."""
+    """Everything an identification reports, JSON-ready, fields named for the records' units
+    (parameter names given as values, in ``at_bounds`` and a stage's ``free``, too)."""
+    units = ident.coupling.units
+
+    def named(names: list[str]) -> list[str]:
+        return [field_name(n, units) for n in names]
+
     return translate_fields(_clean({
         "model": ident.family,
         "converged": ident.converged,
         "n_parameters": ident.n_parameters,
         "parameters": {n: {"value": v, "std_error": ident.std_error.get(n)} for n, v in ident.parameters.items()},
         "derived": ident.derived,
-        "at_bounds": ident.at_bounds,
+        "at_bounds": named(ident.at_bounds),
         "fit": ident.fit.as_dict(),
         "holdout": ident.holdout.as_dict() if ident.holdout else None,
         "evaluations": ident.evaluations,
         "nfev": ident.nfev,
         "time_s": ident.time_s,
-        "stages": [s.summary() for s in ident.stages],
+        "stages": [s.summary() | {"free": named(s.summary()["free"])} for s in ident.stages],
         "coupling_note": ident.coupling_note,
         "details": ident.extra,
-    }), ident.coupling.units) | {"units": ident.coupling.units}
+    }), units) | {"units": units}
 
 
 def result_text(ident: Identification) -> str:

@@ -96,8 +96,11 @@ def torsional_fields(values: dict[str, Any], units: str) -> dict[str, Any]:
         return dict(values)
     inverse_tokens = {v: k for k, v in _UNIT_TOKENS.items()}
     inverse_words = {v: k for k, v in _WORDS.items()}
-    return {_convert(k, inverse_tokens, inverse_words)[0]: _scaled(v, _convert(k, inverse_tokens, inverse_words)[1])
-            for k, v in values.items()}
+    out = {}
+    for key, value in values.items():
+        name, factor = _convert(key, inverse_tokens, inverse_words)
+        out[name] = _scaled(value, factor)
+    return out
 
 
 def _scaled(value: Any, factor: float) -> Any:
