@@ -144,7 +144,7 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
                              for i, (cell, w) in enumerate(zip(line, widths))).rstrip())
     missing = [role for role in ROLES if role not in roles and not (role == "distance" and "angle" in roles)]
     if missing:
-        click.echo(f"roles not found: {', '.join(missing)} (name them with --channel ROLE=NAME[:UNIT])")
+        click.echo(f"drop-test roles not found: {', '.join(missing)} (name them with --channel ROLE=NAME[:UNIT])")
     for problem in problems:
         click.echo(f"roles: {problem}")
     motion, load = SERVO_KINDS[servo_units]

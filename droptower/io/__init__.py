@@ -1,14 +1,15 @@
 """Readers and writers: every file format into one channel model (:class:`Record`).
 
 ``read_any(path)`` reads any supported log; ``map_channels(record, roles, sensor_radius_m=...)``
-turns it into SI :class:`DropSignals`; ``write_log`` / ``read_log`` are the project's own
-log format (what the virtual rig writes).
+turns a drop test into SI :class:`DropSignals`, ``map_servo_channels(record, roles)`` a servo
+record (torsional, or translational: displacement and force) into SI :class:`ServoSignals`;
+``write_log`` / ``read_log`` are the project's own log format (what the virtual rig writes).
 """
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import read_log, write_log
-from droptower.io.mapping import map_channels, parse_channel_options
+from droptower.io.mapping import map_channels, map_servo_channels, parse_channel_options
 from droptower.io.readers import read_any
-from droptower.io.signals import DropSignals
+from droptower.io.signals import DropSignals, ServoSignals
 
-__all__ = ["Channel", "Record", "DropSignals", "read_any", "read_log", "write_log", "map_channels",
-           "parse_channel_options"]
+__all__ = ["Channel", "Record", "DropSignals", "ServoSignals", "read_any", "read_log", "write_log", "map_channels",
+           "map_servo_channels", "parse_channel_options"]
