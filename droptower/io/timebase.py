@@ -6,9 +6,10 @@ constant. :func:`regular_time` recognises that case: every stamp lies within hal
 digit of one straight line through the whole record. The rate is then estimated from the
 whole record (the least-squares line; its error is about one digit over the record's
 duration, so a rate that close to a whole number of Hz is taken as that number) and the
-stamps are replaced by the uniform ones, with a note saying so. Steps that rounding does not
-explain but that agree to 0.1 % (stamps stored as float32) are kept as they are; any other
-time base is truly irregular and refused with one line naming the file.
+stamps are replaced by the uniform ones, with a note saying so; stamps stored as float32 are
+rounded the same way, to 24 bits. Steps that rounding does not explain but agree to 0.1 % are
+kept as they are; any other time base is truly irregular and refused with one line naming the
+file.
 """
 from __future__ import annotations
 
@@ -20,10 +21,12 @@ from droptower.errors import DroptowerError
 #: (float round-off of computed stamps).
 EXACT = 1e-9
 #: Largest deviation of one time step from the mean step (relative) still taken as uniform
-#: when rounding to the printed precision does not explain it (stamps stored as float32).
+#: when rounding to the printed precision does not explain it.
 DT_TOLERANCE = 1e-3
-#: Most decimals looked for in printed time stamps (1 ns).
+#: Most decimals looked for in printed time stamps (1 ns), and most significant digits (more
+#: come near a double's own precision, where every value looks exactly printed).
 MAX_DECIMALS = 9
+MAX_DIGITS = 12
 
 
 def _exact(scaled: np.ndarray) -> bool:
@@ -34,8 +37,9 @@ def _exact(scaled: np.ndarray) -> bool:
 
 def printed_precision(time_s: np.ndarray) -> list[tuple[str, np.ndarray]]:
     """How the stamps may have been printed: (description, each stamp's last digit in s), for
-    the fewest fixed decimals (0..9) and the fewest significant digits (1..15) that print
-    every stamp exactly (either may be absent)."""
+    the fewest fixed decimals (0..9) and the fewest significant digits (1..12) that print
+    every stamp exactly, and float32 storage (a binary rounding of the same kind); any may be
+    absent."""
     t = np.asarray(time_s, dtype=np.float64)
     out = []
     decimals = next((d for d in range(MAX_DECIMALS + 1) if _exact(t * 10.0 ** d)), None)
@@ -43,11 +47,13 @@ def printed_precision(time_s: np.ndarray) -> list[tuple[str, np.ndarray]]:
         out.append((f"{decimals} decimals", np.full(t.size, 10.0 ** -decimals)))
     nonzero = t != 0.0
     exponent = np.floor(np.log10(np.abs(np.where(nonzero, t, 1.0))))
-    for digits in range(1, 16):
+    for digits in range(1, MAX_DIGITS + 1):
         digit = np.where(nonzero, 10.0 ** (exponent + 1 - digits), 0.0)
         if _exact(np.where(nonzero, t / np.where(nonzero, digit, 1.0), 0.0)):
             out.append((f"{digits} significant digits", digit))
             break
+    if np.array_equal(t.astype(np.float32).astype(np.float64), t):  # stored as float32 (Parquet, MDF)
+        out.append(("float32 precision", np.spacing(np.abs(t).astype(np.float32)).astype(np.float64)))
     return out
 
 
@@ -123,7 +129,7 @@ def regular_time(time_s: np.ndarray, *, file: object = None, where: str | None =
                     f"taken as a constant {rate:.10g} Hz estimated from the whole record")
             return 0.5 * (lo + hi) + index / rate, note
     if deviation <= DT_TOLERANCE * mean_step:
-        return t, None  # e.g. stamps stored as float32: uniform enough, kept as they are
+        return t, None  # uniform enough: kept as they are
     precisions = printed_precision(t)
     shown = " or ".join(p for p, _ in precisions) or "any number of decimals"
     raise DroptowerError(f"the time step is not constant (median {float(np.median(steps)):.6g} s, range "
