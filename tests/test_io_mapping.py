@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from droptower.errors import DroptowerError
-from droptower.io import Channel, Record, map_channels, parse_channel_options, read_any, write_log
+from droptower.io import Channel, Record, map_channels, map_servo_channels, parse_channel_options, read_any, write_log
 from droptower.units import si_factor, to_si
 
 REFERENCE = Path(__file__).resolve().parent / "data" / "catman"  # shipped test data (MIT, see its LICENSE.txt)
@@ -209,3 +209,40 @@ def test_dash_leaves_a_role_out_and_offset_channels_are_aligned():
     record.channels["torque"] = Channel("torque", "N*m", np.sin(time), sample_rate_hz=2048.0, start_s=-1 / 2048.0)
     with pytest.raises(DroptowerError, match=r"d\.tdms: channel 'torque': covers -0.000488281..0.194336 s, the angle 0..0.194824 s"):
         map_channels(record, {"impact_force": "-"}, sensor_radius_m=None)
+
+
+# ---------------------------------------------------------------- servo records
+@pytest.mark.parametrize("length_unit", ["m", "mm", "µm", "in"])
+@pytest.mark.parametrize("force_unit", ["N", "kN", "lbf", "kip"])
+def test_translational_servo_record_in_any_length_and_force_unit(length_unit, force_unit):
+    import pint
+
+    ureg = pint.UnitRegistry()
+    time, x_m = _signals()
+    f_n = 5e5 * x_m + 3.0
+    record = _record({"Time": ("s", time), "Weg": (length_unit, ureg.Quantity(x_m, "m").to(length_unit).magnitude),
+                      "Kraft": (force_unit, ureg.Quantity(f_n, "N").to(force_unit).magnitude)})
+    signals = map_servo_channels(record)
+    assert signals.units == "translational" and signals.notes == []
+    np.testing.assert_allclose(signals.motion_si, x_m, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(signals.load_si, f_n, rtol=1e-12)
+    np.testing.assert_array_equal(signals.time_s, time)
+
+
+def test_servo_roles_kind_and_their_errors():
+    time, angle = _signals()
+    torsional = _record({"t": ("s", time), "Winkel": ("deg", np.degrees(angle)), "Md": ("kN*m", angle)})
+    signals = map_servo_channels(torsional)
+    assert signals.units == "torsional"
+    np.testing.assert_allclose(signals.motion_si, angle, rtol=1e-14)
+    np.testing.assert_allclose(signals.load_si, 1e3 * angle, rtol=1e-14)
+    both = _record({"t": ("s", time), "angle": ("rad", angle), "displacement": ("mm", angle)})
+    with pytest.raises(DroptowerError, match="both an angle channel 'angle' and a displacement channel 'displacement'"):
+        map_servo_channels(both)
+    assert map_servo_channels(both, {"displacement": "displacement"}).units == "translational"
+    with pytest.raises(DroptowerError, match=r"not a mix \(angle, force\)"):
+        map_servo_channels(both, {"angle": "angle", "force": "displacement"})
+    with pytest.raises(DroptowerError, match=r"unit 'mm' is not an angle unit .*--channel displacement=displacement:mm"):
+        map_servo_channels(both, {"angle": "displacement"})
+    with pytest.raises(DroptowerError, match=r"unknown role 'impact_force'"):
+        parse_channel_options(["impact_force=F"], ("time", "angle", "torque", "displacement", "force"))
