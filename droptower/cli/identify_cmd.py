@@ -122,7 +122,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     Time stamps printed with few decimals (steps that differ only by the printed precision)
     are taken as a constant sample rate estimated from the whole record (a note says so).
 
-    --params INIT.toml (parameter names as in the report):
+    --params INIT.toml (parameter names as in the report; for translational records either
+    naming, k1_n_per_m or k1_nm_per_rad):
 
     \b
       [initial]                   # starting values
