@@ -1,15 +1,14 @@
 """Time stamps as lab software prints them: a constant sample rate behind rounded stamps.
 
-Lab exports print time with a fixed number of decimals (``0.0010``, ``0.0020`` at 1024 Hz),
-so the steps between stamps differ by up to one printed digit although the rate is
-constant. :func:`regular_time` recognises that case: every stamp lies within half a printed
-digit of one straight line through the whole record. The rate is then estimated from the
-whole record (the least-squares line; its error is about one digit over the record's
-duration, so a rate that close to a whole number of Hz is taken as that number) and the
-stamps are replaced by the uniform ones, with a note saying so; stamps stored as float32 are
-rounded the same way, to 24 bits. Steps that rounding does not explain but agree to 0.1 % are
-kept as they are; any other time base is truly irregular and refused with one line naming the
-file.
+Lab exports print time with a fixed number of decimals or significant digits (``0.0010``,
+``0.0020`` at 1024 Hz), so the steps between stamps differ by up to one printed digit although
+the rate is constant. :func:`regular_time` recognises that case: some uniform time base lies
+within half a printed digit of every stamp of the whole record. Its rate is a whole number of
+Hz if one is consistent with every stamp, else the middle of the consistent rates (two small
+linear programs over start and step); the stamps are replaced by the uniform ones, with a note
+saying so. Stamps stored as float32 are rounded the same way, to 24 bits. Steps that rounding
+does not explain but agree to 0.1 % are kept as they are; any other time base is truly
+irregular and refused with one line naming the file.
 """
 from __future__ import annotations
 
