@@ -12,6 +12,8 @@ irregular and refused with one line naming the file.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from droptower.errors import DroptowerError
@@ -39,21 +41,23 @@ def printed_precision(time_s: np.ndarray) -> list[tuple[str, np.ndarray]]:
     the fewest fixed decimals (0..9) and the fewest significant digits (1..12) that print
     every stamp exactly, and float32 storage (a binary rounding of the same kind); any may be
     absent."""
-    t = np.asarray(time_s, dtype=np.float64)
-    out = []
+    return list(_precisions(np.asarray(time_s, dtype=np.float64)))
+
+
+def _precisions(t: np.ndarray) -> Iterator[tuple[str, np.ndarray]]:
+    """:func:`printed_precision`, one at a time (the first that explains the stamps ends the search)."""
     decimals = next((d for d in range(MAX_DECIMALS + 1) if _exact(t * 10.0 ** d)), None)
     if decimals is not None:
-        out.append((f"{decimals} decimals", np.full(t.size, 10.0 ** -decimals)))
+        yield f"{decimals} decimals", np.full(t.size, 10.0 ** -decimals)
     nonzero = t != 0.0
     exponent = np.floor(np.log10(np.abs(np.where(nonzero, t, 1.0))))
     for digits in range(1, MAX_DIGITS + 1):
         digit = np.where(nonzero, 10.0 ** (exponent + 1 - digits), 0.0)
         if _exact(np.where(nonzero, t / np.where(nonzero, digit, 1.0), 0.0)):
-            out.append((f"{digits} significant digits", digit))
+            yield f"{digits} significant digits", digit
             break
     if np.array_equal(t.astype(np.float32).astype(np.float64), t):  # stored as float32 (Parquet, MDF)
-        out.append(("float32 precision", np.spacing(np.abs(t).astype(np.float32)).astype(np.float64)))
-    return out
+        yield "float32 precision", np.spacing(np.abs(t).astype(np.float32)).astype(np.float64)
 
 
 def _start_interval(t: np.ndarray, digit: np.ndarray, step: float) -> tuple[float, float]:
@@ -68,12 +72,12 @@ def _rate_within(t: np.ndarray, digit: np.ndarray) -> float | None:
     """The sample rate (Hz) of a uniform time base that rounds to the stamps ``t`` (each to its
     last printed digit), None if there is none: a whole number of Hz if one is consistent,
     else the middle of the consistent rates (two small linear programs over start and step)."""
-    from scipy.optimize import linprog
-
     mean_rate = (t.size - 1) / (t[-1] - t[0])
     lo, hi = _start_interval(t, digit, 1.0 / round(mean_rate)) if round(mean_rate) > 0 else (1.0, 0.0)
     if lo <= hi:
         return float(round(mean_rate))
+    from scipy.optimize import linprog  # only here: its import costs seconds on a busy machine
+
     half = 0.5 * digit + 8 * np.finfo(float).eps * np.abs(t)
     index = np.arange(t.size, dtype=np.float64) / (t.size - 1)
     scale = t[-1] - t[0]  # variables: start and duration, in units of the record's duration
@@ -119,7 +123,7 @@ def regular_time(time_s: np.ndarray, *, file: object = None, where: str | None =
     deviation = float(np.max(np.abs(steps - mean_step)))
     if deviation <= EXACT * mean_step + 8 * np.finfo(float).eps * float(np.max(np.abs(t))):
         return t, None
-    for printed, digit in printed_precision(t):
+    for printed, digit in _precisions(t):
         rate = _rate_within(t, digit)
         if rate is not None:
             index = np.arange(n, dtype=np.float64)
