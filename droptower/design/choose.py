@@ -27,7 +27,7 @@ from droptower.design.coverage import Target, in_hull, plane
 from droptower.errors import DroptowerError
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.planner import plan
+from droptower.rig.planner import plan, record_length_s
 
 #: Candidate drop heights per lever and mass, log-spaced over the rig's height range.
 CANDIDATE_HEIGHTS = 16
@@ -303,7 +303,8 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
         limits.append(f"--max-tests {max_tests}: amplitude levels {step:.2g} decades apart")
     rows = [(lever_name(rig, j), j, m, h, p, repeats) for j, m, h in sorted(set(drops)) for p in target.preloads_nm]
     cond = pd.DataFrame(rows, columns=[*CONDITION_KEYS, "repeats"])
-    pred = plan(rig, coupling, cond, RECORD_S)
+    # predicted as the campaign will record and extract them (its record length for this plan)
+    pred = plan(rig, coupling, cond, record_length_s(plan(rig, coupling, cond, RECORD_S)["period_s"]))
     pred["warnings"] = _with_margin(pred)
     for r in pred[pred["warnings"].map(len) > 0].itertuples():
         limits.append(f"{r.case}, {r.drop_mass_kg:g} kg, {r.drop_height_m:g} m: " + "; ".join(r.warnings))
