@@ -14,7 +14,8 @@ from droptower.campaign import run_campaign
 from droptower.cli.main import main
 from droptower.design import Target, design_campaign, in_hull
 from droptower.design.coverage import plane
-from droptower.design.outputs import run_sheet, write_doe
+from droptower.design.identification import _log_det, d_optimal
+from droptower.design.outputs import coverage_description, run_sheet, write_doe
 from droptower.design.repeats import repeats_for
 from droptower.errors import DroptowerError
 from droptower.rheology import load_coupling
@@ -71,7 +72,7 @@ def test_designed_campaign_realises_the_prediction_and_covers_the_target(designe
     amplitude and frequency within 3 % of the design's prediction, no double impact, and
     every point of the target that the design claims lies in the hull of the realised tests."""
     rig, coupling, d = designed
-    doe = write_doe(d, tmp_path / "designed.toml")
+    doe = write_doe(d.conditions, tmp_path / "designed.toml", coverage_description(d))
     res = run_campaign(tmp_path / "run", "rapp2022", "rapp2022_nr60", doe, workers=1, progress=False).results
     keys = ["inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"]
     m = d.conditions.merge(res, on=keys, suffixes=("_predicted", ""))
@@ -114,7 +115,7 @@ def test_unreachable_parts_are_named_with_the_lever_that_limits_them(designed):
 
 def test_written_plan_is_the_design(designed, tmp_path):
     rig, _, d = designed
-    doe = load_doe(write_doe(d, tmp_path / "p.toml", base_seed=7))
+    doe = load_doe(write_doe(d.conditions, tmp_path / "p.toml", "test", base_seed=7))
     doe.check(rig)
     cond = doe.conditions()
     keys = ["inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"]
@@ -125,7 +126,7 @@ def test_written_plan_is_the_design(designed, tmp_path):
 def test_run_sheet_is_seeded_and_blocked_by_fixture(designed):
     _, _, d = designed
     d3 = design_campaign(*designed[:2], TARGET, repeats=3, candidates=d.candidates)
-    a, b, other = run_sheet(d3, 1), run_sheet(d3, 1), run_sheet(d3, 2)
+    a, b, other = run_sheet(d3.conditions, 1), run_sheet(d3.conditions, 1), run_sheet(d3.conditions, 2)
     assert a.equals(b) and not a.equals(other)
     assert len(a) == d3.n_tests and (a["operator_notes"] == "").all()
     fixture = list(zip(a["inertia_kgm2"], a["drop_mass_kg"]))
@@ -171,3 +172,37 @@ def test_impossible_or_malformed_targets_are_one_line_errors(tmp_path, capsys, a
     err = capsys.readouterr().err.strip()
     assert code == 2 and words in err and "\n" not in err and "Traceback" not in err
     assert not (tmp_path / "p.toml").exists()
+
+
+# ------------------------------------------------------------------ design for identification
+def test_d_optimal_exchange_finds_the_best_multiset_of_small_problems():
+    """Against brute force over every multiset of n drops: the optimum on almost every random
+    problem (exchange can stop in a local optimum) and never far below it."""
+    import itertools
+
+    exact, worst = 0, 0.0
+    for seed in range(120):
+        rng = np.random.default_rng(seed)
+        t, p = int(rng.integers(3, 7)), int(rng.integers(1, 4))
+        n = int(rng.integers(p, p + 3))
+        a = rng.normal(size=(t, p, 2))
+        info = np.einsum("tik,tjk->tij", a, a)
+        got = _log_det(info[d_optimal(info, n)].sum(axis=0))
+        best = max(_log_det(info[list(c)].sum(axis=0)) for c in itertools.combinations_with_replacement(range(t), n))
+        assert got <= best + 1e-9
+        exact += got >= best - 1e-9
+        worst = min(worst, got - best)
+    assert exact >= 0.98 * 120 and worst > math.log(0.8)
+
+
+def test_design_for_identification_writes_a_plan_with_predicted_errors(tmp_path, capsys):
+    out = tmp_path / "ident.toml"
+    code = main(["design", "--for-identification", "template", "--max-tests", "8", "--out", str(out), "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["tests"] == 8 and doc["model"] == "template"
+    errs = doc["predicted_std_errors"]
+    assert errs and all(0 < v["relative_std_error"] < 1 for v in errs.values())
+    doe = load_doe(out)
+    doe.check(load_rig("rapp2022"))
+    assert doe.n_tests == 8

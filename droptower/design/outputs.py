@@ -16,33 +16,37 @@ SHEET_COLUMNS = ["run", "block", "case", "inertia_kgm2", "drop_mass_kg", "drop_h
                  "predicted_amplitude_deg", "predicted_frequency_hz", "operator_notes"]
 
 
-def doe_document(design: Design, name: str, base_seed: int = 0) -> dict[str, Any]:
-    """The test plan as the DOE TOML format holds it (``campaign --doe`` runs it as it is):
-    one group per lever and drop mass, each with its own heights; preloads and repeats for all."""
-    t = design.target
+def doe_document(conditions: pd.DataFrame, name: str, description: str, base_seed: int = 0) -> dict[str, Any]:
+    """Designed conditions (one row per lever, mass, height and preload, with ``repeats``) as
+    the DOE TOML format holds them (``campaign --doe`` runs it as it is): one group per lever
+    and drop mass with its own heights; the preloads for all. Equal repeats everywhere are the
+    plan's ``repeats``; otherwise a height is listed once per repeat (the format adds them up)."""
+    preloads = sorted({float(p) for p in conditions["preload_nm"]})
+    repeats = conditions["repeats"].astype(int)
+    uniform = repeats.nunique() == 1
     groups = []
-    for (case, j, m), g in design.conditions.groupby(["case", "inertia_kgm2", "drop_mass_kg"], sort=True):
+    for (case, j, m), g in conditions.groupby(["case", "inertia_kgm2", "drop_mass_kg"], sort=True):
+        per_height = g.groupby("drop_height_m")["repeats"].max()
+        heights = [float(h) for h, n in per_height.items() for _ in range(1 if uniform else int(n))]
         groups.append({"name": f"{case}, {m:g} kg", "inertia_kgm2": float(j), "drop_mass_kg": float(m),
-                       "heights_m": sorted({float(h) for h in g["drop_height_m"]})})
-    all_heights = sorted({h for g in groups for h in g["heights_m"]})
-    return {
-        "name": name,
-        "description": (f"designed by droptower design for {t.amplitude_deg[0]:g}-{t.amplitude_deg[1]:g} deg x "
-                        f"{t.frequency_hz[0]:g}-{t.frequency_hz[1]:g} Hz: {design.n_conditions} conditions, "
-                        f"{design.n_tests} tests, {100 * design.covered_fraction:.0f} % of the target covered"),
-        "source": "droptower design",
-        "base_seed": int(base_seed),
-        "repeats": int(design.repeats),
-        "heights_m": all_heights,
-        "preloads_nm": [float(p) for p in t.preloads_nm],
-        "group": groups,
-    }
+                       "heights_m": heights})
+    return {"name": name, "description": description, "source": "droptower design", "base_seed": int(base_seed),
+            "repeats": int(repeats.iloc[0]) if uniform else 1,
+            "heights_m": sorted({h for g in groups for h in g["heights_m"]}), "preloads_nm": preloads,
+            "group": groups}
 
 
-def write_doe(design: Design, path: str | Path, base_seed: int = 0) -> Path:
-    """Write the designed plan as a DOE TOML file (atomically)."""
+def coverage_description(design: Design) -> str:
+    t = design.target
+    return (f"designed by droptower design for {t.amplitude_deg[0]:g}-{t.amplitude_deg[1]:g} deg x "
+            f"{t.frequency_hz[0]:g}-{t.frequency_hz[1]:g} Hz: {design.n_conditions} conditions, "
+            f"{design.n_tests} tests, {100 * design.covered_fraction:.0f} % of the target covered")
+
+
+def write_doe(conditions: pd.DataFrame, path: str | Path, description: str, base_seed: int = 0) -> Path:
+    """Write designed conditions as a DOE TOML file (atomically); see :func:`doe_document`."""
     path = Path(path)
-    text = tomli_w.dumps(doe_document(design, path.stem, base_seed))
+    text = tomli_w.dumps(doe_document(conditions, path.stem, description, base_seed))
 
     def write(tmp: str) -> None:
         Path(tmp).write_text(text)
@@ -51,7 +55,7 @@ def write_doe(design: Design, path: str | Path, base_seed: int = 0) -> Path:
     return path
 
 
-def run_sheet(design: Design, seed: int = 0) -> pd.DataFrame:
+def run_sheet(conditions: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     """One row per drop in a seeded random order, blocked by lever and drop mass.
 
     Changing a lever or a drop mass takes time, so the drops of one fixture stay together
@@ -59,7 +63,7 @@ def run_sheet(design: Design, seed: int = 0) -> pd.DataFrame:
     drift of the rig over the day does not line up with height or preload.
     """
     rng = np.random.default_rng(seed)
-    c = design.conditions
+    c = conditions
     blocks = list(c.groupby(["inertia_kgm2", "drop_mass_kg"], sort=True))
     rows = []
     for b, ((j, m), g) in enumerate([blocks[i] for i in rng.permutation(len(blocks))], start=1):

@@ -28,10 +28,8 @@ MAX_REPEATS = 50
 def pilot_uncertainty(design: Design, rig: str | Path, coupling: str | Path) -> pd.DataFrame:
     """One virtual test per designed condition through the data path: per condition the
     relative standard uncertainty of one test's stiffness and damping ratio (fractions)."""
-    one = Design(**{**design.__dict__, "repeats": 1,
-                    "conditions": design.conditions.assign(repeats=1)})
     with tempfile.TemporaryDirectory(prefix="droptower-pilot-") as tmp:
-        doe = write_doe(one, Path(tmp) / "pilot.toml")
+        doe = write_doe(design.conditions.assign(repeats=1), Path(tmp) / "pilot.toml", "pilot: one test per condition")
         results = run_campaign(Path(tmp) / "campaign", rig, coupling, doe, workers=1, progress=False).results
     return pd.DataFrame({
         "inertia_kgm2": results["inertia_kgm2"], "drop_mass_kg": results["drop_mass_kg"],
