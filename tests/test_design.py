@@ -206,3 +206,20 @@ def test_design_for_identification_writes_a_plan_with_predicted_errors(tmp_path,
     doe = load_doe(out)
     doe.check(load_rig("rapp2022"))
     assert doe.n_tests == 8
+
+
+@pytest.mark.slow
+def test_uncertainty_target_sets_the_repeats_from_a_pilot(designed):
+    """The pilot runs one virtual test per condition through the data path; a tighter target
+    asks for more repeats, as the 1/sqrt(n) law says."""
+    from droptower.design.repeats import pilot_uncertainty
+
+    rig, coupling, d = designed
+    small = design_campaign(rig, coupling, Target((0.5, 1.0), (28.0, 45.0)), repeats=1, candidates=d.candidates)
+    rel = pilot_uncertainty(small, "rapp2022", "rapp2022_nr60")
+    assert len(rel) == small.n_conditions
+    assert rel[["stiffness_relative_std", "damping_ratio_relative_std"]].gt(0).all().all()
+    loose, tight = repeats_for(rel, 2.0), repeats_for(rel, 0.2)
+    assert 1 <= loose <= tight
+    worst = rel[["stiffness_relative_std", "damping_ratio_relative_std"]].to_numpy().max()
+    assert worst / math.sqrt(tight) <= 0.002 or tight == 50

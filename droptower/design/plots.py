@@ -26,8 +26,9 @@ def plot_coverage(design: Design, path: str | Path, title: str = "") -> Path:
     for i, ((case, mass), g) in enumerate(cands.groupby(["case", "drop_mass_kg"], sort=True)):
         c = colours[i % len(colours)]
         ok = g[g["feasible"]].sort_values("amplitude_ref_deg")
-        ax.plot(ok["amplitude_ref_deg"], ok["frequency_hz"], ".-", color=c, lw=0.8, alpha=0.6,
-                label=f"{case}, {mass:g} kg: possible drops")
+        if len(ok):
+            ax.plot(ok["amplitude_ref_deg"], ok["frequency_hz"], ".-", color=c, lw=0.8, alpha=0.6,
+                    label=f"{case}, {mass:g} kg: possible drops")
         bad = g[~g["feasible"]]
         if len(bad):
             ax.plot(bad["amplitude_ref_deg"], bad["frequency_hz"], "x", color=c, alpha=0.5, ms=5,
