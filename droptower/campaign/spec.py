@@ -28,13 +28,6 @@ from droptower.errors import DroptowerError
 
 #: Tests per chunk: one batched pymunk space each (~16 ms per test at 25, ~45 ms alone).
 CHUNK_SIZE = 25
-#: Default record length after the impact: this many of the longest predicted first period ...
-RECORD_PERIODS = 2.0
-#: ... but at least this long (s), rounded up to RECORD_ROUND_S.
-MIN_RECORD_S = 0.05
-RECORD_ROUND_S = 0.01
-#: Record length when the planner finds no complete period (an overdamped coupling).
-FALLBACK_RECORD_S = 0.25
 LOG_FORMATS = ("parquet", "csv")
 #: Plan columns, in the order the results table starts with.
 PLAN_COLUMNS = ("test_id", "case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm", "repeat", "seed")
@@ -90,16 +83,10 @@ class CampaignSpec:
 
 
 def _record_length(rig: Any, coupling: Any, doe: Any, window: Any) -> float:
-    """RECORD_PERIODS times the longest first period the planner predicts for the plan (or the
-    fit window plus half a period, if that is longer)."""
-    from droptower.rig.planner import plan
+    """The record the planner's periods ask for (:func:`droptower.rig.planner.record_length_s`)."""
+    from droptower.rig.planner import plan, record_length_s
 
-    period = plan(rig, coupling, doe.conditions())["period_s"].to_numpy(float)
-    if not np.isfinite(period).any():
-        return FALLBACK_RECORD_S
-    longest = float(np.nanmax(period))
-    wanted = max(MIN_RECORD_S, RECORD_PERIODS * longest, window.length_s(longest) + 0.5 * longest)
-    return round(math.ceil(wanted / RECORD_ROUND_S - 1e-9) * RECORD_ROUND_S, 6)
+    return record_length_s(plan(rig, coupling, doe.conditions())["period_s"], window.length_s)
 
 
 def prepare(rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING, doe: str | Path = DEFAULT_DOE,
@@ -107,9 +94,8 @@ def prepare(rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLI
             window: str | None = None) -> CampaignSpec:
     """Load and check the inputs (files or shipped preset names) and fix the settings.
 
-    duration_s: record length after the impact (s); None: :data:`RECORD_PERIODS` times the
-    longest first period the planner predicts (:mod:`droptower.rig.planner`), at least
-    :data:`MIN_RECORD_S`. chunk_size (default :data:`CHUNK_SIZE`), log_format (``parquet``)
+    duration_s: record length after the impact (s); None: twice the longest first period the planner
+    predicts (:func:`droptower.rig.planner.record_length_s`). chunk_size (default :data:`CHUNK_SIZE`), log_format (``parquet``)
     and window (``first-cycle``, the extractor's fit window). Every problem is a one-line
     :class:`DroptowerError`.
     """

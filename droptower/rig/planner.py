@@ -16,15 +16,23 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from droptower.errors import DroptowerError
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
                                   lever_tip_path, second_impact_time)
 from droptower.rig.preload import Pretwist, pretwist
-from droptower.sdof import damping_ratio
+from droptower.sdof import damping_ratio, reference_amplitude
 
 MIN_SAMPLES_PER_PERIOD = 20   # fewer samples per oscillation and the decay fit has too little to work with
 MIN_RECORD_PERIODS = 0.75     # seed 004 / NOTES §1.4: at least three quarters of a period after the impact
+#: A campaign's record after the impact: this many of the longest predicted first period ...
+RECORD_PERIODS = 2.0
+#: ... but at least this long (s), rounded up to RECORD_ROUND_S.
+MIN_RECORD_S = 0.05
+RECORD_ROUND_S = 0.01
+#: Record length when the planner finds no complete period (an overdamped coupling).
+FALLBACK_RECORD_S = 0.25
 CHUNK_STEPS = 1024
 MAX_DECAY_S = 2.0             # give up looking for a first period after this long
 
@@ -42,12 +50,12 @@ class FreeDecay:
 
 
 def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, twist: Pretwist,
-               dt_s: float, min_duration_s: float = 0.0) -> FreeDecay:
+               dt_s: float, min_duration_s: float = 0.0, periods: float = 1.25) -> FreeDecay:
     """Integrate J phi'' = T_screw - T_coupling(twist + phi) from phi = 0, phi' = rate0 (B,).
 
     Same scheme as the pymunk scene (the torque at the angle the step reaches, then the rate);
-    runs until every condition has completed its first period plus a quarter and
-    ``min_duration_s`` has passed (at most :data:`MAX_DECAY_S`).
+    runs until every condition has completed ``periods`` of its first period (at least one and a
+    quarter) and ``min_duration_s`` has passed (at most :data:`MAX_DECAY_S`).
     """
     J = np.asarray(inertia_kgm2, float)
     B = J.size
@@ -71,10 +79,55 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
         angle = np.concatenate(a_parts, axis=1)
         time = np.arange(angle.shape[1]) * dt_s
         period = first_period(time, angle)
-        done = np.all(np.isfinite(period)) and time[-1] >= max(min_duration_s, 1.25 * float(np.max(period)))
+        done = np.all(np.isfinite(period)) and time[-1] >= max(min_duration_s, periods * float(np.max(period)))
         if done or angle.shape[1] > n_max:
             break
     return FreeDecay(time_s=time, angle_rad=angle, torque_nm=np.concatenate(t_parts, axis=1), period_s=period)
+
+
+def record_length_s(period_s: np.ndarray, window_length_s=lambda period: period) -> float:
+    """The record after the impact a campaign takes for conditions of these first periods (s):
+    :data:`RECORD_PERIODS` times the longest (or the fit window plus half a period, if longer;
+    ``window_length_s(period)`` gives the window), at least :data:`MIN_RECORD_S`, rounded up."""
+    period = np.asarray(period_s, float)
+    if not np.isfinite(period).any():
+        return FALLBACK_RECORD_S
+    longest = float(np.nanmax(period))
+    wanted = max(MIN_RECORD_S, RECORD_PERIODS * longest, window_length_s(longest) + 0.5 * longest)
+    return round(math.ceil(wanted / RECORD_ROUND_S - 1e-9) * RECORD_ROUND_S, 6)
+
+
+#: Periods of the free decay the extractor's starting values read at most (its five zero crossings).
+VIEW_PERIODS = 2.75
+
+
+def extractor_view(time_s: np.ndarray, angle_rad: np.ndarray, period_s: float,
+                   record_s: float) -> tuple[float, float, float]:
+    """(reference amplitude rad, decay coefficient 1/s, angular frequency rad/s) that ``droptower extract`` reports
+    for this free decay (time from the impact): the same starting values, first-cycle window
+    and least-squares fit of phi_hat e^(-delta t) cos(omega t - Phi) (Rapp et al. 2022, eq. 13-18).
+    On a nonlinear coupling the fitted envelope differs from the peaks by a few per cent, so the
+    plan predicts the extractor's numbers, not the peaks'. The decay is read as far as the
+    extractor reads a record of ``record_s`` after the impact (its starting frequency averages
+    up to five zero crossings) and never beyond :data:`VIEW_PERIODS` of ``period_s``, so a
+    condition's view does not depend on the batch it was planned in. NaNs where no cycle
+    completes."""
+    from droptower.extract.decay import fit_decay, start_frequency_and_decay  # the extractor's own fit
+
+    if not np.isfinite(period_s):
+        return np.nan, np.nan, np.nan
+    after = (time_s > 0.0) & (time_s <= min(record_s, VIEW_PERIODS * period_s))
+    t, y = time_s[after], angle_rad[after]
+    try:
+        omega0, delta0 = start_frequency_and_decay(t, y, 0.0)
+    except DroptowerError:
+        return np.nan, np.nan, np.nan
+    end = 2.0 * np.pi / omega0
+    if t[-1] < end:
+        return np.nan, np.nan, np.nan
+    sel = t <= end
+    amp, delta, omega, _ = fit_decay(t[sel], y[sel], omega0, delta0).params
+    return float(reference_amplitude(amp, delta, end)), float(delta), float(omega)
 
 
 def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_s: float = 0.25) -> pd.DataFrame:
@@ -91,7 +144,7 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     iv = impact_velocities(m1, J, L, h, rig.restitution, g)
     twist = pretwist(coupling, preload, rig.simulation.preload_ramp_s, rig.simulation.preload_hold_s)
     rig.check_time_step(coupling, J, twist.angle_rad, iv.impact_m_per_s)  # the decay is stepped like the scene
-    decay = free_decay(coupling, J, iv.rate_after_rad_per_s, twist, rig.dt_s)
+    decay = free_decay(coupling, J, iv.rate_after_rad_per_s, twist, rig.dt_s, periods=VIEW_PERIODS)
     t, a = decay.time_s, decay.angle_rad
     period = decay.period_s
     horizon = np.where(np.isfinite(period), period, t[-1])
@@ -102,12 +155,10 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     second = np.argmin(np.where(in_period, a, np.inf), axis=1)
     rows = np.arange(len(cond))
     p1, p2 = a[rows, first], a[rows, second]
-    t1, t2 = t[first], t[second]
-    omega = 2.0 * np.pi / period
-    with np.errstate(divide="ignore", invalid="ignore"):
-        delta = np.where(p2 < 0, np.log(p1 / np.abs(p2)) / (t2 - t1), np.nan)
-        envelope = p1 * np.exp(delta * t1) / np.sin(omega * t1)
-    amplitude_ref = envelope * np.exp(-delta * period / 2.0)  # seed 004 eq. 18, window = first cycle
+    t1 = t[first]
+    # what the extractor will report: its fit over the first cycle (eq. 13-18)
+    seen = np.array([extractor_view(t, a[i], period[i], duration_s) for i in range(len(cond))]).reshape(len(cond), 3)
+    delta, omega = seen[:, 1], seen[:, 2]
     peak_torque = np.max(np.where(in_period, np.abs(decay.torque_nm), 0.0), axis=1)
 
     # second impact: drop mass in free flight against the lever tip, within the first period
@@ -129,9 +180,9 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["impact_force_peak_n"] = force_peak
     out["pretwist_deg"] = np.degrees(twist.angle_rad)
     out["amplitude_deg"] = np.degrees(p1)
-    out["amplitude_ref_deg"] = np.degrees(amplitude_ref)
+    out["amplitude_ref_deg"] = np.degrees(seen[:, 0])
     out["max_twist_deg"] = np.degrees(np.abs(twist.angle_rad) + np.maximum(p1, np.abs(p2)))
-    out["frequency_hz"] = 1.0 / period
+    out["frequency_hz"] = omega / (2.0 * np.pi)
     out["period_s"] = period
     out["decay_per_s"] = delta
     out["damping_ratio"] = damping_ratio(delta, omega)

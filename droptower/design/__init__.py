@@ -1,0 +1,10 @@
+"""Designing a drop-tower campaign from what the engineer wants to measure.
+
+:mod:`.coverage` (the target region, the hull a set of tests covers), :mod:`.choose` (levers,
+masses and heights from the planner's predictions), :mod:`.repeats` (repeats for a target
+uncertainty), :mod:`.outputs` (the DOE TOML and the lab's run sheet).
+"""
+from droptower.design.choose import Design, design_campaign, predict_candidates
+from droptower.design.coverage import Target, covered_fraction, in_hull
+
+__all__ = ["Design", "Target", "covered_fraction", "design_campaign", "in_hull", "predict_candidates"]

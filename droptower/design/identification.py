@@ -1,0 +1,191 @@
+"""Drops that identify a model's parameters best: a locally D-optimal design.
+
+Identifying a model from drop tests (:mod:`droptower.identify.dropfit`) is least squares on
+the free decays; for white sensor noise its parameter covariance is the inverse of the Fisher
+information F = sum over drops of S_i' S_i / sigma^2, with S_i the sensitivity of drop i's
+predicted angle (and torque) to the parameters (each as its logarithm: relative changes). A
+D-optimal design takes the N drops (repeats allowed) that maximise det F (Atkinson & Donev):
+the smallest joint confidence region. The sensitivities are computed at the parameters the
+coupling under test implies (a *locally* optimal design: the best guess is the coupling file
+itself), for every candidate drop of the rig in one batched simulation of the core
+(the nominal set and one forward step per parameter, all drops, one call).
+
+Selection: greedy forward choice, then Fedorov exchange (swap a chosen drop for a candidate
+while det F grows), which reaches the optimum of such small problems or comes close.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from droptower.design.choose import _contiguous_feasible, predict_candidates
+from droptower.design.coverage import Target
+from droptower.errors import DroptowerError
+from droptower.identify.droplogs import DropDecay
+from droptower.identify.dropfit import DropFitSettings, DropProblem, drop_scale, identify_drops
+from droptower.identify.families import family_class
+from droptower.rheology import Coupling
+from droptower.rig.config import RigConfig
+
+#: Periods of each decay compared, as ``identify --from-drop-tests`` reads logs.
+COMPARED_PERIODS = 3.0
+#: The sensitivities are evaluated on every this-many-th sample of the rig (a decay's
+#: information is carried by its shape; the count is scaled back to the rig's rate).
+SAMPLE_STRIDE = 4
+#: Forward-difference step in each parameter's logarithm.
+FD_STEP = 1e-4
+#: Exchange passes of the Fedorov algorithm.
+EXCHANGE_PASSES = 5
+
+
+@dataclass
+class IdentificationDesign:
+    """conditions: the chosen drops (one row per distinct drop, ``repeats`` its multiplicity),
+    with the planner's prediction; parameters: per model parameter its nominal value and the
+    predicted standard error (value units and relative) of the design, and of ``reference`` if
+    given; log_det: log det F of the design."""
+
+    model: str
+    conditions: pd.DataFrame
+    parameters: pd.DataFrame
+    log_det: float
+
+
+def _decays(rig: RigConfig, cands: pd.DataFrame) -> list[DropDecay]:
+    """Placeholder decays of the candidate drops (their times, inertia and impact rate; the
+    angles are simulated, not measured)."""
+    out = []
+    dt = SAMPLE_STRIDE / rig.sensors.sample_rate_hz
+    for i, r in enumerate(cands.itertuples(index=False)):
+        t = np.arange(1, int(COMPARED_PERIODS * float(r.period_s) / dt) + 1) * dt
+        out.append(DropDecay(f"candidate {i}", t, np.zeros_like(t), None, float(r.inertia_kgm2),
+                             float(r.lever_rate_after_rad_per_s), "prediction", float(r.frequency_hz),
+                             math.radians(float(r.amplitude_deg)), dt))
+    return out
+
+
+def fisher_per_drop(problem: DropProblem, values: np.ndarray, free: np.ndarray, rig: RigConfig,
+                    decays: list[DropDecay]) -> np.ndarray:
+    """(T, p, p) Fisher information of each drop for the free parameters' logarithms, with the
+    rig's sensor noise (laser noise over its radius for the angle; the torque sensor's noise)
+    at the rig's sample rate."""
+    params = problem.family.parameters
+    idx = np.flatnonzero(free)
+    rows = np.repeat(values[None], idx.size + 1, axis=0)
+    for k, j in enumerate(idx):
+        z = params[j].to_z(values[j]) + FD_STEP
+        rows[k + 1, j] = params[j].to_value(z)
+    a, q = problem.simulate(rows)
+    if not np.all(np.isfinite(a[0])):
+        raise DroptowerError("the model does not simulate every candidate drop at its nominal parameters")
+    mask = problem.mask[None]  # each drop's own samples (the arrays are padded to the longest)
+    sa = np.where(mask, a[1:] - a[0][None], 0.0) / FD_STEP  # (p, T, N)
+    sq = np.where(mask, q[1:] - q[0][None], 0.0) / FD_STEP
+    sigma_a = max(rig.sensors.laser.noise_m / rig.sensors.laser.radius_m, 1e-9)
+    sigma_q = max(rig.sensors.torque.noise_nm, 1e-6)
+    # samples of the rig per evaluated sample: the information scales with the sample count
+    per = np.array([d.dt_s * rig.sensors.sample_rate_hz for d in decays])
+    fa = np.einsum("itn,jtn->tij", sa, sa) / sigma_a**2
+    fq = np.einsum("itn,jtn->tij", sq, sq) / sigma_q**2
+    return (fa + fq) * per[:, None, None]
+
+
+def _log_det(f: np.ndarray) -> float:
+    sign, value = np.linalg.slogdet(f)
+    return float(value) if sign > 0 else -math.inf
+
+
+def d_optimal(info: np.ndarray, n: int) -> list[int]:
+    """Indices (with repeats) of ``n`` drops maximising log det of their summed information
+    ``info`` (T, p, p): greedy forward choice, then Fedorov exchange."""
+    t, p, _ = info.shape
+    ridge = 1e-10 * np.trace(info.sum(axis=0)) / p * np.eye(p)  # fewer drops than parameters: still ranked
+    chosen: list[int] = []
+    total = ridge.copy()
+    for _ in range(n):
+        scores = [_log_det(total + info[i]) for i in range(t)]
+        best = int(np.argmax(scores))
+        chosen.append(best)
+        total = total + info[best]
+    for _ in range(EXCHANGE_PASSES):
+        improved = False
+        for k in range(n):
+            base = total - info[chosen[k]]
+            scores = [_log_det(base + info[i]) for i in range(t)]
+            best = int(np.argmax(scores))
+            if scores[best] > _log_det(total) + 1e-9:
+                total = base + info[best]
+                chosen[k] = best
+                improved = True
+        if not improved:
+            break
+    return sorted(chosen)
+
+
+def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target, model: str, n_tests: int,
+                              *, options: dict | None = None, reference: pd.DataFrame | None = None,
+                              candidates: pd.DataFrame | None = None) -> IdentificationDesign:
+    """The ``n_tests`` drops within ``target`` that identify ``model`` best on ``coupling``.
+
+    model: a drop-test family (``template``: ``coupling`` itself with its numbers as factors;
+    others: first fitted to the coupling's predicted decays over the candidates, so the design
+    is optimal where that fit says the parameters are); reference: another plan's conditions
+    (columns ``inertia_kgm2``, ``drop_mass_kg``, ``drop_height_m``) whose predicted standard
+    errors are reported beside the design's.
+    """
+    cands = predict_candidates(rig, coupling, (0.0,)) if candidates is None else candidates
+    feasible = _contiguous_feasible(cands)
+    (a0, a1), (f0, f1) = target.amplitude_deg, target.frequency_hz
+    pool = feasible[feasible["amplitude_ref_deg"].between(a0, a1) & feasible["frequency_hz"].between(f0, f1)]
+    if len(pool) < 2:
+        raise DroptowerError(f"fewer than two possible drops of rig {rig.name} lie in the target "
+                             f"{a0:g}-{a1:g} deg x {f0:g}-{f1:g} Hz", where="--for-identification")
+    pool = pool.reset_index(drop=True)
+    if reference is not None:
+        from droptower.rig.planner import plan
+
+        ref = plan(rig, coupling, reference.assign(case="reference", preload_nm=0.0, repeats=1))
+        pool = pd.concat([pool, ref], ignore_index=True)
+    decays = _decays(rig, pool)
+    settings = DropFitSettings(conditioning=(rig.simulation.preload_ramp_s, rig.simulation.preload_hold_s))
+    truth = family_class("template")(drop_scale(decays), {"template": coupling})
+    truth_problem = DropProblem(truth, decays, settings)
+    angle, torque = truth_problem.simulate(truth.guess()[None])
+    measured = [DropDecay(d.name, d.time_s, angle[0, i, :d.time_s.size], torque[0, i, :d.time_s.size],
+                          d.inertia_kgm2, d.rate0_rad_per_s, d.rate_source, d.frequency_hz, d.amplitude_rad, d.dt_s)
+                for i, d in enumerate(decays)]
+    opts = dict(options or {})
+    if model == "template":
+        opts.setdefault("template", coupling)
+        family = family_class(model)(drop_scale(measured), opts)
+        values = family.guess()
+    else:
+        fit = identify_drops(model, measured, settings=settings, options=opts)
+        family, values = fit.family, fit.values
+    problem = DropProblem(family, measured, settings)
+    free = np.array([p.name != "p" for p in family.parameters])
+    info = fisher_per_drop(problem, values, free, rig, measured)
+    n_pool = len(pool) - (len(reference) if reference is not None else 0)
+    chosen = d_optimal(info[:n_pool], n_tests)
+    total = info[chosen].sum(axis=0)
+    names = [p.name for p, f in zip(family.parameters, free) if f]
+    vals = values[free]
+    params = family.parameters
+
+    def std_of(f: np.ndarray) -> np.ndarray:
+        sz = np.sqrt(np.diag(np.linalg.pinv(f)))
+        return np.array([sz[k] * params[j].dvalue_dz(values[j]) for k, j in enumerate(np.flatnonzero(free))])
+
+    table = pd.DataFrame({"parameter": names, "value": vals, "std_error": std_of(total)})
+    table["relative_std_error"] = table["std_error"] / np.abs(table["value"])
+    if reference is not None:
+        ref_std = std_of(info[n_pool:].sum(axis=0))
+        table["reference_std_error"] = ref_std
+        table["reference_relative_std_error"] = ref_std / np.abs(table["value"])
+    counts = pd.Series(chosen).value_counts().sort_index()
+    cond = pool.iloc[counts.index].copy()
+    cond["repeats"] = counts.to_numpy()
+    return IdentificationDesign(model, cond.reset_index(drop=True), table, _log_det(total))
