@@ -17,7 +17,10 @@ comparison with the paper's measured map (Table 4), into one report folder.
    stiffness, <= 12 % damping ratio); the map-free check (drop tests placed on the servo points
    inside the tested hull: ``OUT/map_free_check.csv``), the coupling's loss-factor ratio, third
    harmonic and speed, and the targets of issue 9, each met or missed;
-5. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json``.
+5. the map form chosen by cross-validation (``droptower map --form auto``) on Table 4 and on the
+   campaign, its errors and time (not with ``--reduced``);
+6. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json`` (with the hashes of
+   the presets and source files it came from: ``analysis/provenance.py``; no machine paths).
 """
 from __future__ import annotations
 

@@ -189,30 +189,32 @@ def test_a_changed_preset_or_source_makes_the_stored_study_stale():
 
 
 #: The reduced study against the stored full study: (summary path, tolerance in points of the
-#: figure, why the two differ). Measured with rapp2022_nr60 (reduced - full): the differences in
-#: brackets; each tolerance leaves room for another coupling's curvature, not for a broken path.
+#: figure, why the two differ). In brackets the differences reduced - full measured with
+#: rapp2022_nr60 and with the calibration's `table4_only` candidate (same elements, other
+#: parameters; analysis/results/nr60_candidates.csv): each tolerance is about twice the larger,
+#: room for another coupling's curvature, not for a broken data path.
 REDUCED_VS_FULL = [
     (("table4", "campaign", "stiffness_rms_deviation_pct"), 0.4,
      "each Table-4 row is interpolated (in log amplitude) between 5 drop heights instead of 10; repeats and "
-     "preloads do not matter (the full study's per-preload figures agree within 0.02 points) [+0.13]"),
+     "preloads do not matter (the full study's per-preload figures agree within 0.05 points) [+0.13, +0.09]"),
     (("table4", "campaign", "damping_rms_deviation_pct"), 0.6,
-     "as the stiffness: interpolation between 5 instead of 10 drop heights [-0.21]"),
+     "as the stiffness: interpolation between 5 instead of 10 drop heights [-0.21, -0.18]"),
     (("table4", "map", "stiffness_rms_deviation_pct"), 0.3,
-     "eq. 19 fitted to 15 tests instead of 450 (the fits' own RMS errors: 0.08 vs 0.10 %) [-0.01]"),
+     "eq. 19 fitted to 15 tests instead of 450 (the fits' own RMS errors: 0.08 vs 0.10 %) [-0.01, +0.01]"),
     (("table4", "map", "damping_rms_deviation_pct"), 1.0,
-     "eq. 20 fitted to 15 tests instead of 450 (the fits' own damping RMS errors differ by 0.5 points) [+0.07]"),
+     "eq. 20 fitted to 15 tests instead of 450 (the fits' own damping RMS errors differ by 0.5 points) [+0.07, +0.01]"),
     (("servo_validation", "inside", "stiffness_rms_deviation_pct"), 0.5,
      "a smaller hull (5 heights, fewer servo steps): the RMS over 3 servo points instead of 7, whose single "
-     "deviations spread over 1.2-1.9 % [-0.18]"),
+     "deviations spread over 1.2-1.9 % [-0.18, -0.21]"),
     (("servo_validation", "inside", "damping_rms_deviation_pct"), 2.0,
-     "the RMS over 3 servo points instead of 7, whose single deviations spread up to 16.6 % [-0.73]"),
+     "the RMS over 3 servo points instead of 7, whose single deviations spread up to 16.6 % (24.6 %) [-0.73, -0.82]"),
     (("map_free_check", "decay_vs_servo", "stiffness_rms_deviation_pct"), 0.3,
      "decays placed on 3 servo points instead of 7; each point's deviation is the coupling's (the drop test's "
-     "first cycle against a steady sine), not the campaign's [-0.01]"),
+     "first cycle against a steady sine), not the campaign's [-0.01, -0.04]"),
     (("map_free_check", "decay_vs_servo", "damping_rms_deviation_pct"), 1.5,
-     "decays placed on 3 servo points instead of 7 (single deviations up to 13.3 %) [-0.14]"),
-    (("coupling_figures", "loss_factor_ratio"), 1e-9, "computed from the coupling alone, not from the campaign [0]"),
-    (("coupling_figures", "third_harmonic_pct"), 1e-6, "computed from the coupling alone [0]"),
+     "decays placed on 3 servo points instead of 7 (single deviations up to 13.3 % (19.0 %)) [-0.14, -0.66]"),
+    (("coupling_figures", "loss_factor_ratio"), 1e-9, "computed from the coupling alone, not from the campaign [0, 0]"),
+    (("coupling_figures", "third_harmonic_pct"), 1e-6, "computed from the coupling alone [0, 0]"),
 ]
 
 
