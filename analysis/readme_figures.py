@@ -37,11 +37,12 @@ BENCH_RESULTS = ROOT / "benchmarks" / "results"
 BENCHMARKS = {"core": "bench_core.py", "rig": "bench_rig.py", "extract": "bench_extract.py",
               "campaign": "bench_campaign.py", "identify": "bench_identify.py"}
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
-#: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8 and 30.1 ms within 15
-#: minutes at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
+#: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
+#: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
 MACHINE_NOISE = 2.5
 #: CPU times (of one thread), their ratios and effort counts of a re-run lie within this factor: other
-#: jobs do not stretch them (the extraction's CPU-time rate: 165 and 162 logs/s at load averages 10 and 12)
+#: jobs hardly stretch them (the same runs: 9.05 and 8.90 ms CPU time, solve_ivp ratio 141 and 142;
+#: the extraction's CPU-time rate 165 and 162 logs/s at load averages 10 and 12)
 CPU_NOISE = 1.25
 START, END = "<!-- figures:{} -->", "<!-- /figures -->"
 SPEED_TARGET = "real-time factor, 1 s at 38.4 kHz, single instance"  # a target of run_study.TARGETS
