@@ -2,10 +2,11 @@
 source files, so a test can tell a stale stored result from a current one.
 
 A stored result is stale when any hashed file has changed since it was computed. The source
-files hashed are every Python file of the package except the command-line layer (``cli/``,
-``__main__.py``) and the HTML report (``report/``): those only present results and write
-nothing the study stores. Hashing the rest (identification included: the lever's free decay
-may be shared with the rig) errs on the side of calling a result stale.
+files hashed are the study script (``analysis/run_study.py``) and every Python file of the
+package except the command-line layer (``cli/``, ``__main__.py``) and the HTML report
+(``report/``): those only present results and write nothing the study stores. Hashing the rest
+(identification included: the lever's free decay may be shared with the rig) errs on the side
+of calling a result stale.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from droptower.data import table4_path
 #: the one command that recomputes the stored study, the benchmarks' figures and the README's blocks
 REGENERATE = "python analysis/readme_figures.py"
 PACKAGE = Path(droptower.__file__).resolve().parent
+STUDY_SCRIPT = Path(__file__).resolve().parent / "run_study.py"
 #: folders and files of the package that cannot change a stored figure (presentation only)
 NOT_HASHED = ("cli", "report", "__main__.py")
 
@@ -31,10 +33,13 @@ def file_sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes().replace(b"\r\n", b"\n")).hexdigest()
 
 
-def source_files() -> list[Path]:
-    """The package's Python files a stored figure can depend on, sorted."""
-    return sorted(p for p in PACKAGE.rglob("*.py")
-                  if p.relative_to(PACKAGE).parts[0] not in NOT_HASHED and "__pycache__" not in p.parts)
+def source_files() -> dict[str, Path]:
+    """The Python files a stored figure can depend on, by a machine-independent name: the study
+    script and the package's modules (``droptower/...``), sorted."""
+    files = {f"analysis/{STUDY_SCRIPT.name}": STUDY_SCRIPT}
+    files.update((p.relative_to(PACKAGE.parent).as_posix(), p) for p in sorted(PACKAGE.rglob("*.py"))
+                 if p.relative_to(PACKAGE).parts[0] not in NOT_HASHED and "__pycache__" not in p.parts)
+    return files
 
 
 def input_files(rig: str, coupling: str, doe: str) -> dict[str, Path]:
@@ -45,7 +50,7 @@ def input_files(rig: str, coupling: str, doe: str) -> dict[str, Path]:
 
 def provenance(rig: str, coupling: str, doe: str) -> dict[str, Any]:
     """The hashes a stored study is checked against, and (informative, not checked) the versions it ran with."""
-    files = {p.relative_to(PACKAGE.parent).as_posix(): file_sha256(p) for p in source_files()}
+    files = {name: file_sha256(path) for name, path in source_files().items()}
     return {
         "regenerate": REGENERATE,
         "inputs_sha256": {name: file_sha256(path) for name, path in input_files(rig, coupling, doe).items()},

@@ -104,9 +104,10 @@ def disagreements(written: str, block: Block) -> list[str]:
     problems = []
     figures = [p for p in block if isinstance(p, Figure)]
     for found, figure in zip(match.groups(), figures):
+        if found == figure.text:
+            continue
         if figure.noise == 1.0:
-            if found != figure.text:
-                problems.append(f"{found} where the stored results give {figure.text}")
+            problems.append(f"{found} where the stored results give {figure.text}")
             continue
         have, want = float(found.replace(",", "")), float(figure.text.replace(",", ""))
         if want <= 0 or have <= 0 or abs(math.log(have / want)) > math.log(figure.noise) + 1e-12:
@@ -207,10 +208,11 @@ def map_auto(stored: dict[str, Any]) -> Block:
     t4, camp = auto["table4"], auto["campaign"]
     return fill(
         "`auto` fits and cross-validates 35 candidate equations (14 for the stiffness, 21 for c/d): {t4_s} s on "
-        f"Table 4, {{camp_s}} s on the {camp['n_tests']}-test campaign of the full study (`analysis/run_study.py`, "
-        "this machine), where it reaches {a_c} % / {a_ccv} % stiffness and {a_d} % / {a_dcv} % damping ratio RMS, "
+        f"Table 4, {{camp_s}} s on the {camp['n_tests']}-test campaign of the full study (`analysis/run_study.py`; "
+        "CPU time on this machine; wall time {t4_w} s and {camp_w} s on it as loaded then), where it reaches {a_c} % / {a_ccv} % stiffness and {a_d} % / {a_dcv} % damping ratio RMS, "
         "fit / cross-validated, against the paper form's {p_c} % / {p_ccv} % and {p_d} % / {p_dcv} %.\n",
-        t4_s=timed(t4["wall_s"], ".1f"), camp_s=timed(camp["wall_s"], ".1f"),
+        t4_s=on_cpu(t4["cpu_s"], ".1f"), camp_s=on_cpu(camp["cpu_s"], ".1f"),
+        t4_w=timed(t4["wall_s"], ".1f"), camp_w=timed(camp["wall_s"], ".1f"),
         a_c=exact(camp["stiffness_rms_error_pct"], ".2f"), a_ccv=exact(camp["stiffness_cv_rms_error_pct"], ".2f"),
         a_d=exact(camp["damping_ratio_rms_error_pct"], ".1f"), a_dcv=exact(camp["damping_ratio_cv_rms_error_pct"], ".1f"),
         p_c=exact(paper["stiffness_rms_error_pct"], ".2f"), p_ccv=exact(paper["stiffness_cv_rms_error_pct"], ".2f"),
@@ -245,11 +247,12 @@ def study_targets(stored: dict[str, Any]) -> Block:
     for i, (name, label, fmt, unit) in enumerate(rows):
         row, figures[f"t{i}"] = _target_row(targets[name], label, f"t{i}", fmt, unit)
         template += row
-    # the core's speed as the benchmark measures it (best of 7, benchmarks/bench_core.py), like the table of Benchmarks
-    rtf, limit = stored["core"]["figures"]["coupling_real_time_factor"], targets[SPEED_TARGET]["limit"]
-    template += (f"| core, 1 s at 38.4 kHz, single instance (`benchmarks/bench_core.py`) | {{rtf}}× real time | ≥ {limit:g}× "
-                 f"| {'met' if rtf >= limit else 'missed'} (this machine) |\n")
-    return fill(template, rtf=timed(rtf, ".0f"), **figures)
+    # the core's speed as the benchmark measures it (best of 7 on CPU time: one thread, the wall time of an
+    # idle machine; benchmarks/bench_core.py), like the table of Benchmarks
+    rtf, limit = 1e3 / stored["core"]["figures"]["coupling_single_1s_cpu_ms"], targets[SPEED_TARGET]["limit"]
+    template += (f"| core, 1 s at 38.4 kHz, single instance (`benchmarks/bench_core.py`, CPU time) | {{rtf}}× real time "
+                 f"| ≥ {limit:g}× | {'met' if rtf >= limit else 'missed'} (this machine) |\n")
+    return fill(template, rtf=on_cpu(rtf, ".0f"), **figures)
 
 
 def study_results(stored: dict[str, Any]) -> Block:

@@ -173,6 +173,7 @@ def test_a_changed_preset_or_source_makes_the_stored_study_stale():
     provenance = _analysis_module("provenance")
     current = provenance.provenance("rapp2022", "rapp2022_nr60", "rapp2022_table2")
     assert provenance.stale_reasons(current, current) == []
+    assert "analysis/run_study.py" in current["source_files_sha256"]
     assert any(f.endswith("rheology/kernels.py") for f in current["source_files_sha256"])
     assert not any(f.startswith(("droptower/cli/", "droptower/report/")) for f in current["source_files_sha256"])
     edited = json.loads(json.dumps(current))
