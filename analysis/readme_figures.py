@@ -194,7 +194,8 @@ def identify_drops(stored: dict[str, Any]) -> Block:
         "`benchmarks/bench_identify.py`): elastoslide K' {e_k} % / loss factor {e_l} % RMS, zerodim6-type {z_k} % / "
         "{z_l} %, masing-type {m_k} % / {m_l} % (acceptance ≤ 3 % / ≤ 10 %). On the Table-2 campaign of "
         f"`rapp2022_nr60` ({t2['tests']} tests used) its own composition (`template`, the elements' settings such as "
-        "the power-law band kept) converges in {wall} s ({evals} evaluations) with an angle nRMSE of {fit} % "
+        "the power-law band kept) converges in {wall} s of wall time at the load stated under Benchmarks ({evals} "
+        "evaluations) with an angle nRMSE of {fit} % "
         "(hold-out {hold} %).\n",
         **{f"{k[0]}_k": exact(d[k]["storage_stiffness_rms_pct"], ".2f") for k in ("elastoslide", "zerodim6", "masing")},
         **{f"{k[0]}_l": exact(d[k]["loss_factor_rms_pct"], ".2f") for k in ("elastoslide", "zerodim6", "masing")},

@@ -132,7 +132,6 @@ def test_stored_full_study_is_table4_and_consistent(stored):
                                        100 * (stored[f"{source}_{q}"] / stored[q] - 1), rtol=1e-9)
 
 
-
 def test_stored_full_study_targets(stored):
     """Issue 9's targets in the stored full study: each one's flag says what its value says, the
     Table-4 figures are those of the stored comparison, no machine path is stored, and the
