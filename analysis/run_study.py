@@ -17,7 +17,10 @@ comparison with the paper's measured map (Table 4), into one report folder.
    stiffness, <= 12 % damping ratio); the map-free check (drop tests placed on the servo points
    inside the tested hull: ``OUT/map_free_check.csv``), the coupling's loss-factor ratio, third
    harmonic and speed, and the targets of issue 9, each met or missed;
-5. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json``.
+5. the map form chosen by cross-validation (``droptower map --form auto``) on Table 4 and on the
+   campaign, its errors and time (not with ``--reduced``);
+6. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json`` (with the hashes of
+   the presets and source files it came from: ``analysis/provenance.py``; no machine paths).
 """
 from __future__ import annotations
 
@@ -39,7 +42,7 @@ from droptower.campaign.folder import write_json
 from droptower.compare import compare_reference, format_comparison, format_summary, run_sweeps, validate_map
 from droptower.compare.files import write_csv, write_validation
 from droptower.compare.mapfree import MapFreeCheck, format_check, run_check
-from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG, read_toml, resolve
+from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG, preset_dir, read_toml, resolve
 from droptower.data import table4_path
 from droptower.errors import DroptowerError
 from droptower.maps import fit_map, select_tests
@@ -47,6 +50,7 @@ from droptower.maps.plots import plot_all
 from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
 from droptower.servo.steady import rubber_figures
+from provenance import provenance  # analysis/provenance.py
 
 REFERENCE = table4_path()  # seed 004 Table 4, shipped with the package
 REDUCED_HEIGHTS_M = [0.05, 0.4, 1.0, 3.5, 6.0]
@@ -168,6 +172,8 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     by_preload = {f"{p:g}": compare_reference(table4, None, results, p)[1]["campaign"]
                   for p in sorted(results["preload_nm"].unique())} if results["preload_nm"].nunique() > 1 else {}
     plot_table4(comparison, results, out / TABLE4_FIGURE)
+    # 5. the map form chosen by cross-validation (droptower map --form auto): its errors and time
+    auto = None if reduced else {"table4": auto_map(table4), "campaign": auto_map(results)}
 
     summary = {
         "reduced": reduced, "coupling": run.spec.coupling.name, "coupling_file": portable_path(run.spec.coupling.path),
@@ -178,7 +184,8 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
         "map_fit": {k: v for k, v in fit.to_dict()["fit"].items()}, "map_range": fit.to_dict()["range"],
         "servo_validation": validation.summary, "map_free_check": check.summary if check is not None else None,
         "coupling_figures": rubber, "table4": comparison_summary, "table4_by_preload_nm": by_preload,
-        "campaign_wall_s": t_campaign, "study_wall_s": time.perf_counter() - t0,
+        "map_auto": auto, "campaign_wall_s": t_campaign, "study_wall_s": time.perf_counter() - t0,
+        "provenance": provenance(*(run.spec.inputs[kind]["file"] for kind in ("rig", "coupling", "doe"))),
     }
     summary["targets"] = target_table(summary)
     write_json(out / "summary.json", summary)
@@ -208,11 +215,21 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     return summary
 
 
+def auto_map(table: pd.DataFrame) -> dict[str, Any]:
+    """``droptower map --form auto`` on ``table``: fit and cross-validated errors, the chosen
+    equations, the wall time and the CPU time of this process (s, this machine)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    fit = fit_map(table, form="auto").to_dict()
+    return {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, **fit["fit"],
+            "equations": fit["equations"]}
+
+
 def portable_path(path: Path) -> str:
-    """A path without this machine's folders: relative to the repository or the installed
-    package's presets (``rig_configs/couplings/x.toml``) when inside them, else the file name."""
+    """A path without this machine's folders: relative to the package's presets
+    (``rig_configs/couplings/x.toml``) or the repository when inside them, else the file name."""
     path = Path(path).resolve()
-    for root in (Path(__file__).resolve().parents[1], Path(resolve(DEFAULT_RIG, "rigs")).resolve().parents[1].parent):
+    # the presets first: an installed package may sit inside the repository (.venv/lib/...)
+    for root in (preset_dir("rigs").resolve().parent.parent, Path(__file__).resolve().parents[1]):
         try:
             return path.relative_to(root).as_posix()
         except ValueError:
@@ -221,16 +238,17 @@ def portable_path(path: Path) -> str:
 
 
 def real_time_factor(coupling, rate_hz: float = 38_400.0, repeats: int = 5) -> float:
-    """Simulated seconds per second of wall time: 1 s of a 30 Hz, 1.5 deg sine at 38.4 kHz,
+    """Simulated seconds per second of CPU time: 1 s of a 30 Hz, 1.5 deg sine at 38.4 kHz,
     single instance, best of ``repeats`` (benchmarks/bench_core.py measures it against its
-    baseline)."""
+    baseline). A single instance runs on one thread, so its CPU time is the wall time of an idle
+    machine, which other jobs on a shared machine do not stretch."""
     x = np.radians(1.5) * np.sin(2 * np.pi * 30.0 * np.arange(1, int(rate_hz) + 1) / rate_hz)
     coupling.simulate(x[:100], 1 / rate_hz, record_energy=False)  # compiled before timing
     best = np.inf
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         coupling.simulate(x, 1 / rate_hz, record_energy=False)
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, time.process_time() - t0)
     return float(1.0 / best)
 
 

@@ -24,6 +24,7 @@ from droptower.campaign.executors import local_cores
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 from droptower.extract.files import Settings, extract_file
 from droptower.rig.simulate import as_tests, simulate
+from timing import json_option, write_figures
 
 TARGET_S = 60.0
 TARGET_MB = 2048.0
@@ -53,6 +54,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="local worker processes (default: every core)")
     ap.add_argument("--coupling", default=DEFAULT_COUPLING)
     ap.add_argument("--keep", type=Path, default=None, help="keep the campaign folder here")
+    json_option(ap)
     args = ap.parse_args()
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_campaign_"))
@@ -84,6 +86,9 @@ def main() -> None:
         print(f"baseline (one test per simulate() call, one process; timed on {sampled} tests): "
               f"{1e3 * per_test:.1f} ms per test -> {naive:.1f} s for {total} tests")
         print(f"speed-up over the baseline: {naive / wall:.1f}x")
+        write_figures(args.json, "bench_campaign", {
+            "coupling": run.spec.coupling.name, "tests": n, "workers": workers, "wall_s": wall, "cpu_s": cpu,
+            "peak_memory_bound_mb": bound, "baseline_s": naive, "speed_up": naive / wall})
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
         if args.keep is None:

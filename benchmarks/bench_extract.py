@@ -22,6 +22,7 @@ from droptower.extract.files import Settings
 from droptower.extract.synthetic import SyntheticDrop
 from droptower.io.mapping import map_channels
 from droptower.io.readers import read_any
+from timing import json_option, write_figures
 
 SAMPLES = 10_000
 RATE = 38_400.0
@@ -80,7 +81,9 @@ def run_naive(paths: list[Path], clock=time.perf_counter) -> tuple[float, list[f
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--logs", type=int, default=200)
+    json_option(parser)
     args = parser.parse_args()
+    figures = {"logs": args.logs}
     with tempfile.TemporaryDirectory() as tmp:
         paths = make_logs(Path(tmp), args.logs)
         run_droptower(paths[:5])  # warm-up: imports, caches
@@ -98,8 +101,12 @@ def main() -> None:
             print(f"    fitting {100 * fit / total:5.1f} %  ({1e3 * fit / len(paths):.2f} ms/log)")
             print(f"  naive baseline (pandas.read_csv + scipy curve_fit): {naive_rate:7.1f} logs/s")
             print(f"  ratio droptower / naive: {rate / naive_rate:.2f}x")
+            key = "wall" if clock is time.perf_counter else "cpu"
+            figures.update({f"{key}_logs_per_s": rate, f"{key}_parsing_share_pct": 100 * parse / total,
+                            f"{key}_naive_logs_per_s": naive_rate})
     spread = np.median(np.abs(np.array(ours) / np.array(theirs) - 1))
     print(f"median |c_droptower / c_naive - 1| = {spread:.2e} (same model, both converge)")
+    write_figures(args.json, "bench_extract", figures)
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ from droptower.identify.families import ZeroDim6
 from droptower.identify.families.stages import setup
 from droptower.rheology import parse_coupling
 from droptower.servo import histories as H
+from timing import json_option, write_figures
 
 FS = 2048.0
 D = np.radians
@@ -94,7 +95,7 @@ def run(kind: str, truth, scale: float) -> tuple[float, object, list, float]:
 DROP_TRUTHS = json.loads((Path(__file__).resolve().parents[1] / "tests" / "data" / "unknown_couplings.json").read_text())
 
 
-def drops() -> None:
+def drops() -> dict[str, dict[str, float]]:
     import tempfile
     from pathlib import Path
 
@@ -106,6 +107,7 @@ def drops() -> None:
 
     rig = load_rig("rapp2022")
     cases = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+    figures = {}
     heights = (0.1, 0.4, 1.0, 3.0)
     with tempfile.TemporaryDirectory() as tmp:
         for kind, data in DROP_TRUTHS.items():
@@ -129,9 +131,13 @@ def drops() -> None:
                   f"{100 * agree['loss_factor_rms']:.2f} % RMS (max {100 * agree['loss_factor_max']:.2f} %); "
                   f"baseline: the rig simulating the 12 tests {t_rig:.1f} s -> ratio {wall / t_rig:.1f}; targets "
                   f"{'met' if agree['storage_stiffness_rms'] <= 0.03 and agree['loss_factor_rms'] <= 0.10 and wall <= 60 else 'MISSED'}")
+            figures[kind] = {"tests": len(decays), "wall_s": wall, "evaluations": result.evaluations, "rig_s": t_rig,
+                             "storage_stiffness_rms_pct": 100 * agree["storage_stiffness_rms"],
+                             "loss_factor_rms_pct": 100 * agree["loss_factor_rms"]}
+    return figures
 
 
-def table2() -> None:
+def table2() -> dict[str, float]:
     import tempfile
 
     from droptower.campaign import run_campaign
@@ -151,6 +157,9 @@ def table2() -> None:
           f"{100 * result.fit_error['angle_nrmse']:.3f} %, hold-out {100 * result.holdout_error['angle_nrmse']:.3f} %; "
           f"baseline: the campaign itself (simulate, log, extract) {t_campaign:.1f} s -> ratio {wall / t_campaign:.1f}; "
           f"target <= 300 s: {'met' if wall <= 300 else 'MISSED'}")
+    return {"tests": len(decays), "wall_s": wall, "evaluations": result.evaluations, "campaign_s": t_campaign,
+            "angle_nrmse_fit_pct": 100 * result.fit_error["angle_nrmse"],
+            "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"]}
 
 
 def main() -> None:
@@ -158,12 +167,15 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="15 s of data instead of 60 s")
     parser.add_argument("--drops", action="store_true", help="only the drop-test identification")
     parser.add_argument("--servo", action="store_true", help="only the servo-record identification")
+    json_option(parser)
     args = parser.parse_args()
+    figures = {}
     if not args.servo:
-        drops()
+        figures["drops"] = drops()
         if not args.quick:
-            table2()
+            figures["table2"] = table2()
         if args.drops:
+            write_figures(args.json, "bench_identify", figures)
             return
     scale = 0.25 if args.quick else 1.0
 
@@ -201,6 +213,9 @@ def main() -> None:
         {"kind": "elastoslide", "phi0": 0.01, "k": 20000.0, "k0": 3000.0, "v_r": 0.05, "p": 7}]})
     wall_es, r_es, *_ = run("elastoslide", truth, scale)
 
+    figures["servo"] = {"seconds_of_data": seconds, "zerodim6_wall_s": wall6, "zerodim6_evaluations": r6.evaluations,
+                        "elastoslide_wall_s": wall_es, "elastoslide_evaluations": r_es.evaluations}
+    write_figures(args.json, "bench_identify", figures)
     if not args.quick:
         print(f"targets: zerodim6 {wall6:.2f} s <= 10 s: {'met' if wall6 <= 10 else 'MISSED'}; "
               f"elastoslide {wall_es:.2f} s <= 60 s: {'met' if wall_es <= 60 else 'MISSED'}")

@@ -26,7 +26,7 @@ from droptower.rheology import load_coupling
 from droptower.rig.config import load_doe, load_rig
 from droptower.rig.scene import DropTowerScenes
 from droptower.rig.simulate import DropTest, simulate
-from timing import best_of
+from timing import best_of, json_option, write_figures
 
 DURATION_S = 0.25
 
@@ -50,6 +50,7 @@ def main() -> None:
     parser.add_argument("--coupling", default="rapp2022_nr60")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--quick", action="store_true", help="90 tests instead of 450 (a smoke run)")
+    json_option(parser)
     args = parser.parse_args()
 
     rig = load_rig("rapp2022")
@@ -78,6 +79,9 @@ def main() -> None:
     worst = max(r.energy_balance_error for r in results)
     print(f"   check: worst energy balance error {100 * worst:.3f} %, "
           f"{sum(r.double_impact for r in results)} double impacts")
+    write_figures(args.json, "bench_rig", {
+        "coupling": coupling.name, "single_test_s": single, "bare_pymunk_s": bare, "tests": len(tests),
+        "workers": args.workers, "batched_s": batched, "batched_per_test_ms": 1e3 * per_test})
 
 
 if __name__ == "__main__":

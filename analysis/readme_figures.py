@@ -1,0 +1,403 @@
+"""The README's figures from one place: the stored full study (``analysis/results/summary.json``)
+and the benchmarks' figures (``benchmarks/results/*.json``), rendered into the blocks that
+``README.md`` and ``analysis/README.md`` mark with ``<!-- figures:NAME -->`` ... ``<!-- /figures -->``.
+
+    python analysis/readme_figures.py                # re-run the full study and every benchmark,
+                                                     # store their results, rewrite the blocks
+    python analysis/readme_figures.py --render-only  # rewrite the blocks from the stored results
+    python analysis/readme_figures.py --skip-benchmarks | --skip-study
+
+``tests/test_readme_figures.py`` renders every block from the stored results and fails when a
+README disagrees with it: figures of the study and accuracies exactly as printed; times, rates
+and effort counts within :data:`MACHINE_NOISE` or :data:`CPU_NOISE` (stated in the README next to
+them), so a re-run benchmark on the same machine class needs no README change.
+"""
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import math
+import re
+import shutil
+import string
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY_RESULTS = ROOT / "analysis" / "results"
+#: the study's files that are stored (the rest of its report folder is regenerated at will)
+STUDY_FILES = ("summary.json", "table4_comparison.csv")
+BENCH_RESULTS = ROOT / "benchmarks" / "results"
+#: stored benchmark figures: name -> the script that writes them with ``--json``
+BENCHMARKS = {"core": "bench_core.py", "rig": "bench_rig.py", "extract": "bench_extract.py",
+              "campaign": "bench_campaign.py", "identify": "bench_identify.py"}
+#: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
+#: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
+#: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
+MACHINE_NOISE = 2.5
+#: CPU times (of one thread), their ratios and effort counts of a re-run lie within this factor: other
+#: jobs hardly stretch them (the same runs: 9.05 and 8.90 ms CPU time, solve_ivp ratio 141 and 142;
+#: the extraction's CPU-time rate 165 and 162 logs/s at load averages 10 and 12)
+CPU_NOISE = 1.25
+START, END = "<!-- figures:{} -->", "<!-- /figures -->"
+SPEED_TARGET = "real-time factor, 1 s at 38.4 kHz, single instance"  # a target of run_study.TARGETS
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One number of a block: as printed, and the factor a re-run may differ by (1: must read the same)."""
+
+    text: str
+    noise: float = 1.0
+
+
+def exact(value: float, fmt: str) -> Figure:
+    """A figure that must read exactly as the stored value prints (computed, not timed)."""
+    return Figure(format(value, fmt))
+
+
+def timed(value: float, fmt: str) -> Figure:
+    """A wall time (or a rate, or a figure that depends on one): equal within :data:`MACHINE_NOISE`."""
+    return Figure(format(value, fmt), MACHINE_NOISE)
+
+
+def on_cpu(value: float, fmt: str) -> Figure:
+    """A CPU time, a ratio of CPU times or an effort count: equal within :data:`CPU_NOISE`."""
+    return Figure(format(value, fmt), CPU_NOISE)
+
+
+Block = list  # of str (text) and Figure (numbers), in order
+
+
+def fill(template: str, **figures: Figure) -> Block:
+    """``template`` with its ``{name}`` fields replaced by ``figures`` (kept apart for the check)."""
+    pieces: Block = []
+    for literal, field, _, _ in string.Formatter().parse(template):
+        pieces.append(literal)
+        if field is not None:
+            pieces.append(figures[field])
+    return pieces
+
+
+def text(block: Block) -> str:
+    return "".join(p.text if isinstance(p, Figure) else p for p in block)
+
+
+NUMBER = r"(-?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?)"
+
+
+def disagreements(written: str, block: Block) -> list[str]:
+    """Where ``written`` (a README's block) disagrees with ``block`` rendered from the stored results:
+    [] when the words are the same, every computed figure reads the same and every measured one lies
+    within its noise (:data:`MACHINE_NOISE`, :data:`CPU_NOISE`)."""
+    pattern = "".join(NUMBER if isinstance(p, Figure) else re.escape(p) for p in block)
+    match = re.fullmatch(r"\n*" + pattern + r"\n*", written)  # the blank lines around a block do not count
+    if match is None:
+        diff = difflib.unified_diff(written.strip("\n").splitlines(), text(block).strip("\n").splitlines(),
+                                    "README", "rendered from the stored results", lineterm="", n=0)
+        return ["the words differ:\n" + "\n".join(diff)]
+    problems = []
+    figures = [p for p in block if isinstance(p, Figure)]
+    for found, figure in zip(match.groups(), figures):
+        if found == figure.text:
+            continue
+        if figure.noise == 1.0:
+            problems.append(f"{found} where the stored results give {figure.text}")
+            continue
+        have, want = float(found.replace(",", "")), float(figure.text.replace(",", ""))
+        if want <= 0 or have <= 0 or abs(math.log(have / want)) > math.log(figure.noise) + 1e-12:
+            problems.append(f"{found} where the stored benchmark gives {figure.text} (beyond the machine noise, "
+                            f"a factor {figure.noise:g})")
+    return problems
+
+
+# --- the blocks -----------------------------------------------------------------------------
+
+def load_stored() -> dict[str, Any]:
+    """The stored study summary (``study``) and each stored benchmark's figures (by name)."""
+    stored = {"study": json.loads((STUDY_RESULTS / "summary.json").read_text())}
+    for name in BENCHMARKS:
+        stored[name] = json.loads((BENCH_RESULTS / f"{name}.json").read_text())
+    return stored
+
+
+def pct(value: float) -> str:
+    """A deviation in % with three significant figures at most (5.30, 11.4, 0.12)."""
+    return ".2f" if abs(value) < 10 else ".1f"
+
+
+def machine_line(records: list[dict[str, Any]]) -> Block:
+    m = records[0]["machine"]
+    loads = [r["machine"][k] for r in records for k in ("load_average_start", "load_average_end")]
+    return fill(f"Measured {m['date']} on {m['cores']} cores ({m['processor']}, Python {m['python']}), load "
+                "average {lo}–{hi}. Times are best-of-N wall times, which other jobs on the machine stretch (the "
+                f"load average says how much): a re-run on this machine class lands within a factor {MACHINE_NOISE:g} "
+                f"of them, CPU times, their ratios and evaluation counts within a factor {CPU_NOISE:g} (the machine "
+                "noise `tests/test_readme_figures.py` allows). The scripts print the baseline measured in the same "
+                "run.\n",
+                lo=timed(min(loads), ".1f"), hi=timed(max(loads), ".1f"))
+
+
+def bench_table(stored: dict[str, Any]) -> Block:
+    core, rig, ext, camp, ident = (stored[k]["figures"] for k in ("core", "rig", "extract", "campaign", "identify"))
+    drops = ident["drops"].values()
+    walls = [d["wall_s"] for d in drops]
+    ratios = [d["wall_s"] / d["rig_s"] for d in drops]
+    elements = " + ".join(core["coupling_elements"])
+    return machine_line([stored[k] for k in BENCHMARKS]) + fill(
+        "\n| benchmark | figure | target |\n|---|---|---|\n"
+        "| core, a 32-element rate-dependent elastoslide composition (spring + elastoslide with p = 7 + two Maxwell "
+        "branches), 1 s at 38.4 kHz | {c_ms} ms ({c_rt}× real time; CPU time {c_cpu} ms) | ≤ 10 ms |\n"
+        f"| core, the reference coupling `{core['coupling']}` ({elements}), 1 s at 38.4 kHz "
+        "| {n_ms} ms ({n_rt}× real time; CPU time {n_cpu} ms) | ≥ 100× |\n"
+        f"| core, batch of 450 × 0.25 s of `{core['coupling']}` at 38.4 kHz | {{batch}} s | ≤ 2 s |\n"
+        "| core vs `scipy.integrate.solve_ivp` (Radau, analytic Jacobian) on the elastoslide composition, equal "
+        "peak-torque accuracy (≤ 0.5 %), CPU time, best of N each | {ivp}× faster | ≥ 100× |\n"
+        "| rig, one 0.25 s drop test at 38.4 kHz, reference coupling | {rig1} s | ≤ 0.3 s |\n"
+        f"| rig, {rig['tests']} tests batched, {rig['workers']} workers | {{rigb}} s | ≤ 30 s |\n"
+        "| extraction, 10 000-sample CSV logs, parsing included | {ext} logs/s ({ext_cpu} on CPU time; parsing {share} %) "
+        "| ≥ 100 logs/s |\n"
+        "| campaign, Table 2 (450 tests simulated, logged, extracted) | {camp} s, peak memory ≤ {mem} GB "
+        "| ≤ 60 s, ≤ 2 GB |\n"
+        f"| identification, {ident['servo']['seconds_of_data']:.0f} s of 2048 Hz data | six-parameter {{z6}} s "
+        "({z6e} evaluations), elastoslide {es} s ({ese}) | ≤ 10 s, ≤ 60 s |\n"
+        "| identification from 12 drop tests (elastoslide, zerodim6-type, masing-type) | {dlo}–{dhi} s each "
+        "({rlo}–{rhi}× the rig simulating the same tests) | ≤ 60 s |\n"
+        "| identification from the Table-2 campaign (450 tests), `template rapp2022_nr60` | {t2} s "
+        "({t2r}× the campaign itself) | ≤ 5 min |\n",
+        c_ms=timed(core["composition_single_1s_ms"], ".1f"), c_rt=timed(core["composition_real_time_factor"], ".0f"),
+        n_ms=timed(core["coupling_single_1s_ms"], ".1f"), n_rt=timed(core["coupling_real_time_factor"], ".0f"),
+        c_cpu=on_cpu(core["composition_single_1s_cpu_ms"], ".1f"), n_cpu=on_cpu(core["coupling_single_1s_cpu_ms"], ".1f"),
+        batch=timed(core["batch_450_s"], ".2f"), ivp=on_cpu(core["solve_ivp_over_core"], ".0f"),
+        rig1=timed(rig["single_test_s"], ".2f"), rigb=timed(rig["batched_s"], ".1f"),
+        ext=timed(ext["wall_logs_per_s"], ".0f"), ext_cpu=on_cpu(ext["cpu_logs_per_s"], ".0f"),
+        share=timed(ext["wall_parsing_share_pct"], ".0f"),
+        camp=timed(camp["wall_s"], ".1f"), mem=timed(camp["peak_memory_bound_mb"] / 1024, ".2f"),
+        z6=timed(ident["servo"]["zerodim6_wall_s"], ".1f"), z6e=on_cpu(ident["servo"]["zerodim6_evaluations"], "d"),
+        es=timed(ident["servo"]["elastoslide_wall_s"], ".1f"), ese=on_cpu(ident["servo"]["elastoslide_evaluations"], "d"),
+        dlo=timed(min(walls), ".0f"), dhi=timed(max(walls), ".0f"), rlo=timed(min(ratios), ".1f"),
+        rhi=timed(max(ratios), ".1f"), t2=timed(ident["table2"]["wall_s"], ".0f"),
+        t2r=timed(ident["table2"]["wall_s"] / ident["table2"]["campaign_s"], ".1f"))
+
+
+def identify_drops(stored: dict[str, Any]) -> Block:
+    ident = stored["identify"]["figures"]
+    d, t2 = ident["drops"], ident["table2"]
+    return fill(
+        "Measured (virtual campaigns of couplings the fit does not know, rig sensor noise, 12 tests over the three "
+        "inertias and heights 0.1–3 m; servo grid 4 amplitudes × 3 frequencies inside the tested range; "
+        "`benchmarks/bench_identify.py`): elastoslide K' {e_k} % / loss factor {e_l} % RMS, zerodim6-type {z_k} % / "
+        "{z_l} %, masing-type {m_k} % / {m_l} % (acceptance ≤ 3 % / ≤ 10 %). On the Table-2 campaign of "
+        f"`rapp2022_nr60` ({t2['tests']} tests used) its own composition (`template`, the elements' settings such as "
+        "the power-law band kept) converges in {wall} s of wall time at the load stated under Benchmarks ({evals} "
+        "evaluations) with an angle nRMSE of {fit} % "
+        "(hold-out {hold} %).\n",
+        **{f"{k[0]}_k": exact(d[k]["storage_stiffness_rms_pct"], ".2f") for k in ("elastoslide", "zerodim6", "masing")},
+        **{f"{k[0]}_l": exact(d[k]["loss_factor_rms_pct"], ".2f") for k in ("elastoslide", "zerodim6", "masing")},
+        wall=timed(t2["wall_s"], ".0f"), evals=on_cpu(t2["evaluations"], "d"),
+        fit=exact(t2["angle_nrmse_fit_pct"], ".2f"), hold=exact(t2["angle_nrmse_holdout_pct"], ".2f"))
+
+
+def map_auto(stored: dict[str, Any]) -> Block:
+    s = stored["study"]
+    auto, paper = s["map_auto"], s["map_fit"]
+    t4, camp = auto["table4"], auto["campaign"]
+    return fill(
+        "`auto` fits and cross-validates 35 candidate equations (14 for the stiffness, 21 for c/d): {t4_s} s on "
+        f"Table 4, {{camp_s}} s on the {camp['n_tests']}-test campaign of the full study (`analysis/run_study.py`; "
+        "CPU time on this machine; wall time {t4_w} s and {camp_w} s on it as loaded then), where it reaches {a_c} % / {a_ccv} % stiffness and {a_d} % / {a_dcv} % damping ratio RMS, "
+        "fit / cross-validated, against the paper form's {p_c} % / {p_ccv} % and {p_d} % / {p_dcv} %.\n",
+        t4_s=on_cpu(t4["cpu_s"], ".1f"), camp_s=on_cpu(camp["cpu_s"], ".1f"),
+        t4_w=timed(t4["wall_s"], ".1f"), camp_w=timed(camp["wall_s"], ".1f"),
+        a_c=exact(camp["stiffness_rms_error_pct"], ".2f"), a_ccv=exact(camp["stiffness_cv_rms_error_pct"], ".2f"),
+        a_d=exact(camp["damping_ratio_rms_error_pct"], ".1f"), a_dcv=exact(camp["damping_ratio_cv_rms_error_pct"], ".1f"),
+        p_c=exact(paper["stiffness_rms_error_pct"], ".2f"), p_ccv=exact(paper["stiffness_cv_rms_error_pct"], ".2f"),
+        p_d=exact(paper["damping_ratio_rms_error_pct"], ".1f"), p_dcv=exact(paper["damping_ratio_cv_rms_error_pct"], ".1f"))
+
+
+def _target_row(target: dict[str, Any], label: str, key: str, fmt: str, unit: str) -> tuple[str, Figure]:
+    """A row of the targets table: the label, ``{key}`` for the figure, the limit and met or missed."""
+    value, limit = target["value"], target["limit"]
+    verdict = "met" if target["met"] else f"missed by {abs(value - limit):.1f} points" if unit else "missed"
+    return (f"| {label} | {{{key}}}{unit} | {'≤' if target['kind'] == 'max' else '≥'} {limit:g}{unit} | {verdict} |\n",
+            exact(value, fmt))
+
+
+def study_targets(stored: dict[str, Any]) -> Block:
+    s = stored["study"]
+    targets = {t["target"]: t for t in s["targets"]}
+    inside = s["servo_validation"]["inside"]
+    rows = [
+        ("campaign vs Table 4, stiffness rms %", "campaign vs Table 4, stiffness RMS", ".2f", " %"),
+        ("campaign vs Table 4, damping ratio rms %", "campaign vs Table 4, damping ratio RMS", ".1f", " %"),
+        ("map vs servo inside the hull, stiffness rms %", "map vs servo inside the tested hull, stiffness RMS", ".1f", " %"),
+        ("map vs servo inside the hull, damping ratio rms %",
+         "map vs servo inside the tested hull, damping ratio RMS (η: {eta} %, r: {r} %)", ".1f", " %"),
+        ("loss factor 1 Hz / 30 Hz at 1.5 deg", "loss factor at 1 Hz / at 30 Hz (1.5°)", ".2f", ""),
+        ("third harmonic at 1.5 deg, 30 Hz, % of fundamental", "third harmonic at 1.5°, 30 Hz, % of the fundamental",
+         ".1f", " %"),
+    ]
+    template = "| target | figure | limit | |\n|---|---|---|---|\n"
+    figures = {"eta": exact(inside["loss_factor_rms_deviation_pct"], ".1f"),
+               "r": exact(inside["decay_ratio_rms_deviation_pct"], ".1f")}
+    for i, (name, label, fmt, unit) in enumerate(rows):
+        row, figures[f"t{i}"] = _target_row(targets[name], label, f"t{i}", fmt, unit)
+        template += row
+    # the core's speed as the benchmark measures it (best of 7 on CPU time: one thread, the wall time of an
+    # idle machine; benchmarks/bench_core.py), like the table of Benchmarks
+    rtf, limit = 1e3 / stored["core"]["figures"]["coupling_single_1s_cpu_ms"], targets[SPEED_TARGET]["limit"]
+    template += (f"| core, 1 s at 38.4 kHz, single instance (`benchmarks/bench_core.py`, CPU time) | {{rtf}}× real time "
+                 f"| ≥ {limit:g}× | {'met' if rtf >= limit else 'missed'} (this machine) |\n")
+    return fill(template, rtf=on_cpu(rtf, ".0f"), **figures)
+
+
+def study_results(stored: dict[str, Any]) -> Block:
+    """The table of analysis/README.md: every comparison of the stored full study."""
+    s = stored["study"]
+    t4, sv, mf = s["table4"], s["servo_validation"], s["map_free_check"]
+    figures: dict[str, Figure] = {}
+
+    def f(key: str, value: float, fmt: str | None = None) -> str:
+        figures[key] = exact(value, fmt or pct(value))
+        return "{" + key + "}"
+
+    def rms(key: str, part: dict[str, Any], name: str, with_max: bool = True) -> str:
+        shown = f"{f(key, part[f'{name}_rms_deviation_pct'])} %"
+        return shown + (f" ({f(key + 'x', part[f'{name}_max_deviation_pct'])} %)" if with_max else "")
+
+    pre = s["table4_by_preload_nm"]
+    preloads = " / ".join(pre)
+    rows = [
+        "| comparison | stiffness RMS (max) | damping ratio RMS (max) | target |\n|---|---|---|---|\n",
+        f"| campaign vs Table 4 at each row's case and amplitude | {rms('cs', t4['campaign'], 'stiffness')} | "
+        f"{rms('cd', t4['campaign'], 'damping')} | ≤ 5 %, ≤ 12 % |\n",
+    ]
+    if pre:
+        rows.append(f"| campaign vs Table 4, per preload {preloads} N·m | "
+                    + " / ".join(f(f"ps{i}", v["stiffness_rms_deviation_pct"], ".2f") for i, v in enumerate(pre.values()))
+                    + " % | " + " / ".join(f(f"pd{i}", v["damping_rms_deviation_pct"], ".2f")
+                                           for i, v in enumerate(pre.values())) + " % | no preload effect |\n")
+    rows += [
+        f"| map (eq. 19/20) vs Table 4 | {rms('ms', t4['map'], 'stiffness', False)} | "
+        f"{rms('md', t4['map'], 'damping', False)} | — |\n",
+        f"| map vs servo, inside the tested hull ({sv['inside']['n_points']} points) | {rms('is', sv['inside'], 'stiffness')}"
+        f" | {rms('id', sv['inside'], 'damping')}; eta {f('ie', sv['inside']['loss_factor_rms_deviation_pct'])} %, r "
+        f"{f('ir', sv['inside']['decay_ratio_rms_deviation_pct'])} % | ≤ 6 %, ≤ 7 % |\n",
+        f"| map vs servo, inside the rectangle of the tested extremes ({sv['rectangle']['n_points']} points) | "
+        f"{rms('rs', sv['rectangle'], 'stiffness', False)} | {rms('rd', sv['rectangle'], 'damping', False)} | — |\n",
+        f"| map vs servo, outside the hull ({sv['outside']['n_points']} points) | "
+        f"{rms('os', sv['outside'], 'stiffness', False)} | {rms('od', sv['outside'], 'damping', False)} | — |\n",
+    ]
+    if mf is not None:
+        dvs, mvd = mf["decay_vs_servo"], mf["map_vs_decay"]
+        rows += [
+            f"| map-free: decays placed on the {dvs['n_points']} inside points vs the bench there | "
+            f"{rms('fs', dvs, 'stiffness', False)} | {rms('fd', dvs, 'damping', False)}; eta "
+            f"{f('fe', dvs['loss_factor_rms_deviation_pct'])} %, r {f('fr', dvs['decay_ratio_rms_deviation_pct'])} % | — |\n",
+            f"| map vs those decays | {rms('vs', mvd, 'stiffness', False)} | {rms('vd', mvd, 'damping', False)} | — |\n",
+        ]
+    fit, rubber = s["map_fit"], s["coupling_figures"]
+    rows.append(f"\nThe map fits the campaign within {f('fc', fit['stiffness_rms_error_pct'])} % (stiffness) and "
+                f"{f('fdd', fit['damping_ratio_rms_error_pct'])} % (damping ratio) RMS ({s['tests_extracted']} of "
+                f"{s['tests']} tests extracted). The coupling's loss factor at 1 Hz is "
+                f"{f('lr', rubber['loss_factor_ratio'], '.2f')}x that at 30 Hz (1.5 deg), its third harmonic "
+                f"{f('th', rubber['third_harmonic_pct'], '.1f')} % of the fundamental.\n")
+    return fill("".join(rows), **figures)
+
+
+#: every block: name -> (file relative to the repository, renderer)
+BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
+    "map_auto": ("README.md", map_auto),
+    "identify_drops": ("README.md", identify_drops),
+    "bench_table": ("README.md", bench_table),
+    "study_targets": ("README.md", study_targets),
+    "study_results": ("analysis/README.md", study_results),
+}
+
+
+def marked(content: str, name: str) -> tuple[int, int]:
+    """Start and end offsets of block ``name``'s content in a README (between its markers)."""
+    start, end = START.format(name), END
+    first = content.find(start)
+    if first < 0 or content.find(start, first + 1) >= 0:
+        raise ValueError(f"the README must mark block {name!r} exactly once ({start} ... {end})")
+    lo = first + len(start)
+    hi = content.find(end, lo)
+    if hi < 0:
+        raise ValueError(f"block {name!r} has no end marker {end}")
+    return lo, hi
+
+
+def written_block(name: str) -> str:
+    path, _ = BLOCKS[name]
+    content = (ROOT / path).read_text()
+    lo, hi = marked(content, name)
+    return content[lo:hi]
+
+
+def rewrite_readmes(stored: dict[str, Any]) -> list[str]:
+    """Rewrite every block from ``stored``; returns the files changed."""
+    changed = []
+    for path in sorted({p for p, _ in BLOCKS.values()}):
+        file = ROOT / path
+        content = file.read_text()
+        new = content
+        for name, (where, render) in BLOCKS.items():
+            if where == path:
+                lo, hi = marked(new, name)
+                new = new[:lo] + "\n\n" + text(render(stored)).strip("\n") + "\n\n" + new[hi:]
+        if new != content:
+            file.write_text(new)
+            changed.append(path)
+    return changed
+
+
+# --- re-running what the figures come from ---------------------------------------------------
+
+def run(command: list[str]) -> None:
+    print("$", " ".join(str(c) for c in command), flush=True)
+    subprocess.run([str(c) for c in command], cwd=ROOT, check=True)
+
+
+def rerun_study() -> None:
+    """The full study into a scratch folder; its stored files copied to ``analysis/results/``."""
+    with tempfile.TemporaryDirectory(prefix="study_") as tmp:
+        run([sys.executable, ROOT / "analysis" / "run_study.py", "--out", Path(tmp) / "report"])
+        for name in STUDY_FILES:
+            shutil.copy2(Path(tmp) / "report" / name, STUDY_RESULTS / name)
+
+
+def rerun_benchmarks() -> None:
+    """Every benchmark, one after the other (they time themselves), each writing its JSON."""
+    BENCH_RESULTS.mkdir(parents=True, exist_ok=True)
+    for name, script in BENCHMARKS.items():
+        run([sys.executable, ROOT / "benchmarks" / script, "--json", BENCH_RESULTS / f"{name}.json"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--render-only", action="store_true", help="only rewrite the README blocks from the stored results")
+    ap.add_argument("--skip-study", action="store_true", help="do not re-run the full study")
+    ap.add_argument("--skip-benchmarks", action="store_true", help="do not re-run the benchmarks")
+    args = ap.parse_args(argv)
+    try:
+        if not (args.render_only or args.skip_study):
+            rerun_study()
+        if not (args.render_only or args.skip_benchmarks):
+            rerun_benchmarks()
+    except subprocess.CalledProcessError as exc:
+        print(f"readme_figures: error: {' '.join(str(c) for c in exc.cmd)} failed (exit code {exc.returncode}); "
+              "the README was not rewritten", file=sys.stderr)
+        return 2
+    changed = rewrite_readmes(load_stored())
+    print(f"README blocks rewritten from the stored results: {', '.join(changed) or 'none changed'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
