@@ -169,3 +169,20 @@ def test_drop_selection_parsing():
     for bad in ("0", "3-1", "a", "1,,2", ""):
         with pytest.raises(DroptowerError, match="--drops"):
             parse_drop_selection(bad)
+
+
+def test_channels_and_report_see_every_drop(rig_drops, tmp_path, capsys):
+    from droptower.report.run import load_run
+
+    path, _ = _write("csv", tmp_path, rig_drops["time"], rig_drops["columns"])
+    assert main(["channels", str(path)]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("drops: 3 (impacts at t = ")
+    shown = [float(t) for t in line.split("t = ")[1].split(" s)")[0].split(", ")]
+    # each log's impact comes its pre-trigger (5 ms) after the log's start
+    starts = rig_drops["time"][rig_drops["starts"]] - rig_drops["single_start_s"]
+    np.testing.assert_allclose(shown, starts, rtol=0, atol=1e-3)
+    table = tmp_path / "results.csv"
+    assert main(["extract", str(path), "--sensor-radius-m", str(rig_drops["radius"]), "--out", str(table)]) == 0
+    run = load_run(table)
+    assert run.test == [f"{path.name} drop {k}" for k in (1, 2, 3)]
