@@ -26,8 +26,7 @@ def test_one_candidate_is_the_plain_cross_validation(table4, monkeypatch):
     a, f, c, d, groups = table4
     monkeypatch.setattr(nested, "AUTO_STIFFNESS_TERMS", ("exp_amplitude", "sqrt_frequency"))
     monkeypatch.setattr(nested, "AUTO_RATIO_TERMS", ("constant", "exp_amplitude"))
-    # the candidates holding a needed kind: stiffness {exp_amplitude, exp_amplitude + sqrt_frequency}
-    # ratio {exp_amplitude, constant + exp_amplitude}; keep one of each by needing it alone
+    # one candidate per equation: the whole (patched) library
     monkeypatch.setattr(nested, "_candidates", lambda library, need: iter([Equation(library)]))
     result = nested.nested_cv(a, f, c, d, groups)
     form = MapForm("x", Equation(("exp_amplitude", "sqrt_frequency")), Equation(("constant", "exp_amplitude")))
