@@ -2,17 +2,19 @@
 
 A lab often records a series of drops in one file (five repeats of one height, a morning's
 drops). Each drop is an impact after a quiet stretch: on the force channel a pulse (seed 004:
-~0.3 ms) standing out of the force's running median, without one the angular velocity jumping out of
-its band after rest (to three times the band within 2 ms: a preload being set moves slower). Pulses less than ``min_spacing_s`` after a drop's first impact are that
-drop's later contacts (its double-impact check sees them), not new drops.
+~0.3 ms) standing out of the force's running median; without one the angular velocity jumping
+out of its band after rest (to three times the band within 2 ms: a preload being set moves
+slower). Pulses less than ``min_spacing_s`` after a drop's first impact are that drop's later
+contacts (its double-impact check sees them), not new drops.
 
 Each drop gets its own span of samples: from ``pre_trigger_s`` before its impact (its own
 pre-trigger baseline, so offsets, drift and preload between drops cancel) to where its
 oscillation has died out (the angular velocity stays within the impact detection's band for
-half a period) and as long again at rest, at the latest the start of the next drop's pre-trigger: what the operator does
-in the pause (a new preload, a wandering zero) is not part of the drop. A record with one drop keeps the whole record as its span, as a
-single-drop log always has. The per-drop evaluation (:func:`droptower.extract.extract` on the
-span) is the single-drop one: its baseline, fit window and double-impact check.
+half a period) and as long again at rest, at the latest the start of the next drop's
+pre-trigger: what the operator does in the pause (a new preload, a wandering zero) is not part
+of the drop. A record with one drop keeps the whole record as its span, as a single-drop log
+always has. The per-drop evaluation (:func:`droptower.extract.extract` on the span) is the
+single-drop one: its baseline, fit window and double-impact check.
 """
 from __future__ import annotations
 

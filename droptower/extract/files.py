@@ -72,12 +72,13 @@ def read_signals(path: str | Path, settings: Settings) -> DropSignals:
 def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
     """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
     samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
-    no impact, a drop number it does not have) is a DroptowerError naming the file."""
+    a drop number it does not have) is a DroptowerError naming the file; a drop that cannot be
+    evaluated carries its error (naming the file and, in a recording of several, the drop)."""
     signals = read_signals(path, settings)
     try:
         spans = find_drops(signals, pre_trigger_s=settings.pre_trigger_s, min_spacing_s=settings.min_drop_spacing_s)
-    except DroptowerError as exc:
-        raise exc.with_file(Path(path)) from None
+    except DroptowerError:  # no impact stands out of the whole record: the single-drop evaluation says why
+        spans = [DropSpan(1, 0, signals.time_s.size, 0, None)]
     missing = sorted(set(settings.drops or ()) - {s.index for s in spans})
     if missing:
         raise DroptowerError(f"--drops names drop(s) {', '.join(map(str, missing))}, the record holds "
@@ -130,7 +131,8 @@ def _same(a: Any, b: Any) -> bool:
 def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult, drop_index: int = 1) -> dict[str, Any]:
     """One table row: ``file``, ``drop_index`` (the drop's number in its log, from 1),
     ``t_impact_s`` (its impact on the log's clock), the log's metadata (nested values as JSON
-    text, the drop's conditions included), then every result of :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
+    text, the drop's conditions included), then every result of
+    :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
     the values agree (``inertia_kgm2`` used from the log) and kept as ``log_<key>`` when they
     differ (``--inertia-kgm2`` overrode the log's)."""
     results = result.as_dict()
