@@ -62,6 +62,14 @@ def _write(kind: str, folder: Path, time: np.ndarray, columns: dict[str, np.ndar
     metadata = {"inertia_kgm2": INERTIA, "lever_length_m": LEVER}
     if kind in ("csv", "parquet"):
         return write_log(folder / f"recording.{kind}", time, columns, metadata), {}
+    if kind == "plain.csv":  # a lab's CSV export: units in brackets, decimal comma, no metadata
+        path = folder / "recording_plain.csv"
+        names = ["Zeit [s]", *(f"{k} [{UNITS[k]}]" for k in columns)]
+        rows = np.column_stack([time, *columns.values()])
+        path.write_text(";".join(names) + "\n" + "\n".join(";".join(repr(float(v)).replace(".", ",") for v in row)
+                                                             for row in rows) + "\n")
+        return path, {"time": "Zeit", **{r: n for r, n in (("angle", "angle_rad"), ("torque", "torque_nm"),
+                                                            ("impact_force", "impact_force_n")) if n in columns}}
     if kind == "bin":
         return write_catman(folder / "recording.bin", fs, columns, UNITS), {}
     if kind == "mf4":
@@ -87,7 +95,7 @@ def _assert_same(drop_result, single_result) -> None:
     assert sorted(drop_result.flags) == sorted(single_result.flags)
 
 
-@pytest.mark.parametrize("kind", ["csv", "parquet", "bin", "mf4", "tdms", "dat"])
+@pytest.mark.parametrize("kind", ["csv", "parquet", "plain.csv", "bin", "mf4", "tdms", "dat"])
 def test_every_drop_of_a_recording_equals_its_single_log(rig_drops, tmp_path, kind):
     if kind in ("mf4", "tdms"):
         pytest.importorskip("asammdf" if kind == "mf4" else "nptdms")
@@ -150,14 +158,19 @@ def test_cut_flag_reaches_the_results(tmp_path):
 def test_drop_selection_and_conditions_on_the_command_line(rig_drops, tmp_path, capsys):
     path, _ = _write("csv", tmp_path, rig_drops["time"], rig_drops["columns"])
     conditions = tmp_path / "drops.csv"
-    conditions.write_text("drop_index,drop_height_m,drop_mass_kg,preload_nm\n1,0.2,2.0,0\n2,1.4,2.0,1000\n"
-                          "3,0.6,2.0,0\n")
+    conditions.write_text("drop_index,drop_height_m,drop_mass_kg,preload_nm,inertia_kgm2\n1,0.2,2.0,0,\n"
+                          "2,1.4,2.0,1000,\n3,0.6,2.0,0,0.5\n")
     args = ["extract", str(path), "--drops", "1,3", "--drop-conditions", str(conditions),
             "--sensor-radius-m", str(rig_drops["radius"]), "--json"]
     assert main(args) == 0
     rows = json.loads(capsys.readouterr().out)
     assert [r["drop_index"] for r in rows] == [1, 3]
     assert [r["drop_height_m"] for r in rows] == [0.2, 0.6]
+    # drop 3's inertia from the conditions (the recording's metadata says 0.359): ω alone is
+    # measured, so the stiffness J(ω² + δ²) scales with the J used
+    assert rows[0]["inertia_kgm2"] == INERTIA and rows[1]["inertia_kgm2"] == 0.5
+    assert rows[1]["stiffness_nm_per_rad"] == pytest.approx(
+        0.5 * (rows[1]["angular_frequency_rad_per_s"] ** 2 + rows[1]["decay_coefficient_per_s"] ** 2), rel=1e-9)
     assert all(r["file"] == str(path) and r["t_impact_s"] == r["impact_time_s"] for r in rows)
     assert main(["extract", str(path), "--drops", "2-4", "--sensor-radius-m", "0.15"]) == 2
     assert "the record holds 3 drop(s)" in capsys.readouterr().err
@@ -176,7 +189,7 @@ def test_channels_and_report_see_every_drop(rig_drops, tmp_path, capsys):
 
     path, _ = _write("csv", tmp_path, rig_drops["time"], rig_drops["columns"])
     assert main(["channels", str(path)]) == 0
-    line = capsys.readouterr().out.strip().splitlines()[-1]
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("drops:")]
     assert line.startswith("drops: 3 (impacts at t = ")
     shown = [float(t) for t in line.split("t = ")[1].split(" s)")[0].split(", ")]
     # each log's impact comes its pre-trigger (5 ms) after the log's start

@@ -124,12 +124,12 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
     for line in [header, *table]:
         click.echo("  ".join(cell.ljust(w) if i in left else cell.rjust(w)
                              for i, (cell, w) in enumerate(zip(line, widths))).rstrip())
+    click.echo(_drops_line(record, roles))
     missing = [role for role in ROLES if role not in roles and not (role == "distance" and "angle" in roles)]
     if missing:
         click.echo(f"roles not found: {', '.join(missing)} (name them with --channel ROLE=NAME[:UNIT])")
     for problem in problems:
         click.echo(f"roles: {problem}")
-    click.echo(_drops_line(record, roles))
 
 
 def _drops_line(record: Record, roles: dict[str, str]) -> str:
