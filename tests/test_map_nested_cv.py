@@ -49,3 +49,15 @@ def test_each_fold_chooses_among_the_candidates(table4, monkeypatch):
 def test_nested_cv_needs_auto(capsys):
     assert main(["map", "rapp2022_table4", "--nested-cv"]) == 2
     assert "--form auto" in capsys.readouterr().err
+
+
+def test_map_prints_the_nested_error_next_to_the_fit(monkeypatch, capsys):
+    import json
+
+    monkeypatch.setattr(nested, "AUTO_STIFFNESS_TERMS", ("exp_amplitude", "sqrt_frequency"))
+    monkeypatch.setattr(nested, "AUTO_RATIO_TERMS", ("constant", "exp_amplitude"))
+    assert main(["map", "rapp2022_table4", "--form", "auto", "--nested-cv", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    got = doc["nested_cross_validation"]
+    assert got["outer"] == doc["cross_validation"] == "leave-one-out (30 folds)"
+    assert got["inner_folds"] == nested.INNER_FOLDS and 0 < got["damping_ratio_rms_error_pct"] < 100

@@ -13,8 +13,8 @@ from droptower.cli.options import progress_disabled, quiet_option, renamed_optio
 from droptower.errors import DroptowerError
 
 #: columns of the table printed when neither --out nor --json is given
-SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg", "damping_ratio",
-           "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
+SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
+           "damping_ratio", "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
 
 
 def _summary(rows: list[dict[str, Any]]) -> str:
@@ -68,8 +68,8 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @click.option("--pre-trigger-s", type=float, default=0.005, show_default=True,
               help="Pre-trigger baseline of each drop in a recording with several drops, in s.")
 @click.option("--min-drop-spacing-s", type=float, default=0.5, show_default=True,
-              help="Shortest time between two drops' impacts in s: force pulses sooner are later contacts "
-                   "of the same drop.")
+              help="Shortest time between two drops' impacts in s: impacts sooner are later contacts of the "
+                   "same drop.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the results table to this file (.csv, .parquet, .json or .xlsx).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as a JSON list of objects.")

@@ -55,11 +55,10 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     elif out is not None:
         write_table(fit.coefficient_table(), out, "--out")
     nested = _nested(table, results) if nested_cv else None
-    if as_json:
-        doc = json.loads(fit.to_json())
-        if nested is not None:
-            doc["nested_cross_validation"] = nested
-        click.echo(json.dumps(doc, indent=2))
+    if as_json and nested is not None:
+        click.echo(json.dumps({**json.loads(fit.to_json()), "nested_cross_validation": nested}, indent=2))
+    elif as_json:
+        click.echo(fit.to_json(), nl=False)
     else:
         click.echo(fit.summary())
         if nested is not None:
