@@ -4,8 +4,9 @@ formats the readers take (catman .BIN, MDF4, TDMS, MTS 793 .dat).
 A recording is the drops' logs one after the other with a pause before each: the pause rests
 at the level the last log ended at, moves in its middle fifth to the level the next log starts
 at (a new preload) plus a drift (a sensor zero that wanders: every channel's level moves by a
-random step from one drop to the next), and has its own noise. The logs' samples are kept as they are except for that level, so each
-drop's pre-trigger baseline removes it and the results must equal the single logs'.
+random step from one drop to the next), and has its own noise. The logs' samples are kept as
+they are except for that level, so each drop's pre-trigger baseline removes it and the results
+must equal the single logs'.
 """
 from __future__ import annotations
 

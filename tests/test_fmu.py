@@ -84,7 +84,8 @@ def test_parameters_are_the_coupling_numbers(nr60):
         {**el.model_dump(exclude_none=True), **({"stiffness": 2.0 * el.stiffness} if i == 0 else {})}
         for i, el in enumerate(load_coupling("rapp2022_nr60").elements)]})
     want = stiff.respond(angle, H)
-    got = _run(nr60, angle, H, rate=_forward_rate(angle, H), **{"element_1.stiffness": params["element_1.stiffness"] * 2})
+    doubled = {"element_1.stiffness": params["element_1.stiffness"] * 2}
+    got = _run(nr60, angle, H, rate=_forward_rate(angle, H), **doubled)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * float(np.max(np.abs(want))))
 
 

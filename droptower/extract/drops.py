@@ -110,8 +110,8 @@ def _velocity_onsets(velocity: np.ndarray, noise: float, pre: int, rise: int) ->
     band = max(NOISE_FACTOR * noise, PEAK_FRACTION * height)
     above = speed > band
     recent = pd.Series(above.astype(float)).rolling(pre, min_periods=1).max().shift(1, fill_value=1.0).to_numpy()
-    return np.array([i for i in np.flatnonzero(above & (recent == 0.0)) if speed[i:i + rise].max() >= JUMP_RATIO * band],
-                    dtype=int)
+    starts = np.flatnonzero(above & (recent == 0.0))
+    return np.array([i for i in starts if speed[i:i + rise].max() >= JUMP_RATIO * band], dtype=int)
 
 
 def _settled(velocity: np.ndarray, noise: float, onset: int, stop: int) -> int | None:
