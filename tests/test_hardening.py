@@ -293,18 +293,41 @@ def mdf_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     data = (folder / "good.mf4").read_bytes()
     garbled = bytearray(data)
     garbled[100:400] = b"\xff" * 300
-    files = {"truncated": data[:200], "garbled": bytes(garbled), "zeroed": data[:64] + bytes(len(data) - 64)}
+    # marked unfinalised (identification "UnFinMF ", standard flags at byte 60): asammdf copies it
+    # into its temporary folder before it finds the garbled blocks
+    unfinalised = bytearray(garbled)
+    unfinalised[0:8], unfinalised[60:62] = b"UnFinMF ", (1).to_bytes(2, "little")
+    files = {"truncated": data[:200], "garbled": bytes(garbled), "zeroed": data[:64] + bytes(len(data) - 64),
+             "unfinalised": bytes(unfinalised)}
     for name, content in files.items():
         (folder / f"{name}.mf4").write_bytes(content)
     return {name: folder / f"{name}.mf4" for name in files}
 
 
-@pytest.mark.parametrize("name", ["truncated", "garbled", "zeroed"])
+@pytest.mark.parametrize("name", ["truncated", "garbled", "zeroed", "unfinalised"])
 def test_malformed_mdf4_is_one_line_naming_the_file(capsys, mdf_files, name):
     path = mdf_files[name]
     assert main(["channels", str(path)]) == 2
     line = one_line_error(capsys, str(path), "cannot read MDF file")
     assert "mmap" not in line
+
+
+def test_no_file_is_left_in_the_temporary_folder_after_a_failure(tmp_path, capsys, mdf_files, monkeypatch):
+    import tempfile
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    empty, binary, text = tmp_path / "empty.csv", tmp_path / "noise.bin", tmp_path / "text.tdms"
+    empty.write_text("")
+    binary.write_bytes(bytes(range(256)) * 8)
+    text.write_text("not tdms")
+    bad = [*mdf_files.values(), empty, binary, text]
+    for command in ("channels", "extract"):
+        for path in bad:
+            assert main([command, str(path)]) == 2
+            one_line_error(capsys, str(path))
+            assert list(scratch.iterdir()) == [], (command, path.name)
 
 
 def test_unreadable_file_does_not_stop_the_batch(tmp_path, capsys, good_log, monkeypatch):

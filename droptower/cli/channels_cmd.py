@@ -99,7 +99,8 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
     """List the channels of a log FILE: name, unit (as written, else from a name suffix such as
     angle_deg), samples, sample rate and time span (for CSV: from the time channel), first and
     last value, catman invalid markers (-1000000), NaN counts, and the role each channel would
-    get in `droptower extract` (found by name, or as --channel gives it).
+    get in `droptower extract` (found by name, or as --channel gives it), and the drops extract
+    would find (a continuous recording holds several) with their impact times.
 
     Use the names with --channel ROLE=NAME[:UNIT] (roles: time, impact_force, angle, distance,
     torque). The servo_role column is the role `identify` and `compare-models` would give it
@@ -142,6 +143,7 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
     for line in [header, *table]:
         click.echo("  ".join(cell.ljust(w) if i in left else cell.rjust(w)
                              for i, (cell, w) in enumerate(zip(line, widths))).rstrip())
+    click.echo(_drops_line(record, roles))
     missing = [role for role in ROLES if role not in roles and not (role == "distance" and "angle" in roles)]
     if missing:
         click.echo(f"drop-test roles not found: {', '.join(missing)} (name them with --channel ROLE=NAME[:UNIT])")
@@ -153,3 +155,20 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
                    f"{'' if load in servo_roles else f'; no {load} channel found'})")
     for problem in servo_problems:
         click.echo(f"servo roles: {problem}")
+
+
+def _drops_line(record: Record, roles: dict[str, str]) -> str:
+    """The drops ``extract`` would find in the record (a continuous recording holds several)."""
+    from droptower.extract.drops import find_drops
+    from droptower.io.mapping import map_channels
+
+    try:
+        # the drops are found on the angle's shape, which the laser radius only scales
+        signals = map_channels(record, roles, sensor_radius_m=1.0)
+        spans = find_drops(signals)
+    except DroptowerError as exc:
+        return f"drops: none located ({exc.problem})"
+    times = ", ".join(f"{signals.time_s[s.onset]:.4g}" for s in spans[:20]) + (", ..." if len(spans) > 20 else "")
+    cut = [str(s.index) for s in spans if s.cut]
+    return f"drops: {len(spans)} (impacts at t = {times} s)" + (
+        f"; cut by the next drop: {', '.join(cut)}" if cut else "")

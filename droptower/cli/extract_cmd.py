@@ -13,8 +13,8 @@ from droptower.cli.options import progress_disabled, quiet_option, renamed_optio
 from droptower.errors import DroptowerError
 
 #: columns of the table printed when neither --out nor --json is given
-SUMMARY = ("file", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg", "damping_ratio",
-           "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
+SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
+           "damping_ratio", "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
 
 
 def _summary(rows: list[dict[str, Any]]) -> str:
@@ -60,6 +60,16 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
                 help="Sample rate in Hz for files without a time base.")
 @click.option("--window", default="first-cycle", show_default=True,
               help="Fit window after the impact: first-cycle, N-cycles (e.g. 2-cycles) or seconds (e.g. 0.05).")
+@click.option("--drops", "drop_selection", default=None, metavar="1,3-5",
+              help="Evaluate only these drops of each recording (numbered from 1 in time order; default: all).")
+@click.option("--drop-conditions", type=click.Path(dir_okay=False, path_type=str), default=None,
+              help="CSV drop_index,drop_height_m,drop_mass_kg,inertia_kgm2,preload_nm (any of them): each "
+                   "drop's conditions, over the log's metadata.")
+@click.option("--pre-trigger-s", type=float, default=0.005, show_default=True,
+              help="Pre-trigger baseline of each drop in a recording with several drops, in s.")
+@click.option("--min-drop-spacing-s", type=float, default=0.5, show_default=True,
+              help="Shortest time between two drops' impacts in s: impacts sooner are later contacts of the "
+                   "same drop.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the results table to this file (.csv, .parquet, .json or .xlsx).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as a JSON list of objects.")
@@ -71,6 +81,7 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @click.option("--unit-row/--no-unit-row", default=None, help="CSV has a units row under the names (default: sniffed).")
 def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, lever_length: float | None,
             sensor_radius: float | None, channel_specs: tuple[str, ...], sample_rate: float | None, window: str,
+            drop_selection: str | None, drop_conditions: str | None, pre_trigger_s: float, min_drop_spacing_s: float,
             out: Path | None, as_json: bool, plot_dir: Path | None, delimiter: str | None, decimal: str | None,
             header_lines: int | None, unit_row: bool | None) -> None:
     """Extract stiffness and damping from drop-test logs PATH... (any number, any format).
@@ -87,6 +98,12 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     are taken as a constant sample rate estimated from the whole log (a note says so); a truly
     irregular time base is refused.
 
+    A recording may hold several drops (a series recorded continuously): each impact (a force
+    pulse, or without a force channel the angle leaving rest) is one drop with its own
+    pre-trigger baseline, fit window and double-impact check, and one result row (drop_index,
+    t_impact_s on the log's clock). A drop whose oscillation is still running when the next
+    impact comes is flagged decay_cut_by_next_drop.
+
     A file that fails is reported on one line; the others are still evaluated and written, the
     failures are listed at the end and the exit code is 2 (a user error, as for a single file).
 
@@ -96,11 +113,13 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
       droptower extract drop_017.bin --channel angle=Winkel:deg --channel torque=Md:kN*m \\
           --inertia-kgm2 0.359 --lever-length-m 0.2 --json
       droptower extract logs/*.parquet --rig rapp2022 --window 2-cycles --plot plots/
+      droptower extract morning.mf4 --drops 1,3-5 --drop-conditions drops.csv --out morning.csv
     """
     import pandas as pd
     from tqdm import tqdm
 
-    from droptower.extract.files import Settings, extract_file, json_safe, result_row
+    from droptower.extract.drops import parse_drop_selection, read_drop_conditions
+    from droptower.extract.files import Settings, extract_drops, json_safe, result_row
     from droptower.extract.window import Window
     from droptower.io.tables import check_table_path, write_table
     from droptower.io.mapping import parse_channel_options
@@ -111,6 +130,9 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
                               ("--sensor-radius-m", sensor_radius, 10.0), ("--sample-rate-hz", sample_rate, 1e9)):
         if value is not None and not 0 < value <= most:  # also refuses inf and nan
             raise DroptowerError(f"{name} must be > 0 and at most {most:g}, got {value:g}")
+    for name, value in (("--pre-trigger-s", pre_trigger_s), ("--min-drop-spacing-s", min_drop_spacing_s)):
+        if not 0 < value <= 3600.0:
+            raise DroptowerError(f"{name} must be > 0 and at most 3600, got {value:g}")
     rig_values = _rig_settings(rig)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
@@ -119,28 +141,39 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         sample_rate_hz=sample_rate, window=Window.parse(window),
         reader_options={"delimiter": "\t" if delimiter == "\\t" else delimiter, "decimal": decimal,
                         "header_lines": header_lines, "unit_row": unit_row},
+        drops=frozenset(parse_drop_selection(drop_selection)) if drop_selection is not None else None,
+        drop_conditions=read_drop_conditions(drop_conditions) if drop_conditions is not None else {},
+        pre_trigger_s=pre_trigger_s, min_drop_spacing_s=min_drop_spacing_s,
     )
     if plot_dir is not None:
         from droptower.extract.plot import plot_fit
 
     rows: list[dict[str, Any]] = []
     failures: list[str] = []
+    failed: set[str] = set()
     plots: set[str] = set()
     for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=progress_disabled()):
         try:
-            signals, result = extract_file(path, settings)
-            for text in signals.notes if not progress_disabled() else ():
-                tqdm.write(f"droptower: note: {path}: {text}", file=sys.stderr)
-            if plot_dir is not None:
-                stem = Path(path).stem
-                name = stem if stem not in plots else f"{stem}_{len(plots)}"
-                plots.add(name)
-                plot_fit(signals, result, plot_dir / f"{name}.png", title=None)
-            rows.append(result_row(path, signals, result))
+            for drop in extract_drops(path, settings):
+                for text in drop.signals.notes if drop.span.index == 1 and not progress_disabled() else ():
+                    tqdm.write(f"droptower: note: {path}: {text}", file=sys.stderr)
+                if drop.error is not None:
+                    failed.add(path)
+                    failures.append(drop.error.message)
+                    tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
+                    continue
+                if plot_dir is not None:
+                    stem = Path(path).stem if drop.drops_in_file == 1 else f"{Path(path).stem}_drop{drop.span.index}"
+                    name = stem if stem not in plots else f"{stem}_{len(plots)}"
+                    plots.add(name)
+                    plot_fit(drop.signals, drop.result, plot_dir / f"{name}.png", title=None)
+                rows.append(result_row(path, drop.signals, drop.result, drop.span.index))
         except DroptowerError as exc:
+            failed.add(path)
             failures.append(exc.with_file(path).message)
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
         except Exception as exc:  # a bug must not stop a 450-file batch; name it and go on
+            failed.add(path)
             failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
@@ -150,8 +183,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         click.echo(json.dumps([json_safe(r) for r in rows], indent=2, default=str))
     elif out is None and rows:
         click.echo(_summary(rows))
-    if failures and len(paths) > 1:  # one file: its error line above says it all
-        click.echo(f"droptower: {len(failures)} of {len(paths)} file(s) failed:", err=True)
+    if failures and (len(paths) > 1 or rows):  # one file, one failure: its error line above says it all
+        click.echo(f"droptower: {len(failed)} of {len(paths)} file(s) failed:", err=True)
         for line in failures:
             click.echo(f"  {line}", err=True)
     if failures:

@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "validate": ("droptower.cli.validate_cmd", "validate", "Compare a map with servo-hydraulic sweeps."),
     "identify": ("droptower.cli.identify_cmd", "identify", "Identify a coupling model from torque-angle data."),
     "compare-models": ("droptower.cli.identify_cmd", "compare_models", "Fit every model family and rank them."),
+    "export-fmu": ("droptower.cli.fmu_cmd", "export_fmu", "Export a coupling as an FMI 2.0 co-simulation FMU."),
 }
 
 

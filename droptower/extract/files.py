@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from droptower.errors import DroptowerError
+from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
 from droptower.extract.result import ExtractionResult
 from droptower.extract.window import Window
@@ -24,7 +26,10 @@ class Settings:
     the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``) used where a
     log's metadata lacks them, e.g. from the rig; sensor_radius_m: laser spot radius for a
     distance channel; sample_rate_hz: time base for files without one; reader_options: CSV
-    settings for :func:`droptower.io.read_any`.
+    settings for :func:`droptower.io.read_any`; drops: the drop numbers (from 1) to evaluate
+    in each record (None: all); drop_conditions: drop number -> its conditions
+    (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the log's
+    metadata; pre_trigger_s, min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
     """
 
     roles: dict[str, str] = field(default_factory=dict)
@@ -35,17 +40,79 @@ class Settings:
     sample_rate_hz: float | None = None
     window: Window = Window()
     reader_options: dict[str, Any] = field(default_factory=dict)
+    drops: frozenset[int] | None = None
+    drop_conditions: dict[int, dict[str, float]] = field(default_factory=dict)
+    pre_trigger_s: float = PRE_TRIGGER_S
+    min_drop_spacing_s: float = MIN_DROP_SPACING_S
 
 
-def extract_file(path: str | Path, settings: Settings) -> tuple[DropSignals, ExtractionResult]:
-    """Read, map and extract one log; any problem is a DroptowerError naming the file."""
+@dataclass
+class Drop:
+    """One drop of a log: its span in the record, its signals and its result, or the error
+    that stopped its evaluation (the other drops of the log are still evaluated)."""
+
+    span: DropSpan
+    drops_in_file: int
+    signals: DropSignals
+    result: ExtractionResult | None = None
+    error: DroptowerError | None = None
+
+
+#: a drop's flag when the next drop's impact comes before its oscillation died out
+DECAY_CUT = "decay_cut_by_next_drop"
+
+
+def read_signals(path: str | Path, settings: Settings) -> DropSignals:
+    """Read and map one log into SI signals; any problem is a DroptowerError naming the file."""
     record = read_any(path, **settings.reader_options)
-    signals = map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
-                           sample_rate_hz=settings.sample_rate_hz)
+    return map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
+                        sample_rate_hz=settings.sample_rate_hz)
+
+
+def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
+    """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
+    samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
+    a drop number it does not have) is a DroptowerError naming the file; a drop that cannot be
+    evaluated carries its error (naming the file and, in a recording of several, the drop)."""
+    signals = read_signals(path, settings)
+    try:
+        spans = find_drops(signals, pre_trigger_s=settings.pre_trigger_s, min_spacing_s=settings.min_drop_spacing_s)
+    except DroptowerError:  # no impact stands out of the whole record: the single-drop evaluation says why
+        spans = [DropSpan(1, 0, signals.time_s.size, 0, None)]
+    missing = sorted(set(settings.drops or ()) - {s.index for s in spans})
+    if missing:
+        raise DroptowerError(f"--drops names drop(s) {', '.join(map(str, missing))}, the record holds "
+                             f"{len(spans)} drop(s)", file=Path(path))
+    drops = []
+    for span in spans:
+        if settings.drops is not None and span.index not in settings.drops:
+            continue
+        part = drop_signals(signals, span, settings.drop_conditions.get(span.index))
+        drop = Drop(span, len(spans), part)
+        try:
+            drop.result = _extract(part, settings)
+            if span.cut:
+                drop.result.flags = (*drop.result.flags, DECAY_CUT)
+        except DroptowerError as exc:
+            problem = exc.problem if len(spans) == 1 else f"drop {span.index}: {exc.problem}"
+            drop.error = DroptowerError(problem, file=Path(path), where=exc.where)
+        drops.append(drop)
+    return drops
+
+
+def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
     given = {key: value if value is not None or key in signals.metadata else settings.defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
-    result = extract(signals, **given, window=settings.window)
-    return signals, result
+    return extract(signals, **given, window=settings.window)
+
+
+def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> tuple[DropSignals, ExtractionResult]:
+    """Read, map and extract one drop of one log (by default its first; a single-drop log's
+    only one); any problem is a DroptowerError naming the file."""
+    drops = extract_drops(path, replace(settings, drops=frozenset({drop_index})))
+    if drops[0].error is not None:
+        raise drops[0].error
+    return drops[0].signals, drops[0].result
 
 
 def _scalar(value: Any) -> Any:
@@ -61,15 +128,17 @@ def _same(a: Any, b: Any) -> bool:
         return a == b
 
 
-def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult) -> dict[str, Any]:
-    """One table row: ``file``, the log's metadata (nested values as JSON text), then every result
-    of :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
+def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult, drop_index: int = 1) -> dict[str, Any]:
+    """One table row: ``file``, ``drop_index`` (the drop's number in its log, from 1),
+    ``t_impact_s`` (its impact on the log's clock), the log's metadata (nested values as JSON
+    text, the drop's conditions included), then every result of
+    :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
     the values agree (``inertia_kgm2`` used from the log) and kept as ``log_<key>`` when they
     differ (``--inertia-kgm2`` overrode the log's)."""
     results = result.as_dict()
-    row: dict[str, Any] = {"file": str(path)}
+    row: dict[str, Any] = {"file": str(path), "drop_index": int(drop_index), "t_impact_s": result.impact_time_s}
     for key, value in signals.metadata.items():
-        if key in results or key == "file":
+        if key in results or key in row:
             if _same(value, results.get(key)):
                 continue
             key = f"log_{key}"

@@ -8,6 +8,7 @@ import functools
 import gc
 import re
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -28,11 +29,15 @@ def read_mdf(path: str | Path) -> Record:
     problem = None
     hook = sys.unraisablehook
     sys.unraisablehook = functools.partial(_quiet_asammdf_cleanup, hook)
+    # asammdf copies an unfinalised file into its temporary folder and, if the copy then fails
+    # to parse, leaves it there: give it a folder of our own, removed whatever happens
+    scratch = tempfile.TemporaryDirectory(prefix="droptower_mdf_", ignore_cleanup_errors=True)
     try:
-        problem, metadata = _read(MDF, path, channels)
+        problem, metadata = _read(MDF, path, channels, scratch.name)
         gc.collect()  # a reader that failed half-built is freed here: its __del__ fails inside asammdf
     finally:
         sys.unraisablehook = hook
+        scratch.cleanup()
     if problem is not None:
         raise DroptowerError(f"cannot read MDF file: {problem}", file=path)
     if not channels:
@@ -47,10 +52,11 @@ def _quiet_asammdf_cleanup(hook: Any, unraisable: Any) -> None:
     hook(unraisable)
 
 
-def _read(MDF: Any, path: Path, channels: dict[str, Channel]) -> tuple[str | None, dict[str, str]]:
-    """Fill ``channels`` from the file; returns (the problem in words or None, metadata)."""
+def _read(MDF: Any, path: Path, channels: dict[str, Channel], scratch: str) -> tuple[str | None, dict[str, str]]:
+    """Fill ``channels`` from the file (asammdf's temporary files in ``scratch``); returns (the
+    problem in words or None, metadata)."""
     try:
-        with MDF(path) as mdf:
+        with MDF(path, temporary_folder=scratch) as mdf:
             for signal in mdf.iter_channels():
                 if signal.samples.dtype.kind not in "fiub":
                     continue  # text, byte arrays, structures: not a measured quantity

@@ -101,8 +101,8 @@ def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
 def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
     """Fig. 13: damping ratio vs amplitude, tests and the map's curves.
 
-    Per inertia the curve follows the group's own frequency, which falls with amplitude
-    (Payne effect, Fig. 10): a power law f(φ̂) fitted to the group's tests. Without inertias,
+    Per inertia the curve follows the group's realised path: its tests' frequencies, which
+    fall with amplitude (Payne effect, Fig. 10), joined in order of amplitude. Without inertias,
     curves at the lowest, middle and highest measured frequency."""
     fig = Figure(figsize=(6.5, 4.5), layout="constrained")
     ax = fig.add_subplot()
@@ -110,7 +110,7 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
         a = rows["amplitude_deg"].to_numpy(float)
         ax.plot(a, rows["damping_ratio"], "o", color=color, label=label)
         if "inertia_kgm2" in tests.columns:
-            grid = np.geomspace(a.min(), a.max(), 60)
+            grid = path_grid(a)
             ax.plot(grid, fit.damping_ratio(grid, _frequency_along(rows, grid)), "-", color=color)
     if "inertia_kgm2" not in tests.columns:
         r = fit.range
@@ -127,13 +127,19 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
 
 
 def _frequency_along(rows: pd.DataFrame, amplitude_deg: np.ndarray) -> np.ndarray:
-    """The group's frequency (Hz) at the given amplitudes: log f linear in log φ̂ (constant if
-    the group has one amplitude)."""
+    """The group's realised frequency (Hz) at the given amplitudes: its tests joined in order of
+    amplitude, log f linear in log φ̂ between neighbouring amplitude levels (tests at one
+    amplitude averaged in log), constant beyond the ends. The map drawn along it passes through
+    its value at every test's own (amplitude, frequency)."""
     la, lf = np.log(rows["amplitude_deg"].to_numpy(float)), np.log(rows["frequency_hz"].to_numpy(float))
-    if np.ptp(la) == 0:
-        return np.full_like(amplitude_deg, np.exp(lf.mean()))
-    slope, intercept = np.polyfit(la, lf, 1)
-    return np.exp(intercept + slope * np.log(amplitude_deg))
+    levels, index = np.unique(la, return_inverse=True)
+    mean_lf = np.bincount(index, lf) / np.bincount(index)
+    return np.exp(np.interp(np.log(amplitude_deg), levels, mean_lf))
+
+
+def path_grid(amplitude_deg: np.ndarray, n: int = 60) -> np.ndarray:
+    """Amplitudes to draw a group's map curve at: a log grid over its range and its tests' own."""
+    return np.union1d(np.geomspace(amplitude_deg.min(), amplitude_deg.max(), n), amplitude_deg)
 
 
 def _label(fit: MapFit, paper: str) -> str:

@@ -158,6 +158,7 @@ def _decay_figures(run: Run, channels: dict[str, str], progress: bool) -> dict[s
     window = Window.parse(base.pop("window", "first-cycle"))
     out: dict[str, object] = {}
     inertia = pd.to_numeric(run.table.get("inertia_kgm2", pd.Series(np.nan, index=run.table.index)), errors="coerce")
+    drop_index = pd.to_numeric(run.table.get("drop_index", pd.Series(1, index=run.table.index)), errors="coerce")
     for i, (name, log) in enumerate(tqdm(list(zip(run.test, run.logs)), desc="report", unit="test", file=sys.stderr,
                                          disable=None if progress else True)):  # None: a bar on a terminal only
         if log is None:
@@ -166,7 +167,8 @@ def _decay_figures(run: Run, channels: dict[str, str], progress: bool) -> dict[s
         j = float(inertia.iloc[i])
         settings = Settings(roles=channels, window=window, inertia_kgm2=j if math.isfinite(j) and j > 0 else None, **base)
         try:
-            signals, result = extract_file(log, settings)
+            k = float(drop_index.iloc[i])
+            signals, result = extract_file(log, settings, int(k) if math.isfinite(k) and k >= 1 else 1)
         except DroptowerError as exc:
             out[name] = f"the log cannot be extracted again: {exc.message.replace(str(log), log.name)}"
             continue

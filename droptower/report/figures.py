@@ -15,7 +15,7 @@ from plotly.subplots import make_subplots
 from droptower.extract.result import DEG, ExtractionResult
 from droptower.io.signals import DropSignals
 from droptower.maps import MapFit
-from droptower.maps.plots import _frequency_along
+from droptower.maps.plots import _frequency_along, path_grid
 
 #: Most samples per drawn trace: a 0.25 s log at 38.4 kHz has 9600; every k-th is kept (the
 #: fit is drawn from its own smooth curve, so only the measured trace is thinned).
@@ -33,14 +33,14 @@ def _groups(tests: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 
 def map_figure(tests: pd.DataFrame, names: list[str], fit: MapFit) -> go.Figure:
     """Stiffness and damping ratio over amplitude: the usable tests (hover: test, values) and
-    the map along each inertia group's own frequency (log amplitude axis)."""
+    the map along each inertia group's realised (amplitude, frequency) path (log amplitude axis)."""
     fig = make_subplots(rows=1, cols=2, horizontal_spacing=0.1,
                         subplot_titles=("stiffness [N·m/deg]", "damping ratio [-]"))
     tests = tests.assign(_name=names)
     for (label, rows), color in zip(_groups(tests), _cycle()):
         a = rows["amplitude_deg"].to_numpy(float)
-        grid = np.geomspace(a.min(), a.max(), 60) if a.size else a
-        f_grid = _frequency_along(rows, grid) if a.size > 1 else np.full_like(grid, rows["frequency_hz"].mean())
+        grid = path_grid(a) if a.size else a
+        f_grid = _frequency_along(rows, grid) if a.size else a
         for col, (q, model) in enumerate((("stiffness_nm_per_deg", fit.stiffness_nm_per_deg),
                                           ("damping_ratio", fit.damping_ratio)), start=1):
             fig.add_trace(go.Scatter(

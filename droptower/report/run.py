@@ -25,6 +25,7 @@ FLAG_REASONS = {
     "short_window": "the fit window is shorter than the requested one (three quarters of a period at least)",
     "poor_fit": "the decay fit's RMS residual exceeds 5 % of the amplitude",
     "double_impact_unchecked": "no impact-force channel: a second impact could not be checked (warning)",
+    "decay_cut_by_next_drop": "the next drop of the recording came before this drop's oscillation died out",
 }
 
 
@@ -110,6 +111,10 @@ def _results_table(path: Path) -> Run:
     files = [str(f) if isinstance(f, str) and f else None for f in table.get("file", [None] * len(table))]
     logs = [_find_log(f, path.parent) for f in files]
     names = [_shown(f, path.parent) if f else f"row {i + 1}" for i, f in enumerate(files)]
+    if "drop_index" in table.columns:  # a recording with several drops: one test per drop
+        repeated = pd.Series(files).duplicated(keep=False).to_numpy()
+        names = [f"{n} drop {int(k)}" if again and pd.notna(k) else n
+                 for n, k, again in zip(names, table["drop_index"], repeated)]
     simulated = "coupling" in table.columns and table["coupling"].notna().any()
     source = (f"simulated logs (coupling {', '.join(map(str, table['coupling'].dropna().unique()))})"
               if simulated else "real logs")
