@@ -94,7 +94,7 @@ def test_rig_values_on_the_command_line(tmp_path, capsys):
     assert main(["extract", str(path), "--inertia-kgm2", "0.359", "--lever-length-m", "0.2", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
-    assert row["impact_velocity_from_force_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+    assert row["lever_rate_after_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
 
 
 def test_channel_mapping_with_units(tmp_path, capsys):
@@ -179,4 +179,4 @@ def test_rig_gives_laser_radius_and_lever_length(tmp_path, capsys):
     assert main(["extract", str(path), "--rig", "rapp2022", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
-    assert row["impact_velocity_from_force_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+    assert row["lever_rate_after_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)

@@ -34,7 +34,7 @@ def test_simulate_json_log_and_plot(tmp_path, capsys, coupling):
     assert code == 0, err
     s = json.loads(out)
     for key in ("drop_mass_velocity_after_m_per_s", "lever_tip_velocity_after_m_per_s", "impact_energy_j", "contacts",
-                "double_impact", "max_angle_deg", "max_torque_nm", "energy_balance_error_fraction", "impulse_n_s"):
+                "double_impact", "max_angle_deg", "max_torque_nm", "energy_balance_error_fraction", "impact_impulse_n_s"):
         assert key in s
     assert s["lever_tip_velocity_after_m_per_s"] == pytest.approx(s["predicted_lever_tip_velocity_after_m_per_s"],
                                                                   rel=0.01)

@@ -89,15 +89,15 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
                f"(impact law {s['predicted_drop_mass_velocity_after_m_per_s']:+.4f}), lever tip "
                f"{s['lever_tip_velocity_after_m_per_s']:+.4f} m/s (impact law "
                f"{s['predicted_lever_tip_velocity_after_m_per_s']:+.4f}), restitution {s['effective_restitution']:.4f}")
-    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impulse_n_s']:.4g} N*s")
+    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impact_impulse_n_s']:.4g} N*s")
     later = [1e3 * (t - s["impact_time_s"]) for t in s["contact_times_s"][1:]]
     click.echo(f"  {s['contacts']} contact(s) of drop mass and lever"
                + (f" (later ones at {', '.join(f'{t:.1f}' for t in later[:5])}{', ...' if len(later) > 5 else ''} ms "
                   f"after the impact)" if later else "")
                + f"; double impact (a second contact within the first period, "
-                 f"{1e3 * s['period_s']:.1f} ms): {'yes' if s['double_impact'] else 'no'}")
+                 f"{1e3 * s['first_period_s']:.1f} ms): {'yes' if s['double_impact'] else 'no'}")
     click.echo(f"  max angle {s['max_angle_deg']:.3f} deg, max torque {s['max_torque_nm']:.1f} N*m, "
-               f"first period {1e3 * s['period_s']:.2f} ms ({s['frequency_hz']:.2f} Hz), "
+               f"first period {1e3 * s['first_period_s']:.2f} ms ({s['first_period_frequency_hz']:.2f} Hz), "
                f"energy balance error {100 * s['energy_balance_error_fraction']:.3f} %")
     for w in s["warnings"]:
         click.echo(f"droptower: warning: {w}", err=True)

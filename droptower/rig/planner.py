@@ -125,7 +125,7 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["lever_tip_velocity_after_m_per_s"] = iv.lever_tip_after_m_per_s
     out["lever_rate_after_rad_per_s"] = iv.rate_after_rad_per_s
     out["impact_energy_j"] = iv.impact_energy_j
-    out["impulse_n_s"] = iv.impulse_ns
+    out["impact_impulse_n_s"] = iv.impulse_ns
     out["impact_force_peak_n"] = force_peak
     out["pretwist_deg"] = np.degrees(twist.angle_rad)
     out["amplitude_deg"] = np.degrees(p1)
