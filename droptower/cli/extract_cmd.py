@@ -53,7 +53,7 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @renamed_option("--lever-length-m", "--lever-length", "lever_length", type=float,
                 help="Lever arm L in m (rotation axis to impact point).")
 @renamed_option("--sensor-radius-m", "--sensor-radius", "sensor_radius", type=float,
-                help="Laser spot radius in m, for a distance channel.")
+                help="Laser spot radius in m, for a distance channel (default: the log's metadata).")
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Map a channel to a role: time, impact_force, angle, distance, torque (repeatable).")
 @renamed_option("--sample-rate-hz", "--sample-rate", "sample_rate", type=float,
@@ -80,8 +80,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     φ̂_ref, f (seed 004 eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
     loss factor η and relative damping ψ (NOTES §1.7); standard uncertainties (*_std), the fit
     error and flags (double_impact, clipping, too_few_samples_per_period, short_window,
-    poor_fit). J and L: --inertia-kgm2/--lever-length-m, else the log's metadata, else the rig
-    (its inertia only if it has a single lever fixture).
+    poor_fit). J, L and the laser radius: --inertia-kgm2/--lever-length-m/--sensor-radius-m, else
+    the log's metadata, else the rig (its inertia only if it has a single lever fixture).
 
     A file that fails is reported on one line; the others are still evaluated and written, the
     failures are listed at the end and the exit code is 2 (a user error, as for a single file).
@@ -110,8 +110,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     rig_values = _rig_settings(rig)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
-        defaults={k: rig_values[k] for k in ("inertia_kgm2", "lever_length_m") if rig_values.get(k) is not None},
-        sensor_radius_m=sensor_radius if sensor_radius is not None else rig_values.get("sensor_radius_m"),
+        defaults={k: v for k, v in rig_values.items() if v is not None}, sensor_radius_m=sensor_radius,
         sample_rate_hz=sample_rate, window=Window.parse(window),
         reader_options={"delimiter": "\t" if delimiter == "\\t" else delimiter, "decimal": decimal,
                         "header_lines": header_lines, "unit_row": unit_row},

@@ -138,6 +138,7 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
 
         config = load_rig(rig)
         defaults["lever_length_m"] = config.lever_length_m
+        defaults["sensor_radius_m"] = config.sensors.laser.radius_m
         if len(config.inertias_kgm2) == 1:
             defaults["inertia_kgm2"] = config.inertias_kgm2[0]
         conditioning = (config.simulation.preload_ramp_s, config.simulation.preload_hold_s)

@@ -21,9 +21,10 @@ class Settings:
     """How to read and evaluate the logs of one batch.
 
     roles: channel mapping (role -> ``NAME[:UNIT]``); inertia_kgm2, lever_length_m: override
-    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``) used where a
-    log's metadata lacks them, e.g. from the rig; sensor_radius_m: laser spot radius for a
-    distance channel; sample_rate_hz: time base for files without one; reader_options: CSV
+    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``,
+    ``sensor_radius_m``) used where a log's metadata lacks them, e.g. from the rig;
+    sensor_radius_m: laser spot radius for a distance channel, overrides the log's
+    ``laser_radius_m``; sample_rate_hz: time base for files without one; reader_options: CSV
     settings for :func:`droptower.io.read_any`.
     """
 
@@ -41,6 +42,7 @@ def extract_file(path: str | Path, settings: Settings) -> tuple[DropSignals, Ext
     """Read, map and extract one log; any problem is a DroptowerError naming the file."""
     record = read_any(path, **settings.reader_options)
     signals = map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
+                           default_sensor_radius_m=settings.defaults.get("sensor_radius_m"),
                            sample_rate_hz=settings.sample_rate_hz)
     given = {key: value if value is not None or key in signals.metadata else settings.defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}

@@ -130,7 +130,8 @@ def segments_from_files(paths: Iterable[str | Path], roles: dict[str, str] | Non
     out = []
     for path in paths:
         record = read_any(path)
-        signals = map_channels(record, roles, sensor_radius_m=None)
+        signals = map_channels(record, roles, sensor_radius_m=None, radius_flags="--channel angle=NAME[:UNIT]",
+                               sample_rate_flag=None)
         if signals.torque_nm is None:
             raise DroptowerError("no torque channel found; name it with --channel torque=NAME[:UNIT] "
                                  f"(the file has: {', '.join(repr(n) for n in record.channels)})", file=path)

@@ -14,6 +14,7 @@ integer factor), a constant signal.
 """
 from __future__ import annotations
 
+import math
 import re
 from typing import Iterable
 
@@ -210,14 +211,37 @@ def laser_angle(distance_m: np.ndarray, radius_m: float) -> np.ndarray:
     return np.arctan(np.asarray(distance_m) / radius_m)
 
 
+def _sensor_radius(record: Record, given: float | None, default: float | None, flags: str) -> float:
+    """The laser spot radius (m): given, else the log's ``laser_radius_m``, else the default."""
+    value, origin = given, flags
+    if value is None and record.metadata.get("laser_radius_m") is not None:
+        value, origin = record.metadata["laser_radius_m"], "the log's metadata laser_radius_m"
+    if value is None:
+        value = default
+    if value is None:
+        raise DroptowerError(f"a laser distance channel needs the laser spot radius (m): the log carries no "
+                             f"'laser_radius_m'; give {flags}", file=record.path)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise DroptowerError(f"{origin}: {value!r} is not a number", file=record.path) from None
+    if not (math.isfinite(value) and value > 0):
+        raise DroptowerError(f"the laser spot radius must be > 0 m, got {value:g} ({origin})", file=record.path)
+    return value
+
+
 def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
-                 sample_rate_hz: float | None = None) -> DropSignals:
+                 sample_rate_hz: float | None = None, default_sensor_radius_m: float | None = None,
+                 radius_flags: str = "--sensor-radius-m or --rig",
+                 sample_rate_flag: str | None = "--sample-rate-hz") -> DropSignals:
     """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
 
     roles: role -> ``NAME`` or ``NAME:UNIT``; roles not given are found by name; ``-`` leaves a
         role out (e.g. a dead force sensor).
-    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``.
+    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``; if
+        None, the log's metadata ``laser_radius_m``, else ``default_sensor_radius_m`` (a rig's).
     sample_rate_hz: builds the time base when the file has no time channel and no rate.
+    radius_flags, sample_rate_flag: the command's flags that give these, named in the errors.
     """
     specs = find_roles(record, roles)
     explicit = {role for role, spec in (roles or {}).items() if spec.strip() not in ("-", "none")}
@@ -260,7 +284,8 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
     elif own_time is not None:
         time, time_name = np.asarray(own_time, dtype=np.float64), angle_channel.name
     else:
-        raise DroptowerError("no time channel and no sample rate; give --channel time=NAME[:UNIT] or a sample rate",
+        also = f" or {sample_rate_flag}" if sample_rate_flag else ""
+        raise DroptowerError(f"no time channel and no sample rate; give --channel time=NAME[:UNIT]{also}",
                              file=record.path)
     _check_time(record, time_name, time)
 
@@ -272,10 +297,8 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
             signals[role] = _onto(record, channel, signals[role], reference)
     angle = signals.get("angle")
     if angle is None:
-        if not sensor_radius_m or sensor_radius_m <= 0:
-            raise DroptowerError("a laser distance channel needs the sensor radius (m) of the rig, > 0",
-                                 file=record.path)
-        angle = laser_angle(signals["distance"], sensor_radius_m)
+        radius = _sensor_radius(record, sensor_radius_m, default_sensor_radius_m, radius_flags)
+        angle = laser_angle(signals["distance"], radius)
     return DropSignals(time_s=time, angle_rad=angle, torque_nm=signals.get("torque"),
                        impact_force_n=signals.get("impact_force"), metadata=dict(record.metadata),
                        source=record.path)
