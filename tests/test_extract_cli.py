@@ -153,7 +153,7 @@ def test_batch_with_a_bad_file_writes_the_good_ones(logs, tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--window", "fist-cycle"], "window 'fist-cycle'"),
     (["--out", "results.txt"], "unknown table format"),
-    (["--inertia-kgm2", "-1"], "--inertia-kgm2 must be > 0"),
+    (["--inertia-kgm2", "-1"], "--inertia-kgm2: must be > 0"),
     (["--channel", "angel=x"], "unknown role"),
 ])
 def test_bad_options_exit_2(logs, capsys, args, message):

@@ -54,10 +54,10 @@ def test_simulate_table_on_the_shipped_presets(capsys):
 
 
 @pytest.mark.parametrize("args, words", [
-    (["--drop-mass-kg", "0"], ["--drop-mass-kg", "must be positive"]),
-    (["--inertia-kgm2", "-0.3"], ["--inertia-kgm2", "must be positive"]),
-    (["--height-m", "-1"], ["--height-m", "must be positive"]),
-    (["--height-m", "8"], ["--height-m", "rapp2022.toml", "drop_height_range_m"]),
+    (["--drop-mass-kg", "0"], ["--drop-mass-kg: must be > 0, got 0"]),
+    (["--inertia-kgm2", "-0.3"], ["--inertia-kgm2: must be > 0, got -0.3"]),
+    (["--height-m", "-1"], ["--height-m: must be > 0, got -1"]),
+    (["--height-m", "8"], ["--height-m", "of rig rapp2022 (field drop_height_range_m)"]),  # the preset by its name
     (["--preload-nm", "5000"], ["--preload-nm", "preload_range_nm"]),
     (["--duration-s", "0"], ["--duration-s"]),
 ])

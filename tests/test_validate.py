@@ -205,7 +205,7 @@ def test_results_file_missing_columns(tmp_path, capsys):
 
 def test_bad_map_and_reference(tmp_path, capsys):
     assert main(["validate", "--map", str(tmp_path / "none.json")]) == 2
-    assert "none.json: file not found" in _one_line_error(capsys.readouterr().err)
+    assert "none.json: no such file" in _one_line_error(capsys.readouterr().err)
     map_file = tmp_path / "map.json"
     constant_map().to_json(map_file)
     reference = tmp_path / "table4.csv"

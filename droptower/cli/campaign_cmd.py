@@ -8,7 +8,7 @@ import click
 from droptower.cli import options
 from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, check_positive
 
 
 @click.command()
@@ -52,8 +52,8 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     them again); a folder holding another campaign is never touched. Same plan and seeds, same results,
     whatever the number of workers.
 
-    A test whose simulation or extraction fails is listed at the end (exit code 1); the
-    others are still written.
+    A test whose simulation or extraction fails is listed at the end (exit code 2, as for
+    any user error); the others are still written. Unfinished tests: exit code 2 as well.
 
     \b
     Examples:
@@ -64,6 +64,7 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     from droptower.campaign import run_campaign
     from droptower.campaign.folder import check_folder, has_campaign
 
+    check_positive(duration_s, "--duration-s")
     if resume and not has_campaign(out):  # else --resume would start the default plan in it
         check_folder(out)  # a non-empty folder is named as such
         raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
@@ -107,4 +108,4 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     if run.pending:
         click.echo(f"droptower: {run.pending} test(s) not finished; run again with --resume to continue", err=True)
     if run.failed or run.errors or run.pending:
-        raise click.exceptions.Exit(1)
+        raise click.exceptions.Exit(2)

@@ -13,7 +13,7 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
-from droptower.io.mapping import ROLES, find_roles, parse_channel_options
+from droptower.io.mapping import KINDS, ROLES, check_units, find_roles, parse_channel_options
 from droptower.io.readers import read_any
 from droptower.units import to_si
 
@@ -79,7 +79,7 @@ def _cell(value: Any) -> str:
 
 @click.command()
 @quiet_option
-@click.argument("file", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("file", type=click.Path(path_type=str))
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Try a channel mapping (as extract takes it): the roles column shows the result.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list of channel objects instead of a table.")
@@ -107,7 +107,9 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
         delimiter = "\t"
     record = read_any(file, delimiter=delimiter, decimal=decimal, header_lines=header_lines, unit_row=unit_row)
     problems: list[str] = []
-    roles = find_roles(record, parse_channel_options(channel_specs), problems)
+    given = parse_channel_options(channel_specs)
+    check_units(record, {role: spec for role, spec in given.items() if role in KINDS})
+    roles = find_roles(record, given, problems)
     role_of = {spec if spec in record.channels else spec.rpartition(":")[0]: role for role, spec in roles.items()}
     base_s, base_text = time_base(record, roles)
     rows = [describe(channel, role_of.get(name), base_s) for name, channel in record.channels.items()]

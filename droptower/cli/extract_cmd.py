@@ -9,8 +9,8 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import progress_disabled, quiet_option, renamed_option
-from droptower.errors import DroptowerError
+from droptower.cli.options import progress_disabled, quiet_option, renamed_option, wrote
+from droptower.errors import DroptowerError, WriteError, check_positive, make_folder
 
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg", "damping_ratio",
@@ -105,8 +105,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         check_table_path(out, "--out")
     for name, value, most in (("--inertia-kgm2", inertia, 1e3), ("--lever-length-m", lever_length, 10.0),
                               ("--sensor-radius-m", sensor_radius, 10.0), ("--sample-rate-hz", sample_rate, 1e9)):
-        if value is not None and not 0 < value <= most:  # also refuses inf and nan
-            raise DroptowerError(f"{name} must be > 0 and at most {most:g}, got {value:g}")
+        check_positive(value, name, most=most)
     rig_values = _rig_settings(rig)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
@@ -115,8 +114,10 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         reader_options={"delimiter": "\t" if delimiter == "\\t" else delimiter, "decimal": decimal,
                         "header_lines": header_lines, "unit_row": unit_row},
     )
-    if plot_dir is not None:
+    if plot_dir is not None:  # the output place first: a folder that cannot be made is its own error
         from droptower.extract.plot import plot_fit
+
+        make_folder(plot_dir)
 
     rows: list[dict[str, Any]] = []
     failures: list[str] = []
@@ -130,6 +131,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
                 plots.add(name)
                 plot_fit(signals, result, plot_dir / f"{name}.png", title=None)
             rows.append(result_row(path, signals, result))
+        except WriteError:  # the output place, not this log: the next plot would fail alike
+            raise
         except DroptowerError as exc:
             failures.append(exc.with_file(path).message)
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
@@ -138,7 +141,10 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
     if rows and out is not None:
-        write_table(pd.DataFrame(rows), out, "--out")
+        table = pd.DataFrame(rows)
+        wrote(write_table(table, out, "--out"), f"{len(table)} test(s) x {table.shape[1]} columns")
+    if plots:
+        wrote(plot_dir, f"{len(plots)} decay-fit plot(s)")
     if as_json:
         click.echo(json.dumps([json_safe(r) for r in rows], indent=2, default=str))
     elif out is None and rows:

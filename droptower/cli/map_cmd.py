@@ -43,8 +43,10 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     fit = fit_map(table, source=results, form=form)
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
+        options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
     elif out is not None:
-        write_table(fit.coefficient_table(), out, "--out")
+        table = fit.coefficient_table()
+        options.wrote(write_table(table, out, "--out"), f"coefficient table, {len(table)} rows")
     click.echo(fit.to_json() if as_json else fit.summary(), nl=not as_json)
     if plot_dir is not None:
         from droptower.maps.plots import plot_all
@@ -52,5 +54,4 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
         for line in notes:
             options.note(f"note: {line}")
-        if not as_json:
-            click.echo(f"plots: {', '.join(str(p) for p in files)}")
+        options.wrote(plot_dir, f"{', '.join(p.name for p in files)}")

@@ -6,8 +6,8 @@ import math
 
 import click
 
-from droptower.cli.options import note, quiet_option
-from droptower.errors import DroptowerError
+from droptower.cli.options import note, quiet_option, wrote
+from droptower.errors import DroptowerError, check_positive
 
 #: Columns of the default table (all are in the JSON output).
 TABLE_COLUMNS = ["amplitude_deg", "frequency_hz", "preload_nm", "offset_deg", "storage_stiffness_nm_per_rad",
@@ -23,8 +23,8 @@ def _float_list(option: str, text: str) -> list[float]:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         raise DroptowerError(f"expected comma-separated numbers, got {text!r}", where=option) from None
-    if not all(math.isfinite(v) and v > 0 for v in values):
-        raise DroptowerError(f"every value must be a positive number, got {text!r}", where=option)
+    for value in values:
+        check_positive(value, option)
     return values
 
 
@@ -93,4 +93,4 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
         from droptower.servo.plots import plot_loops
 
         plot_loops(result, plot_path, title=f"{model.name}: hysteresis loops, preload {preload_nm:g} N*m")
-        note(f"loops written to {plot_path}")
+        wrote(plot_path, "hysteresis loops")

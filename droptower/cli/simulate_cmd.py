@@ -58,13 +58,12 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
       droptower simulate --inertia-kgm2 0.1557 --drop-mass-kg 2 --height-m 0.4 --preload-nm 500 \\
           --out test.parquet --json
     """
-    from droptower.errors import DroptowerError
+    from droptower.errors import check_positive
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_rig
     from droptower.rig.simulate import DropTest, check_size, simulate as run
 
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise DroptowerError(f"must be positive, got {duration_s:g}", where="--duration-s")
+    check_positive(duration_s, "--duration-s")
     rig_cfg = load_rig(rig)
     model = load_coupling(coupling)
     check_size(rig_cfg, model, 1, duration_s, where="--duration-s")

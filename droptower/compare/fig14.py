@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from droptower.compare.validation import Validation
+from droptower.errors import make_folder
 from droptower.maps import MapFit
 
 FIG14 = "fig14_servo_validation.png"
@@ -22,7 +23,7 @@ FIG14 = "fig14_servo_validation.png"
 def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
     """Write the four panels to ``path`` (PNG); returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     table = validation.table
     r = fit.range
     fig = Figure(figsize=(11, 8.5), layout="constrained")

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, not_in_range
 from droptower import sdof
 from droptower.extract.decay import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
 from droptower.extract.impact import find_impact
@@ -71,7 +71,7 @@ def metadata_value(signals: DropSignals, given: float | None, key: str) -> float
     except (TypeError, ValueError):
         raise DroptowerError(f"{key} {value!r} is not a number") from None
     if not (math.isfinite(value) and value > 0):
-        raise DroptowerError(f"{key} must be positive and finite, got {value:g}")
+        raise not_in_range(value, key)
     return value
 
 

@@ -47,6 +47,10 @@ OUTPUTS: dict[str, tuple[str, float]] = {
 }
 
 
+#: outputs that are text, not numbers (besides ``flags``)
+TEXT_OUTPUTS = ("lever_rate_after_from",)
+
+
 @dataclass
 class ExtractionResult:
     """Stiffness and damping of one drop test, SI units (seed 004 eq. 13-18, NOTES §1.4).

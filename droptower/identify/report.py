@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from droptower.errors import make_folder
 from droptower.identify.data import Segment
 from droptower.identify.fit import Identification, Metrics, metrics
 
@@ -165,8 +166,7 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
     """Per record: measured and model torque over time, and the hysteresis loops (torque over
     angle in degrees). Returns the PNG files written."""
     plt = _pyplot()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(out_dir)
     paths = []
     groups = [("fit", segments)] + ([("holdout", holdout)] if holdout else [])
     for label, segs in groups:
@@ -209,8 +209,7 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
     """Seed 000 Fig. 8 (bars of the per-record RMSE, relative to the largest and in percent of
     the largest torque) and the hysteresis loops of every model overlaid on ``segment``."""
     plt = _pyplot()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(out_dir)
     paths = []
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
     for ax, col, title in ((axes[0], "rmse_over_max_rmse", "RMSE / max RMSE of the record"),

@@ -38,7 +38,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from droptower.errors import DroptowerError, WriteError
+from droptower.errors import DroptowerError, WriteError, make_folder, unreadable_file
 from droptower.io.channels import Channel, Record
 
 MAGIC = "# droptower-log 1"
@@ -131,7 +131,7 @@ def write_log(path: str | Path, time_s: np.ndarray, channels: dict[str, np.ndarr
         if columns[name].shape != columns[TIME_COLUMN].shape:
             raise DroptowerError(
                 f"channel '{name}' has shape {columns[name].shape}, time has {columns[TIME_COLUMN].shape}", file=path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
 
     if suffix == ".csv":
         lines = [MAGIC]
@@ -193,9 +193,9 @@ def read_log(path: str | Path) -> Record:
     except DroptowerError as exc:
         raise exc.with_file(path) from None
     except RecursionError:  # json: metadata nested thousands deep
-        raise DroptowerError("cannot read droptower log: metadata nested too deeply", file=path) from None
+        raise unreadable_file(path, "metadata nested too deeply", "droptower log") from None
     except (OSError, ValueError, UnicodeDecodeError) as exc:
-        raise DroptowerError(f"cannot read droptower log: {exc}", file=path) from None
+        raise unreadable_file(path, exc, "droptower log") from None
 
 
 def _read_csv(path: Path) -> Record:

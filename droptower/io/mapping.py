@@ -109,6 +109,15 @@ def _resolve(record: Record, role: str, spec: str) -> tuple[Channel, str]:
     return channel, unit
 
 
+def check_units(record: Record, roles: dict[str, str]) -> None:
+    """Refuse a unit that cannot be converted for its role, in the words of :func:`map_channels`
+    (``channels`` checks a mapping this way without reading the values)."""
+    for role, spec in roles.items():
+        name, _, unit = spec.rpartition(":")
+        if role in KINDS and spec not in record.channels and name in record.channels:
+            to_si(np.zeros(0), unit, KINDS[role], file=record.path, channel=name)
+
+
 def _check_values(record: Record, channel: Channel, values: np.ndarray) -> None:
     where = f"channel '{channel.name}'"
     if channel.invalid is not None and channel.invalid.any():

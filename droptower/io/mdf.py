@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, unreadable_file
 from droptower.io.channels import Channel, Record
 
 
@@ -34,7 +34,7 @@ def read_mdf(path: str | Path) -> Record:
     finally:
         sys.unraisablehook = hook
     if problem is not None:
-        raise DroptowerError(f"cannot read MDF file: {problem}", file=path)
+        raise unreadable_file(path, problem, "MDF file")
     if not channels:
         raise DroptowerError("MDF file holds no numeric channels", file=path)
     return Record(path=path, channels=channels, metadata=metadata, format="MDF")

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from droptower.errors import make_folder
 from droptower.maps.mapfit import MapFit
 
 FIG10 = "fig10_parameter_variation.png"
@@ -24,8 +25,7 @@ def plot_all(tests: pd.DataFrame, fit: MapFit, out_dir: str | Path) -> tuple[lis
     """Write Fig. 10, 12 and 13 of the usable ``tests`` and the ``fit`` into ``out_dir``.
 
     Returns the files written and notes on panels skipped for want of a column."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = make_folder(out_dir)
     notes = plot_parameter_variation(tests, out_dir / FIG10)
     plot_stiffness_map(tests, fit, out_dir / FIG12)
     plot_damping_map(tests, fit, out_dir / FIG13)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError
 from droptower.servo.bench import BenchResult
 
 
@@ -43,8 +43,10 @@ def plot_loops(result: BenchResult, path: str | Path, title: str = "") -> Path:
     path = Path(path)
     try:
         fig.savefig(path, dpi=120)
-    except (OSError, ValueError) as exc:
-        raise DroptowerError(f"cannot write the plot ({exc})", file=path) from None
+    except OSError as exc:
+        raise WriteError.from_os_error(exc, path) from None
+    except ValueError as exc:  # a suffix matplotlib does not write
+        raise DroptowerError(f"cannot write ({exc})", file=path) from None
     finally:
         plt.close(fig)
     return path
