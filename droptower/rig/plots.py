@@ -77,7 +77,7 @@ def plot_test(result: "DropResult", path: str | Path) -> Path:
     return Path(path)
 
 
-def _limit(ax, limit: float, label: str, values: np.ndarray) -> None:
+def _limit(ax, limit: float, label: str, unit: str, values: np.ndarray) -> None:
     """A rig limit in a panel: a line where it lies within the data's scale, else a note in the
     corner (the sensor range of 10 kN*m drawn as a line would squash tests that reach 2 kN*m)."""
     finite = values[np.isfinite(values)]
@@ -88,7 +88,7 @@ def _limit(ax, limit: float, label: str, values: np.ndarray) -> None:
         ax.legend(handles=ax.get_lines()[-1:], fontsize=7, loc="lower right")  # each panel's limit
         return
     where = "above" if limit > hi else "below"
-    ax.annotate(f"{label}: {limit:g} ({where} the scale)", xy=(0.02, 0.97 if where == "above" else 0.03),
+    ax.annotate(f"{label} {limit:g} {unit} ({where} the scale)", xy=(0.02, 0.97 if where == "above" else 0.03),
                 xycoords="axes fraction", va="top" if where == "above" else "bottom", fontsize=8, color="r")
 
 
@@ -101,14 +101,14 @@ def plan_figure(table: pd.DataFrame, rig: RigConfig, coupling_name: str | None =
 
     fig = Figure(figsize=(13, 8), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True)
-    panels = [("max_twist_deg", "max. twist [deg]", rig.coupling_limit_deg, "coupling limit"),
-              ("frequency_hz", "frequency [Hz]", None, None),
-              ("peak_torque_nm", "peak torque [N*m]", rig.sensors.torque.range_nm, "sensor range"),
-              ("min_clearance_mm", "clearance mass-lever in 1st period [mm]", 0.0, "double impact below")]
+    panels = [("max_twist_deg", "max. twist [deg]", rig.coupling_limit_deg, "coupling limit", "deg"),
+              ("frequency_hz", "frequency [Hz]", None, None, "Hz"),
+              ("peak_torque_nm", "peak torque [N*m]", rig.sensors.torque.range_nm, "sensor range", "N*m"),
+              ("min_clearance_mm", "clearance mass-lever in 1st period [mm]", 0.0, "double impact below", "mm")]
     groups = table.groupby(["case", "inertia_kgm2", "drop_mass_kg"], sort=False) if "case" in table else \
         table.groupby(["inertia_kgm2", "drop_mass_kg"], sort=False)
     styles = ["-", "--", ":", "-."]
-    for ax, (col, label, limit, limit_label) in zip(axes.flat, panels):
+    for ax, (col, label, limit, limit_label, unit) in zip(axes.flat, panels):
         for ci, (key, grp) in enumerate(groups):
             name = key[0] if "case" in table else f"J={key[0]:g}"
             for pi, (preload, sub) in enumerate(grp.groupby("preload_nm")):
@@ -118,7 +118,7 @@ def plan_figure(table: pd.DataFrame, rig: RigConfig, coupling_name: str | None =
                 bad = sub["double_impact"].to_numpy(bool)
                 ax.plot(sub["drop_height_m"][bad], sub[col][bad], "x", color="k", ms=7)
         if limit is not None:
-            _limit(ax, limit, limit_label, table[col].to_numpy(float))
+            _limit(ax, limit, limit_label, unit, table[col].to_numpy(float))
         ax.set_ylabel(label)
         ax.set_xscale("log")
         ax.grid(True, which="both", alpha=0.3)
