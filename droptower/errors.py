@@ -4,6 +4,10 @@ Every problem with input (a config, a log, a command-line value) is raised as
 :class:`DroptowerError`. Its text is one line that names the file and the problem; the CLI
 prints it without a traceback and exits with code 2. Batch commands catch it per file,
 go on with the other files and list the failures at the end.
+
+The situations every command meets (a missing or unreadable file, a value that must be
+positive, an unknown preset, an output folder that cannot be made) are worded once, here, so
+all commands say them alike.
 """
 from __future__ import annotations
 

@@ -159,7 +159,9 @@ def test_output_places_are_blamed_not_inputs(log, tmp_path, capsys) -> None:
     blocked.write_text("")
     place = blocked / "p"  # below a file: cannot be a folder
     for argv in (["extract", str(log), "--plot", str(place)], ["extract", str(log), "--out", str(place / "r.csv")],
-                 ["map", "rapp2022_table4", "--plot", str(place)], ["map", "rapp2022_table4", "--out", str(place / "m.json")]):
+                 ["map", "rapp2022_table4", "--plot", str(place)], ["map", "rapp2022_table4", "--out", str(place / "m.json")],
+                 ["servo", "rapp2022_nr60", "--amplitude-deg", "1", "--frequency-hz", "10", "--plot", str(place / "l.png")],
+                 ["plan", "--plot", str(place / "plan.png")]):
         err = _error(capsys, argv)
         lines = [line for line in err.splitlines() if line.strip()]
         assert len(lines) == 1 and lines[0].startswith(f"droptower: error: {place}"), (argv, err)

@@ -153,9 +153,9 @@ def servo_prediction_figure(table: Any) -> Any:
 
 def plot_servo_prediction(table: Any, out_dir: str) -> Path:
     """:func:`servo_prediction_figure` as ``identify_drop_servo_prediction.png`` in ``out_dir``."""
-    path = make_folder(out_dir) / "identify_drop_servo_prediction.png"
-    servo_prediction_figure(table).savefig(path, dpi=110)
-    return path
+    from droptower.io.droptower_log import save_figure
+
+    return save_figure(servo_prediction_figure(table), Path(out_dir) / "identify_drop_servo_prediction.png", 110)
 
 
 def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,

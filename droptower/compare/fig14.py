@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 
 from droptower.compare.validation import Validation
 from droptower.errors import make_folder
+from droptower.io.droptower_log import save_figure
 from droptower.maps import MapFit
 
 FIG14 = "fig14_servo_validation.png"
@@ -58,5 +59,4 @@ def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
                  f"inside the tested hull: stiffness rms {s['inside']['stiffness_rms_deviation_pct']:.1f} %, damping rms "
                  f"{s['inside']['damping_rms_deviation_pct']:.1f} %; outside it: {s['outside']['stiffness_rms_deviation_pct']:.1f} %, "
                  f"{s['outside']['damping_rms_deviation_pct']:.1f} %", fontsize=10)
-    fig.savefig(path, dpi=110)
-    return path
+    return save_figure(fig, path, 110)

@@ -15,6 +15,7 @@ import pandas as pd
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
 from droptower.identify.fit import Identification, Metrics, metrics
+from droptower.io.droptower_log import save_figure
 
 
 def _clean(value: Any) -> Any:
@@ -198,7 +199,7 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
             fig.suptitle(f"{ident.family} on {seg.name} ({label}): nRMSE {100 * m.nrmse:.2f} %")
             fig.tight_layout()
             path = out / f"identify_{ident.family}_{label}_{_safe(seg.name)}.png"
-            fig.savefig(path, dpi=110)
+            save_figure(fig, path, 110)
             plt.close(fig)
             paths.append(path)
     return paths
@@ -220,8 +221,7 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
         ax.set_xlabel("")
     fig.suptitle("models compared per record (seed 000 Fig. 8)")
     fig.tight_layout()
-    paths.append(out / "compare_models_rmse.png")
-    fig.savefig(paths[-1], dpi=110)
+    paths.append(save_figure(fig, out / "compare_models_rmse.png", 110))
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(7, 6))
@@ -235,7 +235,6 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
     ax.set_title(f"hysteresis loops on {segment.name}")
     ax.legend()
     fig.tight_layout()
-    paths.append(out / "compare_models_loops.png")
-    fig.savefig(paths[-1], dpi=110)
+    paths.append(save_figure(fig, out / "compare_models_loops.png", 110))
     plt.close(fig)
     return paths

@@ -113,6 +113,18 @@ def atomic_write(path: str | Path, write: Callable[[str], None]) -> None:
         raise
 
 
+def save_figure(fig: Any, path: str | Path, dpi: int) -> Path:
+    """Write a matplotlib figure to ``path`` (format from the suffix) as :func:`atomic_write`
+    writes; a refused write or a suffix matplotlib cannot write blames ``path``."""
+    path = Path(path)
+    make_folder(path.parent)
+    try:
+        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".").lower() or "png"))
+    except ValueError as exc:  # a suffix matplotlib does not write
+        raise DroptowerError(f"cannot write ({exc})", file=path) from None
+    return path
+
+
 def write_log(path: str | Path, time_s: np.ndarray, channels: dict[str, np.ndarray], metadata: dict[str, Any]) -> Path:
     """Write one test as a droptower log (``.csv`` or ``.parquet``); returns the path.
 

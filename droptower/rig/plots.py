@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from droptower.io.droptower_log import save_figure
 from droptower.rig.config import RigConfig
 
 if TYPE_CHECKING:
@@ -72,7 +73,7 @@ def plot_test(result: "DropResult", path: str | Path) -> Path:
     for a in axes:
         a.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, 120)
     plt.close(fig)
     return Path(path)
 
@@ -134,5 +135,4 @@ def plan_figure(table: pd.DataFrame, rig: RigConfig, coupling_name: str | None =
 
 def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path, coupling_name: str | None = None) -> Path:
     """:func:`plan_figure` written to ``path`` (PNG)."""
-    plan_figure(table, rig, coupling_name).savefig(path, dpi=120)
-    return Path(path)
+    return save_figure(plan_figure(table, rig, coupling_name), path, 120)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError, WriteError
+from droptower.io.droptower_log import save_figure
 from droptower.servo.bench import BenchResult
 
 
@@ -40,13 +40,8 @@ def plot_loops(result: BenchResult, path: str | Path, title: str = "") -> Path:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
     try:
-        fig.savefig(path, dpi=120)
-    except OSError as exc:
-        raise WriteError.from_os_error(exc, path) from None
-    except ValueError as exc:  # a suffix matplotlib does not write
-        raise DroptowerError(f"cannot write ({exc})", file=path) from None
+        path = save_figure(fig, path, 120)
     finally:
         plt.close(fig)
     return path
