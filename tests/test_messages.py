@@ -167,3 +167,24 @@ def test_output_places_are_blamed_not_inputs(log, tmp_path, capsys) -> None:
         assert len(lines) == 1 and lines[0].startswith(f"droptower: error: {place}"), (argv, err)
         assert "cannot write" in lines[0] or "cannot create" in lines[0], err
         assert f"{log}:" not in err, err
+
+
+def test_every_file_written_gets_one_summary_line(log, tmp_path, capsys) -> None:
+    """``droptower: wrote PATH (what)`` on stderr for each file or folder written (stdout keeps
+    the results); --quiet silences it."""
+    runs = [
+        (["simulate", *SIMULATE, "--duration-s", "0.05", "--out", "T/t.csv", "--plot", "T/t.png"], ["T/t.csv", "T/t.png"]),
+        (["extract", str(log), "--out", "T/r.csv", "--plot", "T/fits"], ["T/r.csv", "T/fits"]),
+        (["plan", "--out", "T/plan.csv", "--plot", "T/plan.png"], ["T/plan.csv", "T/plan.png"]),
+        (["servo", "rapp2022_nr60", "--amplitude-deg", "1", "--frequency-hz", "10", "--plot", "T/l.png"], ["T/l.png"]),
+        (["map", "rapp2022_table4", "--out", "T/m.csv", "--plot", "T/figs"], ["T/m.csv", "T/figs"]),
+    ]
+    for argv, written in runs:
+        argv = [a.replace("T/", f"{tmp_path}/") for a in argv]
+        assert main(argv) == 0
+        err = capsys.readouterr().err
+        lines = [line for line in err.splitlines() if line.startswith("droptower: wrote ")]
+        assert [line.split(" (")[0] for line in lines] == [f"droptower: wrote {tmp_path}/{w[2:]}" for w in written], err
+        assert all(line.endswith(")") for line in lines)
+    assert main(["-q", "extract", str(log), "--out", str(tmp_path / "quiet.csv")]) == 0
+    assert "wrote" not in capsys.readouterr().err

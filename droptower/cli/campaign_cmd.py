@@ -88,17 +88,20 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
                f"{done} extracted, {len(run.failed)} failed, {run.pending} pending "
                f"({run.ran_tests} run now{' on ' + run.executor if run.executor else ''}, {run.wall_s:.1f} s; "
                f"record {run.spec.duration_s:g} s after the impact)")
-    click.echo(f"results: {run.root / 'results.parquet'}, {run.root / 'results.csv'}")
+    for name in ("results.parquet", "results.csv"):
+        options.wrote(run.root / name, f"{len(run.results)} test(s), one row each")
+    options.wrote(run.root / "logs", "a log per simulated test")
     if done:  # per condition over repeats, and Fig. 11 when the plan varies the preload
         from droptower.io.tables import write_table
         from droptower.maps.summary import FIG11, condition_summary, plot_preload_effect
 
         summary = condition_summary(run.results)
-        written = [write_table(summary, run.root / "summary.csv")]
+        options.wrote(write_table(summary, run.root / "summary.csv"),
+                      f"{len(summary)} condition(s), mean and std over repeats")
         if summary["preload_nm"].nunique() > 1:
-            written.append(plot_preload_effect(summary, run.root / FIG11, f"{run.spec.coupling.name} on "
-                                               f"{run.spec.rig.name}, plan {run.spec.doe.name}"))
-        click.echo(f"per condition (mean ± std over repeats): {', '.join(map(str, written))}")
+            options.wrote(plot_preload_effect(summary, run.root / FIG11, f"{run.spec.coupling.name} on "
+                                              f"{run.spec.rig.name}, plan {run.spec.doe.name}"),
+                          "preload effect (seed 004 Fig. 11)")
     if run.failed:
         click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
         for test_id, error in run.failed:

@@ -45,8 +45,8 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         fit.to_json(out)
         options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
     elif out is not None:
-        table = fit.coefficient_table()
-        options.wrote(write_table(table, out, "--out"), f"coefficient table, {len(table)} rows")
+        coefficients = fit.coefficient_table()
+        options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
     click.echo(fit.to_json() if as_json else fit.summary(), nl=not as_json)
     if plot_dir is not None:
         from droptower.maps.plots import plot_all

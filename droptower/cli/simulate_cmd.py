@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import quiet_option, renamed_option
+from droptower.cli.options import quiet_option, renamed_option, wrote
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 
 
@@ -74,10 +74,12 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
     summary = result.summary()
     if out:
         summary["log"] = str(result.write_log(out))
+        wrote(summary["log"], "the test as the rig's sensors record it")
     if plot_path:
         from droptower.rig.plots import plot_test
 
         summary["plot"] = str(plot_test(result, plot_path))
+        wrote(summary["plot"], "drop mass and lever paths (seed 004 Fig. 4), angle and torque")
     if as_json:
         click.echo(json.dumps(json_safe(summary), indent=1))
         return
@@ -100,6 +102,3 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
                f"energy balance error {100 * s['energy_balance_error_fraction']:.3f} %")
     for w in s["warnings"]:
         click.echo(f"droptower: warning: {w}", err=True)
-    for key in ("log", "plot"):
-        if key in s:
-            click.echo(f"  {key}: {s[key]}")
