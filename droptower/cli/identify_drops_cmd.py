@@ -142,7 +142,7 @@ def servo_prediction_figure(table: Any) -> Any:
             for freqs, x, y in distinct_curves(curves, span):
                 ax.plot(x, y, style, color=colour[freqs[0]], label=f"{who}, {_frequencies(freqs)} Hz")
         ax.set_xlabel("amplitude (deg)")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.14))  # below: off the curves
     ax_k.set_ylabel("stiffness (N*m/deg)")
     ax_k.set_title("stiffness: model K', map c", fontsize=10)
     ax_d.set_ylabel("damping ratio d")
