@@ -116,7 +116,7 @@ def test_laser_radius_from_the_log_metadata():
     given = map_channels(record, sensor_radius_m=0.3).angle_rad
     np.testing.assert_allclose(given, np.arctan(0.15 * np.tan(angle) / 0.3), rtol=1e-13, atol=1e-18)
     record.metadata["laser_radius_m"] = -1.0
-    with pytest.raises(DroptowerError, match=r"> 0 m, got -1 \(the log's metadata laser_radius_m\)"):
+    with pytest.raises(DroptowerError, match=r"laser spot radius \(the log's metadata laser_radius_m\): must be > 0, got -1$"):
         map_channels(record, sensor_radius_m=None)
 
 

@@ -20,7 +20,7 @@ from typing import Iterable
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, not_in_range
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
 from droptower.io.signals import DropSignals
@@ -235,7 +235,7 @@ def _sensor_radius(record: Record, given: float | None, default: float | None, f
     except (TypeError, ValueError):
         raise DroptowerError(f"{origin}: {value!r} is not a number", file=record.path) from None
     if not (math.isfinite(value) and value > 0):
-        raise DroptowerError(f"the laser spot radius must be > 0 m, got {value:g} ({origin})", file=record.path)
+        raise not_in_range(value, f"laser spot radius ({origin})", file=record.path)
     return value
 
 
