@@ -50,7 +50,7 @@ def resolve(name_or_path: str | Path, kind: str) -> Path:
     preset = preset_dir(kind) / f"{Path(str(name_or_path)).stem}.toml"
     if preset.is_file() and path.suffix in ("", ".toml") and len(path.parts) <= 2:
         return preset
-    if path.exists() or len(path.parts) > 2 or path.suffix not in ("", ".toml"):  # not a preset's name
+    if path.exists():  # a folder
         raise missing_file(path)
     raise no_file_or_preset(name_or_path, f"{kind[:-1] if kind != 'doe' else 'test plan'} preset", list_presets(kind))
 
