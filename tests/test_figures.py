@@ -99,7 +99,7 @@ def plan_table(peak_torque_scale: float) -> pd.DataFrame:
             for h in (0.05, 0.2, 1.0, 3.0):
                 rows.append({"case": case, "inertia_kgm2": j, "drop_mass_kg": m, "preload_nm": preload,
                              "drop_height_m": h, "max_twist_deg": 2 + 3 * h + preload / 200,
-                             "frequency_hz": 40 - 5 * h - 10 * j, "peak_torque_nm": peak_torque_scale * (0.2 + h / 3),
+                             "first_period_frequency_hz": 40 - 5 * h - 10 * j, "peak_torque_nm": peak_torque_scale * (0.2 + h / 3),
                              "min_clearance_mm": 2 + 10 * h, "double_impact": False})
     return pd.DataFrame(rows)
 

@@ -115,7 +115,7 @@ def test_plan_table_csv_json_plot(tmp_path, capsys, coupling):
     assert png.stat().st_size > 10_000
     code, out, err = run(capsys, "plan", "--coupling", coupling, "--doe", str(doe), "--json")
     rows = json.loads(out)
-    assert len(rows) == 8 and all("frequency_hz" in r and "warnings" in r for r in rows)
+    assert len(rows) == 8 and all("first_period_frequency_hz" in r and "warnings" in r for r in rows)
 
 
 def test_plan_bad_doe_is_one_line(tmp_path, capsys, coupling):

@@ -94,7 +94,7 @@ def _record_length(rig: Any, coupling: Any, doe: Any, window: Any) -> float:
     fit window plus half a period, if that is longer)."""
     from droptower.rig.planner import plan
 
-    period = plan(rig, coupling, doe.conditions())["period_s"].to_numpy(float)
+    period = plan(rig, coupling, doe.conditions())["first_period_s"].to_numpy(float)
     if not np.isfinite(period).any():
         return FALLBACK_RECORD_S
     longest = float(np.nanmax(period))

@@ -11,7 +11,8 @@ from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 
 #: Columns printed as the table (all are in --out and --json).
 TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats",
-                 "lever_rate_after_rad_per_s", "impact_energy_j", "amplitude_deg", "max_twist_deg", "frequency_hz",
+                 "lever_rate_after_rad_per_s", "impact_energy_j", "amplitude_deg", "max_twist_deg",
+                 "first_period_frequency_hz",
                  "damping_ratio", "peak_torque_nm", "double_impact", "min_clearance_mm", "warnings"]
 
 

@@ -103,7 +103,7 @@ def plan_figure(table: pd.DataFrame, rig: RigConfig, coupling_name: str | None =
     fig = Figure(figsize=(13, 8), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True)
     panels = [("max_twist_deg", "max. twist [deg]", rig.coupling_limit_deg, "coupling limit", "deg"),
-              ("frequency_hz", "frequency [Hz]", None, None, "Hz"),
+              ("first_period_frequency_hz", "frequency of the first period [Hz]", None, None, "Hz"),
               ("peak_torque_nm", "peak torque [N*m]", rig.sensors.torque.range_nm, "sensor range", "N*m"),
               ("min_clearance_mm", "clearance mass-lever in 1st period [mm]", 0.0, "double impact below", "mm")]
     groups = table.groupby(["case", "inertia_kgm2", "drop_mass_kg"], sort=False) if "case" in table else \
