@@ -62,10 +62,10 @@ def coverage(rig, coupling) -> None:
         res = run_campaign(Path(tmp) / "run", "rapp2022", "rapp2022_nr60", doe, workers=2, progress=False).results
     keys = ["inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"]
     m = d.conditions.merge(res, on=keys, suffixes=("_predicted", ""))
-    da = np.abs(m["amplitude_deg"] / m["amplitude_ref_deg"] - 1)
+    da = np.abs(m["amplitude_deg"] / m["amplitude_deg_predicted"] - 1)
     df = np.abs(m["frequency_hz"] / m["frequency_hz_predicted"] - 1)
     grid = TARGET.grid()
-    claimed = in_hull(plane(d.conditions["amplitude_ref_deg"], d.conditions["frequency_hz"]), grid)
+    claimed = in_hull(plane(d.conditions["amplitude_deg"], d.conditions["frequency_hz"]), grid)
     realised = in_hull(plane(res["amplitude_deg"], res["frequency_hz"]), grid)
     print(f"design 0.3-3 deg x 22-50 Hz: {d.n_conditions} conditions, {d.n_tests} drops (1 repeat; 3 by default: "
           f"{3 * d.n_conditions}), covered {100 * d.covered_fraction:.1f} % of the target "

@@ -4,9 +4,14 @@ Every problem with input (a config, a log, a command-line value) is raised as
 :class:`DroptowerError`. Its text is one line that names the file and the problem; the CLI
 prints it without a traceback and exits with code 2. Batch commands catch it per file,
 go on with the other files and list the failures at the end.
+
+The situations every command meets (a missing or unreadable file, a value that must be
+positive, an unknown preset, an output folder that cannot be made) are worded once, here, so
+all commands say them alike.
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 from pathlib import Path
@@ -53,3 +58,63 @@ class WriteError(DroptowerError):
         code = exc.errno or next(map(int, re.findall(r"\[errno (\d+)\]", str(exc))), None)  # pyarrow: in the text
         reason = os.strerror(code) if code else (exc.strerror or str(exc))
         return cls(f"cannot write ({reason})", file=file if file is not None else exc.filename)
+
+
+# One wording per situation, for every command (tests/test_messages.py walks them all).
+def missing_file(path: str | Path) -> DroptowerError:
+    """``<path>: no such file`` (``not a file`` for a folder or a device)."""
+    return DroptowerError("not a file" if Path(path).exists() else "no such file", file=path)
+
+
+def readable_file(path: str | Path) -> Path:
+    """``path`` if it is a file this process can open, else the one-line error of :func:`missing_file`
+    or :func:`unreadable_file` (one check for every reader: their own errors for it vary)."""
+    path = Path(path)
+    if not path.is_file():
+        raise missing_file(path)
+    try:
+        with open(path, "rb"):
+            pass
+    except OSError as exc:
+        raise unreadable_file(path, exc) from None
+    return path
+
+
+def unreadable_file(path: str | Path, detail: object, what: str | None = None) -> DroptowerError:
+    """``<path>: cannot read (<what>: <detail>)``: the file is there but cannot be read as ``what``
+    (an OSError's reason, or the parser's complaint)."""
+    if isinstance(detail, OSError):
+        detail = detail.strerror or detail
+    text = " ".join(str(detail).split())
+    return DroptowerError(f"cannot read ({what}: {text})" if what else f"cannot read ({text})", file=path)
+
+
+def not_in_range(value: float, where: str, *, most: float | None = None, file: str | Path | None = None,
+                 ) -> DroptowerError:
+    """``<where>: must be > 0 [and at most <most>], got <value>``: a value that must be positive."""
+    bound = f" and at most {most:g}" if most is not None else ""
+    return DroptowerError(f"must be > 0{bound}, got {value:g}", file=file, where=where)
+
+
+def check_positive(value: float | None, where: str, *, most: float | None = None) -> None:
+    """Refuse a given value that is not finite and > 0 (and at most ``most``), in the one wording."""
+    if value is not None and not (math.isfinite(value) and 0 < value <= (math.inf if most is None else most)):
+        raise not_in_range(value, where, most=most)
+
+
+def no_file_or_preset(name: str | Path, kind: str, presets: list[str]) -> DroptowerError:
+    """``<name>: no such file, and no shipped <kind> of that name (shipped: a, b)``."""
+    return DroptowerError(f"no such file, and no shipped {kind} of that name (shipped: {', '.join(presets) or 'none'})",
+                          file=name)
+
+
+def make_folder(path: str | Path) -> Path:
+    """Create the output folder ``path`` (and its parents); a refusal is a :class:`WriteError`
+    that blames the folder: ``<path>: cannot create the folder (<reason>)``."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        reason = os.strerror(exc.errno) if exc.errno else str(exc)
+        raise WriteError(f"cannot create the folder ({reason})", file=path) from None
+    return path

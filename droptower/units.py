@@ -2,7 +2,9 @@
 
 Log files write units in many spellings (``Nm``, ``N·m``, ``kNm``, ``°``, ``Grad``); they are
 normalised to pint syntax, parsed by pint and checked against the expected kind of quantity.
-A unit pint does not know, or one of the wrong dimension, is a :class:`DroptowerError`.
+A unit pint does not know, or one of the wrong dimension, is a :class:`DroptowerError`; so is
+the lowercase ``grad``, which pint (and most tools) read as gradians (0.9°) and German lab
+software writes for degrees: it is refused as ambiguous rather than guessed.
 """
 from __future__ import annotations
 
@@ -17,16 +19,23 @@ from droptower.errors import DroptowerError
 SI_UNITS: dict[str, str] = {"time": "s", "angle": "rad", "torque": "N*m", "force": "N", "length": "m"}
 
 # Spellings pint does not read as meant: "Nm" would parse as a (nonsensical) unit, not N*m;
-# German lab software writes "Grad" for degrees.
+# German lab software writes "Grad" for degrees (pint would read a gigaradian).
 _ALIASES = [
     (re.compile(r"^([kM]?)N\s*[·.*\s-]?\s*m$"), r"\1N*m"),
-    (re.compile(r"^(grad|Grad|°)$"), "deg"),
+    (re.compile(r"^(Grad|°)$"), "deg"),
     (re.compile(r"^(sec|Sec|S)$"), "s"),
 ]
 
 
 _NM_INSIDE = re.compile(r"(?<![A-Za-z])([kM]?)Nm(?![A-Za-z])")
-_GRAD_INSIDE = re.compile(r"(?<![A-Za-z])[Gg]rad(?![A-Za-z])")
+_GRAD_INSIDE = re.compile(r"(?<![A-Za-z])Grad(?![A-Za-z])")
+_AMBIGUOUS_GRAD = re.compile(r"(?<![A-Za-z])grad(?![A-Za-z])")
+AMBIGUOUS_GRAD = "is ambiguous: gradians (0.9 deg, as pint reads it) or degrees (German 'Grad'); write deg or gon"
+
+
+def _refuse_ambiguous(unit: str, text: str) -> None:
+    if _AMBIGUOUS_GRAD.search(text):
+        raise ValueError(f"unit '{unit}' {AMBIGUOUS_GRAD}")
 
 
 @lru_cache(maxsize=None)
@@ -71,6 +80,7 @@ def si_factor(unit: str, kind: str) -> float:
     text = normalise_unit(unit)
     if not text:
         raise ValueError(f"no unit given (expected a {kind} unit such as {SI_UNITS[kind]})")
+    _refuse_ambiguous(unit, text)
     import pint
 
     ureg = _registry()
@@ -94,6 +104,7 @@ def conversion_factor(unit: str, target: str) -> float:
     text = normalise_unit(unit)
     if text in ("", "-", "1"):
         return 1.0
+    _refuse_ambiguous(unit, text)
     try:
         return float(_registry().Quantity(1.0, text).to(target or "dimensionless").magnitude)
     except Exception as exc:  # pint's errors: unknown unit, wrong dimension, bad syntax

@@ -229,7 +229,7 @@ def test_failed_extractions_are_listed_final_and_not_redone(inputs, tmp_path, ca
     out = tmp_path / "short"
     args = ["campaign", "--coupling", str(inputs["coupling"]), "--doe", str(inputs["doe"]), "--out", str(out),
             "--duration-s", "0.005", "--chunk-size", "4", "--workers", "1"]
-    assert main(args) == 1
+    assert main(args) == 2
     err = capsys.readouterr().err
     assert "8 of 8 test(s) failed" in err and "test 7: " in err and "3/4 of the oscillation period" in err
     table = pd.read_parquet(out / "results.parquet")
@@ -242,13 +242,13 @@ def test_failed_extractions_are_listed_final_and_not_redone(inputs, tmp_path, ca
 
 def test_failed_simulations_are_recorded_with_their_reason(inputs, tmp_path, capsys):
     """A coupling without static stiffness cannot hold the plan's 500 N*m preload: the chunks'
-    tests fail with the rig's reason, the campaign goes on and exits 1."""
+    tests fail with the rig's reason, the campaign goes on and exits 2."""
     dashpot = tmp_path / "dashpot.toml"
     dashpot.write_text('name = "dashpot"\n[[element]]\nkind = "dashpot"\ndamping = 8.0\n')
     out = tmp_path / "soft"
     code = main(["campaign", "--coupling", str(dashpot), "--doe", str(inputs["doe"]), "--out", str(out),
                  "--duration-s", "0.07", "--chunk-size", "3", "--workers", "1"])
-    assert code == 1
+    assert code == 2
     assert "cannot hold the preload" in capsys.readouterr().err
     table = pd.read_parquet(out / "results.parquet")
     assert (table["status"] == "failed").all() and table["error"].str.startswith("simulation: ").all()

@@ -78,10 +78,10 @@ def test_designed_campaign_realises_the_prediction_and_covers_the_target(designe
     m = d.conditions.merge(res, on=keys, suffixes=("_predicted", ""))
     assert len(m) == len(res) == d.n_tests
     assert not res["double_impact"].any()
-    assert np.max(np.abs(m["amplitude_deg"] / m["amplitude_ref_deg"] - 1)) <= 0.03
+    assert np.max(np.abs(m["amplitude_deg"] / m["amplitude_deg_predicted"] - 1)) <= 0.03
     assert np.max(np.abs(m["frequency_hz"] / m["frequency_hz_predicted"] - 1)) <= 0.03
     grid = TARGET.grid()
-    claimed = in_hull(plane(d.conditions["amplitude_ref_deg"], d.conditions["frequency_hz"]), grid)
+    claimed = in_hull(plane(d.conditions["amplitude_deg"], d.conditions["frequency_hz"]), grid)
     realised = in_hull(plane(res["amplitude_deg"], res["frequency_hz"]), grid)
     assert claimed.mean() == pytest.approx(d.covered_fraction)
     assert np.all(realised[claimed])
@@ -101,7 +101,7 @@ def test_design_uses_the_rigs_fixtures_within_its_limits(designed):
     assert c["inertia_kgm2"].nunique() == 3
     lo, hi = np.log10(TARGET.amplitude_deg)
     for _, g in c.groupby("inertia_kgm2"):
-        la = np.sort(np.log10(g["amplitude_ref_deg"]))
+        la = np.sort(np.log10(g["amplitude_deg"]))
         inside = la[(la >= lo - 0.05) & (la <= hi + 0.05)]
         assert inside[0] <= lo + 0.01 and np.max(np.diff(inside)) <= 0.2 + 1e-6
 

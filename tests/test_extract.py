@@ -114,8 +114,8 @@ def test_synthetic_linear_log(rate, d_ratio):
     assert result.loss_factor == pytest.approx(sdof.loss_factor(drop.delta, drop.omega), rel=0.03)
     assert result.relative_damping_psi == pytest.approx(sdof.relative_damping(drop.delta, drop.omega), rel=0.03)
     # impact: the fit's start velocity and the force impulse agree with the truth (NOTES §1.2)
-    assert result.impact_velocity_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.01)
-    assert result.impact_velocity_from_force_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+    assert result.decay_fit_initial_rate_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.01)
+    assert result.lever_rate_after_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
     # offsets: sensor offset + preload, removed before fitting
     assert result.torque_offset_nm == pytest.approx(drop.torque_offset_nm + drop.preload_nm, abs=1.0)
     assert result.angle_offset_rad == pytest.approx(

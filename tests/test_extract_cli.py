@@ -94,7 +94,7 @@ def test_rig_values_on_the_command_line(tmp_path, capsys):
     assert main(["extract", str(path), "--inertia-kgm2", "0.359", "--lever-length-m", "0.2", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
-    assert row["impact_velocity_from_force_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+    assert row["lever_rate_after_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
 
 
 def test_channel_mapping_with_units(tmp_path, capsys):
@@ -153,7 +153,7 @@ def test_batch_with_a_bad_file_writes_the_good_ones(logs, tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--window", "fist-cycle"], "window 'fist-cycle'"),
     (["--out", "results.txt"], "unknown table format"),
-    (["--inertia-kgm2", "-1"], "--inertia-kgm2 must be > 0"),
+    (["--inertia-kgm2", "-1"], "--inertia-kgm2: must be > 0"),
     (["--channel", "angel=x"], "unknown role"),
 ])
 def test_bad_options_exit_2(logs, capsys, args, message):
@@ -175,11 +175,34 @@ def test_rig_gives_laser_radius_and_lever_length(tmp_path, capsys):
                                                     "torque_nm": ch["torque_nm"],
                                                     "impact_force_n": ch["impact_force_n"]}, meta)
     assert main(["extract", str(path), "--json"]) == 2  # no sensor radius
-    assert "sensor radius" in capsys.readouterr().err
+    assert "needs the laser spot radius (m): the log carries no 'laser_radius_m'; give --sensor-radius-m or --rig" \
+        in capsys.readouterr().err
     assert main(["extract", str(path), "--rig", "rapp2022", "--json"]) == 0
     row = json.loads(capsys.readouterr().out)[0]
     assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
-    assert row["impact_velocity_from_force_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+    assert row["lever_rate_after_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+
+
+def test_the_logs_own_laser_radius_lever_and_inertia_are_used(tmp_path, capsys):
+    """A droptower log whose angle channel was removed still carries laser_radius_m, inertia_kgm2
+    and lever_length_m: extract needs no flag for them (and a flag overrides them)."""
+    drop = SyntheticDrop(inertia_kgm2=0.359, seed=3)
+    time, ch = drop.channels()
+    radius = 0.15
+    meta = {**drop.metadata(), "laser_radius_m": radius, "lever_length_m": 0.2}
+    path = write_log(tmp_path / "no_angle.csv", time, {"laser_distance_m": radius * np.tan(ch["angle_rad"]),
+                                                       "torque_nm": ch["torque_nm"],
+                                                       "impact_force_n": ch["impact_force_n"]}, meta)
+    assert main(["extract", str(path), "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)[0]
+    assert row["stiffness_nm_per_rad"] == pytest.approx(drop.stiffness_nm_per_rad, rel=0.01)
+    assert row["lever_rate_after_rad_per_s"] == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
+    assert row["lever_rate_after_from"] == "impact_force"  # the log's lever length was used
+    # a given radius overrides the log's: twice the radius reads about half the angle
+    assert main(["extract", str(path), "--sensor-radius-m", str(2 * radius), "--json"]) == 0
+    halved = json.loads(capsys.readouterr().out)[0]
+    assert halved["amplitude_deg"] == pytest.approx(row["amplitude_deg"] / 2, rel=0.02)
+
 
 
 @pytest.mark.parametrize("decimals", [4, 5])

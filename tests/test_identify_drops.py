@@ -165,6 +165,12 @@ def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     captured = capsys.readouterr()
     assert code == 2
     assert "NOT CONVERGED" in captured.out and "did not converge" in captured.err and not bad.exists()
+    # one summary line for the tests; a line per test only with --verbose
+    assert "per test: 6 test(s), worst angle nRMSE" in captured.out and "per test (angle" not in captured.out
+    assert main(["identify", "--from-drop-tests", folder, "--model", "zerodim6", "--params", str(params),
+                 "--verbose"]) == 2
+    verbose = capsys.readouterr().out
+    assert "per test (angle nRMSE %):" in verbose and sum(".parquet: J " in line for line in verbose.splitlines()) == 6
     assert math.isfinite(report["wall_s"])
 
 

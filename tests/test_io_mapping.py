@@ -97,7 +97,26 @@ def test_distance_in_mm_needs_radius():
     record = _record({"t": ("s", time), "Laser": ("mm", 1e3 * 0.08 * np.tan(angle))})  # R tan(phi)
     signals = map_channels(record, sensor_radius_m=0.08)
     np.testing.assert_allclose(signals.angle_rad, angle, rtol=1e-13, atol=1e-18)
-    with pytest.raises(DroptowerError, match=r"drop_07\.csv: a laser distance channel needs the sensor radius"):
+    with pytest.raises(DroptowerError, match=r"drop_07\.csv: a laser distance channel needs the laser spot radius "
+                                             r"\(m\): the log carries no 'laser_radius_m'; give --sensor-radius-m or --rig"):
+        map_channels(record, sensor_radius_m=None)
+    with pytest.raises(DroptowerError, match=r"give --rig$"):  # a command names its own flags
+        map_channels(record, sensor_radius_m=None, radius_flags="--rig")
+
+
+def test_laser_radius_from_the_log_metadata():
+    """The log's own ``laser_radius_m`` is used; a given radius overrides it, a default (the rig's)
+    only fills in where the log has none."""
+    time, angle = _signals()
+    record = _record({"t": ("s", time), "Laser": ("m", 0.15 * np.tan(angle))})
+    record.metadata["laser_radius_m"] = 0.15
+    np.testing.assert_allclose(map_channels(record, sensor_radius_m=None).angle_rad, angle, rtol=1e-13, atol=1e-18)
+    np.testing.assert_allclose(map_channels(record, sensor_radius_m=None, default_sensor_radius_m=0.3).angle_rad,
+                               angle, rtol=1e-13, atol=1e-18)
+    given = map_channels(record, sensor_radius_m=0.3).angle_rad
+    np.testing.assert_allclose(given, np.arctan(0.15 * np.tan(angle) / 0.3), rtol=1e-13, atol=1e-18)
+    record.metadata["laser_radius_m"] = -1.0
+    with pytest.raises(DroptowerError, match=r"laser spot radius \(the log's metadata laser_radius_m\): must be > 0, got -1$"):
         map_channels(record, sensor_radius_m=None)
 
 
@@ -106,7 +125,8 @@ def test_time_from_sample_rate():
     record = _record({"angle": ("rad", angle)})
     signals = map_channels(record, sensor_radius_m=None, sample_rate_hz=2048.0)
     assert signals.sample_rate_hz == pytest.approx(2048.0) and signals.time_s[0] == 0.0
-    with pytest.raises(DroptowerError, match=r"drop_07\.csv: no time channel and no sample rate"):
+    with pytest.raises(DroptowerError, match=r"drop_07\.csv: no time channel and no sample rate; give "
+                                             r"--channel time=NAME\[:UNIT\] or --sample-rate-hz"):
         map_channels(record, sensor_radius_m=None)
     own_rate = _record({"angle": ("rad", angle)}, sample_rate_hz=1000.0)
     assert map_channels(own_rate, sensor_radius_m=None).time_s[1] == 1e-3

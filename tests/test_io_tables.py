@@ -93,7 +93,7 @@ def test_plan_out_xlsx_is_excel_and_unknown_suffix_exit_2(tmp_path: Path, capsys
     out = tmp_path / "plan.xlsx"
     assert main(["plan", "--coupling", str(coupling), "--out", str(out)]) == 0, capsys.readouterr().err
     sheet = pd.read_excel(out, engine="openpyxl")
-    assert len(sheet) > 1 and {"case", "amplitude_deg", "frequency_hz"} <= set(sheet.columns)
+    assert len(sheet) > 1 and {"case", "amplitude_deg", "first_period_frequency_hz"} <= set(sheet.columns)
     capsys.readouterr()
     assert main(["plan", "--coupling", str(coupling), "--out", str(tmp_path / "plan.txt")]) == 2
     err = capsys.readouterr().err

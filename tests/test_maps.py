@@ -274,7 +274,7 @@ def test_cli_bad_input_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "lacks column(s) frequency_hz, stiffness_nm_per_deg, damping_ratio" in err
     assert main(["map", str(tmp_path / "nothing.csv")]) == 2
-    assert "file not found" in capsys.readouterr().err
+    assert "no such file" in capsys.readouterr().err
 
 
 def test_cli_json_keys(table4: pd.DataFrame, capsys: pytest.CaptureFixture[str]) -> None:
@@ -299,6 +299,9 @@ def test_cli_summary_out_and_plots(table4: pd.DataFrame, tmp_path: Path, capsys:
     assert main(["map", str(TABLE4), "--out", str(out), "--plot", str(plots)]) == 0
     captured = capsys.readouterr()
     assert "30 tests used, 0 excluded" in captured.out and "k13 = " in captured.out
+    # a summary line for every file written, on stderr (stdout: the summary or --json)
+    assert f"droptower: wrote {out} (the map: 13 coefficients" in captured.err
+    assert f"droptower: wrote {plots} (fig10" in captured.err
     assert "Fig. 10(a) skipped: the results have no drop_height_m column" in captured.err
     assert MapFit.from_json(out).stats.n_tests == 30
     for name in ("fig10_parameter_variation.png", "fig12_stiffness_map.png", "fig13_damping_map.png"):

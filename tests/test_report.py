@@ -137,7 +137,9 @@ def test_results_table_report_and_cli(campaign: Path, tmp_path: Path, capsys: py
     table = tmp_path / "results.csv"
     assert main(["extract", *map(str, sorted(logs.glob("*.parquet"))), "--out", str(table)]) == 0
     assert main(["report", str(table), "--out", str(tmp_path / "out" / "r.html"), "--form", "velocity"]) == 0
-    assert capsys.readouterr().out.strip().endswith("r.html")
+    err = capsys.readouterr().err  # a summary line for every file written
+    assert f"droptower: wrote {table} (12 test(s) x " in err
+    assert f"droptower: wrote {tmp_path / 'out' / 'r.html'} (HTML report, " in err
     text = (tmp_path / "out" / "r.html").read_text()
     assert str(tmp_path) not in text
     assert "simulated logs (coupling rapp2022_nr60)" in text and "logs found for 12" in text
@@ -147,7 +149,7 @@ def test_results_table_report_and_cli(campaign: Path, tmp_path: Path, capsys: py
 
 def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["report", str(tmp_path / "nothing")]) == 2
-    assert capsys.readouterr().err.strip().endswith("nothing: file not found")
+    assert capsys.readouterr().err.strip().endswith("nothing: no such file")
     (tmp_path / "folder").mkdir()
     assert main(["report", str(tmp_path / "folder")]) == 2
     err = capsys.readouterr().err
@@ -197,19 +199,19 @@ def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
         column = chrome.execute_script(
             "return [...document.querySelectorAll('#tests-table thead th')].findIndex(th => th.textContent.startsWith('amplitude'))")
         assert column > 0
-        def sort_by_amplitude(state: str) -> list[float]:
-            """Click the column's sort button (DataTables: ascending, descending, none) and wait
-            until the header says ``state``; the column's numbers as shown."""
+        def sort_by_amplitude(state: str, on: str) -> list[float]:
+            """Click the column's title text or its sort arrow (DataTables: ascending, descending,
+            none) and wait until the header says ``state``; the column's numbers as shown."""
             th = next(th for th in chrome.find_elements(By.XPATH, "//th[starts-with(normalize-space(.), 'amplitude')]")
                       if th.is_displayed())
-            th.find_element(By.CSS_SELECTOR, "span.dt-column-order").click()
+            th.find_element(By.CSS_SELECTOR, "span.dt-column-title" if on == "title" else "span.dt-column-order").click()
             wait.until(lambda d: th.get_attribute("aria-sort") == state)
             return chrome.execute_script(
                 "return [...document.querySelectorAll('#tests-table tbody tr')].map("
                 f"tr => parseFloat(tr.children[{column}].textContent)).filter(v => !isNaN(v))")
 
-        ascending = sort_by_amplitude("ascending")
-        descending = sort_by_amplitude("descending")
+        ascending = sort_by_amplitude("ascending", on="title")  # a click on the title's text sorts
+        descending = sort_by_amplitude("descending", on="arrow")
         assert len(ascending) == 11  # the failed test has no amplitude
         assert ascending == sorted(ascending) and ascending != sorted(ascending, reverse=True)
         assert descending == sorted(ascending, reverse=True)

@@ -34,7 +34,7 @@ def test_simulate_json_log_and_plot(tmp_path, capsys, coupling):
     assert code == 0, err
     s = json.loads(out)
     for key in ("drop_mass_velocity_after_m_per_s", "lever_tip_velocity_after_m_per_s", "impact_energy_j", "contacts",
-                "double_impact", "max_angle_deg", "max_torque_nm", "energy_balance_error_fraction", "impulse_n_s"):
+                "double_impact", "max_angle_deg", "max_torque_nm", "energy_balance_error_fraction", "impact_impulse_n_s"):
         assert key in s
     assert s["lever_tip_velocity_after_m_per_s"] == pytest.approx(s["predicted_lever_tip_velocity_after_m_per_s"],
                                                                   rel=0.01)
@@ -54,10 +54,10 @@ def test_simulate_table_on_the_shipped_presets(capsys):
 
 
 @pytest.mark.parametrize("args, words", [
-    (["--drop-mass-kg", "0"], ["--drop-mass-kg", "must be positive"]),
-    (["--inertia-kgm2", "-0.3"], ["--inertia-kgm2", "must be positive"]),
-    (["--height-m", "-1"], ["--height-m", "must be positive"]),
-    (["--height-m", "8"], ["--height-m", "rapp2022.toml", "drop_height_range_m"]),
+    (["--drop-mass-kg", "0"], ["--drop-mass-kg: must be > 0, got 0"]),
+    (["--inertia-kgm2", "-0.3"], ["--inertia-kgm2: must be > 0, got -0.3"]),
+    (["--height-m", "-1"], ["--height-m: must be > 0, got -1"]),
+    (["--height-m", "8"], ["--height-m", "of rig rapp2022 (field drop_height_range_m)"]),  # the preset by its name
     (["--preload-nm", "5000"], ["--preload-nm", "preload_range_nm"]),
     (["--duration-s", "0"], ["--duration-s"]),
 ])
@@ -115,7 +115,7 @@ def test_plan_table_csv_json_plot(tmp_path, capsys, coupling):
     assert png.stat().st_size > 10_000
     code, out, err = run(capsys, "plan", "--coupling", coupling, "--doe", str(doe), "--json")
     rows = json.loads(out)
-    assert len(rows) == 8 and all("frequency_hz" in r and "warnings" in r for r in rows)
+    assert len(rows) == 8 and all("first_period_frequency_hz" in r and "warnings" in r for r in rows)
 
 
 def test_plan_bad_doe_is_one_line(tmp_path, capsys, coupling):

@@ -221,7 +221,7 @@ def test_translational_servo_results_are_refused_with_the_reason(tmp_path, capsy
 
 def test_bad_map_and_reference(tmp_path, capsys):
     assert main(["validate", "--map", str(tmp_path / "none.json")]) == 2
-    assert "none.json: file not found" in _one_line_error(capsys.readouterr().err)
+    assert "none.json: no such file" in _one_line_error(capsys.readouterr().err)
     map_file = tmp_path / "map.json"
     constant_map().to_json(map_file)
     reference = tmp_path / "table4.csv"

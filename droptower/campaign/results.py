@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.campaign.spec import PLAN_COLUMNS
+from droptower.extract.result import TEXT_OUTPUTS
 from droptower.io.tables import write_table
 
 TAIL_COLUMNS = ("flags", "log_file", "status", "error", "simulation_warnings")
@@ -45,6 +46,8 @@ def assemble(records: list[dict[str, Any]]) -> pd.DataFrame:
     for name in extracted:
         if name == "double_impact":
             table[name] = table[name].astype("boolean")
+        elif name in TEXT_OUTPUTS:
+            table[name] = table[name].fillna("").astype(str)
         else:
             table[name] = pd.to_numeric(table[name].astype(object).where(table[name].notna(), np.nan))
     return table

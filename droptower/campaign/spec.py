@@ -86,7 +86,7 @@ def _record_length(rig: Any, coupling: Any, doe: Any, window: Any) -> float:
     """The record the planner's periods ask for (:func:`droptower.rig.planner.record_length_s`)."""
     from droptower.rig.planner import plan, record_length_s
 
-    return record_length_s(plan(rig, coupling, doe.conditions())["period_s"], window.length_s)
+    return record_length_s(plan(rig, coupling, doe.conditions())["first_period_s"], window.length_s)
 
 
 def prepare(rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING, doe: str | Path = DEFAULT_DOE,

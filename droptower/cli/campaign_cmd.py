@@ -8,7 +8,7 @@ import click
 from droptower.cli import options
 from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, check_positive
 
 
 @click.command()
@@ -52,8 +52,8 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     them again); a folder holding another campaign is never touched. Same plan and seeds, same results,
     whatever the number of workers.
 
-    A test whose simulation or extraction fails is listed at the end (exit code 1); the
-    others are still written.
+    A test whose simulation or extraction fails is listed at the end (exit code 2, as for
+    any user error); the others are still written. Unfinished tests: exit code 2 as well.
 
     \b
     Examples:
@@ -64,6 +64,7 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     from droptower.campaign import run_campaign
     from droptower.campaign.folder import check_folder, has_campaign
 
+    check_positive(duration_s, "--duration-s")
     if resume and not has_campaign(out):  # else --resume would start the default plan in it
         check_folder(out)  # a non-empty folder is named as such
         raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
@@ -87,17 +88,20 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
                f"{done} extracted, {len(run.failed)} failed, {run.pending} pending "
                f"({run.ran_tests} run now{' on ' + run.executor if run.executor else ''}, {run.wall_s:.1f} s; "
                f"record {run.spec.duration_s:g} s after the impact)")
-    click.echo(f"results: {run.root / 'results.parquet'}, {run.root / 'results.csv'}")
+    for name in ("results.parquet", "results.csv"):
+        options.wrote(run.root / name, f"{len(run.results)} test(s), one row each")
+    options.wrote(run.root / "logs", "a log per simulated test")
     if done:  # per condition over repeats, and Fig. 11 when the plan varies the preload
         from droptower.io.tables import write_table
         from droptower.maps.summary import FIG11, condition_summary, plot_preload_effect
 
         summary = condition_summary(run.results)
-        written = [write_table(summary, run.root / "summary.csv")]
+        options.wrote(write_table(summary, run.root / "summary.csv"),
+                      f"{len(summary)} condition(s), mean and std over repeats")
         if summary["preload_nm"].nunique() > 1:
-            written.append(plot_preload_effect(summary, run.root / FIG11, f"{run.spec.coupling.name} on "
-                                               f"{run.spec.rig.name}, plan {run.spec.doe.name}"))
-        click.echo(f"per condition (mean ± std over repeats): {', '.join(map(str, written))}")
+            options.wrote(plot_preload_effect(summary, run.root / FIG11, f"{run.spec.coupling.name} on "
+                                              f"{run.spec.rig.name}, plan {run.spec.doe.name}"),
+                          "preload effect (seed 004 Fig. 11)")
     if run.failed:
         click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
         for test_id, error in run.failed:
@@ -107,4 +111,4 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     if run.pending:
         click.echo(f"droptower: {run.pending} test(s) not finished; run again with --resume to continue", err=True)
     if run.failed or run.errors or run.pending:
-        raise click.exceptions.Exit(1)
+        raise click.exceptions.Exit(2)

@@ -13,7 +13,7 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
-from droptower.io.mapping import ROLES, SERVO_KINDS, SERVO_ROLES, find_roles, find_servo_roles, parse_channel_options
+from droptower.io.mapping import KINDS, ROLES, SERVO_KINDS, SERVO_ROLES, check_units, find_roles, find_servo_roles, parse_channel_options
 from droptower.io.readers import read_any
 from droptower.io.timebase import regular_time
 from droptower.units import to_si
@@ -86,7 +86,7 @@ def _cell(value: Any) -> str:
 
 @click.command()
 @quiet_option
-@click.argument("file", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("file", type=click.Path(path_type=str))
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Try a channel mapping (as extract takes it): the roles column shows the result.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list of channel objects instead of a table.")
@@ -118,6 +118,7 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
     record = read_any(file, delimiter=delimiter, decimal=decimal, header_lines=header_lines, unit_row=unit_row)
     problems: list[str] = []
     given = parse_channel_options(channel_specs, tuple(dict.fromkeys(ROLES + SERVO_ROLES)))
+    check_units(record, {role: spec for role, spec in given.items() if role in KINDS})
     roles = find_roles(record, {r: v for r, v in given.items() if r in ROLES}, problems)
     servo_problems: list[str] = []
     servo_units, servo_roles = find_servo_roles(record, {r: v for r, v in given.items() if r in SERVO_ROLES},

@@ -15,7 +15,7 @@ from droptower.errors import DroptowerError
 from droptower.io.tables import check_table_path, write_table
 
 #: Columns printed as the table (all are in --json).
-TABLE_COLUMNS = ["case", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats", "amplitude_ref_deg",
+TABLE_COLUMNS = ["case", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats", "amplitude_deg",
                  "frequency_hz", "damping_ratio", "peak_torque_nm", "min_clearance_mm"]
 
 #: The range --for-identification chooses from when no target is given: all the rig can do.

@@ -9,8 +9,8 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import progress_disabled, quiet_option, renamed_option
-from droptower.errors import DroptowerError
+from droptower.cli.options import progress_disabled, quiet_option, renamed_option, wrote
+from droptower.errors import DroptowerError, WriteError, check_positive, make_folder
 
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
@@ -53,7 +53,7 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @renamed_option("--lever-length-m", "--lever-length", "lever_length", type=float,
                 help="Lever arm L in m (rotation axis to impact point).")
 @renamed_option("--sensor-radius-m", "--sensor-radius", "sensor_radius", type=float,
-                help="Laser spot radius in m, for a distance channel.")
+                help="Laser spot radius in m, for a distance channel (default: the log's metadata).")
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Map a channel to a role: time, impact_force, angle, distance, torque (repeatable).")
 @renamed_option("--sample-rate-hz", "--sample-rate", "sample_rate", type=float,
@@ -91,8 +91,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     φ̂_ref, f (seed 004 eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
     loss factor η and relative damping ψ (NOTES §1.7); standard uncertainties (*_std), the fit
     error and flags (double_impact, clipping, too_few_samples_per_period, short_window,
-    poor_fit). J and L: --inertia-kgm2/--lever-length-m, else the log's metadata, else the rig
-    (its inertia only if it has a single lever fixture).
+    poor_fit). J, L and the laser radius: --inertia-kgm2/--lever-length-m/--sensor-radius-m, else
+    the log's metadata, else the rig (its inertia only if it has a single lever fixture).
 
     Time stamps printed with few decimals (steps that differ only by the printed precision)
     are taken as a constant sample rate estimated from the whole log (a note says so); a truly
@@ -128,16 +128,13 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         check_table_path(out, "--out")
     for name, value, most in (("--inertia-kgm2", inertia, 1e3), ("--lever-length-m", lever_length, 10.0),
                               ("--sensor-radius-m", sensor_radius, 10.0), ("--sample-rate-hz", sample_rate, 1e9)):
-        if value is not None and not 0 < value <= most:  # also refuses inf and nan
-            raise DroptowerError(f"{name} must be > 0 and at most {most:g}, got {value:g}")
+        check_positive(value, name, most=most)
     for name, value in (("--pre-trigger-s", pre_trigger_s), ("--min-drop-spacing-s", min_drop_spacing_s)):
-        if not 0 < value <= 3600.0:
-            raise DroptowerError(f"{name} must be > 0 and at most 3600, got {value:g}")
+        check_positive(value, name, most=3600.0)
     rig_values = _rig_settings(rig)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
-        defaults={k: rig_values[k] for k in ("inertia_kgm2", "lever_length_m") if rig_values.get(k) is not None},
-        sensor_radius_m=sensor_radius if sensor_radius is not None else rig_values.get("sensor_radius_m"),
+        defaults={k: v for k, v in rig_values.items() if v is not None}, sensor_radius_m=sensor_radius,
         sample_rate_hz=sample_rate, window=Window.parse(window),
         reader_options={"delimiter": "\t" if delimiter == "\\t" else delimiter, "decimal": decimal,
                         "header_lines": header_lines, "unit_row": unit_row},
@@ -145,8 +142,10 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         drop_conditions=read_drop_conditions(drop_conditions) if drop_conditions is not None else {},
         pre_trigger_s=pre_trigger_s, min_drop_spacing_s=min_drop_spacing_s,
     )
-    if plot_dir is not None:
+    if plot_dir is not None:  # the output place first: a folder that cannot be made is its own error
         from droptower.extract.plot import plot_fit
+
+        make_folder(plot_dir)
 
     rows: list[dict[str, Any]] = []
     failures: list[str] = []
@@ -168,6 +167,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
                     plots.add(name)
                     plot_fit(drop.signals, drop.result, plot_dir / f"{name}.png", title=None)
                 rows.append(result_row(path, drop.signals, drop.result, drop.span.index))
+        except WriteError:  # the output place, not this log: the next plot would fail alike
+            raise
         except DroptowerError as exc:
             failed.add(path)
             failures.append(exc.with_file(path).message)
@@ -178,7 +179,10 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
     if rows and out is not None:
-        write_table(pd.DataFrame(rows), out, "--out")
+        table = pd.DataFrame(rows)
+        wrote(write_table(table, out, "--out"), f"{len(table)} test(s) x {table.shape[1]} columns")
+    if plots:
+        wrote(plot_dir, f"{len(plots)} decay-fit plot(s)")
     if as_json:
         click.echo(json.dumps([json_safe(r) for r in rows], indent=2, default=str))
     elif out is None and rows:

@@ -12,12 +12,16 @@ from typing import Any
 import click
 import numpy as np
 
-from droptower.cli.options import note, progress
-from droptower.errors import DroptowerError
+from droptower.cli.options import note, progress, wrote
+from droptower.errors import DroptowerError, make_folder
 
 
-def drop_report_text(result: Any) -> str:
-    """A human-readable report of a drop-test identification."""
+#: excluded tests named on stderr without --verbose (the rest are counted)
+EXCLUDED_SHOWN = 5
+
+
+def drop_report_text(result: Any, verbose: bool = False) -> str:
+    """A human-readable report of a drop-test identification; ``verbose``: a line per test."""
     lines = [f"model {result.model} from {len(result.tests_used)} drop test(s) "
              f"(+{len(result.tests_held_out)} held out, {len(result.tests_excluded)} excluded): "
              f"{'converged' if result.converged else 'NOT CONVERGED: ' + result.message}"]
@@ -40,8 +44,14 @@ def drop_report_text(result: Any) -> str:
     lines.append(f"initial rate from: {', '.join(sources)} (impact_force: L * impulse / J; angle_slope: the angle's "
                  "slope after the onset)")
     lines.append(f"effort:  {result.evaluations} model evaluations, {result.nfev} optimiser steps, {result.wall_s:.2f} s")
+    per_test = result.fit_error["per_test"] + (result.holdout_error["per_test"] if result.holdout_error else [])
+    if not verbose:
+        worst = max(per_test, key=lambda r: r["angle_nrmse"])
+        lines.append(f"per test: {len(per_test)} test(s), worst angle nRMSE {100 * worst['angle_nrmse']:.3f} % "
+                     f"({worst['file']}); --verbose lists every test")
+        return "\n".join(lines)
     lines.append("per test (angle nRMSE %):")
-    for r in result.fit_error["per_test"] + (result.holdout_error["per_test"] if result.holdout_error else []):
+    for r in per_test:
         held = " (held out)" if r["file"] in result.tests_held_out else ""
         lines.append(f"  {r['file']}: J {r['inertia_kgm2']:.4g} kg*m^2, {r['amplitude_deg']:.3g} deg, "
                      f"{r['frequency_hz']:.3g} Hz: {100 * r['angle_nrmse']:.3f}{held}")
@@ -86,42 +96,72 @@ def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any)
     return table, f"drop-tower map (seed 004 eq. 19-20) from {len(rows)} first-cycle evaluations"
 
 
-def plot_servo_prediction(table: Any, out_dir: str) -> Path:
-    """Stiffness and damping over amplitude, one line per frequency: the fitted model on the
-    servo bench (solid) and the drop tower's map (dashed)."""
-    import matplotlib
+#: two curves closer than this share of their axis's span everywhere look like one line (about
+#: 2 px on a 400 px axis): they are drawn once, with one legend entry naming both
+COINCIDE = 0.005
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    fig, (ax_k, ax_d) = plt.subplots(1, 2, figsize=(12, 4.5))
-    for i, (f, part) in enumerate(table.groupby("frequency_hz")):
-        color = f"C{i}"
-        ax_k.plot(part["amplitude_deg"], part["model_storage_stiffness_nm_per_deg"], color=color,
-                  label=f"model K', {f:.3g} Hz")
-        ax_d.plot(part["amplitude_deg"], part["model_drop_tower_equivalent_damping_ratio"], color=color,
-                  label=f"model, {f:.3g} Hz")
-        if "map_stiffness_nm_per_deg" in part:
-            ax_k.plot(part["amplitude_deg"], part["map_stiffness_nm_per_deg"], "--", color=color, label=f"map, {f:.3g} Hz")
-            ax_d.plot(part["amplitude_deg"], part["map_damping_ratio"], "--", color=color, label=f"map, {f:.3g} Hz")
-    ax_k.set_ylabel("stiffness (N*m/deg)")
-    ax_d.set_ylabel("drop-tower damping ratio d (model: equivalent to its loss factor)")
-    for ax in (ax_k, ax_d):
+def _frequencies(freqs: list[float]) -> str:
+    text = [f"{f:.3g}" for f in freqs]
+    return text[0] if len(text) == 1 else f"{', '.join(text[:-1])} and {text[-1]}"
+
+
+def distinct_curves(curves: list[tuple[float, np.ndarray, np.ndarray]], span: float) -> list[tuple[list[float], np.ndarray, np.ndarray]]:
+    """Curves ``(frequency, x, y)`` grouped so that curves within :data:`COINCIDE` x ``span`` of a
+    group's first one join it: one drawn line and one legend entry per group."""
+    groups: list[tuple[list[float], np.ndarray, np.ndarray]] = []
+    for f, x, y in curves:
+        for freqs, gx, gy in groups:
+            if len(gx) == len(x) and np.allclose(gx, x) and np.max(np.abs(gy - y)) <= COINCIDE * span:
+                freqs.append(f)
+                break
+        else:
+            groups.append(([f], x, y))
+    return groups
+
+
+def servo_prediction_figure(table: Any) -> Any:
+    """Stiffness and damping ratio over amplitude: the fitted model on the servo bench (solid)
+    and the drop tower's map (dashed), a colour per frequency; curves that coincide are drawn
+    once and named together in the legend."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 5), layout="constrained")
+    ax_k, ax_d = fig.subplots(1, 2)
+    colour = {f: f"C{i}" for i, f in enumerate(sorted(table["frequency_hz"].unique()))}
+    panels = ((ax_k, "model_storage_stiffness_nm_per_deg", "map_stiffness_nm_per_deg"),
+              (ax_d, "model_drop_tower_equivalent_damping_ratio", "map_damping_ratio"))
+    for ax, model_col, map_col in panels:
+        for who, col, style in (("model", model_col, "-"), ("map", map_col, "--")):
+            if col not in table:
+                continue
+            curves = [(f, part["amplitude_deg"].to_numpy(float), part[col].to_numpy(float))
+                      for f, part in table.sort_values("amplitude_deg").groupby("frequency_hz")]
+            values = table[[c for c in (model_col, map_col) if c in table]].to_numpy(float)
+            span = float(np.nanmax(values) - np.nanmin(values)) or 1.0
+            for freqs, x, y in distinct_curves(curves, span):
+                ax.plot(x, y, style, color=colour[freqs[0]], label=f"{who}, {_frequencies(freqs)} Hz")
         ax.set_xlabel("amplitude (deg)")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.14))  # below: off the curves
+    ax_k.set_ylabel("stiffness (N*m/deg)")
+    ax_k.set_title("stiffness: model K', map c", fontsize=10)
+    ax_d.set_ylabel("damping ratio d")
+    ax_d.set_title("drop-tower damping ratio (model: the d of its loss factor)", fontsize=10)
     fig.suptitle("fitted model on the servo bench (solid) vs the drop tower's map (dashed)")
-    fig.tight_layout()
-    path = out / "identify_drop_servo_prediction.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig
+
+
+def plot_servo_prediction(table: Any, out_dir: str) -> Path:
+    """:func:`servo_prediction_figure` as ``identify_drop_servo_prediction.png`` in ``out_dir``."""
+    from droptower.io.droptower_log import save_figure
+
+    return save_figure(servo_prediction_figure(table), Path(out_dir) / "identify_drop_servo_prediction.png", 110)
 
 
 def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,
         holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
-        out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None) -> None:
+        out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None,
+        verbose: bool = False) -> None:
     from droptower.identify.dropfit import DropFitSettings, identify_drops
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.io import parse_channel_options
@@ -138,6 +178,7 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
 
         config = load_rig(rig)
         defaults["lever_length_m"] = config.lever_length_m
+        defaults["sensor_radius_m"] = config.sensors.laser.radius_m
         if len(config.inertias_kgm2) == 1:
             defaults["inertia_kgm2"] = config.inertias_kgm2[0]
         conditioning = (config.simulation.preload_ramp_s, config.simulation.preload_hold_s)
@@ -157,14 +198,16 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
     read = ReadSettings(roles=parse_channel_options(channels), inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m,
                         defaults=defaults, cycles=cycles, rate=rate)
     decays, excluded = read_decays(data, read)
-    for e in excluded:
+    for e in excluded if verbose else excluded[:EXCLUDED_SHOWN]:
         click.echo(f"droptower: excluded {e['file']}: {e['reason']}", err=True)
+    if len(excluded) > EXCLUDED_SHOWN and not verbose:
+        click.echo(f"droptower: excluded {len(excluded) - EXCLUDED_SHOWN} more test(s) (--verbose names them)", err=True)
     progress(f"identify: fitting {kind} to {len(decays)} drop test(s) ...")
     result = identify_drops(kind, decays, excluded=excluded, settings=settings, init=init.initial, bounds=init.bounds,
                             options=options)
     if result.converged and out:
         result.coupling_file = str(out)
-    click.echo(json.dumps(result.as_dict(), indent=1) if as_json else drop_report_text(result))
+    click.echo(json.dumps(result.as_dict(), indent=1) if as_json else drop_report_text(result, verbose))
     if predict_servo or plot_dir:
         from droptower.io.tables import write_table
 
@@ -172,15 +215,15 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         table, map_note = servo_prediction(result, decays, paths, read)
         note(f"servo prediction: {map_note}")
         if predict_servo:
-            note(f"servo prediction: {write_table(table, predict_servo, '--predict-servo')}")
+            wrote(write_table(table, predict_servo, '--predict-servo'), f"servo prediction, {len(table)} points")
         if plot_dir:
-            note(f"plot: {plot_servo_prediction(table, plot_dir)}")
+            wrote(plot_servo_prediction(table, plot_dir), "servo prediction vs the drop tower's map")
     if not result.converged:
         raise DroptowerError(f"model {kind}: the fit to the drop tests did not converge ({result.message}); "
                              "no coupling written")
     if out:
         _write(result, out, len(result.tests_used))
-        note(f"coupling: {out}")
+        wrote(out, f"coupling {kind}, for simulate, campaign, servo")
 
 
 def _log_paths(data: tuple[str, ...]) -> list[Path]:
@@ -201,6 +244,6 @@ def _write(result: Any, out: str, n_tests: int) -> None:
     c = result.coupling()
     c.description = f"{c.description}. Identified by droptower identify --from-drop-tests --model {result.model} ({quality})."
     path = Path(out)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     path.write_text(coupling_to_toml(c))
     load_coupling(path)  # what is written must read back

@@ -52,8 +52,10 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     fit = fit_map(table, source=results, form=form)
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
+        options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
     elif out is not None:
-        write_table(fit.coefficient_table(), out, "--out")
+        coefficients = fit.coefficient_table()
+        options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
     nested = _nested(table, results) if nested_cv else None
     if as_json and nested is not None:
         click.echo(json.dumps({**json.loads(fit.to_json()), "nested_cross_validation": nested}, indent=2))
@@ -71,8 +73,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
         for line in notes:
             options.note(f"note: {line}")
-        if not as_json:
-            click.echo(f"plots: {', '.join(str(p) for p in files)}")
+        options.wrote(plot_dir, f"{', '.join(p.name for p in files)}")
 
 
 def _nested(table, source: Path) -> dict:

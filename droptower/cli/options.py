@@ -69,3 +69,9 @@ def note(text: str) -> None:
     """An informational line on stderr (``droptower: note: ...``), silenced by --quiet."""
     if not QUIET:
         click.echo(f"droptower: {text}", err=True)
+
+
+def wrote(path: object, what: str) -> None:
+    """The one summary line of every file or folder a command writes (stderr, so ``--json`` on
+    stdout stays clean; silenced by --quiet): ``droptower: wrote PATH (WHAT)``."""
+    note(f"wrote {path} ({what})")

@@ -6,12 +6,13 @@ import math
 
 import click
 
-from droptower.cli.options import quiet_option
+from droptower.cli.options import quiet_option, wrote
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 
 #: Columns printed as the table (all are in --out and --json).
 TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats",
-                 "lever_rate_after_rad_per_s", "impact_energy_j", "amplitude_deg", "max_twist_deg", "frequency_hz",
+                 "lever_rate_after_rad_per_s", "impact_energy_j", "amplitude_deg", "max_twist_deg",
+                 "first_period_frequency_hz",
                  "damping_ratio", "peak_torque_nm", "double_impact", "min_clearance_mm", "warnings"]
 
 
@@ -44,14 +45,13 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     """
     import pandas as pd
 
-    from droptower.errors import DroptowerError
+    from droptower.errors import check_positive
     from droptower.io.tables import check_table_path, write_table
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_doe, load_rig
     from droptower.rig.planner import plan as predict
 
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise DroptowerError(f"must be positive, got {duration_s:g}", where="--duration-s")
+    check_positive(duration_s, "--duration-s")
     if out:
         check_table_path(out, "--out")
     rig_cfg = load_rig(rig)
@@ -60,11 +60,11 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     plan_cfg.check(rig_cfg)
     table = predict(rig_cfg, model, plan_cfg.conditions(), duration_s)
     if out:
-        write_table(table, out, "--out")
+        wrote(write_table(table, out, "--out"), f"{len(table)} condition(s)")
     if plot_path:
         from droptower.rig.plots import plot_plan
 
-        plot_plan(table, rig_cfg, plot_path, model.name)
+        wrote(plot_plan(table, rig_cfg, plot_path, model.name), "twist, frequency, peak torque, clearance over height")
     if as_json:
         records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
                    for rec in table.to_dict(orient="records")]
@@ -79,6 +79,3 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     n_double = int(table["double_impact"].sum())
     n_warn = int((table["warnings"].map(len) > 0).sum())
     click.echo(f"{n_double} condition(s) double-impact, {n_warn} with warnings")
-    for key, value in (("table", out), ("plot", plot_path)):
-        if value:
-            click.echo(f"{key}: {value}")

@@ -34,4 +34,4 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     from droptower.report import write_report
 
     path = write_report(source, out, form=form, channels=parse_channel_options(channel_specs), progress=options.progress_disabled() is None)
-    click.echo(f"report: {path}")
+    options.wrote(path, f"HTML report, {path.stat().st_size / 1e6:.1f} MB")

@@ -6,8 +6,8 @@ import math
 
 import click
 
-from droptower.cli.options import note, quiet_option
-from droptower.errors import DroptowerError
+from droptower.cli.options import note, quiet_option, wrote
+from droptower.errors import DroptowerError, check_positive
 
 #: Columns of the default table (all are in the JSON output).
 TABLE_COLUMNS = ["amplitude_deg", "frequency_hz", "preload_nm", "offset_deg", "storage_stiffness_nm_per_rad",
@@ -23,8 +23,8 @@ def _float_list(option: str, text: str) -> list[float]:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         raise DroptowerError(f"expected comma-separated numbers, got {text!r}", where=option) from None
-    if not all(math.isfinite(v) and v > 0 for v in values):
-        raise DroptowerError(f"every value must be a positive number, got {text!r}", where=option)
+    for value in values:
+        check_positive(value, option)
     return values
 
 
@@ -122,4 +122,4 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
 
         plot_loops(result, plot_path, units=model.units, title=f"{model.name}: hysteresis loops, preload "
                                                                f"{preload_nm:g} {'N' if translational else 'N*m'}")
-        note(f"loops written to {plot_path}")
+        wrote(plot_path, "hysteresis loops")

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import quiet_option, renamed_option
+from droptower.cli.options import quiet_option, renamed_option, wrote
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 
 
@@ -58,13 +58,12 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
       droptower simulate --inertia-kgm2 0.1557 --drop-mass-kg 2 --height-m 0.4 --preload-nm 500 \\
           --out test.parquet --json
     """
-    from droptower.errors import DroptowerError
+    from droptower.errors import check_positive
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_rig
     from droptower.rig.simulate import DropTest, check_size, simulate as run
 
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise DroptowerError(f"must be positive, got {duration_s:g}", where="--duration-s")
+    check_positive(duration_s, "--duration-s")
     rig_cfg = load_rig(rig)
     model = load_coupling(coupling)
     check_size(rig_cfg, model, 1, duration_s, where="--duration-s")
@@ -75,10 +74,12 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
     summary = result.summary()
     if out:
         summary["log"] = str(result.write_log(out))
+        wrote(summary["log"], "the test as the rig's sensors record it")
     if plot_path:
         from droptower.rig.plots import plot_test
 
         summary["plot"] = str(plot_test(result, plot_path))
+        wrote(summary["plot"], "drop mass and lever paths (seed 004 Fig. 4), angle and torque")
     if as_json:
         click.echo(json.dumps(json_safe(summary), indent=1))
         return
@@ -89,18 +90,15 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
                f"(impact law {s['predicted_drop_mass_velocity_after_m_per_s']:+.4f}), lever tip "
                f"{s['lever_tip_velocity_after_m_per_s']:+.4f} m/s (impact law "
                f"{s['predicted_lever_tip_velocity_after_m_per_s']:+.4f}), restitution {s['effective_restitution']:.4f}")
-    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impulse_n_s']:.4g} N*s")
+    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impact_impulse_n_s']:.4g} N*s")
     later = [1e3 * (t - s["impact_time_s"]) for t in s["contact_times_s"][1:]]
     click.echo(f"  {s['contacts']} contact(s) of drop mass and lever"
                + (f" (later ones at {', '.join(f'{t:.1f}' for t in later[:5])}{', ...' if len(later) > 5 else ''} ms "
                   f"after the impact)" if later else "")
                + f"; double impact (a second contact within the first period, "
-                 f"{1e3 * s['period_s']:.1f} ms): {'yes' if s['double_impact'] else 'no'}")
+                 f"{1e3 * s['first_period_s']:.1f} ms): {'yes' if s['double_impact'] else 'no'}")
     click.echo(f"  max angle {s['max_angle_deg']:.3f} deg, max torque {s['max_torque_nm']:.1f} N*m, "
-               f"first period {1e3 * s['period_s']:.2f} ms ({s['frequency_hz']:.2f} Hz), "
+               f"first period {1e3 * s['first_period_s']:.2f} ms ({s['first_period_frequency_hz']:.2f} Hz), "
                f"energy balance error {100 * s['energy_balance_error_fraction']:.3f} %")
     for w in s["warnings"]:
         click.echo(f"droptower: warning: {w}", err=True)
-    for key in ("log", "plot"):
-        if key in s:
-            click.echo(f"  {key}: {s[key]}")

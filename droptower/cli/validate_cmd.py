@@ -7,17 +7,17 @@ from pathlib import Path
 
 import click
 
-from droptower.cli.options import quiet_option
+from droptower.cli.options import quiet_option, wrote
 from droptower.configs import DEFAULT_COUPLING
 
 
 @click.command()
 @quiet_option
-@click.option("--map", "map_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--map", "map_path", type=click.Path(path_type=Path), required=True,
               help="The map (map.json from `droptower map --out`).")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
               help="Coupling (TOML file or preset) to run the sweeps on the virtual servo bench.")
-@click.option("--servo-results", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--servo-results", type=click.Path(path_type=Path), default=None,
               help="Measured servo results (a table: CSV with any delimiter and decimal comma, Parquet, Excel) "
                    "instead of the virtual bench: amplitude_deg, "
                    "frequency_hz, a stiffness column (storage_stiffness_nm_per_deg, ...), a damping column "
@@ -27,7 +27,7 @@ from droptower.configs import DEFAULT_COUPLING
               help="Map a column of --servo-results to a name above (e.g. loss_factor=Verlustfaktor, "
                    "amplitude_deg=Amp:rad); repeatable. Lab names (Amplitude [°], Frequenz [Hz], Verlustfaktor, "
                    "Speichersteifigkeit [Nm/°]) are found without it.")
-@click.option("--reference", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--reference", type=click.Path(path_type=Path), default=None,
               help="Also compare with a measured map table (e.g. seed 004 Table 4: inertia_kgm2, amplitude_deg, "
                    "frequency_hz, stiffness_nm_per_deg, damping_ratio).")
 @click.option("--results", type=click.Path(path_type=Path), default=None,
@@ -81,7 +81,8 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
     if out is not None:
-        written = write_validation(out, validation, fit, points, comparison, table_suffix=f".{table_format}")
+        for path in write_validation(out, validation, fit, points, comparison, table_suffix=f".{table_format}"):
+            wrote(path, "validation")
     if as_json:
         from droptower.campaign.folder import strict_json
 
@@ -93,5 +94,3 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
     click.echo(format_summary(validation))
     if comparison is not None:
         click.echo(format_comparison(comparison[1], reference.name))
-    if out is not None:
-        click.echo(f"written: {', '.join(str(p) for p in written)}")

@@ -14,6 +14,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from droptower.compare.validation import Validation
+from droptower.errors import make_folder
+from droptower.io.droptower_log import save_figure
 from droptower.maps import MapFit
 
 FIG14 = "fig14_servo_validation.png"
@@ -22,7 +24,7 @@ FIG14 = "fig14_servo_validation.png"
 def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
     """Write the four panels to ``path`` (PNG); returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     table = validation.table
     r = fit.range
     fig = Figure(figsize=(11, 8.5), layout="constrained")
@@ -57,5 +59,4 @@ def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
                  f"inside the tested hull: stiffness rms {s['inside']['stiffness_rms_deviation_pct']:.1f} %, damping rms "
                  f"{s['inside']['damping_rms_deviation_pct']:.1f} %; outside it: {s['outside']['stiffness_rms_deviation_pct']:.1f} %, "
                  f"{s['outside']['damping_rms_deviation_pct']:.1f} %", fontsize=10)
-    fig.savefig(path, dpi=110)
-    return path
+    return save_figure(fig, path, 110)

@@ -18,7 +18,7 @@ from droptower.campaign.folder import write_json
 from droptower.compare.fig14 import FIG14, plot_fig14
 from droptower.compare.servo_points import ServoPoints
 from droptower.compare.validation import Validation
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, make_folder
 from droptower.io.tables import write_table
 from droptower.maps import MapFit
 
@@ -36,10 +36,7 @@ def output_folder(out: str | Path, create: bool = True) -> Path:
         raise DroptowerError("exists and is not a folder", file=out)
     if not create:
         return out
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DroptowerError(f"cannot create the output folder ({exc.strerror or exc})", file=out) from None
+    make_folder(out)
     return out
 
 

@@ -130,8 +130,8 @@ def _lever_drops(feasible: pd.DataFrame, levels: np.ndarray) -> list[tuple[float
     in log amplitude between the candidates."""
     runs = []
     for mass, g in feasible.groupby("drop_mass_kg"):  # lighter mass first
-        g = g.sort_values("amplitude_ref_deg")
-        runs.append((mass, np.log10(g["amplitude_ref_deg"].to_numpy()), np.log10(g["drop_height_m"].to_numpy()),
+        g = g.sort_values("amplitude_deg")
+        runs.append((mass, np.log10(g["amplitude_deg"].to_numpy()), np.log10(g["drop_height_m"].to_numpy()),
                      g["frequency_hz"].to_numpy()))
     inertia = float(feasible["inertia_kgm2"].iloc[0])
     drops = {}
@@ -173,7 +173,7 @@ def _round_height(rig: RigConfig, h: float) -> float:
 def _choose(rig: RigConfig, feasible: pd.DataFrame, target: Target, step: float) -> list[tuple[float, float, float]]:
     """The designed drops (inertia, mass, height) before the final prediction."""
     grid = target.grid()
-    reach = grid[in_hull(plane(feasible["amplitude_ref_deg"], feasible["frequency_hz"]), grid)]
+    reach = grid[in_hull(plane(feasible["amplitude_deg"], feasible["frequency_hz"]), grid)]
     levels = _levels(target, step)
     per_lever = {j: _lever_drops(g, levels) for j, g in feasible.groupby("inertia_kgm2")}
 
@@ -201,7 +201,7 @@ def _choose(rig: RigConfig, feasible: pd.DataFrame, target: Target, step: float)
     # single candidate drops where the hull still misses reachable target points
     cand = [(j, m, h, np.log10(a), f) for j, m, h, a, f in zip(
         feasible["inertia_kgm2"], feasible["drop_mass_kg"], feasible["drop_height_m"],
-        feasible["amplitude_ref_deg"], feasible["frequency_hz"])]
+        feasible["amplitude_deg"], feasible["frequency_hz"])]
     while len(reach):
         pts = np.array([d[3:] for d in drops])
         missing = reach[~in_hull(pts, reach)]
@@ -273,14 +273,14 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
     if feasible.empty:
         raise DroptowerError(f"no drop of rig {rig.name} with coupling {coupling.name} is possible without hitting a "
                              "limit (double impact, twist, sensor ranges)")
-    all_pts = plane(feasible["amplitude_ref_deg"], feasible["frequency_hz"])
+    all_pts = plane(feasible["amplitude_deg"], feasible["frequency_hz"])
     grid = target.grid()
     reachable = float(np.mean(in_hull(all_pts, grid)))
     if reachable == 0.0:
         raise DroptowerError(
             f"the target {target.amplitude_deg[0]:g}-{target.amplitude_deg[1]:g} deg x {target.frequency_hz[0]:g}-"
             f"{target.frequency_hz[1]:g} Hz lies outside what rig {rig.name} reaches with coupling {coupling.name}: "
-            f"{feasible['amplitude_ref_deg'].min():.3g}-{feasible['amplitude_ref_deg'].max():.3g} deg at "
+            f"{feasible['amplitude_deg'].min():.3g}-{feasible['amplitude_deg'].max():.3g} deg at "
             f"{feasible['frequency_hz'].min():.3g}-{feasible['frequency_hz'].max():.3g} Hz",
             where="--amplitude-deg/--frequency-hz")
     limits: list[str] = []
@@ -304,11 +304,11 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
     rows = [(lever_name(rig, j), j, m, h, p, repeats) for j, m, h in sorted(set(drops)) for p in target.preloads_nm]
     cond = pd.DataFrame(rows, columns=[*CONDITION_KEYS, "repeats"])
     # predicted as the campaign will record and extract them (its record length for this plan)
-    pred = plan(rig, coupling, cond, record_length_s(plan(rig, coupling, cond, RECORD_S)["period_s"]))
+    pred = plan(rig, coupling, cond, record_length_s(plan(rig, coupling, cond, RECORD_S)["first_period_s"]))
     pred["warnings"] = _with_margin(pred)
     for r in pred[pred["warnings"].map(len) > 0].itertuples():
         limits.append(f"{r.case}, {r.drop_mass_kg:g} kg, {r.drop_height_m:g} m: " + "; ".join(r.warnings))
-    pts = plane(pred["amplitude_ref_deg"], pred["frequency_hz"])
+    pts = plane(pred["amplitude_deg"], pred["frequency_hz"])
     return Design(target=target, conditions=pred, candidates=cands,
                   covered_fraction=float(np.mean(in_hull(pts, grid))), reachable_fraction=reachable,
                   unreachable=_unreachable(target, all_pts, feasible, rig), limits_hit=limits, repeats=repeats)

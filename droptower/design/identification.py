@@ -60,10 +60,10 @@ def _decays(rig: RigConfig, cands: pd.DataFrame) -> list[DropDecay]:
     out = []
     dt = SAMPLE_STRIDE / rig.sensors.sample_rate_hz
     for i, r in enumerate(cands.itertuples(index=False)):
-        t = np.arange(1, int(COMPARED_PERIODS * float(r.period_s) / dt) + 1) * dt
+        t = np.arange(1, int(COMPARED_PERIODS * float(r.first_period_s) / dt) + 1) * dt
         out.append(DropDecay(f"candidate {i}", t, np.zeros_like(t), None, float(r.inertia_kgm2),
                              float(r.lever_rate_after_rad_per_s), "prediction", float(r.frequency_hz),
-                             math.radians(float(r.amplitude_deg)), dt))
+                             math.radians(float(r.first_peak_deg)), dt))
     return out
 
 
@@ -139,7 +139,7 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
     cands = predict_candidates(rig, coupling, (0.0,)) if candidates is None else candidates
     feasible = _contiguous_feasible(cands)
     (a0, a1), (f0, f1) = target.amplitude_deg, target.frequency_hz
-    pool = feasible[feasible["amplitude_ref_deg"].between(a0, a1) & feasible["frequency_hz"].between(f0, f1)]
+    pool = feasible[feasible["amplitude_deg"].between(a0, a1) & feasible["frequency_hz"].between(f0, f1)]
     if len(pool) < 2:
         raise DroptowerError(f"fewer than two possible drops of rig {rig.name} lie in the target "
                              f"{a0:g}-{a1:g} deg x {f0:g}-{f1:g} Hz", where="--for-identification")

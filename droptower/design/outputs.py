@@ -72,7 +72,7 @@ def run_sheet(conditions: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
             r, k = drops[i]
             rows.append({"block": b, "case": r.case, "inertia_kgm2": r.inertia_kgm2, "drop_mass_kg": r.drop_mass_kg,
                          "drop_height_m": r.drop_height_m, "preload_nm": r.preload_nm, "repeat": k + 1,
-                         "predicted_amplitude_deg": round(float(r.amplitude_ref_deg), 4),
+                         "predicted_amplitude_deg": round(float(r.amplitude_deg), 4),
                          "predicted_frequency_hz": round(float(r.frequency_hz), 3), "operator_notes": ""})
     sheet = pd.DataFrame(rows)
     sheet.insert(0, "run", np.arange(1, len(sheet) + 1))

@@ -25,26 +25,26 @@ def plot_coverage(design: Design, path: str | Path, title: str = "") -> Path:
     cands = design.candidates
     for i, ((case, mass), g) in enumerate(cands.groupby(["case", "drop_mass_kg"], sort=True)):
         c = colours[i % len(colours)]
-        ok = g[g["feasible"]].sort_values("amplitude_ref_deg")
+        ok = g[g["feasible"]].sort_values("amplitude_deg")
         if len(ok):
-            ax.plot(ok["amplitude_ref_deg"], ok["frequency_hz"], ".-", color=c, lw=0.8, alpha=0.6,
+            ax.plot(ok["amplitude_deg"], ok["frequency_hz"], ".-", color=c, lw=0.8, alpha=0.6,
                     label=f"{case}, {mass:g} kg: possible drops")
         bad = g[~g["feasible"]]
         if len(bad):
-            ax.plot(bad["amplitude_ref_deg"], bad["frequency_hz"], "x", color=c, alpha=0.5, ms=5,
+            ax.plot(bad["amplitude_deg"], bad["frequency_hz"], "x", color=c, alpha=0.5, ms=5,
                     label=f"{case}, {mass:g} kg: a limit hit")
     (a0, a1), (f0, f1) = t.amplitude_deg, t.frequency_hz
     ax.add_patch(matplotlib.patches.Rectangle((a0, f0), a1 - a0, f1 - f0, fill=False, ls="--", lw=1.5,
                                               color="k", label="target"))
     cond = design.conditions
-    pts = plane(cond["amplitude_ref_deg"], cond["frequency_hz"])
+    pts = plane(cond["amplitude_deg"], cond["frequency_hz"])
     try:
         hull = ConvexHull(pts)
         ring = np.append(hull.vertices, hull.vertices[0])
         ax.fill(10 ** pts[ring, 0], pts[ring, 1], color="tab:green", alpha=0.12, label="hull of the design")
     except QhullError:
         pass
-    ax.plot(cond["amplitude_ref_deg"], cond["frequency_hz"], "o", mfc="none", mec="k", ms=9,
+    ax.plot(cond["amplitude_deg"], cond["frequency_hz"], "o", mfc="none", mec="k", ms=9,
             label=f"designed: {design.n_conditions} conditions, {design.n_tests} drops")
     grid = t.grid()
     miss = grid[~in_hull(pts, grid)]

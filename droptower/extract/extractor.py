@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, not_in_range
 from droptower import sdof
 from droptower.extract.decay import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
 from droptower.extract.impact import find_impact
@@ -71,8 +71,32 @@ def metadata_value(signals: DropSignals, given: float | None, key: str) -> float
     except (TypeError, ValueError):
         raise DroptowerError(f"{key} {value!r} is not a number") from None
     if not (math.isfinite(value) and value > 0):
-        raise DroptowerError(f"{key} must be positive and finite, got {value:g}")
+        raise not_in_range(value, key)
     return value
+
+
+#: log metadata the impact law needs (besides J and L)
+IMPACT_LAW_KEYS = ("drop_mass_kg", "drop_height_m", "restitution")
+
+
+def lever_rate_after(signals: DropSignals, inertia: float, lever_length_m: float | None,
+                     impulse_ns: float) -> tuple[float, str]:
+    """The lever's angular rate just after the impact (rad/s) and where it comes from:
+    ``"impact_force"`` (L·∫F dt / J), else ``"impact_law"`` (the log's drop mass, height and
+    restitution; Rapp et al. 2022 with momentum conservation), else NaN and ``""``."""
+    if lever_length_m is None:
+        return math.nan, ""
+    if math.isfinite(impulse_ns):
+        return lever_length_m * impulse_ns / inertia, "impact_force"
+    try:
+        m1, h, k = (float(signals.metadata[key]) for key in IMPACT_LAW_KEYS)
+    except (KeyError, TypeError, ValueError):
+        return math.nan, ""
+    if not (m1 > 0 and h > 0 and 0 <= k <= 1):
+        return math.nan, ""
+    from droptower.rig.impact import impact_velocities  # here: the rig package imports pymunk
+
+    return float(impact_velocities(m1, inertia, lever_length_m, h, k).rate_after_rad_per_s), "impact_law"
 
 
 def _derived(theta: np.ndarray, inertia: float, window_s: float, t_from: float, has_torque: bool) -> np.ndarray:
@@ -107,8 +131,8 @@ def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_le
 
     signals: SI signals of the test; inertia_kgm2: rotating inertia J (default: the log's
     metadata ``inertia_kgm2``); lever_length_m: lever arm L (default: metadata
-    ``lever_length_m``), used only to turn the force impulse into an impact angular velocity
-    (L·∫F dt / J) as a cross-check of the force sensor; window: ``first-cycle``,
+    ``lever_length_m``), used only for the lever's rate after the impact (L·∫F dt / J, else the
+    impact law) and the impact energy; window: ``first-cycle``,
     ``N-cycles`` or seconds. Raises :class:`DroptowerError` (naming the source file) for input
     that cannot give a result.
     """
@@ -169,12 +193,12 @@ def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None,
     amp, delta, omega, phase = fit.params
     fs = signals.sample_rate_hz
     spp = fs * 2 * np.pi / omega
-    # |φ'(0)| of the fitted decay: the angular speed the impact gave the lever, and the same
-    # from the force pulse: angular momentum J·φ'(0) = L·∫F dt (NOTES §1.2)
-    velocity = abs(float(amp * (omega * np.sin(phase) - delta * np.cos(phase))))
-    velocity_force = np.nan
-    if lever_length_m is not None and np.isfinite(impact.impulse_ns):
-        velocity_force = lever_length_m * impact.impulse_ns / inertia
+    # |φ'(0)| of the fitted decay: depends on the window (the decay is fitted over it), so it has
+    # its own name; the lever's rate after the impact comes from the impact alone: the force
+    # pulse's angular momentum J·φ'(0) = L·∫F dt, else the impact law on the log's m1, h, k, L
+    # (Rapp et al. 2022, section "Theory of Impact Investigation")
+    fit_rate = abs(float(amp * (omega * np.sin(phase) - delta * np.cos(phase))))
+    rate_after, rate_from = lever_rate_after(signals, inertia, lever_length_m, impact.impulse_ns)
 
     # a second contact counts as a double impact within the first period (NOTES §1.3, as the
     # rig's check) or the fit window; a later one is reported but does not disturb the fit
@@ -204,9 +228,9 @@ def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None,
         impact_time_s=float(time[impact.onset]), window_start_s=float(t[sel[0]]), window_end_s=float(end),
         samples_per_period=float(spp), sample_rate_hz=float(fs),
         angle_offset_rad=angle_offset, torque_offset_nm=torque_offset,
-        impact_impulse_ns=impact.impulse_ns, impact_velocity_rad_per_s=velocity,
-        impact_velocity_from_force_rad_per_s=float(velocity_force),
-        impact_energy_j=0.5 * inertia * velocity**2,
+        impact_impulse_ns=impact.impulse_ns, decay_fit_initial_rate_rad_per_s=fit_rate,
+        lever_rate_after_rad_per_s=rate_after, lever_rate_after_from=rate_from,
+        impact_energy_j=0.5 * inertia * rate_after**2,
         second_impact_after_s=second_after, inertia_kgm2=inertia, double_impact=double, flags=tuple(flags), std=std,
         angle_fit=fit, torque_fit=tfit,
     )

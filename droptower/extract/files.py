@@ -23,9 +23,10 @@ class Settings:
     """How to read and evaluate the logs of one batch.
 
     roles: channel mapping (role -> ``NAME[:UNIT]``); inertia_kgm2, lever_length_m: override
-    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``) used where a
-    log's metadata lacks them, e.g. from the rig; sensor_radius_m: laser spot radius for a
-    distance channel; sample_rate_hz: time base for files without one; reader_options: CSV
+    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``,
+    ``sensor_radius_m``) used where a log's metadata lacks them, e.g. from the rig;
+    sensor_radius_m: laser spot radius for a distance channel, overrides the log's
+    ``laser_radius_m``; sample_rate_hz: time base for files without one; reader_options: CSV
     settings for :func:`droptower.io.read_any`; drops: the drop numbers (from 1) to evaluate
     in each record (None: all); drop_conditions: drop number -> its conditions
     (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the log's
@@ -66,6 +67,7 @@ def read_signals(path: str | Path, settings: Settings) -> DropSignals:
     """Read and map one log into SI signals; any problem is a DroptowerError naming the file."""
     record = read_any(path, **settings.reader_options)
     return map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
+                        default_sensor_radius_m=settings.defaults.get("sensor_radius_m"),
                         sample_rate_hz=settings.sample_rate_hz)
 
 

@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from droptower.errors import make_folder
 from droptower.extract.result import DEG, ExtractionResult
 from droptower.io.droptower_log import atomic_write
 from droptower.io.signals import DropSignals
@@ -57,7 +58,7 @@ def plot_fit(signals: DropSignals, result: ExtractionResult, path: str | Path, t
     residual.grid(alpha=0.3)
     axes[-1].set_xlabel("time since impact [ms]")
     axes[0].set_title(title or _title(signals, result), fontsize=9)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
     atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     return path
 

@@ -31,7 +31,7 @@ OUTPUTS: dict[str, tuple[str, float]] = {
     "torque_fit_offset_nm": ("torque_fit_offset_nm", 1.0),
     "fit_error": ("fit_error", 1.0),
     "torque_fit_error": ("torque_fit_error", 1.0),
-    "impact_time_s": ("impact_time_s", 1.0),
+    "impact_onset_time_s": ("impact_time_s", 1.0),
     "window_start_s": ("window_start_s", 1.0),
     "window_end_s": ("window_end_s", 1.0),
     "samples_per_period": ("samples_per_period", 1.0),
@@ -39,12 +39,16 @@ OUTPUTS: dict[str, tuple[str, float]] = {
     "angle_offset_deg": ("angle_offset_rad", 1.0 / DEG),
     "torque_offset_nm": ("torque_offset_nm", 1.0),
     "impact_impulse_n_s": ("impact_impulse_ns", 1.0),
-    "impact_velocity_rad_per_s": ("impact_velocity_rad_per_s", 1.0),
-    "impact_velocity_from_force_rad_per_s": ("impact_velocity_from_force_rad_per_s", 1.0),
+    "lever_rate_after_rad_per_s": ("lever_rate_after_rad_per_s", 1.0),
+    "decay_fit_initial_rate_rad_per_s": ("decay_fit_initial_rate_rad_per_s", 1.0),
     "impact_energy_j": ("impact_energy_j", 1.0),
     "second_impact_after_s": ("second_impact_after_s", 1.0),
     "inertia_kgm2": ("inertia_kgm2", 1.0),
 }
+
+
+#: outputs that are text, not numbers (besides ``flags``)
+TEXT_OUTPUTS = ("lever_rate_after_from",)
 
 
 @dataclass
@@ -58,10 +62,15 @@ class ExtractionResult:
     loss_factor η and relative_damping_psi ψ: servo-comparable (NOTES §1.7), the values a
     servo bench would measure on the linear Kelvin–Voigt coupling with this decay.
     fit_error: RMS residual / peak of the fitted angle over the window (torque_fit_error the same
-    for the torque). Times: impact_time_s on the log's clock; window_start_s, window_end_s and
+    for the torque). Times: impact_time_s (output ``impact_onset_time_s``: where the force pulse, else the
+    angle, starts) on the log's clock; window_start_s, window_end_s and
     second_impact_after_s (first later contact, NaN if none) since the impact. double_impact:
     a second contact within the first period (NOTES §1.3) or the fit window. angle_offset_rad, torque_offset_nm: pre-trigger
-    means (sensor offsets and preload). std: standard uncertainties of the SI fields by name.
+    means (sensor offsets and preload). Impact (independent of the window): lever_rate_after_rad_per_s
+    φ'(0+) from the force impulse, L·∫F dt / J, else from the impact law on the log's drop mass,
+    height and restitution (lever_rate_after_from: ``"impact_force"``, ``"impact_law"`` or ``""``
+    with NaN), impact_energy_j ½·J·φ'(0+)²; decay_fit_initial_rate_rad_per_s |φ'(0)| of the decay
+    fitted over the window (it changes with the window). std: standard uncertainties of the SI fields by name.
     NaN where a value cannot be computed (no torque or force channel, no lever length).
     """
 
@@ -90,8 +99,9 @@ class ExtractionResult:
     angle_offset_rad: float
     torque_offset_nm: float
     impact_impulse_ns: float
-    impact_velocity_rad_per_s: float
-    impact_velocity_from_force_rad_per_s: float
+    decay_fit_initial_rate_rad_per_s: float
+    lever_rate_after_rad_per_s: float
+    lever_rate_after_from: str
     impact_energy_j: float
     second_impact_after_s: float
     inertia_kgm2: float
@@ -109,6 +119,7 @@ class ExtractionResult:
             out[name] = float(getattr(self, attr)) * factor
             if attr in self.std:
                 out[f"{name}_std"] = float(self.std[attr]) * abs(factor)
+        out["lever_rate_after_from"] = self.lever_rate_after_from
         out["double_impact"] = bool(self.double_impact)
         out["flags"] = list(self.flags)
         return out

@@ -103,7 +103,8 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
     lever = metadata_value(signals, settings.lever_length_m, "lever_length_m") or settings.defaults.get("lever_length_m")
     force = signals.impact_force_n if settings.rate != "slope" else None
     if settings.rate == "impulse" and (signals.impact_force_n is None or lever is None):
-        raise DroptowerError("rate from the impulse needs an impact-force channel and the lever length")
+        raise DroptowerError("rate from the impulse needs an impact-force channel (--channel impact_force=NAME[:UNIT]) "
+                             "and the lever length (--lever-length-m or --rig)")
     t_all, angle = np.asarray(signals.time_s, float), np.asarray(signals.angle_rad, float)
     impact = find_impact(t_all, angle, force)
     pre = slice(0, impact.baseline_end)
@@ -167,7 +168,9 @@ def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[li
     decays, excluded = [], []
     for f in files:
         try:
-            signals = map_channels(read_any(f), settings.roles, sensor_radius_m=settings.sensor_radius_m)
+            signals = map_channels(read_any(f), settings.roles, sensor_radius_m=settings.sensor_radius_m,
+                                   default_sensor_radius_m=settings.defaults.get("sensor_radius_m"),
+                                   radius_flags="--rig", sample_rate_flag=None)
             decays.append(decay_from_signals(signals, settings, f.name))
         except DroptowerError as exc:
             excluded.append({"file": str(f), "reason": ": ".join(p for p in (exc.where, exc.problem) if p)})

@@ -14,9 +14,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from droptower.errors import make_folder
 from droptower.identify.data import Segment
 from droptower.identify.fit import Identification, Metrics, metrics
 from droptower.io.fields import field_name, translate_fields
+from droptower.io.droptower_log import save_figure
 
 
 def _clean(value: Any) -> Any:
@@ -189,8 +191,7 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
     """Per record: measured and model torque over time, and the hysteresis loops (torque over
     angle in degrees). Returns the PNG files written."""
     plt = _pyplot()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(out_dir)
     paths = []
     groups = [("fit", segments)] + ([("holdout", holdout)] if holdout else [])
     load, motion, to_display = _axes(ident.coupling.units)
@@ -223,7 +224,7 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
             fig.suptitle(f"{ident.family} on {seg.name} ({label}): nRMSE {100 * m.nrmse:.2f} %")
             fig.tight_layout()
             path = out / f"identify_{ident.family}_{label}_{_safe(seg.name)}.png"
-            fig.savefig(path, dpi=110)
+            save_figure(fig, path, 110)
             plt.close(fig)
             paths.append(path)
     return paths
@@ -234,8 +235,7 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
     """Seed 000 Fig. 8 (bars of the per-record RMSE, relative to the largest and in percent of
     the largest torque) and the hysteresis loops of every model overlaid on ``segment``."""
     plt = _pyplot()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_folder(out_dir)
     paths = []
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
     for ax, col, title in ((axes[0], "rmse_over_max_rmse", "RMSE / max RMSE of the record"),
@@ -246,8 +246,7 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
         ax.set_xlabel("")
     fig.suptitle("models compared per record (seed 000 Fig. 8)")
     fig.tight_layout()
-    paths.append(out / "compare_models_rmse.png")
-    fig.savefig(paths[-1], dpi=110)
+    paths.append(save_figure(fig, out / "compare_models_rmse.png", 110))
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(7, 6))
@@ -262,7 +261,6 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
     ax.set_title(f"hysteresis loops on {segment.name}")
     ax.legend()
     fig.tight_layout()
-    paths.append(out / "compare_models_loops.png")
-    fig.savefig(paths[-1], dpi=110)
+    paths.append(save_figure(fig, out / "compare_models_loops.png", 110))
     plt.close(fig)
     return paths

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, unreadable_file
 from droptower.io.channels import Channel, Record
 
 FILE_IDS = range(5006, 5013)
@@ -95,7 +95,7 @@ def read_catman(path: str | Path) -> Record:
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise DroptowerError(f"cannot read file: {exc.strerror or exc}", file=path) from None
+        raise unreadable_file(path, exc) from None
     try:
         return _parse(path, data)
     except (EOFError, struct.error):

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, unreadable_file
 from droptower.io.channels import Channel, Record
 from droptower.units import is_unit
 
@@ -135,7 +135,7 @@ def read_csv_log(path: str | Path, *, delimiter: str | None = None, decimal: str
     try:
         text = _decode(path.read_bytes(), encoding)
     except (OSError, UnicodeDecodeError, LookupError) as exc:
-        raise DroptowerError(f"cannot read file: {exc}", file=path) from None
+        raise unreadable_file(path, exc) from None
     try:
         return _parse(path, text, delimiter, decimal, header_lines, unit_row, invalid_marker)
     except DroptowerError as exc:

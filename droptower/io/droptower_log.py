@@ -38,7 +38,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from droptower.errors import DroptowerError, WriteError
+from droptower.errors import DroptowerError, WriteError, make_folder, unreadable_file
 from droptower.io.channels import Channel, Record
 
 MAGIC = "# droptower-log 1"
@@ -113,6 +113,18 @@ def atomic_write(path: str | Path, write: Callable[[str], None]) -> None:
         raise
 
 
+def save_figure(fig: Any, path: str | Path, dpi: int) -> Path:
+    """Write a matplotlib figure to ``path`` (format from the suffix) as :func:`atomic_write`
+    writes; a refused write or a suffix matplotlib cannot write blames ``path``."""
+    path = Path(path)
+    make_folder(path.parent)
+    try:
+        atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".").lower() or "png"))
+    except ValueError as exc:  # a suffix matplotlib does not write
+        raise DroptowerError(f"cannot write ({exc})", file=path) from None
+    return path
+
+
 def write_log(path: str | Path, time_s: np.ndarray, channels: dict[str, np.ndarray], metadata: dict[str, Any]) -> Path:
     """Write one test as a droptower log (``.csv`` or ``.parquet``); returns the path.
 
@@ -131,7 +143,7 @@ def write_log(path: str | Path, time_s: np.ndarray, channels: dict[str, np.ndarr
         if columns[name].shape != columns[TIME_COLUMN].shape:
             raise DroptowerError(
                 f"channel '{name}' has shape {columns[name].shape}, time has {columns[TIME_COLUMN].shape}", file=path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(path.parent)
 
     if suffix == ".csv":
         lines = [MAGIC]
@@ -193,9 +205,9 @@ def read_log(path: str | Path) -> Record:
     except DroptowerError as exc:
         raise exc.with_file(path) from None
     except RecursionError:  # json: metadata nested thousands deep
-        raise DroptowerError("cannot read droptower log: metadata nested too deeply", file=path) from None
+        raise unreadable_file(path, "metadata nested too deeply", "droptower log") from None
     except (OSError, ValueError, UnicodeDecodeError) as exc:
-        raise DroptowerError(f"cannot read droptower log: {exc}", file=path) from None
+        raise unreadable_file(path, exc, "droptower log") from None
 
 
 def _read_csv(path: Path) -> Record:

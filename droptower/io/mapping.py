@@ -19,12 +19,13 @@ their printed precision are a uniform one, see :mod:`droptower.io.timebase`).
 """
 from __future__ import annotations
 
+import math
 import re
 from typing import Iterable
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, not_in_range
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
 from droptower.io.signals import DropSignals, ServoSignals
@@ -123,6 +124,15 @@ def _resolve(record: Record, role: str, spec: str) -> tuple[Channel, str]:
             raise DroptowerError(f"channel '{name}' has no unit; give it as --channel {role}={name}:UNIT",
                                  file=record.path)
     return channel, unit
+
+
+def check_units(record: Record, roles: dict[str, str]) -> None:
+    """Refuse a unit that cannot be converted for its role, in the words of :func:`map_channels`
+    (``channels`` checks a mapping this way without reading the values)."""
+    for role, spec in roles.items():
+        name, _, unit = spec.rpartition(":")
+        if role in KINDS and spec not in record.channels and name in record.channels:
+            to_si(np.zeros(0), unit, KINDS[role], file=record.path, channel=name)
 
 
 def _check_values(record: Record, channel: Channel, values: np.ndarray) -> None:
@@ -228,14 +238,37 @@ def laser_angle(distance_m: np.ndarray, radius_m: float) -> np.ndarray:
     return np.arctan(np.asarray(distance_m) / radius_m)
 
 
+def _sensor_radius(record: Record, given: float | None, default: float | None, flags: str) -> float:
+    """The laser spot radius (m): given, else the log's ``laser_radius_m``, else the default."""
+    value, origin = given, flags
+    if value is None and record.metadata.get("laser_radius_m") is not None:
+        value, origin = record.metadata["laser_radius_m"], "the log's metadata laser_radius_m"
+    if value is None:
+        value = default
+    if value is None:
+        raise DroptowerError(f"a laser distance channel needs the laser spot radius (m): the log carries no "
+                             f"'laser_radius_m'; give {flags}", file=record.path)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise DroptowerError(f"{origin}: {value!r} is not a number", file=record.path) from None
+    if not (math.isfinite(value) and value > 0):
+        raise not_in_range(value, f"laser spot radius ({origin})", file=record.path)
+    return value
+
+
 def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
-                 sample_rate_hz: float | None = None) -> DropSignals:
+                 sample_rate_hz: float | None = None, default_sensor_radius_m: float | None = None,
+                 radius_flags: str = "--sensor-radius-m or --rig",
+                 sample_rate_flag: str | None = "--sample-rate-hz") -> DropSignals:
     """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
 
     roles: role -> ``NAME`` or ``NAME:UNIT``; roles not given are found by name; ``-`` leaves a
         role out (e.g. a dead force sensor).
-    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``.
+    sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``; if
+        None, the log's metadata ``laser_radius_m``, else ``default_sensor_radius_m`` (a rig's).
     sample_rate_hz: builds the time base when the file has no time channel and no rate.
+    radius_flags, sample_rate_flag: the command's flags that give these, named in the errors.
     """
     specs = find_roles(record, roles)
     explicit = {role for role, spec in (roles or {}).items() if spec.strip() not in ("-", "none")}
@@ -259,7 +292,8 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
         signals[role], channels[role] = values, channel
 
     angle_channel = channels[angle_role]
-    time, notes = _time_base(record, specs, explicit, angle_channel, signals[angle_role].size, sample_rate_hz)
+    time, notes = _time_base(record, specs, explicit, angle_channel, signals[angle_role].size, sample_rate_hz,
+                             sample_rate_flag=sample_rate_flag)
     own_time = angle_channel.time()
 
     # the angle defines the time base; other channels are aligned with its samples (through its
@@ -270,21 +304,21 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
             signals[role] = _onto(record, channel, signals[role], reference)
     angle = signals.get("angle")
     if angle is None:
-        if not sensor_radius_m or sensor_radius_m <= 0:
-            raise DroptowerError("a laser distance channel needs the sensor radius (m) of the rig, > 0",
-                                 file=record.path)
-        angle = laser_angle(signals["distance"], sensor_radius_m)
+        radius = _sensor_radius(record, sensor_radius_m, default_sensor_radius_m, radius_flags)
+        angle = laser_angle(signals["distance"], radius)
     return DropSignals(time_s=time, angle_rad=angle, torque_nm=signals.get("torque"),
                        impact_force_n=signals.get("impact_force"), metadata=dict(record.metadata),
                        source=record.path, notes=notes)
 
 
 def _time_base(record: Record, specs: dict[str, str], explicit: set[str], reference: Channel, n: int,
-               sample_rate_hz: float | None, role: str = "angle") -> tuple[np.ndarray, list[str]]:
+               sample_rate_hz: float | None, role: str = "angle",
+               sample_rate_flag: str | None = None) -> tuple[np.ndarray, list[str]]:
     """The time base (s) of the ``n`` samples of the ``reference`` channel (of ``role``): an explicit time
     channel, else the given sample rate, else the channel's own time base, else a time channel
     found by name; checked (strictly increasing, uniform up to the stamps' printed precision)
-    and with the notes of what was assumed."""
+    and with the notes of what was assumed. ``sample_rate_flag``: the command's flag for a
+    sample rate, named in the error when there is no time base."""
     own_time = reference.time()
     if "time" in explicit or ("time" in specs and sample_rate_hz is None and own_time is None):
         time_channel, unit = _resolve(record, "time", specs["time"])
@@ -301,7 +335,8 @@ def _time_base(record: Record, specs: dict[str, str], explicit: set[str], refere
     elif own_time is not None:
         time, time_name = np.asarray(own_time, dtype=np.float64), reference.name
     else:
-        raise DroptowerError("no time channel and no sample rate; give --channel time=NAME[:UNIT] or a sample rate",
+        also = f" or {sample_rate_flag}" if sample_rate_flag else ""
+        raise DroptowerError(f"no time channel and no sample rate; give --channel time=NAME[:UNIT]{also}",
                              file=record.path)
     _check_time(record, time_name, time)
     time, note = regular_time(time, file=record.path, where=f"time of channel '{time_name}'")

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, unreadable_file
 from droptower.io.channels import Channel, Record
 
 
@@ -39,7 +39,7 @@ def read_mdf(path: str | Path) -> Record:
         sys.unraisablehook = hook
         scratch.cleanup()
     if problem is not None:
-        raise DroptowerError(f"cannot read MDF file: {problem}", file=path)
+        raise unreadable_file(path, problem, "MDF file")
     if not channels:
         raise DroptowerError("MDF file holds no numeric channels", file=path)
     return Record(path=path, channels=channels, metadata=metadata, format="MDF")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, unreadable_file
 from droptower.io.channels import Channel, Record
 from droptower.io.csvfmt import split_name_unit
 from droptower.io.droptower_log import unit_from_name
@@ -25,7 +25,7 @@ def read_parquet(path: str | Path) -> Record:
     try:
         table = pq.read_table(path, use_threads=False)  # see droptower_log.ARROW_THREADS
     except (OSError, pa.ArrowException) as exc:
-        raise DroptowerError(f"cannot read Parquet file: {exc}", file=path) from None
+        raise unreadable_file(path, exc, "Parquet file") from None
     channels: dict[str, Channel] = {}
     for field in table.schema:
         if not (pa.types.is_floating(field.type) or pa.types.is_integer(field.type)):

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, readable_file, unreadable_file
 from droptower.io.channels import Record
 
 #: options :func:`read_any` passes to the CSV/ASCII reader (ignored by binary formats).
@@ -27,13 +27,7 @@ def read_any(path: str | Path, **options: Any) -> Record:
     unknown = set(options) - set(CSV_OPTIONS)
     if unknown:
         raise DroptowerError(f"unknown reader option(s): {', '.join(sorted(unknown))}", file=path)
-    if not path.is_file():
-        raise DroptowerError("no such file" if not path.exists() else "not a file", file=path)
-    try:  # one readable check for every format (the readers' own errors for it vary)
-        with open(path, "rb"):
-            pass
-    except OSError as exc:
-        raise DroptowerError(f"cannot read ({exc.strerror or exc})", file=path) from None
+    readable_file(path)
     suffix = path.suffix.lower()
     if suffix == ".bin":
         from droptower.io.catman import is_catman, read_catman
@@ -48,7 +42,7 @@ def read_any(path: str | Path, **options: Any) -> Record:
         try:
             is_log = parquet_metadata(path) is not None
         except Exception as exc:  # pyarrow's errors for a non-Parquet file vary
-            raise DroptowerError(f"cannot read Parquet file: {exc}", file=path) from None
+            raise unreadable_file(path, exc, "Parquet file") from None
         return read_log(path) if is_log else read_parquet(path)
     if suffix in (".mf4", ".mdf", ".dat") and _is_mdf(path):
         from droptower.io.mdf import read_mdf

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, readable_file, unreadable_file
 from droptower.io.csvfmt import split_name_unit
 from droptower.units import conversion_factor, is_unit
 
@@ -168,15 +168,13 @@ def read_table(path: str | Path, wanted: dict[str, tuple[str, ...]], columns: di
     the module docstring says; wanted columns not found are simply absent (the caller names
     what it needs). Unreadable files and bad units are one-line errors naming the file."""
     path = Path(path)
-    if not path.is_file():
-        raise DroptowerError("file not found" if not path.exists() else "not a file", file=path)
+    readable_file(path)
     try:
         frame, units = _read_frame(path)
     except DroptowerError as exc:
         raise exc.with_file(path) from None
     except Exception as exc:  # pandas, pyarrow and openpyxl raise many types for a broken file
-        raise DroptowerError(f"cannot read the {what} ({type(exc).__name__}: {str(exc).splitlines()[0]})",
-                             file=path) from None
+        raise unreadable_file(path, f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0]}", what) from None
     columns = dict(columns or {})
     unknown = set(columns) - set(wanted)
     if unknown:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError, make_folder
 from droptower.io.droptower_log import atomic_write
 
 
@@ -78,9 +78,9 @@ def write_table(table: pd.DataFrame, path: str | Path, option: str | None = None
         kinds = {type(v) for v in frame[name] if v is not None and v is not pd.NA}
         if str in kinds and len(kinds) > 1:  # mixed metadata (Parquet needs one type per column)
             frame[name] = frame[name].map(lambda v: v if v is None or v is pd.NA else str(v))
+    make_folder(path.parent)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, lambda tmp: WRITERS[path.suffix.lower()](frame, tmp))
-    except OSError as exc:
-        raise DroptowerError(f"cannot write the table ({exc.strerror or exc})", file=path) from None
+    except OSError as exc:  # a writer's own OSError outside the temporary file
+        raise WriteError.from_os_error(exc, path) from None
     return path

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, unreadable_file
 from droptower.io.channels import Channel, Record
 
 
@@ -38,7 +38,7 @@ def read_tdms(path: str | Path) -> Record:
                     metadata={k: v for k, v in props.items() if isinstance(v, (int, float, str))})
         metadata = {k: v for k, v in tdms.properties.items() if isinstance(v, (int, float, str))}
     except Exception as exc:  # npTDMS raises many kinds of errors for a bad file
-        raise DroptowerError(f"cannot read TDMS file: {exc}", file=path) from None
+        raise unreadable_file(path, exc, "TDMS file") from None
     if not channels:
         raise DroptowerError("TDMS file holds no numeric channels", file=path)
     return Record(path=path, channels=channels, metadata=metadata, format="TDMS")

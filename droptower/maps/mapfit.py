@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pydantic import create_model
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, WriteError, readable_file, unreadable_file
 from droptower.maps.forms import PAPER, UNIT_TEXT, Equation, MapForm
 from droptower.maps.results import ExcludedTest
 from droptower.validation import StrictModel, validate
@@ -224,7 +224,7 @@ class MapFit:
                 tmp.write_text(text)
                 os.replace(tmp, path)
             except OSError as exc:
-                raise DroptowerError(f"cannot write map ({exc.strerror or exc})", file=path) from None
+                raise WriteError.from_os_error(exc, path) from None
         return text
 
     @classmethod
@@ -268,17 +268,15 @@ class MapFit:
     @classmethod
     def from_json(cls, path: str | Path) -> "MapFit":
         """Read ``map.json``; a missing, unreadable or malformed file is a one-line error."""
-        path = Path(path)
+        path = readable_file(path)
         try:
             data = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise DroptowerError("file not found", file=path) from None
         except json.JSONDecodeError as exc:
             raise DroptowerError(f"not valid JSON ({exc})", file=path) from None
         except RecursionError:
             raise DroptowerError("not a map file (nested too deeply)", file=path) from None
         except (OSError, UnicodeDecodeError) as exc:
-            raise DroptowerError(f"cannot read file ({exc})", file=path) from None
+            raise unreadable_file(path, exc) from None
         if not isinstance(data, dict):
             raise DroptowerError("not a map file (expected a JSON object)", file=path)
         return cls.from_dict(data, path)

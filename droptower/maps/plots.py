@@ -13,6 +13,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from droptower.errors import make_folder
+from droptower.io.droptower_log import save_figure
 from droptower.maps.mapfit import MapFit
 
 FIG10 = "fig10_parameter_variation.png"
@@ -24,8 +26,7 @@ def plot_all(tests: pd.DataFrame, fit: MapFit, out_dir: str | Path) -> tuple[lis
     """Write Fig. 10, 12 and 13 of the usable ``tests`` and the ``fit`` into ``out_dir``.
 
     Returns the files written and notes on panels skipped for want of a column."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = make_folder(out_dir)
     notes = plot_parameter_variation(tests, out_dir / FIG10)
     plot_stiffness_map(tests, fit, out_dir / FIG12)
     plot_damping_map(tests, fit, out_dir / FIG13)
@@ -68,7 +69,7 @@ def plot_parameter_variation(tests: pd.DataFrame, path: Path) -> list[str]:
         ax.grid(True, alpha=0.3)
     axes[-1].legend()
     fig.suptitle("Effect of parameter variation (seed 004 Fig. 10)")
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, 120)
     return notes
 
 
@@ -95,7 +96,7 @@ def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.suptitle(f"Stiffness map, {_label(fit, 'seed 004 eq. 19')} (Fig. 12)")
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, 120)
 
 
 def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
@@ -123,7 +124,7 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.suptitle(f"Damping ratio map, {_label(fit, 'seed 004 eq. 20')} (Fig. 13)")
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, 120)
 
 
 def _frequency_along(rows: pd.DataFrame, amplitude_deg: np.ndarray) -> np.ndarray:

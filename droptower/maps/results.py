@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.data import TABLE4_NAME, table4_path
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, missing_file, no_file_or_preset
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: Columns the map is fitted from (the extractor's output names).
@@ -48,7 +48,9 @@ def read_results(path: str | Path) -> pd.DataFrame:
             raise DroptowerError("a folder without results.parquet (not a campaign folder)", file=path)
         path = path / "results.parquet"
     if not path.is_file():
-        raise DroptowerError("file not found", file=path)
+        if not path.exists() and not path.suffix and len(path.parts) == 1:  # a name, as of a shipped table
+            raise no_file_or_preset(path, "table", [TABLE4_NAME])
+        raise missing_file(path)
     table = read_table(path, COMMON_ALIASES, what="results table")
     check_columns(table, path)
     return table

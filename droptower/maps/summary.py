@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from droptower.io.droptower_log import save_figure
 from droptower.maps.results import select_tests
 
 CONDITION = ("case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm")
@@ -80,6 +81,6 @@ def plot_preload_effect(summary: pd.DataFrame, path: str | Path, title: str) -> 
     axes[1].legend(fontsize=7, ncol=1 + len(cases) * len(preloads) // 10)
     fig.suptitle(f"Fig. 11 (seed 004): preload effect, mean ± std over repeats; {title}", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    path = save_figure(fig, path, 120)
     plt.close(fig)
-    return Path(path)
+    return path

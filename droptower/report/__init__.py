@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, make_folder
 from droptower.io.droptower_log import atomic_write
 from droptower.maps import MapFit, fit_map, select_tests
 from droptower.maps.results import flag_list
@@ -67,7 +67,7 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
     text = page(title or f"droptower report: {run.name}", run.facts + _counts(run, usable_mask, fit), problems,
                 map_section(fit, map_error, map_figure), tests_table(_tests(run, usable_mask, excluded_reason, fit)),
                 fits, extra_sections or [])
-    out.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(out.parent)
     atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     return out
 

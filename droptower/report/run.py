@@ -14,7 +14,7 @@ from typing import Any
 
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, missing_file
 from droptower.maps.results import read_results
 
 #: Why a flag is raised (droptower.extract.extractor), shown next to every flagged test.
@@ -60,7 +60,7 @@ def load_run(source: str | Path) -> Run:
         raise DroptowerError("a folder without manifest.json (not a campaign folder); give a results table "
                              "from `droptower extract --out` or a campaign folder", file=source)
     if not source.is_file():
-        raise DroptowerError("file not found", file=source)
+        raise missing_file(source)
     return _results_table(source)
 
 

@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, PositiveInt, PrivateAttr, model_validator
 
-from droptower.configs import read_toml, resolve
-from droptower.errors import DroptowerError
+from droptower.configs import display_name, read_toml, resolve
+from droptower.errors import DroptowerError, not_in_range
 from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
 from droptower.validation import StrictModel, validate
 
@@ -134,9 +134,14 @@ class RigConfig(StrictModel):
     def coupling_limit_rad(self) -> float:
         return math.radians(self.coupling_limit_deg)
 
+    @property
+    def label(self) -> str:
+        """The rig as messages name it: a shipped preset by its name, a file by its path."""
+        return display_name(self.path, "rigs") or self.name or "rig"
+
     def error(self, problem: str, where: str) -> DroptowerError:
         """A one-line error attributed to this rig file and a field."""
-        return DroptowerError(problem, file=self.path or self.name or "rig", where=where)
+        return DroptowerError(problem, file=self.label, where=where)
 
     def check_test(self, inertia_kgm2: float, drop_mass_kg: float, drop_height_m: float, preload_nm: float,
                    *, file: str | Path | None = None, where: str = "",
@@ -154,24 +159,24 @@ class RigConfig(StrictModel):
         for name, value in (("inertia_kgm2", inertia_kgm2), ("drop_mass_kg", drop_mass_kg),
                             ("drop_height_m", drop_height_m)):
             if not (math.isfinite(value) and value > 0):
-                raise DroptowerError(f"must be positive, got {value:g}", file=file, where=at(name))
+                raise not_in_range(value, at(name), file=file)
         # far outside the rig's own levers and masses the impact law and the time step overflow
         for name, value, fixtures, unit in (("inertia_kgm2", inertia_kgm2, self.inertias_kgm2, "kg*m^2"),
                                             ("drop_mass_kg", drop_mass_kg, self.drop_masses_kg, "kg")):
             lo, hi = min(fixtures) / FIXTURE_FACTOR, max(fixtures) * FIXTURE_FACTOR
             if not lo <= value <= hi:
                 raise DroptowerError(f"{value:g} {unit} is outside {lo:.3g}-{hi:.3g} {unit}, 1/{FIXTURE_FACTOR:g} to "
-                                     f"{FIXTURE_FACTOR:g} times the fixtures of rig {self.path or self.name}",
+                                     f"{FIXTURE_FACTOR:g} times the fixtures of rig {self.label}",
                                      file=file, where=at(name))
         lo, hi = self.drop_height_range_m
         if not lo <= drop_height_m <= hi:
             raise DroptowerError(f"drop height {drop_height_m:g} m is outside the range {lo:g}-{hi:g} m of rig "
-                                 f"{self.path or self.name} (field drop_height_range_m)", file=file,
+                                 f"{self.label} (field drop_height_range_m)", file=file,
                                  where=at("drop_height_m"))
         lo, hi = self.preload_range_nm
         if not (math.isfinite(preload_nm) and lo <= preload_nm <= hi):
             raise DroptowerError(f"preload {preload_nm:g} N*m is outside the range {lo:g}-{hi:g} N*m of rig "
-                                 f"{self.path or self.name} (field preload_range_nm)", file=file,
+                                 f"{self.label} (field preload_range_nm)", file=file,
                                  where=at("preload_nm"))
 
     def check_time_step(self, coupling: "Coupling", inertia_kgm2: np.ndarray, pretwist_rad: np.ndarray,
@@ -180,7 +185,7 @@ class RigConfig(StrictModel):
         dt = self.dt_s
         where = "field simulation.steps_per_sample"
         j_min = float(np.min(inertia_kgm2))
-        name = coupling.path or coupling.name or "the coupling"
+        name = display_name(coupling.path, "couplings") or coupling.name or "the coupling"
         stiffness = coupling.max_tangent_stiffness(self.coupling_limit_rad + float(np.max(np.abs(pretwist_rad))))
         omega_dt = dt * math.sqrt(stiffness / j_min)
         if omega_dt > STIFFNESS_LIMIT:
@@ -268,7 +273,7 @@ class DOE(StrictModel):
         if self.n_tests > MAX_CAMPAIGN_TESTS:
             raise DroptowerError(f"{self.n_tests} tests (groups x heights x preloads x repeats) exceed the limit of "
                                  f"{MAX_CAMPAIGN_TESTS} per campaign: split the plan into several files (e.g. by "
-                                 "group or height range) and run one campaign folder each", file=self.path)
+                                 "group or height range) and run one campaign folder each", file=display_name(self.path, "doe"))
         rows = []
         for i, g in enumerate(self.group):
             for h in g.heights_m or self.heights_m:
@@ -295,7 +300,7 @@ class DOE(StrictModel):
         for i, g in enumerate(self.group):
             for h in g.heights_m or self.heights_m:
                 for p in g.preloads_nm or self.preloads_nm:
-                    rig.check_test(g.inertia_kgm2, g.drop_mass_kg, h, p, file=self.path,
+                    rig.check_test(g.inertia_kgm2, g.drop_mass_kg, h, p, file=display_name(self.path, "doe"),
                                    where=f"group {i + 1} ({g.name})" if g.name else f"group {i + 1}",
                                    labels={"drop_height_m": "heights_m", "preload_nm": "preloads_nm"})
 

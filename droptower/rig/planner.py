@@ -133,6 +133,12 @@ def extractor_view(time_s: np.ndarray, angle_rad: np.ndarray, period_s: float,
 def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_s: float = 0.25) -> pd.DataFrame:
     """One row per condition (columns of :meth:`DOE.conditions`): predictions and warnings.
 
+    Columns shared with ``simulate --json`` and ``extract`` name the same quantity there:
+    ``amplitude_deg`` is the first cycle's phi_ref (Rapp et al. 2022 eq. 18, extract's default
+    window), ``first_peak_deg`` the first peak, ``first_period_s`` and
+    ``first_period_frequency_hz`` the first period (as simulate), ``decay_coefficient_per_s``,
+    ``damping_ratio`` from the first cycle's two peaks, ``second_impact_after_s``.
+
     duration_s: the record length after the impact (for the 3/4-period check).
     """
     cond = conditions.reset_index(drop=True)
@@ -176,19 +182,23 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["lever_tip_velocity_after_m_per_s"] = iv.lever_tip_after_m_per_s
     out["lever_rate_after_rad_per_s"] = iv.rate_after_rad_per_s
     out["impact_energy_j"] = iv.impact_energy_j
-    out["impulse_n_s"] = iv.impulse_ns
+    out["impact_impulse_n_s"] = iv.impulse_ns
     out["impact_force_peak_n"] = force_peak
     out["pretwist_deg"] = np.degrees(twist.angle_rad)
-    out["amplitude_deg"] = np.degrees(p1)
-    out["amplitude_ref_deg"] = np.degrees(seen[:, 0])
+    # names shared with simulate and extract mean the same quantity there: amplitude_deg,
+    # frequency_hz, decay_coefficient_per_s and damping_ratio are extract's first-cycle fit, the
+    # first period and its frequency are simulate's
+    out["first_peak_deg"] = np.degrees(p1)
+    out["amplitude_deg"] = np.degrees(seen[:, 0])
     out["max_twist_deg"] = np.degrees(np.abs(twist.angle_rad) + np.maximum(p1, np.abs(p2)))
     out["frequency_hz"] = omega / (2.0 * np.pi)
-    out["period_s"] = period
-    out["decay_per_s"] = delta
+    out["first_period_frequency_hz"] = 1.0 / period
+    out["first_period_s"] = period
+    out["decay_coefficient_per_s"] = delta
     out["damping_ratio"] = damping_ratio(delta, omega)
     out["peak_torque_nm"] = peak_torque
     out["double_impact"] = np.isfinite(t_second)
-    out["second_impact_time_s"] = t_second
+    out["second_impact_after_s"] = t_second
     out["min_clearance_mm"] = 1e3 * clearance
     out["samples_per_period"] = period * fs
     out["warnings"] = [_warnings(rig, row, duration_s) for row in out.itertuples(index=False)]
@@ -201,7 +211,7 @@ def _warnings(rig: RigConfig, r, duration_s: float) -> list[str]:
         w.append(f"inertia {r.inertia_kgm2:g} kg*m^2 is not a lever fixture of the rig")
     if not any(math.isclose(r.drop_mass_kg, m, rel_tol=1e-9) for m in rig.drop_masses_kg):
         w.append(f"drop mass {r.drop_mass_kg:g} kg is not one of the rig's")
-    if math.isnan(r.period_s):
+    if math.isnan(r.first_period_s):
         w.append("no complete oscillation (overdamped?)")
     if r.max_twist_deg > rig.coupling_limit_deg:
         w.append(f"twist {r.max_twist_deg:.1f} deg > coupling limit {rig.coupling_limit_deg:g} deg")
@@ -211,8 +221,8 @@ def _warnings(rig: RigConfig, r, duration_s: float) -> list[str]:
         w.append(f"impact force {r.impact_force_peak_n:.0f} N > sensor range {rig.sensors.impact_force.range_n:g} N")
     if r.samples_per_period < MIN_SAMPLES_PER_PERIOD:
         w.append(f"only {r.samples_per_period:.0f} samples per period (< {MIN_SAMPLES_PER_PERIOD})")
-    if duration_s < MIN_RECORD_PERIODS * r.period_s:
-        w.append(f"record {duration_s:g} s shorter than 3/4 period ({r.period_s:.3g} s)")
+    if duration_s < MIN_RECORD_PERIODS * r.first_period_s:
+        w.append(f"record {duration_s:g} s shorter than 3/4 period ({r.first_period_s:.3g} s)")
     if r.double_impact:
-        w.append(f"double impact at {1e3 * r.second_impact_time_s:.1f} ms (period {1e3 * r.period_s:.1f} ms)")
+        w.append(f"double impact at {1e3 * r.second_impact_after_s:.1f} ms (period {1e3 * r.first_period_s:.1f} ms)")
     return w

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from droptower.io.droptower_log import save_figure
 from droptower.rig.config import RigConfig
 
 if TYPE_CHECKING:
@@ -72,36 +73,53 @@ def plot_test(result: "DropResult", path: str | Path) -> Path:
     for a in axes:
         a.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, 120)
     plt.close(fig)
     return Path(path)
 
 
-def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path, coupling_name: str | None = None) -> Path:
+def _limit(ax, limit: float, label: str, unit: str, values: np.ndarray) -> None:
+    """A rig limit in a panel: a line where it lies within the data's scale, else a note in the
+    corner (the sensor range of 10 kN*m drawn as a line would squash tests that reach 2 kN*m)."""
+    finite = values[np.isfinite(values)]
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (limit, limit)
+    margin = 0.25 * max(hi - lo, abs(hi), 1e-12)
+    if lo - margin <= limit <= hi + margin:
+        ax.axhline(limit, color="r", lw=1, ls="--", label=label)
+        ax.legend(handles=ax.get_lines()[-1:], fontsize=7, loc="lower right")  # each panel's limit
+        return
+    where = "above" if limit > hi else "below"
+    ax.annotate(f"{label} {limit:g} {unit} ({where} the scale)", xy=(0.02, 0.97 if where == "above" else 0.03),
+                xycoords="axes fraction", va="top" if where == "above" else "bottom", fontsize=8, color="r")
+
+
+def plan_figure(table: pd.DataFrame, rig: RigConfig, coupling_name: str | None = None):
     """Four panels over drop height, a line per (case, preload): twist against the coupling
     limit, frequency, peak torque against the sensor range, and the clearance of the drop mass
-    to the lever tip in the first period (negative: double impact)."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8), sharex=True)
-    panels = [("max_twist_deg", "max. twist [deg]", rig.coupling_limit_deg, "coupling limit"),
-              ("frequency_hz", "frequency [Hz]", None, None),
-              ("peak_torque_nm", "peak torque [N*m]", rig.sensors.torque.range_nm, "sensor range"),
-              ("min_clearance_mm", "clearance mass-lever in 1st period [mm]", 0.0, "double impact below")]
+    to the lever tip in the first period (negative: double impact). A limit far off the data's
+    scale is written in the panel's corner, not drawn (the axes keep the data's scale)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(13, 8), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True)
+    panels = [("max_twist_deg", "max. twist [deg]", rig.coupling_limit_deg, "coupling limit", "deg"),
+              ("first_period_frequency_hz", "frequency of the first period [Hz]", None, None, "Hz"),
+              ("peak_torque_nm", "peak torque [N*m]", rig.sensors.torque.range_nm, "sensor range", "N*m"),
+              ("min_clearance_mm", "clearance mass-lever in 1st period [mm]", 0.0, "double impact below", "mm")]
     groups = table.groupby(["case", "inertia_kgm2", "drop_mass_kg"], sort=False) if "case" in table else \
         table.groupby(["inertia_kgm2", "drop_mass_kg"], sort=False)
     styles = ["-", "--", ":", "-."]
-    for ax, (col, label, limit, limit_label) in zip(axes.flat, panels):
+    for ax, (col, label, limit, limit_label, unit) in zip(axes.flat, panels):
         for ci, (key, grp) in enumerate(groups):
             name = key[0] if "case" in table else f"J={key[0]:g}"
             for pi, (preload, sub) in enumerate(grp.groupby("preload_nm")):
                 sub = sub.sort_values("drop_height_m")
                 ax.plot(sub["drop_height_m"], sub[col], styles[pi % len(styles)], color=f"C{ci}", marker="o", ms=3,
                         label=f"{name}, {key[-1]:g} kg, {preload:g} N*m")
-                bad = sub["double_impact"]
+                bad = sub["double_impact"].to_numpy(bool)
                 ax.plot(sub["drop_height_m"][bad], sub[col][bad], "x", color="k", ms=7)
         if limit is not None:
-            ax.axhline(limit, color="r", lw=1, ls="--", label=limit_label)
-            ax.legend(handles=ax.get_lines()[-1:], fontsize=7, loc="lower right")  # each panel's limit
+            _limit(ax, limit, limit_label, unit, table[col].to_numpy(float))
         ax.set_ylabel(label)
         ax.set_xscale("log")
         ax.grid(True, which="both", alpha=0.3)
@@ -109,10 +127,12 @@ def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path, coupling_na
         ax.set_xlabel("drop height [m]")
     axes[0, 1].plot([], [], "x", color="k", label="double impact")
     conditions = [h for h in axes[0, 1].get_lines() if not h.get_label().startswith("_")]
-    fig.legend(handles=conditions, fontsize=8, loc="center left", bbox_to_anchor=(1.0, 0.5))  # beside, not on, the data
+    fig.legend(handles=conditions, fontsize=8, loc="outside right center")  # beside, not on, the data
     coupling = f"coupling {coupling_name}, " if coupling_name else ""
     fig.suptitle(f"test plan: {coupling}rig '{rig.name}' (one line per case, drop mass and preload)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return Path(path)
+    return fig
+
+
+def plot_plan(table: pd.DataFrame, rig: RigConfig, path: str | Path, coupling_name: str | None = None) -> Path:
+    """:func:`plan_figure` written to ``path`` (PNG)."""
+    return save_figure(plan_figure(table, rig, coupling_name), path, 120)

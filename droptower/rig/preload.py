@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from droptower.configs import display_name
 from droptower.errors import DroptowerError
 from droptower.rheology import Coupling, CouplingState
 
@@ -117,7 +118,7 @@ def _solve(coupling: Coupling, tgt: np.ndarray, ramp_s: float, hold_s: float) ->
         f_hi = np.where(low, held(hi), f_hi)
     else:
         raise DroptowerError(f"the coupling cannot hold the preload {np.abs(tgt).max():g} N*m after a hold of "
-                             f"{hold_s} s (it has no static stiffness)", file=coupling.path or coupling.name)
+                             f"{hold_s} s (it has no static stiffness)", file=display_name(coupling.path, "couplings") or coupling.name)
     # Illinois regula falsi, vectorised
     side = np.zeros(tgt.size)
     x = hi

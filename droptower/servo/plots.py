@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.io.droptower_log import save_figure
 from droptower.servo.bench import BenchResult
 
 
@@ -44,11 +44,8 @@ def plot_loops(result: BenchResult, path: str | Path, title: str = "", units: st
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
     try:
-        fig.savefig(path, dpi=120)
-    except (OSError, ValueError) as exc:
-        raise DroptowerError(f"cannot write the plot ({exc})", file=path) from None
+        path = save_figure(fig, path, 120)
     finally:
         plt.close(fig)
     return path
