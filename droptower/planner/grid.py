@@ -1,0 +1,94 @@
+"""What the planner page computes in the browser from: the planner's predictions on a grid.
+
+The page has no Python: every lever x drop mass x height x preload of the rig is predicted here
+(the nonlinear free decay, impact law, double-impact check and limits of
+:func:`droptower.rig.planner.plan`, one batch), on heights log-spaced finely enough that linear
+interpolation in log height stays well within 1 % of a direct prediction (amplitude and
+frequency vary smoothly with height: about as its square root and slowly). The design's
+candidates (:func:`droptower.design.choose.predict_candidates` and its runs of feasible
+heights) are embedded as they are, in the order the design reads them, so that the page's
+selection repeats ``droptower design``'s exactly.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from droptower.design import choose
+from droptower.design.coverage import GRID_POINTS
+from droptower.errors import DroptowerError
+from droptower.rheology import Coupling
+from droptower.rig.config import RigConfig
+from droptower.rig.planner import MIN_SAMPLES_PER_PERIOD, plan
+
+#: Heights of the grid per lever, mass and preload, log-spaced over the rig's range: on the
+#: shipped rig 61 keep the interpolated amplitude, frequency, torque and force within 0.1 % of
+#: a direct prediction (tests/test_planner.py checks 1 % at the midpoints).
+GRID_HEIGHTS = 61
+#: Predicted quantities the page shows, interpolated in log height (units in their names).
+QUANTITIES = ("amplitude_ref_deg", "frequency_hz", "damping_ratio", "peak_torque_nm", "impact_force_peak_n",
+              "min_clearance_mm", "max_twist_deg", "samples_per_period", "impact_velocity_m_per_s")
+
+
+def _numbers(values: Any) -> list[float | None]:
+    """Floats for JSON; NaN (no complete oscillation) as null."""
+    return [float(v) if math.isfinite(v) else None for v in np.asarray(values, float)]
+
+
+def check_preloads(rig: RigConfig, preloads_nm: tuple[float, ...]) -> None:
+    """A one-line error for a preload (N*m) outside the rig's range."""
+    lo, hi = rig.preload_range_nm
+    for p in preloads_nm:
+        if not lo <= p <= hi:
+            raise DroptowerError(f"preload {p:g} N*m is outside the range {lo:g}-{hi:g} N*m of rig {rig.name}",
+                                 where="--preloads-nm")
+
+
+def planner_data(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, ...],
+                 n_heights: int = GRID_HEIGHTS) -> dict[str, Any]:
+    """The page's data: the rig, the grid of predictions, the design's candidates and settings.
+
+    ``grid[q]`` is flat, index ``((lever * n_masses + mass) * n_preloads + preload) * n_heights
+    + height`` (levers and masses ascending, preloads as given); ``grid["ok"]``: no warning of the
+    planner and at least :data:`~droptower.design.choose.MIN_CLEARANCE_MM` clearance.
+    """
+    check_preloads(rig, preloads_nm)
+    levers, masses = sorted(rig.inertias_kgm2), sorted(rig.drop_masses_kg)
+    heights = np.geomspace(*rig.drop_height_range_m, n_heights)
+    rows = [(choose.lever_name(rig, j), j, m, h, p, 1)
+            for j in levers for m in masses for p in preloads_nm for h in heights]
+    pred = plan(rig, coupling, pd.DataFrame(rows, columns=[*choose.CONDITION_KEYS, "repeats"]), choose.RECORD_S)
+    grid: dict[str, list] = {q: _numbers(pred[q]) for q in QUANTITIES}
+    grid["double_impact"] = [bool(v) for v in pred["double_impact"]]
+    grid["ok"] = [not w for w in choose._with_margin(pred)]
+
+    feasible = choose._contiguous_feasible(choose.predict_candidates(rig, coupling, preloads_nm))
+    if feasible.empty:
+        raise DroptowerError(f"no drop of rig {rig.name} with coupling {coupling.name} is possible without hitting a "
+                             "limit (double impact, twist, sensor ranges)")
+    return {
+        "rig": {"name": rig.name, "drop_height_range_m": list(rig.drop_height_range_m),
+                "coupling_limit_deg": rig.coupling_limit_deg, "torque_range_nm": rig.sensors.torque.range_nm,
+                "impact_force_range_n": rig.sensors.impact_force.range_n},
+        "coupling": coupling.name,
+        "levers": [{"inertia_kgm2": j, "case": choose.lever_name(rig, j)} for j in levers],
+        "masses_kg": masses,
+        "preloads_nm": [float(p) for p in preloads_nm],
+        "heights_m": heights.tolist(),
+        "grid": grid,
+        # the design's candidates in its own row order (its greedy step takes the first best)
+        "candidates": {
+            "inertia_kgm2": feasible["inertia_kgm2"].astype(float).tolist(),
+            "drop_mass_kg": feasible["drop_mass_kg"].astype(float).tolist(),
+            "log10_height_m": np.log10(feasible["drop_height_m"].to_numpy(float)).tolist(),
+            "log10_amplitude_deg": np.log10(feasible["amplitude_ref_deg"].to_numpy(float)).tolist(),
+            "frequency_hz": feasible["frequency_hz"].astype(float).tolist(),
+        },
+        "settings": {"level_step_decades": choose.LEVEL_STEP_DECADES, "edge_margin_decades": choose.EDGE_MARGIN_DECADES,
+                     "height_resolution_m": choose.HEIGHT_RESOLUTION_M, "target_grid_points": GRID_POINTS,
+                     "min_clearance_mm": choose.MIN_CLEARANCE_MM, "min_samples_per_period": MIN_SAMPLES_PER_PERIOD,
+                     "default_repeats": 3},
+    }
