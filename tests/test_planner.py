@@ -184,6 +184,7 @@ def test_the_controls_change_the_prediction(chrome) -> None:
     assert _severe(chrome) == []
 
 
+@pytest.mark.slow
 def test_drag_a_target_and_download_the_plan_that_design_writes(chrome, tmp_path: Path) -> None:
     """A box dragged on the plot becomes the target; the small target typed then designs a plan
     whose download equals `droptower design --out` (text and parsed) and runs with `campaign --doe`."""
