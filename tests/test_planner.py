@@ -19,6 +19,7 @@ from droptower.design import Target, design_campaign, predict_candidates
 from droptower.design.choose import CONDITION_KEYS, LEVEL_STEP_DECADES, RECORD_S, _choose, _contiguous_feasible
 from droptower.design.outputs import doe_document
 from droptower.errors import DroptowerError
+from droptower.planner.grid import GRID_HEIGHTS, REFINE_TOLERANCE, _grid
 from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.planner import plan
@@ -56,6 +57,22 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     err = capsys.readouterr().err
     assert "preload 2000 N*m is outside the range 0-1000 N*m of rig rapp2022" in err and err.count("\n") == 1
     assert not (tmp_path / "p.html").exists()
+
+
+def test_grid_is_refined_where_interpolation_misses(shipped) -> None:
+    """Where the coupling's response jumps (the heaviest lever at 1000 N*m preload, between 0.195
+    and 0.219 m) the grid's heights close in; elsewhere interpolation in log height stays within
+    the refinement tolerance of a direct prediction at random heights (seeded)."""
+    rig, coupling, _ = shipped
+    heights, pred = _grid(rig, coupling, [(0.5233, 1.0, 1000.0)], GRID_HEIGHTS)
+    assert len(heights) > GRID_HEIGHTS and len(pred) == len(heights)
+    jump = (heights > 0.19) & (heights < 0.23)
+    assert np.min(np.diff(np.log(heights[jump]))) < np.log(1.02)
+    h = np.exp(np.random.default_rng(3).uniform(np.log(0.3), np.log(rig.drop_height_range_m[1]), 8))
+    direct = plan(rig, coupling, pd.DataFrame([("x", 0.5233, 1.0, x, 1000.0) for x in h], columns=CONDITION_KEYS),
+                  RECORD_S)
+    for q in ("amplitude_ref_deg", "frequency_hz"):
+        np.testing.assert_allclose(np.interp(np.log(h), np.log(heights), pred[q]), direct[q], rtol=REFINE_TOLERANCE)
 
 
 # ---- in the browser ---------------------------------------------------------------------------
@@ -172,6 +189,8 @@ def test_the_controls_change_the_prediction(chrome) -> None:
     height.send_keys("2\n")
     higher = shown()
     assert float(higher[0]) > float(first[0]) and float(higher[1]) < float(first[1])  # the coupling softens
+    Select(chrome.find_element("id", "mass")).select_by_index(1)
+    assert float(shown()[0]) > float(higher[0])  # the heavier drop mass gives the lever more momentum
     Select(chrome.find_element("id", "lever")).select_by_index(2)
     heavier = shown()
     assert float(heavier[1]) < float(higher[1])  # a heavier lever swings slower

@@ -262,7 +262,7 @@ function designCampaign(t, repeats, maxTests) {
     limits.push(`--max-tests ${maxTests}: amplitude levels ${fmtG(step, 2)} decades apart`);
   }
   const conditions = drops.flatMap((d) => D.preloads_nm.map((p, ip) => {
-    const lever = LEVERS.indexOf(d.j), mass = D.masses_kg.indexOf(d.m);
+    const lever = D.levers.findIndex((l) => l.inertia_kgm2 === d.j), mass = D.masses_kg.indexOf(d.m);
     return {case: D.levers[lever].case, inertia_kgm2: d.j, drop_mass_kg: d.m, drop_height_m: d.h, preload_nm: p,
             repeats, ...predict(lever, mass, ip, d.h)};
   }));
