@@ -16,7 +16,8 @@ import pytest
 
 from droptower.cli.main import main
 from droptower.design import Target, design_campaign, predict_candidates
-from droptower.design.choose import CONDITION_KEYS, LEVEL_STEP_DECADES, RECORD_S, _choose, _contiguous_feasible
+from droptower.design.choose import CONDITION_KEYS, LEVEL_STEP_DECADES, RECORD_S, _choose, _contiguous_feasible, _unreachable
+from droptower.design.coverage import plane
 from droptower.design.outputs import doe_document
 from droptower.errors import DroptowerError
 from droptower.planner.grid import GRID_HEIGHTS, REFINE_TOLERANCE, _grid
@@ -145,12 +146,15 @@ def test_interpolated_predictions_are_the_planners(chrome, shipped) -> None:
 
 def test_page_chooses_what_design_chooses(chrome, shipped) -> None:
     """Random targets (seeded; some of one frequency, some with wider level spacing): the page's
-    drops equal choose.py's, bit for bit; the plan (budget included) equals doe_document's but
-    for the covered percentage in its description, which comes from the final predictions
-    (direct in Python, interpolated here) and may differ by a point."""
+    drops equal choose.py's, bit for bit, and so do its sentences on what is unreachable; the
+    plan (budget included) equals doe_document's but for the covered percentage in its
+    description, which comes from the final predictions (direct in Python at the campaign's
+    record length, interpolated here) and may differ by a point; errors are design's."""
     rig, coupling, cands = shipped
     feasible = _contiguous_feasible(cands)
+    all_pts = plane(feasible["amplitude_ref_deg"], feasible["frequency_hz"])
     rng = np.random.default_rng(2026)
+    said = 0
     for k in range(24):
         a0 = 10 ** rng.uniform(-1.3, 0.3)
         a1, f0 = a0 * 10 ** rng.uniform(0, 1.2), rng.uniform(18, 50)
@@ -159,21 +163,33 @@ def test_page_chooses_what_design_chooses(chrome, shipped) -> None:
         js = chrome.execute_script("return window.planner.chooseDrops(arguments[0], arguments[1])",
                                    {"amplitude_deg": [a0, a1], "frequency_hz": [f0, f1]}, step)
         assert [(d["j"], d["m"], d["h"]) for d in js] == _choose(rig, feasible, target, step), (target, step)
-    for k, max_tests in enumerate((None, 14, 40, 6)):
+        js = chrome.execute_script("return window.planner.unreachable(arguments[0])",
+                                   {"amplitude_deg": [a0, a1], "frequency_hz": [f0, f1]})
+        assert js == _unreachable(target, all_pts, feasible, rig), target
+        said += len(js)
+    assert said >= 10  # the targets reach beyond the rig: there was something to say
+    targets = []
+    for max_tests in (None, 14, 40, 6):
         a0, f0 = 10 ** rng.uniform(-1, 0), rng.uniform(22, 40)
-        t = {"amplitude_deg": [a0, a0 * 10 ** rng.uniform(0.2, 1)], "frequency_hz": [f0, f0 + rng.uniform(3, 20)]}
+        targets.append(({"amplitude_deg": [a0, a0 * 10 ** rng.uniform(0.2, 1)],
+                         "frequency_hz": [f0, f0 + rng.uniform(3, 20)]}, max_tests))
+    targets.append(({"amplitude_deg": [5.0, 8.0], "frequency_hz": [80.0, 90.0]}, None))  # beyond the rig
+    errors = 0
+    for t, max_tests in targets:
         doc = chrome.execute_script(
             "const d = window.planner.designCampaign(arguments[0], 3, arguments[1]);"
             "return d.error || window.planner.doeDocument(d, 'plan')", t, max_tests)
         try:
             expected = doe_document(design_campaign(rig, coupling, Target(*t.values(), PRELOADS), max_tests=max_tests,
                                                     candidates=cands), "plan")
-        except DroptowerError as exc:  # a budget too small: the page says what design says
+        except DroptowerError as exc:  # a budget too small, a target beyond the rig: the page says so as design
             assert doc == exc.problem
+            errors += 1
             continue
         strip = re.compile(r"\d+ % of the target covered")
         assert strip.sub("", doc.pop("description")) == strip.sub("", expected.pop("description"))
         assert doc == expected, t
+    assert errors == 2
 
 
 def test_the_controls_change_the_prediction(chrome) -> None:

@@ -66,7 +66,7 @@ value="{data['settings']['default_repeats']}"></div>
 placeholder="none"></div>
 <div class="row"><label for="file-name">plan file</label><input id="file-name" type="text" value="plan.toml">
 <button id="download" type="button">Download plan TOML</button></div>
-<p id="design-summary"></p>
+<p id="design-summary"></p><ul id="design-notes" class="hint"></ul>
 </fieldset>
 </div><div><div id="plane"></div>
 <div class="scroll"><table class="plain" id="conditions"></table></div>

@@ -228,6 +228,58 @@ function chooseDrops(t, step) {
   return drops.map((d) => ({j: d.j, m: d.m, h: roundHeight(d.h)}));
 }
 
+// choose._unreachable: one sentence per part of the target the rig cannot reach, and why
+function unreachable(t) {
+  const grid = targetGrid(t), n = S.target_grid_points;
+  const all = CANDS.map((c) => [c.la, c.f]);
+  const inside = inHull(all, grid);
+  if (!inside.some(Boolean)) return [];
+  const amps = Array.from({length: n}, (_, i) => 10 ** grid[i * n][0]);
+  const freqs = Array.from({length: n}, (_, k) => grid[k][1]);
+  const [fLo, fHi] = t.frequency_hz, out = [];
+  const byMax = (pick, sign) => LEVERS.reduce((best, j) => {  // first lever with the extreme frequency
+    const v = sign * pick(CANDS.filter((c) => c.j === j).map((c) => c.f));
+    return best === null || v > best.v ? {j, v} : best;
+  }, null).j;
+  const name = (j) => D.levers.find((l) => l.inertia_kgm2 === j).case;
+  const sides = [["highest", fHi, byMax((f) => Math.max(...f), 1), "lightest"],
+                 ["lowest", fLo, byMax((f) => Math.min(...f), -1), "heaviest"]];
+  for (const [side, bound, lever, word] of sides) {
+    // per amplitude row: null (nothing reachable), false (the bound is reached) or the edge reached
+    const bands = amps.map((a, i) => {
+      const reach = freqs.filter((_, k) => inside[i * n + k]);
+      if (!reach.length) return [a, null];
+      const edge = side === "highest" ? Math.max(...reach) : Math.min(...reach);
+      const missing = side === "highest" ? edge < bound - 1e-9 : edge > bound + 1e-9;
+      return [a, missing ? edge : false];
+    });
+    const runs = [];
+    bands.forEach((b, i) => {
+      if (b[1] === false) return;
+      if (i > 0 && bands[i - 1][1] !== false) runs[runs.length - 1].push(b);
+      else runs.push([b]);
+    });
+    for (const run of runs) {
+      const a0 = run[0][0], a1 = run[run.length - 1][0];
+      const edges = run.map((b) => b[1]).filter((e) => e !== null);
+      const ampText = a1 > a0 ? `${fmtG(a0, 2)}-${fmtG(a1, 2)} deg` : `${fmtG(a0, 2)} deg`;
+      if (!edges.length) {
+        out.push(`at ${ampText} no drop of the rig lands in ${fmtG(fLo)}-${fmtG(fHi)} Hz`);
+        continue;
+      }
+      const worst = side === "highest" ? Math.max(...edges) : Math.min(...edges);
+      out.push(`at ${ampText} the ${side} frequency reachable is ${fmtG(worst, 3)} Hz: the ${word} lever, ${name(lever)}`);
+    }
+  }
+  const reachA = CANDS.map((c) => 10 ** c.la);
+  const [aMin, aMax] = [Math.min(...reachA), Math.max(...reachA)];
+  if (t.amplitude_deg[1] > aMax) out.push(`above ${fmtG(aMax, 3)} deg no drop is possible without hitting a limit of rig ` +
+                                          `${D.rig.name} (double impact, twist, sensor ranges or drop height)`);
+  if (t.amplitude_deg[0] < aMin) out.push(`below ${fmtG(aMin, 3)} deg no drop is possible: the lowest drop height ` +
+                                          `${fmtG(D.rig.drop_height_range_m[0])} m gives more`);
+  return out;
+}
+
 function unique(drops) {  // sorted(set(drops))
   const seen = new Map(drops.map((d) => [`${d.j}|${d.m}|${d.h}`, d]));
   return [...seen.values()].sort((a, b) => a.j - b.j || a.m - b.m || a.h - b.h);
@@ -271,7 +323,8 @@ function designCampaign(t, repeats, maxTests) {
     if (why.length) limits.push(`${c.case}, ${fmtG(c.drop_mass_kg)} kg, ${fmtG(c.drop_height_m)} m: ${why.join("; ")}`);
   }
   const covered = fraction(inHull(conditions.map((c) => [Math.log10(c.amplitude_ref_deg), c.frequency_hz]), grid));
-  return {target: t, conditions, repeats, limits, reachable, covered, nTests: conditions.length * repeats};
+  return {target: t, conditions, repeats, limits, reachable, covered, nTests: conditions.length * repeats,
+          unreachable: unreachable(t), doubleImpacts: conditions.filter((c) => c.double_impact).length};
 }
 
 // ---------------------------------------------------------------- outputs.py: the plan TOML
@@ -363,6 +416,11 @@ function readTarget() {
   return {amplitude_deg: [v[0], v[1]], frequency_hz: [v[2], v[3]]};
 }
 
+function notes(lines) {
+  const list = $("design-notes");
+  list.replaceChildren(...lines.map((line) => Object.assign(document.createElement("li"), {textContent: line})));
+}
+
 function showDesign() {
   const t = readTarget();
   const repeats = Math.max(1, Math.round(Number($("repeats").value) || S.default_repeats));
@@ -374,6 +432,7 @@ function showDesign() {
   if (design.error) {
     $("design-summary").className = "bad";
     $("design-summary").textContent = design.error;
+    notes([]);
     $("conditions").innerHTML = "";
     $("toml").textContent = "";
     $("download").disabled = true;
@@ -387,7 +446,8 @@ function showDesign() {
   $("design-summary").textContent = `${design.conditions.length / NP} drops x ${NP} preload(s) = ${design.conditions.length} ` +
     `conditions x ${design.repeats} repeats = ${design.nTests} tests; ${(100 * design.covered).toFixed(0)} % of the target ` +
     `covered (${(100 * design.reachable).toFixed(0)} % reachable with this rig)` +
-    (design.limits.length ? ". Limits: " + design.limits.join("; ") : "");
+    `; ${design.doubleImpacts} double impact(s) predicted`;
+  notes([...design.unreachable.map((u) => `unreachable: ${u}`), ...design.limits.map((l) => `limit: ${l}`)]);
   const cols = [["case", null], ["drop_mass_kg", "m [kg]"], ["drop_height_m", "h [m]"], ["preload_nm", "preload [N·m]"],
                 ["amplitude_ref_deg", "amplitude [deg]"], ["frequency_hz", "f [Hz]"], ["peak_torque_nm", "peak torque [N·m]"],
                 ["impact_force_peak_n", "impact force [N]"], ["min_clearance_mm", "margin [mm]"]];
@@ -478,5 +538,5 @@ function init() {
 }
 
 // for scripts and tests: the design of a target, its TOML, the shown drop
-window.planner = {designCampaign, chooseDrops, doeDocument, toToml, predict, inHull, fmtG,
+window.planner = {designCampaign, chooseDrops, unreachable, doeDocument, toToml, predict, inHull, fmtG,
                   toml: () => (current && !current.error ? current.toml : null), ready: init()};
