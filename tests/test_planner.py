@@ -5,7 +5,6 @@ designs a campaign, and the downloaded plan equals `design --out` and runs with 
 from __future__ import annotations
 
 import re
-import shutil
 import time
 import tomllib
 from pathlib import Path
@@ -24,6 +23,7 @@ from droptower.planner.grid import GRID_HEIGHTS, REFINE_TOLERANCE, _grid
 from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.planner import plan
+from test_report import _chrome  # Debian's chromium via selenium, or a skip naming what is missing
 
 PRELOADS = (0.0, 500.0)
 #: A small target (one lever's band): a campaign of a few drops.
@@ -77,31 +77,13 @@ def test_grid_is_refined_where_interpolation_misses(shipped) -> None:
 
 
 # ---- in the browser ---------------------------------------------------------------------------
-def _chrome(download_dir: Path):
-    """Debian's chromium driven by its chromedriver (selenium), or a skip naming what is missing;
-    downloads go to ``download_dir``."""
-    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is not installed (pip install '.[test]')")
-    from selenium.webdriver.chrome.service import Service
-
-    browser, driver = shutil.which("chromium"), shutil.which("chromedriver")
-    if browser is None or driver is None:
-        pytest.skip("Debian's chromium and chromium-driver are not installed (apt-get install chromium chromium-driver)")
-    options = webdriver.ChromeOptions()
-    options.binary_location = browser
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1400,1200"):
-        options.add_argument(arg)
-    options.add_experimental_option("prefs", {"download.default_directory": str(download_dir),
-                                              "download.prompt_for_download": False})
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    return webdriver.Chrome(service=Service(driver), options=options)
-
-
 @pytest.fixture(scope="module")
 def chrome(page: Path, tmp_path_factory):
     downloads = tmp_path_factory.mktemp("downloads")
-    browser = _chrome(downloads)
+    browser = _chrome()
     browser.downloads = downloads
     try:
+        browser.execute_cdp_cmd("Browser.setDownloadBehavior", {"behavior": "allow", "downloadPath": str(downloads)})
         browser.get(page.as_uri())
         browser.set_script_timeout(60)
         assert browser.execute_async_script(
@@ -259,10 +241,10 @@ def test_drag_a_target_and_download_the_plan_that_design_writes(chrome, tmp_path
 
 
 def test_screenshot(chrome, tmp_path: Path) -> None:
-    """The page at 1400 px: no sideways scroll; the screenshot is a PNG of that width."""
-    assert chrome.execute_script("return document.documentElement.scrollWidth") <= 1400
-    shot = tmp_path / "planner_1400.png"
+    """The page at 1280 px: no sideways scroll; the screenshot is a PNG of that width."""
+    assert chrome.execute_script("return document.documentElement.scrollWidth") <= 1280
+    shot = tmp_path / "planner_1280.png"
     assert chrome.save_screenshot(str(shot))
     png = shot.read_bytes()
-    assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") == 1400
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") == 1280
     print(f"\nscreenshot: {shot}")
