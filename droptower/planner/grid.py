@@ -96,16 +96,15 @@ def planner_data(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, .
     planner and at least :data:`~droptower.design.choose.MIN_CLEARANCE_MM` clearance.
     """
     check_preloads(rig, preloads_nm)
+    feasible = choose._contiguous_feasible(choose.predict_candidates(rig, coupling, preloads_nm))
+    if feasible.empty:
+        raise DroptowerError(f"no drop of rig {rig.name} with coupling {coupling.name} is possible without hitting a "
+                             "limit (double impact, twist, sensor ranges)")
     levers, masses = sorted(rig.inertias_kgm2), sorted(rig.drop_masses_kg)
     heights, pred = _grid(rig, coupling, [(j, m, p) for j in levers for m in masses for p in preloads_nm], n_heights)
     grid: dict[str, list] = {q: _numbers(pred[q]) for q in QUANTITIES}
     grid["double_impact"] = [bool(v) for v in pred["double_impact"]]
     grid["ok"] = [not w for w in choose._with_margin(pred)]
-
-    feasible = choose._contiguous_feasible(choose.predict_candidates(rig, coupling, preloads_nm))
-    if feasible.empty:
-        raise DroptowerError(f"no drop of rig {rig.name} with coupling {coupling.name} is possible without hitting a "
-                             "limit (double impact, twist, sensor ranges)")
     return {
         "rig": {"name": rig.name, "drop_height_range_m": list(rig.drop_height_range_m),
                 "coupling_limit_deg": rig.coupling_limit_deg, "torque_range_nm": rig.sensors.torque.range_nm,
@@ -127,5 +126,5 @@ def planner_data(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, .
         "settings": {"level_step_decades": choose.LEVEL_STEP_DECADES, "edge_margin_decades": choose.EDGE_MARGIN_DECADES,
                      "height_resolution_m": choose.HEIGHT_RESOLUTION_M, "target_grid_points": GRID_POINTS,
                      "min_clearance_mm": choose.MIN_CLEARANCE_MM, "min_samples_per_period": MIN_SAMPLES_PER_PERIOD,
-                     "default_repeats": 3},
+                     "default_repeats": 3},  # as droptower design
     }

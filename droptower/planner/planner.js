@@ -398,7 +398,6 @@ function showDrop() {
   const why = problems(p);
   $("drop-problems").className = why.length ? "bad" : "ok";
   $("drop-problems").textContent = why.length ? why.join("; ") : "no limit hit, double-impact margin kept";
-  window.planner.drop = p;
   Plotly.restyle(PLOT, {x: [[p.amplitude_ref_deg]], y: [[p.frequency_hz]]}, [dropTrace]);
 }
 
@@ -440,8 +439,7 @@ function showDesign() {
     Plotly.relayout(PLOT, {shapes: box});
     return;
   }
-  const name = ($("file-name").value || "plan.toml").replace(/\.toml$/i, "") || "plan";
-  design.toml = toToml(doeDocument(design, name));
+  design.toml = toToml(doeDocument(design, fileName().replace(/\.toml$/i, "")));
   $("design-summary").className = "";
   $("design-summary").textContent = `${design.conditions.length / NP} drops x ${NP} preload(s) = ${design.conditions.length} ` +
     `conditions x ${design.repeats} repeats = ${design.nTests} tests; ${(100 * design.covered).toFixed(0)} % of the target ` +
@@ -462,11 +460,17 @@ function showDesign() {
   Plotly.relayout(PLOT, {shapes: box});
 }
 
+// the plan's file name as typed, ending in .toml (the plan's name is its stem, as design --out)
+function fileName() {
+  const name = $("file-name").value.trim() || "plan.toml";
+  return /\.toml$/i.test(name) ? name : `${name}.toml`;
+}
+
 function download() {
   if (!current || current.error) return;
   const a = document.createElement("a");
   a.href = URL.createObjectURL(new Blob([current.toml], {type: "application/toml"}));
-  a.download = $("file-name").value || "plan.toml";
+  a.download = fileName();
   document.body.appendChild(a);
   a.click();
   a.remove();
@@ -537,6 +541,6 @@ function init() {
   });
 }
 
-// for scripts and tests: the design of a target, its TOML, the shown drop
+// for scripts and tests: the steps of the design, the predictions, the TOML shown
 window.planner = {designCampaign, chooseDrops, unreachable, doeDocument, toToml, predict, inHull, fmtG,
                   toml: () => (current && !current.error ? current.toml : null), ready: init()};
