@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "servo": ("droptower.cli.servo_cmd", "servo", "Drive a coupling on the virtual servo-hydraulic bench."),
     "simulate": ("droptower.cli.simulate_cmd", "simulate", "Simulate one drop test on the virtual drop tower."),
     "design": ("droptower.cli.design_cmd", "design", "Design a campaign that covers a target amplitude-frequency region."),
+    "planner": ("droptower.cli.planner_cmd", "planner", "Write the interactive planner page (offline HTML)."),
     "plan": ("droptower.cli.plan_cmd", "plan", "Predict a test plan: amplitudes, frequencies, double impacts."),
     "channels": ("droptower.cli.channels_cmd", "channels", "List the channels a log file holds."),
     "extract": ("droptower.cli.extract_cmd", "extract", "Extract stiffness and damping from drop-test logs."),

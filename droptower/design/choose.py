@@ -103,14 +103,14 @@ def predict_candidates(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[fl
     pred["fixture"] = pred.groupby(["inertia_kgm2", "drop_mass_kg", "drop_height_m"], sort=False).ngroup()
     problems = pred.groupby("fixture", sort=False).apply(
         lambda g: [f"{w} (preload {p:g} N*m)" if len(preloads_nm) > 1 else w
-                   for p, ws in zip(g["preload_nm"], _with_margin(g)) for w in ws], include_groups=False)
+                   for p, ws in zip(g["preload_nm"], with_margin(g)) for w in ws], include_groups=False)
     first = pred[pred["preload_nm"] == preloads_nm[0]].set_index("fixture")
     first["problems"] = problems
     first["feasible"] = first["problems"].map(len) == 0
     return first.reset_index(drop=True)
 
 
-def _with_margin(pred: pd.DataFrame) -> list[list[str]]:
+def with_margin(pred: pd.DataFrame) -> list[list[str]]:
     """The planner's warnings plus a double-impact clearance below :data:`MIN_CLEARANCE_MM`."""
     return [[*w] + ([f"double-impact clearance {c:.2g} mm < {MIN_CLEARANCE_MM:g} mm"]
                     if not d and c < MIN_CLEARANCE_MM else [])
@@ -146,11 +146,11 @@ def _lever_drops(feasible: pd.DataFrame, levels: np.ndarray) -> list[tuple[float
     return list(drops.values())
 
 
-def _contiguous_feasible(cands: pd.DataFrame) -> pd.DataFrame:
+def contiguous_feasible(cands: pd.DataFrame) -> pd.DataFrame:
     """Per lever and mass, the longest run of consecutive feasible heights (interpolating
     across an infeasible height would place a drop where a limit is hit)."""
     keep = []
-    for _, g in cands.sort_values("drop_height_m").groupby(["inertia_kgm2", "drop_mass_kg"], sort=False):
+    for _, g in cands.sort_values("drop_height_m", kind="stable").groupby(["inertia_kgm2", "drop_mass_kg"], sort=False):
         ok = g["feasible"].to_numpy()
         best, start = (0, 0), None
         for i, v in enumerate([*ok, False]):
@@ -269,7 +269,7 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
     spacing give way to it); candidates: :func:`predict_candidates` already computed.
     """
     cands = predict_candidates(rig, coupling, target.preloads_nm) if candidates is None else candidates
-    feasible = _contiguous_feasible(cands)
+    feasible = contiguous_feasible(cands)
     if feasible.empty:
         raise DroptowerError(f"no drop of rig {rig.name} with coupling {coupling.name} is possible without hitting a "
                              "limit (double impact, twist, sensor ranges)")
@@ -305,7 +305,7 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
     cond = pd.DataFrame(rows, columns=[*CONDITION_KEYS, "repeats"])
     # predicted as the campaign will record and extract them (its record length for this plan)
     pred = plan(rig, coupling, cond, record_length_s(plan(rig, coupling, cond, RECORD_S)["first_period_s"]))
-    pred["warnings"] = _with_margin(pred)
+    pred["warnings"] = with_margin(pred)
     for r in pred[pred["warnings"].map(len) > 0].itertuples():
         limits.append(f"{r.case}, {r.drop_mass_kg:g} kg, {r.drop_height_m:g} m: " + "; ".join(r.warnings))
     pts = plane(pred["amplitude_deg"], pred["frequency_hz"])

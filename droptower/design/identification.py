@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from droptower.design.choose import _contiguous_feasible, predict_candidates
+from droptower.design.choose import contiguous_feasible, predict_candidates
 from droptower.design.coverage import Target
 from droptower.errors import DroptowerError
 from droptower.identify.droplogs import DropDecay
@@ -137,7 +137,7 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
     errors are reported beside the design's.
     """
     cands = predict_candidates(rig, coupling, (0.0,)) if candidates is None else candidates
-    feasible = _contiguous_feasible(cands)
+    feasible = contiguous_feasible(cands)
     (a0, a1), (f0, f1) = target.amplitude_deg, target.frequency_hz
     pool = feasible[feasible["amplitude_deg"].between(a0, a1) & feasible["frequency_hz"].between(f0, f1)]
     if len(pool) < 2:
