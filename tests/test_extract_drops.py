@@ -30,7 +30,7 @@ INERTIA, LEVER = 0.359, 0.2
 PAUSES_S = [0.4, 0.9, 0.6]
 #: results compared with the single-drop log's
 COMPARED = ("stiffness_nm_per_rad", "damping_ratio", "frequency_hz", "amplitude_deg", "initial_amplitude_deg",
-            "stiffness_torque_nm_per_rad", "loss_factor", "impact_velocity_rad_per_s")
+            "stiffness_torque_nm_per_rad", "loss_factor", "lever_rate_after_rad_per_s", "impact_energy_j")
 UNITS = {"angle_rad": "rad", "torque_nm": "N*m", "impact_force_n": "N", "laser_distance_m": "m"}
 
 
