@@ -45,7 +45,7 @@ def _free_decay(codes, p_off, s_off, params, state, x_start, rest, inertia, rate
             torque_out[b, k] = t
 
 
-_free_decay_parallel = njit(parallel=True, cache=True, nogil=True, error_model="numpy")(_free_decay)
+_free_decay_parallel = njit(parallel=True, **K.JIT)(_free_decay)  # the project's cache guard
 
 
 def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int,

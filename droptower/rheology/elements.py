@@ -19,6 +19,7 @@ from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_
 
 from droptower.limits import MAX_ELEMENT_N
 from droptower.rheology import kernels as K
+from droptower.rheology.kinds import kind_of
 from droptower.validation import StrictModel
 
 
@@ -30,6 +31,9 @@ class KernelElement:
     params: np.ndarray
     n_internal: int = 0
     label: str = ""
+
+    def __post_init__(self) -> None:
+        kind_of(self.code).check(self.params, self.n_internal)  # the layout its kind's record declares
 
     @property
     def n_state(self) -> int:
