@@ -22,7 +22,6 @@ import pytest
 
 from droptower.cli.main import main
 from droptower.errors import DroptowerError
-from droptower.io import write_log
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL_PLAN = """

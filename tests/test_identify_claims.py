@@ -57,8 +57,6 @@ def test_round_trip_servo_bench_identify_drop_tower(tmp_path):
     """Records of the reference coupling on the virtual servo bench (simulated on a fine step,
     sampled at 2048 Hz like the paper's bench) in the drop tower's range (0.3-0.9 deg,
     25-35 Hz); the identified coupling in the drop tower gives the stiffness the original does."""
-    pytest.importorskip("droptower.rig.simulate")
-    pytest.importorskip("droptower.extract.files")
     from droptower.cli.main import main
     from droptower.extract import Settings, extract_file
     from droptower.io import write_log

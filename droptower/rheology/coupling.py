@@ -254,7 +254,7 @@ class Coupling:
         return float(sum(kind_of(k.code).damping_bound(k.params, motion) for k in self.kernels))
 
     def __repr__(self) -> str:
-        kinds = ", ".join(getattr(e, "kind") for e in self.elements)
+        kinds = ", ".join(e.kind for e in self.elements)
         return f"Coupling({self.name!r}: {kinds}; {self.n_sets} parameter set(s))"
 
 
