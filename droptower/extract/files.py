@@ -11,27 +11,17 @@ from typing import Any
 from droptower.extract.extractor import extract
 from droptower.extract.result import ExtractionResult
 from droptower.extract.window import Window
-from droptower.io.mapping import map_channels
-from droptower.io.readers import read_any
+from droptower.io.logsettings import LogSettings
 from droptower.io.signals import DropSignals
 
 
 @dataclass(frozen=True)
-class Settings:
-    """How to read and evaluate the logs of one batch.
-
-    roles: channel mapping (role -> ``NAME[:UNIT]``); inertia_kgm2, lever_length_m: override
-    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``) used where a
-    log's metadata lacks them, e.g. from the rig; sensor_radius_m: laser spot radius for a
-    distance channel; sample_rate_hz: time base for files without one; reader_options: CSV
-    settings for :func:`droptower.io.read_any`.
+class Settings(LogSettings):
+    """How to read (:class:`~droptower.io.logsettings.LogSettings`) and evaluate the logs of one
+    batch: sample_rate_hz: time base for files without one; window: the evaluated window;
+    reader_options: CSV settings for :func:`droptower.io.read_any`.
     """
 
-    roles: dict[str, str] = field(default_factory=dict)
-    inertia_kgm2: float | None = None
-    lever_length_m: float | None = None
-    defaults: dict[str, float] = field(default_factory=dict)
-    sensor_radius_m: float | None = None
     sample_rate_hz: float | None = None
     window: Window = Window()
     reader_options: dict[str, Any] = field(default_factory=dict)
@@ -39,9 +29,7 @@ class Settings:
 
 def extract_file(path: str | Path, settings: Settings) -> tuple[DropSignals, ExtractionResult]:
     """Read, map and extract one log; any problem is a DroptowerError naming the file."""
-    record = read_any(path, **settings.reader_options)
-    signals = map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
-                           sample_rate_hz=settings.sample_rate_hz)
+    signals = settings.read_signals(path, sample_rate_hz=settings.sample_rate_hz, reader_options=settings.reader_options)
     given = {key: value if value is not None or key in signals.metadata else settings.defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
     result = extract(signals, **given, window=settings.window)
