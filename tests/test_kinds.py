@@ -21,6 +21,7 @@ from droptower.identify.lever import free_decay
 from droptower.rheology import Coupling, kinds
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ELEMENT_KINDS, ElementUnion, KernelElement
+from droptower.rig.lever import SYMPLECTIC_EULER, LeverDecay
 from pydantic import TypeAdapter
 
 REPO = Path(__file__).resolve().parents[1]
@@ -154,13 +155,19 @@ def test_kind_through_every_consumer(kind, seed):
         tangent = (t1 - t0) / delta
         assert tangent <= (stiffness + damping / h) * (1 + 1e-6) + 1e-6, (stop, tangent, stiffness, damping)
 
-    # lever: the compiled free decay equals velocity Verlet over Coupling.step, row by row
+    # lever: the compiled free decay (identification: Verlet; plan: symplectic Euler, from a
+    # preloaded rest) equals its scheme written out over Coupling.step, row by row
     lever = Coupling([_element("spring", seed), _element(kind, seed)])
     inertia, rate0, n = np.array([0.2, 0.35]), np.array([3.0, -2.0]), 300
     angle, lever_torque = free_decay(lever, inertia, rate0, n, h)
     ref_angle, ref_torque = _verlet(lever, inertia, rate0, n, h)
     assert np.allclose(angle, ref_angle, rtol=0, atol=1e-12 * np.max(np.abs(ref_angle)))
     assert np.allclose(lever_torque, ref_torque, rtol=0, atol=1e-9 * np.max(np.abs(ref_torque)))
+    rest = lever.new_state(2)
+    lever.simulate(np.linspace(0.0, 0.01, 50)[None, :].repeat(2, axis=0), h, rest)
+    euler_angle, euler_torque = LeverDecay(lever, rest.copy(), inertia, rate0, h, SYMPLECTIC_EULER).advance(n)
+    ref_angle, ref_torque = _symplectic_euler(lever, rest.copy(), inertia, rate0, n, h)
+    assert np.array_equal(euler_angle, ref_angle) and np.array_equal(euler_torque, ref_torque)
 
     # batching: stacked parameter sets (serial and parallel runner) equal single runs
     others = [Coupling([_element(kind, s)]) for s in (seed, seed + 10)]
@@ -184,6 +191,19 @@ def _verlet(coupling: Coupling, inertia, rate0, n, h):
         acc_new = -t / inertia
         v = v + 0.5 * h * (acc + acc_new)
         acc = acc_new
+        angle[:, k], torque[:, k] = phi, t
+    return angle, torque
+
+
+def _symplectic_euler(coupling: Coupling, state, inertia, rate0, n, h):
+    """The rig's scheme over Coupling.step from a rest held by the screw (the plan's reference)."""
+    screw, x_rest = state.torque_nm.copy(), state.angle_rad.copy()
+    angle, torque = np.zeros((inertia.size, n)), np.zeros((inertia.size, n))
+    phi, v = np.zeros(inertia.size), rate0.copy()
+    for k in range(n):
+        phi = phi + h * v
+        t = coupling.step(state, x_rest + phi, h)
+        v = v + (screw - t) / inertia * h
         angle[:, k], torque[:, k] = phi, t
     return angle, torque
 
