@@ -46,7 +46,7 @@ def _exponent_grids(eq: Equation, a: np.ndarray, f: np.ndarray) -> tuple[list[tu
     points = []
     for combo in itertools.product(*(itertools.combinations(range(len(grids[k])), len(ix)) for k, ix in per_kind.items())):
         ix = [0] * len(kinds)
-        for (k, positions), values in zip(per_kind.items(), combo):
+        for positions, values in zip(per_kind.values(), combo):
             for p, v in zip(positions, values):
                 ix[p] = v
         points.append(tuple(ix))
