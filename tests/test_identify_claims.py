@@ -19,6 +19,7 @@ from droptower.servo import run_grid
 from test_identify_helpers import coupling, fitting_histories, random_history, records
 
 
+@pytest.mark.slow
 def test_seed000_six_parameters_within_a_few_tenths_of_the_20_parameter_model():
     # a coupling of the 20-parameter model's kind: Mullins filter, asymmetric stiffness table,
     # shear-thinning damping table

@@ -39,6 +39,7 @@ def _finite_numbers(value) -> bool:
 
 
 @pytest.mark.slow
+@pytest.mark.slow
 def test_reduced_study_writes_the_report(tmp_path, capsys):
     out = tmp_path / "report"
     assert _study_module().main(["--reduced", "--out", str(out), "--workers", "2"]) == 0
