@@ -40,7 +40,8 @@ def _exponent_grids(eq: Equation, a: np.ndarray, f: np.ndarray) -> tuple[list[tu
 
     Terms of one kind take increasing grid points (they are interchangeable), so no
     permutation of one solution is searched twice."""
-    grids = {"exp_amplitude": exponent_grid(a), "exp_frequency": exponent_grid(f), "exp_velocity": exponent_grid(a * f)}
+    grids = {"exp_amplitude": exponent_grid(a), "exp_frequency": exponent_grid(f),
+             "exp_velocity": exponent_grid(a * f)}
     kinds = [t for t in eq.terms if KINDS[t][1] is not None]
     per_kind = {k: [i for i, t in enumerate(kinds) if t == k] for k in dict.fromkeys(kinds)}
     points = []
@@ -164,16 +165,12 @@ def _rms(x: np.ndarray) -> float:
 
 
 def fit_form(form: MapForm | None, a: np.ndarray, f: np.ndarray, c: np.ndarray, d: np.ndarray,
-             groups: np.ndarray, cv_method: str, stiffness: Fitted | None = None,
-             ratio: Fitted | None = None) -> FormFit:
-    """Fit ``form`` (``None``: choose the terms, ``auto``) and cross-validate it.
-
-    ``stiffness``/``ratio``: fits of ``form``'s equations already made (the paper's own fit),
-    only cross-validated here."""
+             groups: np.ndarray, cv_method: str) -> FormFit:
+    """Fit ``form`` (``None``: choose the terms, ``auto``) and cross-validate it."""
     if form is None:
         return _auto(a, f, c, d, groups, cv_method)
-    s = stiffness or fit_equation(form.stiffness, True, a, f, c)
-    r = ratio or fit_equation(form.ratio, False, a, f, form.stiffness.value(s.params, a, f) / d)
+    s = fit_equation(form.stiffness, True, a, f, c)
+    r = fit_equation(form.ratio, False, a, f, form.stiffness.value(s.params, a, f) / d)
     folds, cv_c = _stiffness_folds(form.stiffness, s.params, a, f, c, groups)
     cv_d = _ratio_cv(form.stiffness, form.ratio, r.params, folds, a, f, d)
     return FormFit(form, s, r, cv_c, cv_d, cv_method)
