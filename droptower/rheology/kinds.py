@@ -80,13 +80,20 @@ class KernelKind:
         """Index of a named state variable (header or internal) in the element's state slice."""
         return (HEADER + self.internal).index(name)
 
-    def check(self, params: np.ndarray, n_internal: int) -> None:
-        """Raise ValueError if a compiled element does not have this kind's layout."""
-        n_par = len(self.params) if self.n_params is None else self.n_params(params)
-        n_int = len(self.internal) if self.n_internal is None else self.n_internal(params)
-        if params.ndim != 1 or params.size != n_par or n_internal != n_int:
-            raise ValueError(f"a {self.name} kernel element has {params.size} parameters and {n_internal} "
-                             f"internal variables; its layout needs {n_par} and {n_int}")
+    def params_size(self, params: np.ndarray) -> int:
+        """Length of an element's parameter slice (its named slots and tables)."""
+        return len(self.params) if self.n_params is None else self.n_params(params)
+
+    def internal_size(self, params: np.ndarray) -> int:
+        """Number of an element's internal state variables."""
+        return len(self.internal) if self.n_internal is None else self.n_internal(params)
+
+    def check(self, params: np.ndarray) -> None:
+        """Raise ValueError if a compiled parameter vector does not have this kind's layout."""
+        if params.ndim != 1 or params.size < len(self.params) or params.size != self.params_size(params):
+            raise ValueError(f"a {self.name} kernel element has {params.size} parameters; its layout "
+                             f"({', '.join(self.params)}{', tables' if self.n_params else ''}) needs "
+                             f"{self.params_size(params) if params.size >= len(self.params) else len(self.params)}")
 
 
 # ---------------------------------------------------------------- bounds of the kinds
