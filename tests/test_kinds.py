@@ -16,7 +16,7 @@ from droptower.identify.lever import free_decay
 from droptower.rheology import Coupling, kinds
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ELEMENT_KINDS, ElementUnion, KernelElement
-from droptower.rig.lever import SYMPLECTIC_EULER, LeverDecay
+from droptower.rig.lever import SYMPLECTIC_EULER, VERLET, LeverDecay
 from pydantic import TypeAdapter
 
 SPEC = TypeAdapter(ElementUnion)
@@ -203,6 +203,18 @@ def _symplectic_euler(coupling: Coupling, state, inertia, rate0, n, h):
         v = v + (screw - t) / inertia * h
         angle[:, k], torque[:, k] = phi, t
     return angle, torque
+
+
+def test_lever_batches_equal_single_rows():
+    """A batch large enough for the parallel integrator decays row by row as each row alone."""
+    coupling = Coupling.stack([Coupling([_element("spring", s), _element("payne", s)]) for s in range(8)])
+    inertia, rate0 = np.linspace(0.15, 0.5, 8), np.linspace(-3.0, 3.0, 8)
+    for scheme in (SYMPLECTIC_EULER, VERLET):
+        batch = LeverDecay(coupling, coupling.new_state(), inertia, rate0, 2e-4, scheme).advance(400)
+        for i in range(8):
+            row = Coupling(coupling.elements, params=coupling.params[i:i + 1])
+            single = LeverDecay(row, row.new_state(), inertia[i:i + 1], rate0[i:i + 1], 2e-4, scheme).advance(400)
+            assert np.array_equal(batch[0][i], single[0][0]) and np.array_equal(batch[1][i], single[1][0])
 
 
 def test_stiffness_bound_of_the_reference_coupling_covers_its_tangent():

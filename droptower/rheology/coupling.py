@@ -243,7 +243,7 @@ class Coupling:
         Used by explicit simulations (the rig) to choose or check their time step.
         """
         motion = Motion(angle_rad=abs(float(angle_rad)), step_s=step_s)
-        return float(sum(kind_of(k.code).stiffness_bound(k.params, motion) for k in self.kernels))
+        return float(sum(kind_of(k.code).stiffness(k.params, motion) for k in self.kernels))
 
     def max_damping(self, *, min_frequency_hz: float = 0.0, step_s: float | None = None) -> float:
         """An upper bound of the instantaneous viscous coefficient (N*m*s/rad): dashpots in
@@ -251,7 +251,7 @@ class Coupling:
         (K''/w: ``min_frequency_hz`` is the slowest oscillation the caller drives; the kernel's
         floor of 0.01 Hz by default)."""
         motion = Motion(step_s=step_s, min_omega_rad_per_s=max(2 * np.pi * min_frequency_hz, K.MIN_OMEGA))
-        return float(sum(kind_of(k.code).damping_bound(k.params, motion) for k in self.kernels))
+        return float(sum(kind_of(k.code).damping(k.params, motion) for k in self.kernels))
 
     def __repr__(self) -> str:
         kinds = ", ".join(e.kind for e in self.elements)

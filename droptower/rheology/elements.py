@@ -19,6 +19,7 @@ from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_
 
 from droptower.limits import MAX_ELEMENT_N
 from droptower.rheology import kernels as K
+from droptower.rheology import kinds
 from droptower.rheology.kinds import kind_of
 from droptower.validation import StrictModel
 
@@ -621,10 +622,9 @@ class Payne(ElementSpec):
     reference_frequency: PositiveFloat = 30.0           # Hz, where the stiffnesses above hold
 
     def compile(self):
-        params = np.array([self.stiffness, self.critical_angle, self.exponent, self.loss_stiffness,
-                           self.loss_peak_stiffness, self.centre_relaxation_time, self.memory_time,
-                           self.storage_frequency_exponent, self.loss_frequency_exponent,
-                           2 * np.pi * self.reference_frequency, self.rest_relaxation_time])
+        names = set(kinds.PAYNE.params) - {"reference_omega"}
+        params = kinds.PAYNE.pack(**{n: getattr(self, n) for n in names},
+                                  reference_omega=2 * np.pi * self.reference_frequency)
         return [KernelElement(K.PAYNE, params)]
 
     def complex_stiffness(self, amplitude_rad: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:

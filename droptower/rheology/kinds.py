@@ -45,7 +45,7 @@ class Motion:
     min_omega_rad_per_s: float = K.MIN_OMEGA
 
 
-def _none(params: np.ndarray, motion: Motion) -> float:
+def _none(named: dict[str, float], params: np.ndarray, motion: Motion) -> float:
     return 0.0
 
 
@@ -56,10 +56,11 @@ class KernelKind:
     params: names of the fixed parameter slots at the start of the element's parameter slice
     (variable-length tables follow them, sized by ``n_params``); internal: names of the internal
     state slots after :data:`HEADER` (repeated blocks sized by ``n_internal``).
-    stiffness_bound(params, motion): an upper bound of the tangent stiffness (N*m/rad) in the
-    :class:`Motion`, viscous terms left out; damping_bound(params, motion): an upper bound of the
-    viscous coefficient (N*m*s/rad). Over one step of ``h`` seconds the tangent dT/dx1 is at most
-    stiffness_bound + damping_bound / h.
+    stiffness_bound(named, params, motion): an upper bound of the tangent stiffness (N*m/rad) in
+    the :class:`Motion`, viscous terms left out; damping_bound(named, params, motion): an upper
+    bound of the viscous coefficient (N*m*s/rad); ``named`` maps the slot names to their values,
+    ``params`` is the whole slice (for the tables). Over one step of ``h`` seconds the tangent
+    dT/dx1 is at most stiffness + damping / h (:meth:`stiffness`, :meth:`damping`).
     """
 
     name: str
@@ -67,14 +68,32 @@ class KernelKind:
     step: Callable
     params: tuple[str, ...]
     internal: tuple[str, ...]
-    stiffness_bound: Callable[[np.ndarray, Motion], float]
-    damping_bound: Callable[[np.ndarray, Motion], float] = _none
-    n_params: Callable[[np.ndarray], int] | None = None    # None: len(params)
-    n_internal: Callable[[np.ndarray], int] | None = None  # None: len(internal)
+    stiffness_bound: Callable[[dict[str, float], np.ndarray, Motion], float]
+    damping_bound: Callable[[dict[str, float], np.ndarray, Motion], float] = _none
+    n_params: Callable[[dict[str, float]], int] | None = None    # of the named slots; None: len(params)
+    n_internal: Callable[[dict[str, float]], int] | None = None  # of the named slots; None: len(internal)
 
     def param_slot(self, name: str) -> int:
         """Index of a named parameter in the element's parameter slice."""
         return self.params.index(name)
+
+    def named(self, params: np.ndarray) -> dict[str, float]:
+        """The named parameter slots of an element's parameter slice."""
+        return dict(zip(self.params, map(float, params[:len(self.params)])))
+
+    def pack(self, **values: float) -> np.ndarray:
+        """The parameter vector of a kind without tables, from its slots by name (all required)."""
+        if set(values) != set(self.params):
+            raise TypeError(f"{self.name} parameters are {', '.join(self.params)}; got {', '.join(values)}")
+        return np.array([values[name] for name in self.params], dtype=float)
+
+    def stiffness(self, params: np.ndarray, motion: Motion) -> float:
+        """Upper bound of an element's tangent stiffness (N*m/rad), viscous terms left out."""
+        return float(self.stiffness_bound(self.named(params), params, motion))
+
+    def damping(self, params: np.ndarray, motion: Motion) -> float:
+        """Upper bound of an element's viscous coefficient (N*m*s/rad)."""
+        return float(self.damping_bound(self.named(params), params, motion))
 
     def state_slot(self, name: str) -> int:
         """Index of a named state variable (header or internal) in the element's state slice."""
@@ -82,18 +101,19 @@ class KernelKind:
 
     def params_size(self, params: np.ndarray) -> int:
         """Length of an element's parameter slice (its named slots and tables)."""
-        return len(self.params) if self.n_params is None else self.n_params(params)
+        return len(self.params) if self.n_params is None else self.n_params(self.named(params))
 
     def internal_size(self, params: np.ndarray) -> int:
         """Number of an element's internal state variables."""
-        return len(self.internal) if self.n_internal is None else self.n_internal(params)
+        return len(self.internal) if self.n_internal is None else self.n_internal(self.named(params))
 
     def check(self, params: np.ndarray) -> None:
         """Raise ValueError if a compiled parameter vector does not have this kind's layout."""
-        if params.ndim != 1 or params.size < len(self.params) or params.size != self.params_size(params):
+        need = self.params_size(params) if params.ndim == 1 and params.size >= len(self.params) else len(self.params)
+        if params.ndim != 1 or params.size != need:
+            tables = ", tables" if self.n_params else ""
             raise ValueError(f"a {self.name} kernel element has {params.size} parameters; its layout "
-                             f"({', '.join(self.params)}{', tables' if self.n_params else ''}) needs "
-                             f"{self.params_size(params) if params.size >= len(self.params) else len(self.params)}")
+                             f"({', '.join(self.params)}{tables}) needs {need}")
 
 
 # ---------------------------------------------------------------- bounds of the kinds
@@ -101,26 +121,26 @@ def _table_slopes(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     return np.diff(ys) / np.diff(xs)
 
 
-def _table_spring_stiffness(p, motion):
-    n = int(p[0])
+def _table_spring_stiffness(v, p, motion):
+    n = int(v["n"])
     return float(np.max(_table_slopes(p[1:1 + n], p[1 + n:1 + 2 * n])))
 
 
-def _slider_bank_stiffness(p, motion):
+def _slider_bank_stiffness(v, p, motion):
     # the springs act in series with sliders (a slipping one adds no stiffness); the constriction
     # S(x) = (|tanh(P x)| + K)/(1 + K) <= 1 adds S'(x) times the bank force, and a Coulomb bank's
     # force is at most the sum of its limits (seed 003). A rate-dependent bank carries no constriction.
-    n = int(p[0])
-    springs = float(np.sum(p[5:5 + n]))
-    p_c, k_c = p[3], p[4]
-    return springs + (p_c / (1.0 + k_c) * float(np.sum(p[5 + n:5 + 2 * n])) if p_c > 0 else 0.0)
+    n = int(v["n"])
+    springs, limits = p[5:5 + n], p[5 + n:5 + 2 * n]
+    p_c, k_c = v["constriction_p"], v["constriction_k"]
+    return float(np.sum(springs)) + (p_c / (1.0 + k_c) * float(np.sum(limits)) if p_c > 0 else 0.0)
 
 
-def _variable_maxwell_stiffness(p, motion):
+def _variable_maxwell_stiffness(v, p, motion):
     # the spring in series with the dashpot bounds the branch's tangent over any step
-    nk = int(p[3])
+    nk = int(v["nk"])
     xs, ys = p[K.VM_HEADER:K.VM_HEADER + nk], p[K.VM_HEADER + nk:K.VM_HEADER + 2 * nk]
-    if nk and p[5] > 0:  # force table: its steepest segment
+    if nk and v["force_mode"] > 0:  # force table: its steepest segment
         return float(np.max(_table_slopes(xs, ys)))
     if nk:  # stiffness table: d(k(e) e)/de = k + k' e, linear in e on a segment, extreme at its knots
         slopes = _table_slopes(xs, ys)
@@ -128,64 +148,64 @@ def _variable_maxwell_stiffness(p, motion):
         right = np.concatenate([slopes, [0.0]])
         return float(np.max(np.maximum(ys + left * xs, ys + right * xs)))
     # (k0 + g|e|) e: the branch elongation is at most the largest change of angle, twice the excursion
-    return p[0] + 4.0 * p[1] * motion.angle_rad
+    return v["k0"] + 4.0 * v["gain"] * motion.angle_rad
 
 
-def _pfeffer_stiffness(p, motion):
-    return p[0] * (1.0 + p[1])  # k1 (1 + alpha): both springs, the series dashpot c1 locked
+def _pfeffer_stiffness(v, p, motion):
+    return v["k1"] * (1.0 + v["alpha"])  # k1 (1 + alpha): both springs, the series dashpot c1 locked
 
 
-def _pfeffer_damping(p, motion):
-    return p[0] * p[3]  # c1 = gamma k1 (c2 acts in series with it)
+def _pfeffer_damping(v, p, motion):
+    return v["gamma"] * v["k1"]  # c1 = gamma k1 (c2 acts in series with it)
 
 
-def _payne_frequency_ratio_cap(p, motion):
+def _payne_frequency_ratio_cap(v, motion):
     """Largest w / w_ref the payne kernel can read: a half cycle lasts at least
     MIN_HALF_CYCLE_STEPS steps, so w <= pi / (MIN_HALF_CYCLE_STEPS h); any w without a step."""
     if motion.step_s is None:
         return np.inf
-    return max(1.0, np.pi / (K.MIN_HALF_CYCLE_STEPS * motion.step_s) / p[9])
+    return max(1.0, np.pi / (K.MIN_HALF_CYCLE_STEPS * motion.step_s) / v["reference_omega"])
 
 
-def _payne_stiffness(p, motion):
+def _payne_stiffness(v, p, motion):
     # k <= dK (w/w_ref)^beta_s: Kraus's storage shape is at most 1, and the centre's relaxation
     # only lowers the elongation's tangent de1/dx1 = tau (1 - exp(-h/tau)) / h <= 1
-    beta_s = p[7]
-    return p[0] * _payne_frequency_ratio_cap(p, motion) ** beta_s if beta_s > 0 else p[0]
+    beta_s = v["storage_frequency_exponent"]
+    return v["stiffness"] * (_payne_frequency_ratio_cap(v, motion) ** beta_s if beta_s > 0 else 1.0)
 
 
-def _payne_damping(p, motion):
+def _payne_damping(v, p, motion):
     # c = K''(A) (w/w_ref)^beta_l / w with K'' <= loss_0 + loss_peak (Kraus's loss shape peaks at
     # 1) and w no slower than the motion, nor than the kernel's floor MIN_OMEGA
     omega = max(motion.min_omega_rad_per_s, K.MIN_OMEGA)
-    beta_l = p[8]
-    growth = _payne_frequency_ratio_cap(p, motion) ** beta_l if beta_l > 0 else 1.0
-    return (p[3] + p[4]) * growth / omega
+    beta_l = v["loss_frequency_exponent"]
+    growth = _payne_frequency_ratio_cap(v, motion) ** beta_l if beta_l > 0 else 1.0
+    return (v["loss_stiffness"] + v["loss_peak_stiffness"]) * growth / omega
 
 
 # ---------------------------------------------------------------- the records
 LINEAR_SPRING = KernelKind(
     "linear_spring", K.LINEAR_SPRING, K.linear_spring, params=("k",), internal=(),
-    stiffness_bound=lambda p, motion: p[0])
+    stiffness_bound=lambda v, p, motion: v["k"])
 TABLE_SPRING = KernelKind(
     "table_spring", K.TABLE_SPRING, K.table_spring, params=("n",), internal=(),
     stiffness_bound=_table_spring_stiffness,
-    n_params=lambda p: 1 + 3 * int(p[0]))  # then x_1..x_n, T_1..T_n, E_1..E_n
+    n_params=lambda v: 1 + 3 * int(v["n"]))  # then x_1..x_n, T_1..T_n, E_1..E_n
 CUBIC_SPRING = KernelKind(
     "cubic_spring", K.CUBIC_SPRING, K.cubic_spring, params=("a", "b"), internal=(),
-    stiffness_bound=lambda p, motion: 3.0 * p[0] * motion.angle_rad ** 2 + p[1])
+    stiffness_bound=lambda v, p, motion: 3.0 * v["a"] * motion.angle_rad ** 2 + v["b"])
 DASHPOT = KernelKind(
     "dashpot", K.DASHPOT, K.dashpot, params=("c",), internal=(),
-    stiffness_bound=lambda p, motion: 0.0, damping_bound=lambda p, motion: p[0])
+    stiffness_bound=_none, damping_bound=lambda v, p, motion: v["c"])
 MAXWELL = KernelKind(
     "maxwell", K.MAXWELL, K.maxwell, params=("k", "c"),
     internal=("elongation_rad", "cached_hk", "cached_c", "cached_decay", "cached_gain"),
-    stiffness_bound=lambda p, motion: p[0])  # tangent k tau (1 - exp(-h/tau)) / h <= k
+    stiffness_bound=lambda v, p, motion: v["k"])  # tangent k tau (1 - exp(-h/tau)) / h <= k
 SLIDER_BANK = KernelKind(
     "slider_bank", K.SLIDER_BANK, K.slider_bank, params=("n", "v_r", "p", "constriction_p", "constriction_k"),
     internal=(),  # elongations e_1..e_n, trial elongations, Newton iterates: 3n slots
     stiffness_bound=_slider_bank_stiffness,
-    n_params=lambda p: 5 + 4 * int(p[0]), n_internal=lambda p: 3 * int(p[0]))
+    n_params=lambda v: 5 + 4 * int(v["n"]), n_internal=lambda v: 3 * int(v["n"]))
 VARIABLE_MAXWELL = KernelKind(
     "variable_maxwell", K.VARIABLE_MAXWELL, K.variable_maxwell,
     params=("k0", "gain", "c0", "nk", "nc", "force_mode"),
@@ -193,7 +213,7 @@ VARIABLE_MAXWELL = KernelKind(
     stiffness_bound=_variable_maxwell_stiffness,
     # then the tables: e_1..e_nk, k or f at them, v_1..v_nc, c at them; in force mode the knot
     # energies and the segment slopes
-    n_params=lambda p: K.VM_HEADER + 2 * int(p[3]) + 2 * int(p[4]) + (2 * int(p[3]) - 1 if p[5] > 0 else 0))
+    n_params=lambda v: len(v) + 2 * int(v["nk"]) + 2 * int(v["nc"]) + (2 * int(v["nk"]) - 1 if v["force_mode"] > 0 else 0))
 PFEFFER = KernelKind(
     "pfeffer", K.PFEFFER, K.pfeffer, params=("k1", "alpha", "beta", "gamma"),
     internal=("z_rad", "cached_lambda_h", "cached_decay"),

@@ -26,6 +26,7 @@ from numba import njit, prange
 
 from droptower.rheology import Coupling, CouplingState
 from droptower.rheology import kernels as K
+from droptower.rheology.coupling import PARALLEL_BATCH
 
 SYMPLECTIC_EULER = 0
 VERLET = 1
@@ -64,6 +65,9 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
         acc[b] = a
 
 
+# serial for small batches (a plan's few conditions: cheaper to compile, and a thread pool costs
+# more than it gives there), parallel for large ones (the candidates of an identification)
+_decay_steps_serial = njit(**K.JIT)(_decay_steps)
 _decay_steps_parallel = njit(parallel=True, **K.JIT)(_decay_steps)
 
 
@@ -92,7 +96,8 @@ class LeverDecay:
         c, s = self.coupling, self.state
         angle = np.empty((s.batch, n_steps))
         torque = np.empty((s.batch, n_steps))
-        _decay_steps_parallel(c.codes, c.p_off, c.s_off, c.params, s.values, self.x_rest, self.rest, self.inertia,
+        run = _decay_steps_parallel if s.batch >= PARALLEL_BATCH else _decay_steps_serial
+        run(c.codes, c.p_off, c.s_off, c.params, s.values, self.x_rest, self.rest, self.inertia,
                               self.phi, self.rate, self.acc, self.step_s, self.scheme, angle, torque)
         if n_steps:
             s.angle_rad[...] = self.x_rest + self.phi
