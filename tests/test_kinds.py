@@ -117,6 +117,8 @@ def test_a_layout_that_disagrees_with_its_record_is_refused():
     with pytest.raises(ValueError, match="slider_bank kernel element has 13 parameters.* needs 17"):
         KernelElement(K.SLIDER_BANK, np.array([3.0, 0, 0, 0, 0, *np.ones(8)]))
     assert KernelElement(K.SLIDER_BANK, np.array([2.0, 0, 0, 0, 0, *np.ones(8)])).n_internal == 6
+    with pytest.raises(ValueError, match="maxwell kernel element has 5 internal variables, not 3"):
+        KernelElement(K.MAXWELL, np.array([1.0, 2.0]), 3)
     with pytest.raises(KeyError, match="kernel code 99 has no record"):
         KernelElement(99, np.array([1.0]))
 

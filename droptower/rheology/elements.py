@@ -20,25 +20,27 @@ from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_
 from droptower.limits import MAX_ELEMENT_N
 from droptower.rheology import kernels as K
 from droptower.rheology import kinds
-from droptower.rheology.kinds import kind_of
 from droptower.validation import StrictModel
 
 
 @dataclass(frozen=True)
 class KernelElement:
     """One compiled element: kernel code and parameter vector, in the layout of its kind's
-    record (:mod:`.kinds`), which also gives the number of internal state variables."""
+    record (:mod:`.kinds`), which also gives the number of internal state variables (a given
+    ``n_internal`` must agree with it)."""
 
     code: int
     params: np.ndarray
+    n_internal: int | None = None
     label: str = ""
 
     def __post_init__(self) -> None:
-        kind_of(self.code).check(self.params)
-
-    @property
-    def n_internal(self) -> int:
-        return kind_of(self.code).internal_size(self.params)
+        kind = kinds.kind_of(self.code)
+        kind.check(self.params)
+        n = kind.internal_size(self.params)
+        if self.n_internal is not None and self.n_internal != n:
+            raise ValueError(f"a {kind.name} kernel element has {n} internal variables, not {self.n_internal}")
+        object.__setattr__(self, "n_internal", n)
 
     @property
     def n_state(self) -> int:
