@@ -85,6 +85,9 @@ FACTORIES = {
                             "reference_frequency": 100.0, "min_frequency": 10.0, "max_frequency": 1e3},
 }
 SEEDS = range(3)
+#: Element kinds with a nonlinear spring: the trapezoidal work of a step matches the change of
+#: stored energy to O(h^3) only (the others book it exactly, to round-off).
+NONLINEAR_SPRINGS = {"spring_table", "cubic_spring", "mullins", "variable_maxwell"}
 CASES = [(kind, seed) for kind in sorted(FACTORIES) for seed in SEEDS]
 
 
@@ -100,7 +103,7 @@ def _history(seed: int, n: int = 600, h: float = 2e-4) -> np.ndarray:
     t = np.arange(1, n + 1) * h
     x = sum(rng.uniform(0.002, 0.02) * np.sin(2 * np.pi * rng.uniform(5, 200) * t + rng.uniform(0, 6))
             for _ in range(3)) + rng.uniform(-0.2, 0.2) * t
-    return x - x[0] * np.exp(-t / (20 * h))  # starts near 0 (the virgin state's angle)
+    return x - x[0] * np.exp(-t / 4e-3)  # starts near 0 (the virgin state's angle)
 
 
 def test_every_kind_has_a_factory_and_every_record_is_reached():
@@ -128,15 +131,16 @@ def test_kind_through_every_consumer(kind, seed):
     h = 2e-4
     coupling = Coupling([_element(kind, seed)])
     x = _history(seed, h=h)
-    # kernels: finite torque and the energy books: stored + dissipated = the trapezoidal work
-    response = coupling.simulate(x, h)
-    torque = response.torque_nm
-    assert np.all(np.isfinite(torque))
-    steps = np.diff(np.concatenate([[0.0], x]))
-    work = np.cumsum(0.5 * (np.concatenate([[0.0], torque[:-1]]) + torque) * steps)
-    books = response.stored_energy_j + response.dissipated_energy_j
-    scale = np.max(np.abs(torque)) * np.max(np.abs(x))
-    assert np.max(np.abs(work - books)) <= 2e-3 * scale
+    # kernels: finite torque and the energy books: stored + dissipated = the trapezoidal work,
+    # exactly, or for a nonlinear spring converging with the step (second order for a smooth
+    # curve; a table's knot crossings make it irregular: a quarter of the step gains at least 4x)
+    response, error = _books(coupling, x, h)
+    assert np.all(np.isfinite(response.torque_nm))
+    if kind in NONLINEAR_SPRINGS:
+        assert error < 1e-2 and _books(coupling, _history(seed, n=4 * x.size, h=h / 4), h / 4)[1] <= error / 4
+    else:
+        assert error <= 1e-12
+    scale = np.max(np.abs(response.torque_nm)) * np.max(np.abs(x))
     assert np.all(response.stored_energy_j >= -1e-12 * scale) and response.dissipated_energy_j[-1] >= -1e-9 * scale
 
     # bounds: the finite-difference tangent of one step from random points of the history
@@ -177,6 +181,16 @@ def test_kind_through_every_consumer(kind, seed):
     batch = stacked.simulate(rows, h).torque_nm
     for i, single in enumerate(others * 4):
         assert np.array_equal(batch[i], single.respond(rows[i], h))
+
+
+def _books(coupling: Coupling, x: np.ndarray, h: float):
+    """The response to ``x`` and the largest mismatch of stored + dissipated energy against the
+    trapezoidal work, relative to peak torque times peak angle."""
+    response = coupling.simulate(x, h)
+    torque = response.torque_nm
+    work = np.cumsum(0.5 * (np.concatenate([[0.0], torque[:-1]]) + torque) * np.diff(np.concatenate([[0.0], x])))
+    books = response.stored_energy_j + response.dissipated_energy_j
+    return response, float(np.max(np.abs(work - books)) / (np.max(np.abs(torque)) * np.max(np.abs(x))))
 
 
 def _verlet(coupling: Coupling, inertia, rate0, n, h):
