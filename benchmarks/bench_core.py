@@ -68,10 +68,12 @@ def ode_system(coupling: dt.Coupling):
             nk = int(p[3])
             branches.append((p[K.VM_HEADER:K.VM_HEADER + nk], p[K.VM_HEADER + nk:K.VM_HEADER + 2 * nk], p[2]))
         elif kern.code == K.MAXWELL:
-            maxwell_k.append(p[0]); maxwell_c.append(p[1])
+            maxwell_k.append(p[0])
+            maxwell_c.append(p[1])
         elif kern.code == K.SLIDER_BANK and p[2] > 0 and p[3] == 0:
             n = int(p[0])
-            bank_k += list(p[5:5 + n]); bank_f += list(p[5 + n:5 + 2 * n])
+            bank_k += list(p[5:5 + n])
+            bank_f += list(p[5 + n:5 + 2 * n])
             v_r, p_exp = p[1], int(p[2])
         else:
             raise SystemExit(f"bench_core: no ODE form for kernel {kern.code}")

@@ -179,6 +179,7 @@ def test_chunk_interrupted_midway_is_completed_bit_for_bit(inputs, reference, tm
     pd.testing.assert_frame_equal(run.results, reference.results, check_exact=True)
 
 
+@pytest.mark.slow
 def test_killed_campaign_resumes_to_the_same_results(inputs, reference, tmp_path):
     """SIGKILL a running ``droptower campaign`` as soon as its first test is finished, then resume."""
     out = tmp_path / "killed"
@@ -204,6 +205,7 @@ def test_killed_campaign_resumes_to_the_same_results(inputs, reference, tmp_path
     pd.testing.assert_frame_equal(run.results, reference.results, check_exact=True)
 
 
+@pytest.mark.slow
 def test_ctrl_c_says_what_is_kept_and_how_to_resume(inputs, tmp_path):
     """SIGINT (Ctrl-C) once the first test is finished: exit 130, the count of finished tests
     is the count of records on disk, and the resume runs exactly the rest."""

@@ -86,6 +86,7 @@ def test_run_servo():
     assert len(rows) == 1 and rows[0]["storage_stiffness_nm_per_deg"] > 0
 
 
+@pytest.mark.slow
 def test_run_simulate_channels_extract(folder):
     log = folder / "t.csv"
     s = json.loads(_ok("simulate", "--coupling", str(folder / "linear.toml"), "--inertia-kgm2", "0.359",
@@ -99,6 +100,7 @@ def test_run_simulate_channels_extract(folder):
     assert rows[0]["stiffness_nm_per_rad"] == pytest.approx(14000.0, rel=0.01)
 
 
+@pytest.mark.slow
 def test_run_plan_campaign_map_validate(folder):
     plan = json.loads(_ok("plan", "--coupling", str(folder / "linear.toml"), "--doe", str(folder / "two.toml"),
                           "--json").stdout)
@@ -120,6 +122,7 @@ def test_run_plan_campaign_map_validate(folder):
     assert len(doc["points"]) == 2
 
 
+@pytest.mark.slow
 def test_run_identify_and_compare_models(folder):
     # a sine on the linear coupling: T = k phi + c dphi/dt, sampled at 2048 Hz
     t = np.arange(4096) / 2048.0

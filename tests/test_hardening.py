@@ -22,7 +22,6 @@ import pytest
 
 from droptower.cli.main import main
 from droptower.errors import DroptowerError
-from droptower.io import write_log
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL_PLAN = """
@@ -464,10 +463,13 @@ def test_written_files_honour_the_umask(tmp_path, good_log, umask, mode):
 
 
 # ---- numba without a writable cache -------------------------------------------------------------
+@pytest.mark.slow
 def test_kernels_compile_without_a_writable_cache():
-    """No location numba may cache in (a read-only install, no writable home): the kernels are
-    compiled without caching and give the same torque."""
+    """No location numba may cache in (a read-only install, no writable home): every module
+    imports (each compiles through the project's cache guard; a bare cache=True fails at import),
+    the kernels are compiled without caching and give the same torque."""
     code = textwrap.dedent("""
+        import importlib, pkgutil
         import numba.core.caching as caching
         def refuse(self):
             raise OSError("read-only file system")
@@ -475,6 +477,9 @@ def test_kernels_compile_without_a_writable_cache():
         import numpy as np
         import droptower as dt
         from droptower.rheology import kernels
+        for module in pkgutil.walk_packages(dt.__path__, "droptower."):
+            if not module.name.endswith("__main__"):  # running the CLI is not importing it
+                importlib.import_module(module.name)
         angle = 0.01 * np.sin(np.linspace(0.0, 6.0, 200))
         coupling = dt.load_coupling("seed000_six_parameter")
         print(kernels.CACHE, repr(float(coupling.respond(angle, 1e-4)[-1])))
@@ -511,6 +516,7 @@ def test_cache_falls_back_to_a_private_folder(monkeypatch):
 
 
 # ---- the process end ----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_installed_extract_ends_with_its_own_exit_code(tmp_path, good_log):
     """The console script leaves without the interpreter's teardown (native thread pools once
     aborted it, exit 134, after complete output): a few runs, Parquet and CSV read and written,

@@ -19,6 +19,7 @@ from droptower.servo import run_grid
 from test_identify_helpers import coupling, fitting_histories, random_history, records
 
 
+@pytest.mark.slow
 def test_seed000_six_parameters_within_a_few_tenths_of_the_20_parameter_model():
     # a coupling of the 20-parameter model's kind: Mullins filter, asymmetric stiffness table,
     # shear-thinning damping table
@@ -57,8 +58,6 @@ def test_round_trip_servo_bench_identify_drop_tower(tmp_path):
     """Records of the reference coupling on the virtual servo bench (simulated on a fine step,
     sampled at 2048 Hz like the paper's bench) in the drop tower's range (0.3-0.9 deg,
     25-35 Hz); the identified coupling in the drop tower gives the stiffness the original does."""
-    pytest.importorskip("droptower.rig.simulate")
-    pytest.importorskip("droptower.extract.files")
     from droptower.cli.main import main
     from droptower.extract import Settings, extract_file
     from droptower.io import write_log

@@ -74,6 +74,7 @@ def test_resimulation_matches_the_rig(tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["elastoslide", "zerodim6", "masing"])
+@pytest.mark.slow
 def test_round_trip_on_unknown_couplings(logs, kind):
     truth = parse_coupling(TRUTHS[kind])
     decays, excluded = read_decays(logs[kind], ReadSettings())
@@ -138,6 +139,7 @@ def test_double_impact_is_excluded_and_named(tmp_path):
     assert excluded[0]["file"].endswith("t0.parquet") and "double impact" in excluded[0]["reason"]
 
 
+@pytest.mark.slow
 def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     out = tmp_path / "fitted.toml"
     folder = str(logs["zerodim6"][0].parent)

@@ -98,6 +98,7 @@ MASING = [{"kind": "cubic_spring", "a": 2e6, "b": 3000.0},
           {"kind": "maxwell", "stiffness": 1000.0, "damping": 2.0}]
 
 
+@pytest.mark.slow
 def test_masing_per_amplitude_and_per_frequency():
     truth = coupling(*MASING)
     data, sigma_fit = records(truth, fitting_histories())

@@ -36,6 +36,7 @@ def auto_map(table4: pd.DataFrame) -> MapFit:
     return fit_map(table4, form="auto")
 
 
+@pytest.mark.slow
 def test_auto_meets_the_targets_on_table4(table4: pd.DataFrame, auto_map: MapFit) -> None:
     """Issue 12's targets on Table 4: damping ratio cross-validated RMS <= 8 % (the paper's
     eq. 20 fits 12.3 %), stiffness <= 1.5 % fitted and cross-validated, and every coefficient
@@ -59,6 +60,7 @@ def test_auto_meets_the_targets_on_table4(table4: pd.DataFrame, auto_map: MapFit
     assert "exp_velocity" in m.form.ratio.terms
 
 
+@pytest.mark.slow
 def test_cross_validated_error_is_what_refitting_without_each_test_gives(table4: pd.DataFrame,
                                                                          auto_map: MapFit) -> None:
     """The reported cross-validated errors, recomputed the slow way: the chosen form fitted from
@@ -112,6 +114,7 @@ def test_noise_free_velocity_form_gives_back_its_coefficients() -> None:
     assert m.cross_validation == "leave-one-drop-height-out (10 folds)"
 
 
+@pytest.mark.slow
 def test_auto_prunes_terms_the_data_do_not_need() -> None:
     """Data from the velocity form with 1 % noise: auto may not report more terms than the
     truth has (every extra term's coefficient would be unidentifiable or on its bound)."""

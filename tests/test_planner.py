@@ -115,9 +115,9 @@ def test_interpolated_predictions_are_the_planners(chrome, shipped) -> None:
     levers, masses = sorted(rig.inertias_kgm2), sorted(rig.drop_masses_kg)
     picks = [(rng.integers(len(levers)), rng.integers(len(masses)), rng.integers(len(PRELOADS)),
               float(np.exp(rng.uniform(*np.log(rig.drop_height_range_m))))) for _ in range(12)]
-    shown = pd.DataFrame([chrome.execute_script("return window.planner.predict(...arguments)", int(l), int(m), int(p), h)
-                          for l, m, p, h in picks]).astype(float)
-    direct = plan(rig, coupling, pd.DataFrame([("x", levers[l], masses[m], h, PRELOADS[p]) for l, m, p, h in picks],
+    shown = pd.DataFrame([chrome.execute_script("return window.planner.predict(...arguments)", int(lv), int(m), int(p), h)
+                          for lv, m, p, h in picks]).astype(float)
+    direct = plan(rig, coupling, pd.DataFrame([("x", levers[lv], masses[m], h, PRELOADS[p]) for lv, m, p, h in picks],
                                               columns=CONDITION_KEYS), RECORD_S)
     ok = direct["first_period_s"].notna().to_numpy()
     assert ok.sum() >= 10

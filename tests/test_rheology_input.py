@@ -2,7 +2,6 @@
 the field; ``droptower servo BAD.toml`` exits with code 2 and no traceback."""
 from __future__ import annotations
 
-import importlib.util
 
 import pytest
 
@@ -104,8 +103,6 @@ def test_missing_file_names_the_presets(tmp_path):
     assert "rapp2022_nr60" in str(info.value)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("droptower.cli.servo_cmd") is None,
-                    reason="droptower/cli/servo_cmd.py (the servo CLI) does not exist yet")
 @pytest.mark.parametrize("name", ["even p", "unknown kind", "malformed"])
 def test_servo_cli_exit_code_2(tmp_path, capsys, name):
     from droptower.cli.main import main

@@ -50,7 +50,10 @@ def test_loop_area_is_measured_geometrically_not_from_the_fit():
     # odd torque harmonics change neither the first harmonic nor the loop area of a sine test,
     # but they change the loop's shape and its peaks: the polygon integral must see through them
     f, fs, amp, k1, k2 = 10.0, 2048.0, 0.01, 8000.0, 2000.0
-    extra = lambda t: 25.0 * np.sin(3 * 2 * np.pi * f * t + 1.0) + 10.0 * np.cos(5 * 2 * np.pi * f * t)
+
+    def extra(t):
+        return 25.0 * np.sin(3 * 2 * np.pi * f * t + 1.0) + 10.0 * np.cos(5 * 2 * np.pi * f * t)
+
     t, phi, torque = _record(fs, f, amp, k1, k2, extra=extra)
     ev = evaluate_cycles(t, phi, torque, f, 1.0 / f, 5, smooth=False)  # smoothing would scale W_D by ~1 - 2e-4
     assert abs(ev.complex_stiffness_nm_per_rad / complex(k1, k2) - 1) < 1e-5

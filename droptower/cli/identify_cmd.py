@@ -23,7 +23,7 @@ from typing import Any
 import click
 from pydantic import Field
 
-from droptower.cli.options import progress, progress_disabled, quiet_option, wrote
+from droptower.cli.options import note, progress, progress_disabled, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive, make_folder
 from droptower.validation import StrictModel, validate
 

@@ -66,7 +66,7 @@ def run_sheet(conditions: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     c = conditions
     blocks = list(c.groupby(["inertia_kgm2", "drop_mass_kg"], sort=True))
     rows = []
-    for b, ((j, m), g) in enumerate([blocks[i] for i in rng.permutation(len(blocks))], start=1):
+    for b, (_, g) in enumerate([blocks[i] for i in rng.permutation(len(blocks))], start=1):
         drops = [(r, k) for r in g.itertuples(index=False) for k in range(int(r.repeats))]
         for i in rng.permutation(len(drops)):
             r, k = drops[i]

@@ -13,31 +13,20 @@ from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan,
 from droptower.extract.extractor import extract
 from droptower.extract.result import ExtractionResult
 from droptower.extract.window import Window
-from droptower.io.mapping import map_channels
-from droptower.io.readers import read_any
+from droptower.io.logsettings import LogSettings
 from droptower.io.signals import DropSignals
 
 
 @dataclass(frozen=True)
-class Settings:
-    """How to read and evaluate the logs of one batch.
-
-    roles: channel mapping (role -> ``NAME[:UNIT]``); inertia_kgm2, lever_length_m: override
-    the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``,
-    ``sensor_radius_m``) used where a log's metadata lacks them, e.g. from the rig;
-    sensor_radius_m: laser spot radius for a distance channel, overrides the log's
-    ``laser_radius_m``; sample_rate_hz: time base for files without one; reader_options: CSV
-    settings for :func:`droptower.io.read_any`; drops: the drop numbers (from 1) to evaluate
-    in each record (None: all); drop_conditions: drop number -> its conditions
-    (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the log's
-    metadata; pre_trigger_s, min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
+class Settings(LogSettings):
+    """How to read (:class:`~droptower.io.logsettings.LogSettings`) and evaluate the logs of one
+    batch: sample_rate_hz: time base for files without one; window: the evaluated window;
+    reader_options: CSV settings for :func:`droptower.io.read_any`; drops: the drop numbers
+    (from 1) to evaluate in each record (None: all); drop_conditions: drop number -> its
+    conditions (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the
+    log's metadata; pre_trigger_s, min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
     """
 
-    roles: dict[str, str] = field(default_factory=dict)
-    inertia_kgm2: float | None = None
-    lever_length_m: float | None = None
-    defaults: dict[str, float] = field(default_factory=dict)
-    sensor_radius_m: float | None = None
     sample_rate_hz: float | None = None
     window: Window = Window()
     reader_options: dict[str, Any] = field(default_factory=dict)
@@ -63,20 +52,12 @@ class Drop:
 DECAY_CUT = "decay_cut_by_next_drop"
 
 
-def read_signals(path: str | Path, settings: Settings) -> DropSignals:
-    """Read and map one log into SI signals; any problem is a DroptowerError naming the file."""
-    record = read_any(path, **settings.reader_options)
-    return map_channels(record, settings.roles, sensor_radius_m=settings.sensor_radius_m,
-                        default_sensor_radius_m=settings.defaults.get("sensor_radius_m"),
-                        sample_rate_hz=settings.sample_rate_hz)
-
-
 def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
     """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
     samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
     a drop number it does not have) is a DroptowerError naming the file; a drop that cannot be
     evaluated carries its error (naming the file and, in a recording of several, the drop)."""
-    signals = read_signals(path, settings)
+    signals = settings.read_signals(path, sample_rate_hz=settings.sample_rate_hz, reader_options=settings.reader_options)
     try:
         spans = find_drops(signals, pre_trigger_s=settings.pre_trigger_s, min_spacing_s=settings.min_drop_spacing_s)
     except DroptowerError:  # no impact stands out of the whole record: the single-drop evaluation says why

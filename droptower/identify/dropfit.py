@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -240,7 +240,6 @@ class DropIdentification:
     evaluations: int
     nfev: int
     wall_s: float
-    step_bias: np.ndarray = field(default_factory=lambda: np.zeros(0))
     coupling_file: str | None = None
 
     @property

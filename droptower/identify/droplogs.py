@@ -28,6 +28,7 @@ from droptower.errors import DroptowerError
 from droptower.extract.decay import start_frequency_and_decay
 from droptower.extract.extractor import metadata_value
 from droptower.extract.impact import find_impact
+from droptower.io.logsettings import LogSettings
 
 #: A later contact of the drop mass ends the compared window; one within this many periods excludes the test.
 MIN_WINDOW_PERIODS = 1.5
@@ -66,16 +67,12 @@ class DropDecay:
 
 
 @dataclass(frozen=True)
-class ReadSettings:
-    """How to read drop-test logs: channel roles, J / L overrides and fallbacks (e.g. the rig's),
-    ``cycles`` periods compared after the impact, ``rate`` (``auto``: the impulse where the log
-    has a force channel and L is known, else the angle's slope; ``impulse``; ``slope``)."""
+class ReadSettings(LogSettings):
+    """How to read drop-test logs (:class:`~droptower.io.logsettings.LogSettings`: channel roles,
+    J / L overrides and fallbacks, e.g. the rig's), ``cycles`` periods compared after the impact,
+    ``rate`` (``auto``: the impulse where the log has a force channel and L is known, else the
+    angle's slope; ``impulse``; ``slope``)."""
 
-    roles: dict[str, str] = field(default_factory=dict)
-    inertia_kgm2: float | None = None
-    lever_length_m: float | None = None
-    defaults: dict[str, float] = field(default_factory=dict)
-    sensor_radius_m: float | None = None
     cycles: float = 3.0
     rate: str = "auto"
 
@@ -152,9 +149,6 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
 def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[list[DropDecay], list[dict[str, str]]]:
     """The free decays of drop-test logs and campaign folders (their ``logs/``), and the
     excluded ones as {file, reason}. Every problem of one log excludes that log only."""
-    from droptower.io import read_any
-    from droptower.io.mapping import map_channels
-
     files: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
@@ -168,9 +162,7 @@ def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[li
     decays, excluded = [], []
     for f in files:
         try:
-            signals = map_channels(read_any(f), settings.roles, sensor_radius_m=settings.sensor_radius_m,
-                                   default_sensor_radius_m=settings.defaults.get("sensor_radius_m"),
-                                   radius_flags="--rig", sample_rate_flag=None)
+            signals = settings.read_signals(f, radius_flags="--rig", sample_rate_flag=None)
             decays.append(decay_from_signals(signals, settings, f.name))
         except DroptowerError as exc:
             excluded.append({"file": str(f), "reason": ": ".join(p for p in (exc.where, exc.problem) if p)})

@@ -143,70 +143,98 @@ def read_csv_log(path: str | Path, *, delimiter: str | None = None, decimal: str
 
 
 def _parse(path: Path, text: str, delimiter, decimal, header_lines, unit_row, invalid_marker) -> Record:
-    import pandas as pd
-
-    head = text.split("\n", SNIFF_LINES + 1)[:SNIFF_LINES]
-    head = [line.rstrip("\r") for line in head]
+    """Sniff the format and separators, locate the names and units rows, read the data rows,
+    convert the numeric columns to channels."""
+    head = [line.rstrip("\r") for line in text.split("\n", SNIFF_LINES + 1)[:SNIFF_LINES]]
     metadata: dict[str, Any] = {}
-    fmt = "csv"
-    mts = head and head[0].startswith("MTS793|")
+    mts = bool(head) and head[0].startswith("MTS793|")
     if mts:
-        fields = head[0].split("|")
         metadata["mts793_header"] = head[0]
-        fmt = "MTS 793"
-        if delimiter is None and len(fields) > 4:
-            delimiter = _MTS_DELIMS.get(fields[4])
-        if decimal is None and len(fields) > 5 and fields[5] in (".", ","):
-            decimal = fields[5]
-    if header_lines is not None:
-        if header_lines < 0 or header_lines >= len(head):
-            raise DroptowerError(f"header_lines={header_lines} is outside the file's first {len(head)} lines")
-        body = head[header_lines:]
-    else:
-        body = head
-    if delimiter is None:
-        delimiter = _sniff_delimiter(body)
-    if decimal is None:
-        decimal = _sniff_decimal(body, delimiter)
-    if delimiter == decimal:
-        raise DroptowerError(f"delimiter and decimal separator are both {delimiter!r}")
-
-    if header_lines is not None:
-        names_at = header_lines
-        names = _split(head[names_at], delimiter)
-        n_fields = len(names)
-        if unit_row is None:
-            below = _split(head[names_at + 1], delimiter) if names_at + 1 < len(head) else []
-            unit_row = not _numeric_row(below, decimal) and all(is_unit(f) for f in below)
-        units = _split(head[names_at + 1], delimiter) if unit_row else None
-        start = names_at + 1 + bool(unit_row)
-    else:
-        start, n_fields = _data_start(head, delimiter, decimal)
-        # the non-blank rows above the data with as many fields as the data
-        above = [(i, _split(head[i], delimiter)) for i in range(start) if head[i].strip()]
-        fitting = [(i, fields) for i, fields in above if len(fields) == n_fields]
-        names = units = None
-        names_at = start
-        if fitting:
-            i_last, last = fitting[-1]
-            adjacent = len(fitting) >= 2 and above[-1][0] == i_last and above[-2][0] == fitting[-2][0]
-            if unit_row is None:
-                unit_row = adjacent and all(is_unit(f) for f in last)
-            if unit_row:
-                if not adjacent:
-                    raise DroptowerError("unit row requested but there is no names row right above it")
-                (names_at, names), units = fitting[-2], last
-            else:
-                names_at, names = i_last, last
-        elif unit_row:
-            raise DroptowerError("unit row requested but no names and units rows were found")
-        names = names or [f"column {i + 1}" for i in range(n_fields)]
+        delimiter, decimal = _mts_separators(head[0], delimiter, decimal)
+    delimiter, decimal = _separators(head, header_lines, delimiter, decimal)
+    names_at, names, units, start, n_fields = _header(head, header_lines, unit_row, delimiter, decimal)
     names, unit_list = _names_and_units(names, units)
     header_text = [line for line in head[:names_at] if line.strip()]
     if header_text:
         metadata["header"] = header_text
     if invalid_marker is None and "catman" in "\n".join(head[:start]).lower():
         invalid_marker = CATMAN_INVALID
+    frame = _read_rows(text, start, n_fields, delimiter, decimal, mts)
+    channels, skipped = _channels(frame, names, unit_list, invalid_marker)
+    if skipped:
+        metadata["skipped_text_columns"] = skipped
+    metadata.update(delimiter=delimiter, decimal=decimal, header_lines=names_at)
+    return Record(path=path, channels=channels, metadata=metadata, format="MTS 793" if mts else "csv")
+
+
+def _mts_separators(first_line: str, delimiter, decimal) -> tuple[str | None, str | None]:
+    """An MTS 793 export names its delimiter and decimal separator in its first line."""
+    fields = first_line.split("|")
+    if delimiter is None and len(fields) > 4:
+        delimiter = _MTS_DELIMS.get(fields[4])
+    if decimal is None and len(fields) > 5 and fields[5] in (".", ","):
+        decimal = fields[5]
+    return delimiter, decimal
+
+
+def _separators(head: list[str], header_lines, delimiter, decimal) -> tuple[str, str]:
+    """Delimiter and decimal separator: as given, else sniffed from the lines below the header."""
+    if header_lines is not None and (header_lines < 0 or header_lines >= len(head)):
+        raise DroptowerError(f"header_lines={header_lines} is outside the file's first {len(head)} lines")
+    body = head[header_lines:] if header_lines is not None else head
+    if delimiter is None:
+        delimiter = _sniff_delimiter(body)
+    if decimal is None:
+        decimal = _sniff_decimal(body, delimiter)
+    if delimiter == decimal:
+        raise DroptowerError(f"delimiter and decimal separator are both {delimiter!r}")
+    return delimiter, decimal
+
+
+def _header(head: list[str], header_lines, unit_row, delimiter: str, decimal: str):
+    """(line of the names, names, units or None, first data line, number of fields)."""
+    if header_lines is not None:
+        return _header_at(head, header_lines, unit_row, delimiter, decimal)
+    return _header_above_data(head, unit_row, delimiter, decimal)
+
+
+def _header_at(head: list[str], names_at: int, unit_row, delimiter: str, decimal: str):
+    """The names at the given line; the units in the next one if asked, or if it reads as units."""
+    names = _split(head[names_at], delimiter)
+    if unit_row is None:
+        below = _split(head[names_at + 1], delimiter) if names_at + 1 < len(head) else []
+        unit_row = not _numeric_row(below, decimal) and all(is_unit(f) for f in below)
+    units = _split(head[names_at + 1], delimiter) if unit_row else None
+    return names_at, names, units, names_at + 1 + bool(unit_row), len(names)
+
+
+def _header_above_data(head: list[str], unit_row, delimiter: str, decimal: str):
+    """The rows right above the first data row that have as many fields as the data: the last
+    one the units if it reads as units (and a names row is right above it), else the names."""
+    start, n_fields = _data_start(head, delimiter, decimal)
+    above = [(i, _split(head[i], delimiter)) for i in range(start) if head[i].strip()]
+    fitting = [(i, fields) for i, fields in above if len(fields) == n_fields]
+    names = units = None
+    names_at = start
+    if fitting:
+        i_last, last = fitting[-1]
+        adjacent = len(fitting) >= 2 and above[-1][0] == i_last and above[-2][0] == fitting[-2][0]
+        if unit_row is None:
+            unit_row = adjacent and all(is_unit(f) for f in last)
+        if unit_row:
+            if not adjacent:
+                raise DroptowerError("unit row requested but there is no names row right above it")
+            (names_at, names), units = fitting[-2], last
+        else:
+            names_at, names = i_last, last
+    elif unit_row:
+        raise DroptowerError("unit row requested but no names and units rows were found")
+    return names_at, names or [f"column {i + 1}" for i in range(n_fields)], units, start, n_fields
+
+
+def _read_rows(text: str, start: int, n_fields: int, delimiter: str, decimal: str, mts: bool):
+    """The data rows from line ``start`` on, as a DataFrame of ``n_fields`` columns."""
+    import pandas as pd
 
     data_text = text.split("\n", start)[-1] if start else text
     if mts:
@@ -215,10 +243,16 @@ def _parse(path: Path, text: str, delimiter, decimal, header_lines, unit_row, in
                               if line.strip() and _numeric_row(_split(line, delimiter)[:1], decimal))
     sep = r"\s+" if delimiter == " " else delimiter
     try:
-        frame = pd.read_csv(io.StringIO(data_text), sep=sep, decimal=decimal, header=None,
-                            names=range(n_fields), engine="c", skip_blank_lines=True, index_col=False)
+        return pd.read_csv(io.StringIO(data_text), sep=sep, decimal=decimal, header=None,
+                           names=range(n_fields), engine="c", skip_blank_lines=True, index_col=False)
     except (ValueError, pd.errors.ParserError) as exc:
         raise DroptowerError(f"bad data rows: {str(exc).splitlines()[0]}") from None
+
+
+def _channels(frame, names: list[str], unit_list: list, invalid_marker) -> tuple[dict[str, Channel], list[str]]:
+    """Numeric columns as channels (the invalid marker as NaN, flagged); the text columns' names."""
+    import pandas as pd
+
     channels: dict[str, Channel] = {}
     skipped = []
     for i, name in enumerate(names):
@@ -241,9 +275,6 @@ def _parse(path: Path, text: str, delimiter, decimal, header_lines, unit_row, in
                 invalid = None
         key = name if name not in channels else f"{name} ({i + 1})"
         channels[key] = Channel(name=key, unit=unit_list[i], values=values, invalid=invalid)
-    if skipped:
-        metadata["skipped_text_columns"] = skipped
     if not channels:
         raise DroptowerError("no numeric columns")
-    metadata.update(delimiter=delimiter, decimal=decimal, header_lines=names_at)
-    return Record(path=path, channels=channels, metadata=metadata, format=fmt)
+    return channels, skipped

@@ -72,7 +72,7 @@ def write_table(table: pd.DataFrame, path: str | Path, option: str | None = None
     the folder is created. List cells are written ``;``-joined, a column mixing text and numbers as text. Returns the path."""
     path = check_table_path(path, option)
     frame = table.copy()
-    for name in frame.columns[frame.dtypes == object]:
+    for name in frame.columns[frame.dtypes == object]:  # noqa: E721 - element-wise dtype comparison, also matching pandas' str dtype
         if any(isinstance(v, (list, tuple)) for v in frame[name]):
             frame[name] = frame[name].map(lambda v: ";".join(map(str, v)) if isinstance(v, (list, tuple)) else v)
         kinds = {type(v) for v in frame[name] if v is not None and v is not pd.NA}

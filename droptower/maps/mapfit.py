@@ -53,7 +53,6 @@ if TYPE_CHECKING:
 
 FORMAT = "droptower-map"
 FORMAT_VERSION = 1
-EQUATIONS = PAPER.equations()
 #: coefficient name -> unit suffix, eq. 19 then eq. 20
 UNITS: dict[str, str] = PAPER.units
 

@@ -1,6 +1,6 @@
 """Fit any :class:`~droptower.maps.forms.MapForm`, cross-validate it, and choose the terms.
 
-Fitting is the paper fit's variable projection (:mod:`droptower.maps.fit`): NNLS for the
+Fitting is the variable projection of :mod:`droptower.maps.solve`: NNLS for the
 factors on a grid of the exponents, the best grid points polished jointly with every parameter
 ≥ 0. Cross-validation refits both equations without each group of tests, warm-started from the
 full fit, and predicts the group left out: leave-one-drop-height-out when the table has drop
@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from droptower.maps.fit import _assess, _Fitted, _grid, _variable_projection
 from droptower.maps.forms import AUTO_RATIO_TERMS, AUTO_STIFFNESS_TERMS, KINDS, Equation, MapForm
+from droptower.maps.solve import Fitted, assess, exponent_grid, relative_residuals, variable_projection
 
 #: An uncertainty above this fraction of its coefficient counts as not identified (the
 #: summary's "poorly identified" line uses the same).
@@ -40,40 +40,31 @@ def _exponent_grids(eq: Equation, a: np.ndarray, f: np.ndarray) -> tuple[list[tu
 
     Terms of one kind take increasing grid points (they are interchangeable), so no
     permutation of one solution is searched twice."""
-    grids = {"exp_amplitude": _grid(a), "exp_frequency": _grid(f), "exp_velocity": _grid(a * f)}
+    grids = {"exp_amplitude": exponent_grid(a), "exp_frequency": exponent_grid(f),
+             "exp_velocity": exponent_grid(a * f)}
     kinds = [t for t in eq.terms if KINDS[t][1] is not None]
     per_kind = {k: [i for i, t in enumerate(kinds) if t == k] for k in dict.fromkeys(kinds)}
     points = []
     for combo in itertools.product(*(itertools.combinations(range(len(grids[k])), len(ix)) for k, ix in per_kind.items())):
         ix = [0] * len(kinds)
-        for (k, positions), values in zip(per_kind.items(), combo):
+        for positions, values in zip(per_kind.values(), combo):
             for p, v in zip(positions, values):
                 ix[p] = v
         points.append(tuple(ix))
     return points, [grids[k] for k in kinds]
 
 
-def _residuals(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, target: np.ndarray):
-    """Relative residuals and their Jacobian: model/c − 1 (stiffness), y/model − 1 (c/d, so
-    that the damping ratio's relative error is least, as in the paper fit)."""
-    if stiffness:
-        return (lambda p: eq.value(p, a, f) / target - 1.0,
-                lambda p: eq.jacobian(p, a, f) / target[:, None])
-    return (lambda p: target / eq.value(p, a, f) - 1.0,
-            lambda p: -(target / eq.value(p, a, f) ** 2)[:, None] * eq.jacobian(p, a, f))
-
-
-def fit_equation(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, target: np.ndarray) -> _Fitted:
+def fit_equation(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, target: np.ndarray) -> Fitted:
     """Fit one equation to ``target`` (c, or y = c_map/d for c/d) by variable projection."""
     points, grids = _exponent_grids(eq, a, f)
-    residuals, jacobian = _residuals(eq, stiffness, a, f, target)
+    residuals, jacobian = relative_residuals(eq, stiffness, a, f, target)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # far trial steps of the solver; their residual is inf, rejected
-        solutions = _variable_projection(
+        solutions = variable_projection(
             points, lambda ix: tuple(g[i] for g, i in zip(grids, ix)), lambda e: eq.basis(e, a, f), target,
             eq.linear, eq.exponents, residuals, jacobian)
     for s in solutions:  # terms of one kind by increasing exponent, so the names are unique
         s.permute(_canonical_order(eq, s.params))
-    return _assess(solutions, residuals, jacobian)
+    return assess(solutions, residuals, jacobian)
 
 
 def _canonical_order(eq: Equation, params: np.ndarray) -> list[int]:
@@ -90,12 +81,12 @@ def _canonical_order(eq: Equation, params: np.ndarray) -> list[int]:
 
 def polish(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, target: np.ndarray, p0: np.ndarray) -> np.ndarray:
     """Refit one equation from ``p0`` (a fold of the cross-validation: no new search)."""
-    residuals, jacobian = _residuals(eq, stiffness, a, f, target)
+    residuals, jacobian = relative_residuals(eq, stiffness, a, f, target)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         return least_squares(residuals, p0, jac=jacobian, bounds=(0.0, np.inf), x_scale="jac", method="trf").x
 
 
-def identifiable(fitted: _Fitted) -> bool:
+def identifiable(fitted: Fitted) -> bool:
     """Every coefficient off its bound, unique, with a finite uncertainty below
     :data:`MAX_RELATIVE_STD` of its value."""
     return bool(not fitted.at_bound.any() and not fitted.not_unique.any()
@@ -151,8 +142,8 @@ class FormFit:
     """A form fitted to the tests, with fit and cross-validated relative errors."""
 
     form: MapForm
-    stiffness: _Fitted
-    ratio: _Fitted
+    stiffness: Fitted
+    ratio: Fitted
     stiffness_cv_errors: np.ndarray
     damping_cv_errors: np.ndarray
     cv_method: str
@@ -174,16 +165,12 @@ def _rms(x: np.ndarray) -> float:
 
 
 def fit_form(form: MapForm | None, a: np.ndarray, f: np.ndarray, c: np.ndarray, d: np.ndarray,
-             groups: np.ndarray, cv_method: str, stiffness: _Fitted | None = None,
-             ratio: _Fitted | None = None) -> FormFit:
-    """Fit ``form`` (``None``: choose the terms, ``auto``) and cross-validate it.
-
-    ``stiffness``/``ratio``: fits of ``form``'s equations already made (the paper's own fit),
-    only cross-validated here."""
+             groups: np.ndarray, cv_method: str) -> FormFit:
+    """Fit ``form`` (``None``: choose the terms, ``auto``) and cross-validate it."""
     if form is None:
         return _auto(a, f, c, d, groups, cv_method)
-    s = stiffness or fit_equation(form.stiffness, True, a, f, c)
-    r = ratio or fit_equation(form.ratio, False, a, f, form.stiffness.value(s.params, a, f) / d)
+    s = fit_equation(form.stiffness, True, a, f, c)
+    r = fit_equation(form.ratio, False, a, f, form.stiffness.value(s.params, a, f) / d)
     folds, cv_c = _stiffness_folds(form.stiffness, s.params, a, f, c, groups)
     cv_d = _ratio_cv(form.stiffness, form.ratio, r.params, folds, a, f, d)
     return FormFit(form, s, r, cv_c, cv_d, cv_method)

@@ -2,6 +2,7 @@
 
 - :mod:`.elements`: the element kinds of a coupling file (validated specs);
 - :mod:`.kernels`: their compiled per-step updates (numba), with energy accounting;
+- :mod:`.kinds`: one record per kernel kind (layout with named slots, step, bounds);
 - :mod:`.coupling`: :class:`Coupling`, explicit state and time step, batch axis first;
 - :mod:`.loader`: TOML files -> :class:`Coupling`.
 """

@@ -19,6 +19,7 @@ from droptower.errors import DroptowerError
 from droptower.limits import MAX_COUPLING_STATE
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ElementSpec, KernelElement
+from droptower.rheology.kinds import DISSIPATED, STORED, Motion, kind_of
 
 
 @dataclass
@@ -73,7 +74,7 @@ class Coupling:
     """A compiled coupling model (a parallel composition of elements).
 
     Build it with :func:`droptower.load_coupling` from a TOML file or from element specs
-    with :meth:`from_elements`. ``params`` has one row per parameter set; one row is shared
+    (``Coupling([spec, ...])``). ``params`` has one row per parameter set; one row is shared
     by the whole batch.
     """
 
@@ -107,10 +108,6 @@ class Coupling:
         self.params = default if params is None else np.ascontiguousarray(params, dtype=np.float64)
         if self.params.ndim != 2 or self.params.shape[1] != default.shape[1]:
             raise ValueError("params must have shape (n_sets, %d)" % default.shape[1])
-
-    @classmethod
-    def from_elements(cls, elements: list[ElementSpec], **kw) -> "Coupling":
-        return cls(elements, **kw)
 
     # ------------------------------------------------------------- structure
     @property
@@ -221,70 +218,43 @@ class Coupling:
     # ------------------------------------------------------------- energy
     def stored_energy(self, state: CouplingState) -> np.ndarray:
         """Energy stored in the springs (J, shape (B,))."""
-        return state.values[:, self.s_off[:-1]].sum(axis=1)
+        return state.values[:, self.s_off[:-1] + STORED].sum(axis=1)
 
     def dissipated_energy(self, state: CouplingState) -> np.ndarray:
         """Energy dissipated since the state was created (J, shape (B,))."""
-        return state.values[:, self.s_off[:-1] + 1].sum(axis=1)
+        return state.values[:, self.s_off[:-1] + DISSIPATED].sum(axis=1)
 
     def element_energies(self, state: CouplingState) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Per element of the file: (stored J, dissipated J), each (B,)."""
         out = {}
         for i, el in enumerate(self.elements):
             idx = self.s_off[:-1][self.kernel_owner == i]
-            out[el.label(i)] = (state.values[:, idx].sum(axis=1), state.values[:, idx + 1].sum(axis=1))
+            out[el.label(i)] = (state.values[:, idx + STORED].sum(axis=1), state.values[:, idx + DISSIPATED].sum(axis=1))
         return out
 
     # ------------------------------------------------------------- bounds for callers
-    def max_tangent_stiffness(self, angle_rad: float = 0.0) -> float:
+    def max_tangent_stiffness(self, angle_rad: float = 0.0, *, step_s: float | None = None) -> float:
         """An upper bound of the instantaneous tangent stiffness (N*m/rad) up to |angle_rad|.
 
-        Sum of every spring that can act at once (Maxwell springs and slider springs
-        included); a dashpot adds none here (callers treat viscous terms separately). Used by
-        explicit simulations (the rig) to choose or check their time step.
+        Sum of every spring that can act at once (Maxwell springs and slider springs included;
+        each kernel kind's bound in :mod:`.kinds`); a dashpot adds none here (callers treat
+        viscous terms separately, :meth:`max_damping`). ``step_s``: the shortest time step the
+        caller takes (elements whose stiffness grows with the frequency they read need it).
+        Used by explicit simulations (the rig) to choose or check their time step.
         """
-        total = 0.0
-        x = abs(angle_rad)
-        for kern in self.kernels:
-            p = kern.params
-            if kern.code in (K.LINEAR_SPRING, K.MAXWELL):
-                total += p[0]
-            elif kern.code == K.CUBIC_SPRING:
-                total += 3 * p[0] * x * x + p[1]
-            elif kern.code == K.TABLE_SPRING:
-                n = int(p[0])
-                total += float(np.max(np.diff(p[1 + n:1 + 2 * n]) / np.diff(p[1:1 + n])))
-            elif kern.code == K.SLIDER_BANK:
-                n = int(p[0])
-                total += float(np.sum(p[5:5 + n]))
-            elif kern.code == K.VARIABLE_MAXWELL:
-                nk = int(p[3])
-                xs, ys = p[K.VM_HEADER:K.VM_HEADER + nk], p[K.VM_HEADER + nk:K.VM_HEADER + 2 * nk]
-                if nk and p[5] > 0:  # force table: its steepest segment
-                    total += float(np.max(np.diff(ys) / np.diff(xs)))
-                elif nk:  # stiffness table: tangent k + k' e, bounded by twice the largest k
-                    total += 2.0 * float(np.max(ys))
-                else:
-                    total += p[0] + 2 * p[1] * x
-            elif kern.code == K.PFEFFER:
-                k1, alpha, beta, gamma = p[:4]
-                total += k1 * (1 + alpha)
-        return total
+        motion = Motion(angle_rad=abs(float(angle_rad)), step_s=step_s)
+        return float(sum(kind_of(k.code).stiffness(k.params, motion) for k in self.kernels))
 
-    def max_damping(self) -> float:
+    def max_damping(self, *, min_frequency_hz: float = 0.0, step_s: float | None = None) -> float:
         """An upper bound of the instantaneous viscous coefficient (N*m*s/rad): dashpots in
-        parallel and the series dashpots of the Pfeffer element."""
-        total = 0.0
-        for kern in self.kernels:
-            p = kern.params
-            if kern.code == K.DASHPOT:
-                total += p[0]
-            elif kern.code == K.PFEFFER:
-                total += p[0] * p[3]
-        return total
+        parallel, the series dashpots of the Pfeffer element, and the loss of the payne element
+        (K''/w: ``min_frequency_hz`` is the slowest oscillation the caller drives; the kernel's
+        floor of 0.01 Hz by default)."""
+        motion = Motion(step_s=step_s, min_omega_rad_per_s=max(2 * np.pi * min_frequency_hz, K.MIN_OMEGA))
+        return float(sum(kind_of(k.code).damping(k.params, motion) for k in self.kernels))
 
     def __repr__(self) -> str:
-        kinds = ", ".join(getattr(e, "kind") for e in self.elements)
+        kinds = ", ".join(e.kind for e in self.elements)
         return f"Coupling({self.name!r}: {kinds}; {self.n_sets} parameter set(s))"
 
 

@@ -19,17 +19,28 @@ from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_
 
 from droptower.limits import MAX_ELEMENT_N
 from droptower.rheology import kernels as K
+from droptower.rheology import kinds
 from droptower.validation import StrictModel
 
 
 @dataclass(frozen=True)
 class KernelElement:
-    """One compiled element: kernel code, parameter vector, number of internal variables."""
+    """One compiled element: kernel code and parameter vector, in the layout of its kind's
+    record (:mod:`.kinds`), which also gives the number of internal state variables (a given
+    ``n_internal`` must agree with it)."""
 
     code: int
     params: np.ndarray
-    n_internal: int = 0
+    n_internal: int | None = None
     label: str = ""
+
+    def __post_init__(self) -> None:
+        kind = kinds.kind_of(self.code)
+        kind.check(self.params)
+        n = kind.internal_size(self.params)
+        if self.n_internal is not None and self.n_internal != n:
+            raise ValueError(f"a {kind.name} kernel element has {n} internal variables, not {self.n_internal}")
+        object.__setattr__(self, "n_internal", n)
 
     @property
     def n_state(self) -> int:
@@ -151,7 +162,7 @@ class Maxwell(ElementSpec):
     damping: PositiveFloat    # N*m*s/rad
 
     def compile(self):
-        return [KernelElement(K.MAXWELL, np.array([self.stiffness, self.damping]), 5)]
+        return [KernelElement(K.MAXWELL, np.array([self.stiffness, self.damping]))]
 
 
 class PronyTerm(StrictModel):
@@ -169,7 +180,7 @@ class Prony(ElementSpec):
     def compile(self):
         out = [KernelElement(K.LINEAR_SPRING, np.array([self.equilibrium_stiffness]))]
         for t in self.terms:
-            out.append(KernelElement(K.MAXWELL, np.array([t.stiffness, t.stiffness * t.relaxation_time]), 5))
+            out.append(KernelElement(K.MAXWELL, np.array([t.stiffness, t.stiffness * t.relaxation_time])))
         return out
 
 
@@ -225,7 +236,7 @@ class PowerLaw(ElementSpec):
         return np.column_stack([weight, tau])
 
     def compile(self):
-        return [KernelElement(K.MAXWELL, np.array([k, k * tau]), 5) for k, tau in self.terms()]
+        return [KernelElement(K.MAXWELL, np.array([k, k * tau])) for k, tau in self.terms()]
 
     def complex_stiffness(self, frequency_hz: ArrayLike) -> np.ndarray:
         """K*(f) (N*m/rad) of the Prony series as compiled."""
@@ -240,7 +251,7 @@ def _bank(stiffness: np.ndarray, yield_torque: np.ndarray, rate: float = 0.0, ex
     n = stiffness.size
     params = np.concatenate([[n, rate, exponent, constriction[0], constriction[1]], stiffness, yield_torque,
                              stiffness / yield_torque, yield_torque / stiffness])
-    return KernelElement(K.SLIDER_BANK, params, 3 * n)
+    return KernelElement(K.SLIDER_BANK, params)
 
 
 class Prandtl(ElementSpec):
@@ -450,7 +461,7 @@ class Mullins(ElementSpec):
         dk = self.fast_stiffness - self.slow_stiffness_at_zero()
         if dk <= 0:
             return slow
-        return slow + [KernelElement(K.MAXWELL, np.array([dk, dk * self.tau]), 5)]
+        return slow + [KernelElement(K.MAXWELL, np.array([dk, dk * self.tau]))]
 
 
 class ForceTable(StrictModel):
@@ -520,7 +531,7 @@ class VariableMaxwell(ElementSpec):
         if self.force_table:
             x, y = np.asarray(table.x), np.asarray(table.y)
             params += list(knot_energies(x, y)) + list(np.diff(y) / np.diff(x))
-        return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float), 3)]
+        return [KernelElement(K.VARIABLE_MAXWELL, np.array(params, float))]
 
 
 def _rises(x: list[float], coefficient: list[float]) -> bool:
@@ -574,7 +585,7 @@ class Pfeffer(ElementSpec):
     friction: PfefferFriction | None = None
 
     def compile(self):
-        out = [KernelElement(K.PFEFFER, np.array([self.k1, self.alpha, self.beta, self.gamma]), 3)]
+        out = [KernelElement(K.PFEFFER, np.array([self.k1, self.alpha, self.beta, self.gamma]))]
         if self.friction is not None:
             out.append(self.friction.compile())
         return out
@@ -613,11 +624,10 @@ class Payne(ElementSpec):
     reference_frequency: PositiveFloat = 30.0           # Hz, where the stiffnesses above hold
 
     def compile(self):
-        params = np.array([self.stiffness, self.critical_angle, self.exponent, self.loss_stiffness,
-                           self.loss_peak_stiffness, self.centre_relaxation_time, self.memory_time,
-                           self.storage_frequency_exponent, self.loss_frequency_exponent,
-                           2 * np.pi * self.reference_frequency, self.rest_relaxation_time])
-        return [KernelElement(K.PAYNE, params, 12)]
+        names = set(kinds.PAYNE.params) - {"reference_omega"}
+        params = kinds.PAYNE.pack(**{n: getattr(self, n) for n in names},
+                                  reference_omega=2 * np.pi * self.reference_frequency)
+        return [KernelElement(K.PAYNE, params)]
 
     def complex_stiffness(self, amplitude_rad: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
         """K'(A, f) + i K''(A, f) (N*m/rad) in a harmonic motion of amplitude A (rad) and

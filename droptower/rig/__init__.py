@@ -7,6 +7,7 @@ drives the rheological coupling, sampled like the real rig, and a planner for te
 - :mod:`.scene`: the pymunk scene, many tests in one space;
 - :mod:`.sensors`: laser, flange torque, impact force; seeded noise;
 - :mod:`.simulate`: tests -> :class:`DropResult` (summary, channels, log);
+- :mod:`.lever`: the lever's free decay on the coupling, compiled (plan and identification);
 - :mod:`.planner`: predictions per test condition, batched through the coupling;
 - :mod:`.plots`: seed 004 Fig. 4 and the plan's figure.
 """

@@ -186,14 +186,19 @@ class RigConfig(StrictModel):
         where = "field simulation.steps_per_sample"
         j_min = float(np.min(inertia_kgm2))
         name = display_name(coupling.path, "couplings") or coupling.name or "the coupling"
-        stiffness = coupling.max_tangent_stiffness(self.coupling_limit_rad + float(np.max(np.abs(pretwist_rad))))
+        stiffness = coupling.max_tangent_stiffness(self.coupling_limit_rad + float(np.max(np.abs(pretwist_rad))),
+                                                   step_s=dt)
         omega_dt = dt * math.sqrt(stiffness / j_min)
         if omega_dt > STIFFNESS_LIMIT:
             need = math.ceil(self.simulation.steps_per_sample * omega_dt / STIFFNESS_LIMIT)
             raise self.error(f"internal step {dt:.3g} s is too coarse for the stiffness of {name} "
                              f"({stiffness:.4g} N*m/rad on J = {j_min:g} kg*m^2): dt*sqrt(K/J) = {omega_dt:.3g} > "
                              f"{STIFFNESS_LIMIT}; use steps_per_sample >= {need}", where)
-        damping_dt = dt * coupling.max_damping() / j_min
+        # a rate-independent loss (the payne element's K''/w) damps by the frequency of the motion:
+        # the lever's swing, a tenth of its frequency on the stiffest coupling leaving room for
+        # the coupling's softening with amplitude (a hundredfold in stiffness)
+        lever_hz = math.sqrt(stiffness / float(np.max(inertia_kgm2))) / (2 * math.pi)
+        damping_dt = dt * coupling.max_damping(min_frequency_hz=0.1 * lever_hz, step_s=dt) / j_min
         if damping_dt > DAMPING_LIMIT:
             need = math.ceil(self.simulation.steps_per_sample * damping_dt / DAMPING_LIMIT)
             raise self.error(f"internal step {dt:.3g} s is too coarse for the damping of {name}: dt*d/J = "

@@ -5,7 +5,7 @@ the impact; a free decay of the lever on the *nonlinear* coupling, preload twist
 gives the first period, peaks, decay and peak torque; the drop mass's free flight against the
 lever tip's path gives the double-impact check of seed 004 (NOTES §1.3: a second impact
 within the first oscillation period). All conditions advance together through the coupling's
-batch axis (one :meth:`Coupling.step` per step), integrated exactly like the pymunk scene
+batch axis, integrated by :mod:`droptower.rig.lever` exactly like the pymunk scene
 (symplectic Euler at the rig's internal step), so plan and simulation agree.
 """
 from __future__ import annotations
@@ -21,6 +21,7 @@ from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
                                   lever_tip_path, second_impact_time)
+from droptower.rig.lever import SYMPLECTIC_EULER, LeverDecay
 from droptower.rig.preload import Pretwist, pretwist
 from droptower.sdof import damping_ratio, reference_amplitude
 
@@ -53,29 +54,18 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
                dt_s: float, min_duration_s: float = 0.0, periods: float = 1.25) -> FreeDecay:
     """Integrate J phi'' = T_screw - T_coupling(twist + phi) from phi = 0, phi' = rate0 (B,).
 
-    Same scheme as the pymunk scene (the torque at the angle the step reaches, then the rate);
-    runs until every condition has completed ``periods`` of its first period (at least one and a
-    quarter) and ``min_duration_s`` has passed (at most :data:`MAX_DECAY_S`).
+    Same scheme as the pymunk scene (:data:`droptower.rig.lever.SYMPLECTIC_EULER`); runs until
+    every condition has completed ``periods`` of its first period (at least one and a quarter)
+    and ``min_duration_s`` has passed (at most :data:`MAX_DECAY_S`).
     """
-    J = np.asarray(inertia_kgm2, float)
-    B = J.size
-    state = twist.state.copy()
     screw = twist.torque_nm
-    phi = np.zeros(B)
-    rate = np.asarray(rate0_rad_per_s, float).copy()
-    a_chunk = np.empty((B, CHUNK_STEPS))
-    t_chunk = np.empty((B, CHUNK_STEPS))
-    a_parts, t_parts = [np.zeros((B, 1))], [screw[:, None].copy()]
+    lever = LeverDecay(coupling, twist.state.copy(), inertia_kgm2, rate0_rad_per_s, dt_s, SYMPLECTIC_EULER, screw)
+    a_parts, t_parts = [np.zeros((screw.size, 1))], [screw[:, None].copy()]
     n_max = int(math.ceil(MAX_DECAY_S / dt_s))
     while True:
-        for j in range(CHUNK_STEPS):
-            phi += rate * dt_s
-            tq = coupling.step(state, twist.angle_rad + phi, dt_s)
-            rate += (screw - tq) / J * dt_s
-            a_chunk[:, j] = phi
-            t_chunk[:, j] = tq
-        a_parts.append(a_chunk.copy())
-        t_parts.append(t_chunk.copy())
+        a_chunk, t_chunk = lever.advance(CHUNK_STEPS)
+        a_parts.append(a_chunk)
+        t_parts.append(t_chunk)
         angle = np.concatenate(a_parts, axis=1)
         time = np.arange(angle.shape[1]) * dt_s
         period = first_period(time, angle)

@@ -106,7 +106,9 @@ def _solve(coupling: Coupling, tgt: np.ndarray, ramp_s: float, hold_s: float) ->
     # bracket: start from the stiffest guess (too small a twist), double until the torque passes
     lo = np.zeros(tgt.size)
     f_lo = -tgt.copy()
-    hi = tgt / max(coupling.max_tangent_stiffness(0.0), 1e-12)
+    shortest_step = min(ramp_s / RAMP_STEPS, hold_s / HOLD_STEPS, SETTLE_STEP_S,
+                        1.0 / (CONDITIONING_FREQUENCY_HZ * CONDITIONING_STEPS_PER_CYCLE))
+    hi = tgt / max(coupling.max_tangent_stiffness(0.0, step_s=shortest_step), 1e-12)
     f_hi = held(hi)
     for _ in range(60):
         low = np.sign(f_hi) == np.sign(f_lo)

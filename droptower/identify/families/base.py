@@ -73,13 +73,6 @@ class Family:
     def initial(self) -> np.ndarray:
         return clip_to_bounds(self.parameters, self.guess())
 
-    def vector(self, values: dict[str, float]) -> np.ndarray:
-        """Parameter vector from a name -> value mapping (all names required)."""
-        missing = [n for n in self.names if n not in values]
-        if missing:
-            raise DroptowerError(f"missing parameter(s) {', '.join(missing)} for model {self.kind}")
-        return np.array([float(values[n]) for n in self.names])
-
     def coupling(self, v: np.ndarray, *, name: str = "", description: str = "") -> Coupling:
         """The coupling of one parameter vector."""
         data = {"name": name or f"identified_{self.kind}", "description": description or self.title,

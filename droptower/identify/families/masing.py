@@ -7,6 +7,7 @@ frequency.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -140,9 +141,10 @@ def eval_function(fn: dict[str, Any], x: float) -> float:
 
 
 def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
+    """A global fit on all data, then the Masing parameters per amplitude level and the Maxwell
+    stiffnesses per frequency level, each interpolated over its levels; the coupling written is
+    the global set or the model's set at one amplitude and frequency (options)."""
     fam: MasingFamily = s.family  # type: ignore[assignment]
-    nm = fam.n_masing
-    masing_names, maxwell_names = fam.names[:nm], fam.names[nm:]
     glob = s.fit(segments, s.x0.copy(), None, "global (all data)")
     stages = [glob]
     x = glob.values.copy()
@@ -151,62 +153,9 @@ def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Ide
     if not steady:
         extra["note"] = "no steady sine blocks: one parameter set identified on all data"
         return result_of(s, segments, x, stages, start, extra=extra,
-                       coupling_note="one parameter set for all data (no steady sine blocks)")
-
-    # 1. Masing parameters per amplitude level (all frequencies of that level)
-    amp_levels = levels([sb.amplitude_rad for sb in steady])
-    per_amp = []
-    for members in amp_levels:
-        wins = [steady[i].window for i in members]
-        amp_deg = math.degrees(float(np.median([steady[i].amplitude_rad for i in members])))
-        r = s.fit(wins, x, masing_names, f"Masing at {amp_deg:.3g} deg")
-        stages.append(r)
-        per_amp.append((amp_deg, r))
-        extra["amplitude_levels"].append({"amplitude_deg": amp_deg, "blocks": len(members),
-                                          **{n: float(v) for n, v in zip(fam.names[:nm], r.values[:nm])},
-                                          **{f"{n}_std": float(v) for n, v in zip(fam.names[:nm], r.std_error[:nm])},
-                                          "nrmse": r.metrics.nrmse})
-    form = str(fam.options["amplitude_function"])
-    amp_x = np.array([a for a, _ in per_amp])
-    amp_fn = {n: fit_function(amp_x, np.array([r.values[i] for _, r in per_amp]),
-                              np.array([r.std_error[i] for _, r in per_amp]), form)
-              for i, n in enumerate(masing_names)}
-
-    def masing_at(amp_deg: float) -> np.ndarray:
-        a = float(np.clip(amp_deg, amp_x.min(), amp_x.max()))  # no extrapolation beyond the levels
-        v = x.copy()
-        v[:nm] = [eval_function(amp_fn[n], a) for n in masing_names]
-        return clip_to_bounds(fam.parameters, v)
-
-    # 2. Maxwell stiffnesses per frequency level, the Masing part at each block's amplitude.
-    # One frequency determines two numbers of the Maxwell part (its K' and K''), so the
-    # relaxation times stay at the global fit's and the two stiffnesses are fitted
-    maxwell_free = [n for n in maxwell_names if n.startswith("c")]
-    freq_levels = levels([sb.frequency_hz for sb in steady])
-    per_freq = []
-    for members in freq_levels:
-        wins = [steady[i].window for i in members]
-        base = np.array([masing_at(math.degrees(steady[i].amplitude_rad)) for i in members])
-        f_hz = float(np.median([steady[i].frequency_hz for i in members]))
-        r = s.fit(wins, base[0], maxwell_free, f"Maxwell at {f_hz:.3g} Hz", per_segment=base)
-        stages.append(r)
-        per_freq.append((f_hz, r))
-        extra["frequency_levels"].append({"frequency_hz": f_hz, "blocks": len(members),
-                                          **{n: float(r.values[nm + j]) for j, n in enumerate(maxwell_names)},
-                                          "nrmse": r.metrics.nrmse})
-    freq_x = np.array([f for f, _ in per_freq])
-    freq_fn = {n: fit_function(freq_x, np.array([r.values[nm + j] for _, r in per_freq]),
-                               np.array([r.std_error[nm + j] for _, r in per_freq]), "poly1")
-               for j, n in enumerate(maxwell_names)}
-
-    def params_at(amp_deg: float, f_hz: float) -> np.ndarray:
-        v = masing_at(amp_deg)
-        f = float(np.clip(f_hz, freq_x.min(), freq_x.max()))
-        v[nm:] = [eval_function(freq_fn[n], f) for n in maxwell_names]
-        return clip_to_bounds(fam.parameters, v)
-
-    extra["amplitude_functions"] = {n: {**fn, "variable": "amplitude_deg"} for n, fn in amp_fn.items()}
-    extra["frequency_functions"] = {n: {**fn, "variable": "frequency_hz"} for n, fn in freq_fn.items()}
+                         coupling_note="one parameter set for all data (no steady sine blocks)")
+    masing_at, amp_x = _per_amplitude(s, fam, steady, x, stages, extra)
+    params_at, freq_x = _per_frequency(s, fam, steady, masing_at, stages, extra)
     # fit quality of the amplitude/frequency-dependent model (each block with its own set): in
     # the report's details; the reported fit and bounds are those of the coupling written
     rows = np.array([params_at(math.degrees(sb.amplitude_rad), sb.frequency_hz) for sb in steady])
@@ -233,6 +182,75 @@ def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Ide
         {n: float("nan") for n in fam.names}
     result.at_bounds = at_bounds(fam.parameters, v_out)
     return result
+
+
+def _per_amplitude(s: Setup, fam: MasingFamily, steady: list, x: np.ndarray, stages: list,
+                   extra: dict[str, Any]) -> tuple[Callable[[float], np.ndarray], np.ndarray]:
+    """The Masing parameters fitted per amplitude level (all frequencies of that level) and
+    interpolated by the family's amplitude function: (parameters at an amplitude in deg, levels in deg)."""
+    nm = fam.n_masing
+    masing_names = fam.names[:nm]
+    per_amp = []
+    for members in levels([sb.amplitude_rad for sb in steady]):
+        wins = [steady[i].window for i in members]
+        amp_deg = math.degrees(float(np.median([steady[i].amplitude_rad for i in members])))
+        r = s.fit(wins, x, masing_names, f"Masing at {amp_deg:.3g} deg")
+        stages.append(r)
+        per_amp.append((amp_deg, r))
+        extra["amplitude_levels"].append({"amplitude_deg": amp_deg, "blocks": len(members),
+                                          **{n: float(v) for n, v in zip(masing_names, r.values[:nm])},
+                                          **{f"{n}_std": float(v) for n, v in zip(masing_names, r.std_error[:nm])},
+                                          "nrmse": r.metrics.nrmse})
+    form = str(fam.options["amplitude_function"])
+    amp_x = np.array([a for a, _ in per_amp])
+    amp_fn = {n: fit_function(amp_x, np.array([r.values[i] for _, r in per_amp]),
+                              np.array([r.std_error[i] for _, r in per_amp]), form)
+              for i, n in enumerate(masing_names)}
+    extra["amplitude_functions"] = {n: {**fn, "variable": "amplitude_deg"} for n, fn in amp_fn.items()}
+
+    def masing_at(amp_deg: float) -> np.ndarray:
+        a = float(np.clip(amp_deg, amp_x.min(), amp_x.max()))  # no extrapolation beyond the levels
+        v = x.copy()
+        v[:nm] = [eval_function(amp_fn[n], a) for n in masing_names]
+        return clip_to_bounds(fam.parameters, v)
+
+    return masing_at, amp_x
+
+
+def _per_frequency(s: Setup, fam: MasingFamily, steady: list, masing_at: Callable[[float], np.ndarray],
+                   stages: list, extra: dict[str, Any]) -> tuple[Callable[[float, float], np.ndarray], np.ndarray]:
+    """The Maxwell stiffnesses per frequency level, the Masing part at each block's amplitude,
+    interpolated linearly: (parameters at an amplitude in deg and a frequency in Hz, levels in Hz).
+
+    One frequency determines two numbers of the Maxwell part (its K' and K''), so the
+    relaxation times stay at the global fit's and the two stiffnesses are fitted."""
+    nm = fam.n_masing
+    maxwell_names = fam.names[nm:]
+    maxwell_free = [n for n in maxwell_names if n.startswith("c")]
+    per_freq = []
+    for members in levels([sb.frequency_hz for sb in steady]):
+        wins = [steady[i].window for i in members]
+        base = np.array([masing_at(math.degrees(steady[i].amplitude_rad)) for i in members])
+        f_hz = float(np.median([steady[i].frequency_hz for i in members]))
+        r = s.fit(wins, base[0], maxwell_free, f"Maxwell at {f_hz:.3g} Hz", per_segment=base)
+        stages.append(r)
+        per_freq.append((f_hz, r))
+        extra["frequency_levels"].append({"frequency_hz": f_hz, "blocks": len(members),
+                                          **{n: float(r.values[nm + j]) for j, n in enumerate(maxwell_names)},
+                                          "nrmse": r.metrics.nrmse})
+    freq_x = np.array([f for f, _ in per_freq])
+    freq_fn = {n: fit_function(freq_x, np.array([r.values[nm + j] for _, r in per_freq]),
+                               np.array([r.std_error[nm + j] for _, r in per_freq]), "poly1")
+               for j, n in enumerate(maxwell_names)}
+    extra["frequency_functions"] = {n: {**fn, "variable": "frequency_hz"} for n, fn in freq_fn.items()}
+
+    def params_at(amp_deg: float, f_hz: float) -> np.ndarray:
+        v = masing_at(amp_deg)
+        f = float(np.clip(f_hz, freq_x.min(), freq_x.max()))
+        v[nm:] = [eval_function(freq_fn[n], f) for n in maxwell_names]
+        return clip_to_bounds(fam.parameters, v)
+
+    return params_at, freq_x
 
 
 FAMILY = MasingFamily

@@ -1,0 +1,35 @@
+"""How a batch of drop-test logs is read into SI signals: what extraction and identification share."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from droptower.io.mapping import map_channels
+from droptower.io.readers import read_any
+from droptower.io.signals import DropSignals
+
+
+@dataclass(frozen=True)
+class LogSettings:
+    """roles: channel mapping (role -> ``NAME[:UNIT]``); inertia_kgm2 (kg*m^2), lever_length_m
+    (m): override the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``,
+    ``sensor_radius_m``) used where a log's metadata lacks them, e.g. from the rig;
+    sensor_radius_m: laser spot radius (m) for a distance channel, over the log's own
+    ``laser_radius_m``."""
+
+    roles: dict[str, str] = field(default_factory=dict)
+    inertia_kgm2: float | None = None
+    lever_length_m: float | None = None
+    defaults: dict[str, float] = field(default_factory=dict)
+    sensor_radius_m: float | None = None
+
+    def read_signals(self, path: str | Path, *, sample_rate_hz: float | None = None,
+                     reader_options: dict[str, Any] | None = None, radius_flags: str = "--sensor-radius-m or --rig",
+                     sample_rate_flag: str | None = "--sample-rate-hz") -> DropSignals:
+        """Read one log (any format) and map its channels; problems are DroptowerErrors naming the
+        file (and ``radius_flags`` / ``sample_rate_flag``, the command's flags that give what is missing)."""
+        record = read_any(path, **(reader_options or {}))
+        return map_channels(record, self.roles, sensor_radius_m=self.sensor_radius_m, sample_rate_hz=sample_rate_hz,
+                            default_sensor_radius_m=self.defaults.get("sensor_radius_m"), radius_flags=radius_flags,
+                            sample_rate_flag=sample_rate_flag)

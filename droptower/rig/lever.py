@@ -1,0 +1,105 @@
+"""The lever's free decay on the coupling: the one integrator of J phi'' = T_rest - T(phi).
+
+After the impact the lever (inertia J about the pivot) swings with the coupling torque T as
+its only torque but the screw's constant T_rest, the torque the coupling carried at rest (the
+preload; 0 without one). phi is the rotation from the rest angle. The coupling's state advances
+with the lever, one element step per time step for every row of a batch (rows in parallel),
+compiled with the kernels (:func:`droptower.rheology.kernels.step_instance`).
+
+Two schemes, both explicit and far inside their stability limit (dt sqrt(K_max/J) ~ 0.02 at
+the rig's step against 2); the coupling's own updates have none:
+
+- ``SYMPLECTIC_EULER``: the angle advances with the old rate, the torque is taken at the angle
+  reached, then the rate: exactly what the pymunk scene does (:mod:`droptower.rig.scene`), so
+  the plan (:mod:`droptower.rig.planner`) agrees with the simulation;
+- ``VERLET``: velocity Verlet, second order for the elastic torque (first order where the
+  core's rate-dependent elements see the step's mean rate): the identification's
+  (``droptower.identify.lever``), which compares decays sampled more coarsely than the rig steps.
+
+The pymunk scene cannot use this integrator (the impact is pymunk's contact solver); it is
+tested against it (``tests/test_rig_scene.py``, ``tests/test_rig_planner.py``).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from droptower.rheology import Coupling, CouplingState
+from droptower.rheology import kernels as K
+from droptower.rheology.coupling import PARALLEL_BATCH
+
+SYMPLECTIC_EULER = 0
+VERLET = 1
+
+
+def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi, rate, acc, h, scheme,
+                 angle_out, torque_out):
+    """Advance every row by angle_out.shape[1] steps; phi, rate, acc (B,) carry the lever from one
+    call to the next (in place); angle_out gets phi (rad) and torque_out the coupling torque (N*m)
+    at the end of each step."""
+    nb, nk = angle_out.shape
+    shared = params.shape[0] == 1
+    for b in prange(nb):
+        pb = params[0] if shared else params[b]
+        sb = state[b]
+        p = phi[b]
+        v = rate[b]
+        a = acc[b]
+        x0 = x_rest[b]
+        for k in range(nk):
+            if scheme == SYMPLECTIC_EULER:
+                p1 = p + h * v
+                t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
+                v += (rest[b] - t) / inertia[b] * h
+            else:
+                p1 = p + h * v + 0.5 * h * h * a
+                t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
+                a_new = (rest[b] - t) / inertia[b]
+                v += 0.5 * h * (a + a_new)
+                a = a_new
+            p = p1
+            angle_out[b, k] = p
+            torque_out[b, k] = t
+        phi[b] = p
+        rate[b] = v
+        acc[b] = a
+
+
+# serial for small batches (a plan's few conditions: cheaper to compile, and a thread pool costs
+# more than it gives there), parallel for large ones (the candidates of an identification)
+_decay_steps_serial = njit(**K.JIT)(_decay_steps)
+_decay_steps_parallel = njit(parallel=True, **K.JIT)(_decay_steps)
+
+
+class LeverDecay:
+    """A batch of levers decaying on their coupling instances, advanced in chunks of steps.
+
+    coupling: one parameter set, or one per row; state: the coupling's state at rest before the
+    impact (advanced in place); inertia_kgm2, rate0_rad_per_s: (B,); rest_torque_nm: the screw's
+    torque (B,), by default the state's torque; step_s: the time step (s); scheme: see above.
+    """
+
+    def __init__(self, coupling: Coupling, state: CouplingState, inertia_kgm2: np.ndarray,
+                 rate0_rad_per_s: np.ndarray, step_s: float, scheme: int,
+                 rest_torque_nm: np.ndarray | None = None):
+        self.coupling, self.state, self.step_s, self.scheme = coupling, state, float(step_s), int(scheme)
+        self.inertia = np.ascontiguousarray(np.broadcast_to(np.asarray(inertia_kgm2, float), (state.batch,)))
+        self.rate = np.ascontiguousarray(np.asarray(rate0_rad_per_s, float).copy())
+        self.rest = np.ascontiguousarray(state.torque_nm.copy() if rest_torque_nm is None
+                                         else np.asarray(rest_torque_nm, float).copy())
+        self.x_rest = state.angle_rad.copy()
+        self.phi = np.zeros(state.batch)
+        self.acc = np.zeros(state.batch)
+
+    def advance(self, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The next ``n_steps`` steps: rotation from rest (rad) and coupling torque (N*m), each (B, n_steps)."""
+        c, s = self.coupling, self.state
+        angle = np.empty((s.batch, n_steps))
+        torque = np.empty((s.batch, n_steps))
+        run = _decay_steps_parallel if s.batch >= PARALLEL_BATCH else _decay_steps_serial
+        run(c.codes, c.p_off, c.s_off, c.params, s.values, self.x_rest, self.rest, self.inertia,
+                              self.phi, self.rate, self.acc, self.step_s, self.scheme, angle, torque)
+        if n_steps:
+            s.angle_rad[...] = self.x_rest + self.phi
+            s.torque_nm[...] = torque[:, -1]
+        return angle, torque
