@@ -15,7 +15,7 @@ from droptower import sdof
 from droptower.cli.main import main
 from droptower.extract import Settings, SyntheticDrop, extract_file
 from droptower.extract.drops import find_drops, parse_drop_selection
-from droptower.extract.files import DECAY_CUT, extract_drops, read_signals
+from droptower.extract.files import DECAY_CUT, extract_drops
 from droptower.errors import DroptowerError
 from droptower.io import write_log
 from droptower.io.signals import DropSignals
@@ -124,7 +124,7 @@ def test_drops_without_a_force_channel_are_found_by_the_angle(rig_drops, tmp_pat
 
 
 def test_a_single_drop_log_is_one_drop_over_its_whole_record(rig_drops):
-    signals = read_signals(rig_drops["singles"][0], Settings(sensor_radius_m=rig_drops["radius"]))
+    signals = Settings(sensor_radius_m=rig_drops["radius"]).read_signals(rig_drops["singles"][0])
     (span,) = find_drops(signals)
     assert (span.index, span.start, span.stop, span.next_onset, span.cut) == (1, 0, signals.time_s.size, None, False)
 
