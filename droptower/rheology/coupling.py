@@ -17,7 +17,7 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 from droptower.limits import MAX_COUPLING_STATE
-from droptower.rheology import kernels as K
+from droptower.rheology import filler_network, kernels as K
 from droptower.rheology.elements import ElementSpec, KernelElement
 
 
@@ -269,6 +269,8 @@ class Coupling:
             elif kern.code == K.PFEFFER:
                 k1, alpha, beta, gamma = p[:4]
                 total += k1 * (1 + alpha)
+            elif kern.code == K.FILLER_NETWORK:
+                total += filler_network.max_tangent_stiffness(p)
         return total
 
     def max_damping(self) -> float:
@@ -281,6 +283,8 @@ class Coupling:
                 total += p[0]
             elif kern.code == K.PFEFFER:
                 total += p[0] * p[3]
+            elif kern.code == K.FILLER_NETWORK:
+                total += filler_network.max_damping(p)
         return total
 
     def __repr__(self) -> str:

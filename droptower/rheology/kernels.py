@@ -37,6 +37,7 @@ SLIDER_BANK = 5
 VARIABLE_MAXWELL = 6
 PFEFFER = 7
 PAYNE = 8
+FILLER_NETWORK = 9
 
 N_HEADER = 3  # stored, dissipated, torque
 
@@ -705,6 +706,8 @@ def step_element(code, p, po, s, so, x0, x1, h):
         return pfeffer(p, po, s, so, x0, x1, h)
     if code == PAYNE:
         return payne(p, po, s, so, x0, x1, h)
+    if code == FILLER_NETWORK:
+        return _filler_network.filler_network(p, po, s, so, x0, x1, h)
     return np.nan
 
 
@@ -760,3 +763,9 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
 step_batch = njit(**JIT)(_step_batch)
 run_history = njit(**JIT)(_run_history)
 run_history_parallel = njit(parallel=True, **JIT)(_run_history)
+
+
+# The filler network's kernel lives in its own module and uses the slider-bank helpers above;
+# imported last (as a module, resolved when the dispatch compiles) so that both load in either order. (numba caches the dispatch above
+# with this file: a change of that module alone needs this file touched to recompile.)
+from droptower.rheology import filler_network as _filler_network  # noqa: E402
