@@ -666,7 +666,7 @@ class FillerNetwork(ElementSpec):
     breakdown_angle: PositiveFloat             # rad, elongation about the centre that breaks half the network
     recovery_time: PositiveFloat = 10.0        # s, the broken network re-forms with it
     centre_relaxation_time: PositiveFloat = 5.0  # s, the centre follows the mean angle with it
-    n: PositiveInt = 24                        # -, Jenkins elements resolving the yield distribution
+    n: PositiveInt = 32                        # -, Jenkins elements resolving the yield distribution
 
     _n_limit = field_validator("n")(_at_most_max_n)
 
@@ -678,8 +678,8 @@ class FillerNetwork(ElementSpec):
     def compile(self):
         k, a = self.sliders()
         params = np.concatenate([[self.n, self.breakdown_angle, 2 * self.exponent, self.recovery_time,
-                                  self.centre_relaxation_time], k, k * a])
-        return [KernelElement(K.FILLER_NETWORK, params, 6 + 2 * self.n)]
+                                  self.centre_relaxation_time], k, a])
+        return [KernelElement(K.FILLER_NETWORK, params, 8 + self.n)]
 
     def intact_fraction(self, amplitude_rad: ArrayLike) -> np.ndarray:
         """g_eq(A): the network's intact fraction after a motion of amplitude A about its centre."""

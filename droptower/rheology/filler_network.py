@@ -29,24 +29,45 @@ scaled by g_old / g_new so the torque is kept while the stored energy falls. So 
 passive for any history and step, with no stability limit (the slider update is a return
 mapping, the centre's relaxation exact for the step's constant rate).
 
-params: [n, breakdown_angle, 2 m, recovery_time, centre_relaxation_time, k_1..k_n, f_1..f_n]
-(f_i = k_i a_i, the slider limits of the intact network).
+params: [n, breakdown_angle, 2 m, recovery_time, centre_relaxation_time, k_1..k_n, a_1..a_n]
+(the intact network's spring stiffnesses and the yield angles).
 internal (after the common header): [damage 1 - g, e_c, cached h, exp(-h/recovery_time),
-exp(-h/centre_relaxation_time), centre_relaxation_time (1 - exp(-h/...)) / h, e_1..e_n,
-n scratch slots].
+exp(-h/centre_relaxation_time), centre_relaxation_time (1 - exp(-h/...)) / h, a cap of g and
+the elongation below which nothing breaks while g <= cap, e_1..e_n].
+
+The sliders' return mapping is that of a Coulomb slider bank (:func:`kernels.slider_bank`),
+fused here with the recovery's rescaling and the sums in one vectorised pass.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from droptower.rheology.kernels import JIT, _bank_commit, _bank_coulomb
+from droptower.rheology.kernels import CACHE, JIT
 
 HEADER_PARAMS = 5
-N_INTERNAL_FIXED = 6  # damage, e_c, h, two exponentials, the centre's ramp factor
+N_INTERNAL_FIXED = 8  # damage, e_c, h, two exponentials, the centre's ramp factor, g cap, its threshold
+#: the breakdown threshold is cached for an intact fraction this share of the damage above the
+#: current one (a power per renewal instead of one per step; the result is the same)
+THRESHOLD_CAP = 0.01
 
 
-@njit(**JIT)
+@njit(cache=CACHE, nogil=True, error_model="numpy", fastmath={"reassoc"})  # vectorised sums
+def _sliders(ks, yield_angles, elong, n, ratio, dx):
+    """Scale the elongations by ``ratio`` (recovery), move them by dx and clip them to the yield
+    angles (Coulomb return mapping); return the force and stored energy of the springs k_i e_i."""
+    force = 0.0
+    energy = 0.0
+    for i in range(n):
+        lim = yield_angles[i]
+        e = min(max(elong[i] * ratio + dx, -lim), lim)
+        elong[i] = e
+        force += ks[i] * e
+        energy += ks[i] * e * e
+    return force, 0.5 * energy
+
+
+@njit(inline="always", **JIT)
 def filler_network(p, po, s, so, x0, x1, h):
     """One step of the filler network from x0 to x1 (rad) over h (s); returns its torque (N*m)."""
     n = int(p[po])
@@ -62,20 +83,26 @@ def filler_network(p, po, s, so, x0, x1, h):
     damage0 = s[so + 3]
     g0 = 1.0 - damage0
     centre_elongation = s[so + 4] * s[so + 7] + dx * s[so + 8]
-    # recovery towards the intact network, then breakdown by the elongation about the centre
-    g_target = min(1.0 - damage0 * s[so + 6], 1.0 / (1.0 + (abs(centre_elongation) / breakdown_angle) ** two_m))
+    # recovery towards the intact network, then breakdown by the elongation about the centre:
+    # g = min(g_rec, g_eq(|e_c|)). g_eq(|e_c|) >= g_rec below the elongation where g_eq equals
+    # g_rec; that elongation falls as g_rec rises, so the one of a cap above g_rec bounds it
+    g_rec = 1.0 - damage0 * s[so + 6]
+    if g_rec > s[so + 9]:
+        cap = g_rec + THRESHOLD_CAP * damage0
+        s[so + 9] = cap
+        s[so + 10] = breakdown_angle * (1.0 / cap - 1.0) ** (1.0 / two_m) if cap < 1.0 else 0.0
+    elongation = abs(centre_elongation)
+    g_target = g_rec
+    if elongation > s[so + 10]:
+        g_target = min(g_rec, 1.0 / (1.0 + (elongation / breakdown_angle) ** two_m))
     eo = so + 3 + N_INTERNAL_FIXED
-    elong = s[eo:eo + n]
-    ks = p[po + HEADER_PARAMS:po + HEADER_PARAMS + n]
     stored0 = s[so + 0]
     torque0 = s[so + 2]
-    if g_target > g0:
-        # re-formed bonds are unstrained: the torque g k e is kept, the stored energy falls
-        ratio = g0 / g_target
-        for i in range(n):
-            elong[i] *= ratio
-    _bank_coulomb(ks, p[po + HEADER_PARAMS + n:po + HEADER_PARAMS + 2 * n], elong, s[eo + n:eo + 2 * n], n, dx)
-    force, energy, _ = _bank_commit(ks, elong, s[eo + n:eo + 2 * n], n, dx)
+    # recovery: re-formed bonds are unstrained, so the elongations shrink by g0 / g (the torque
+    # g k e is kept, the stored energy falls) before the step's motion
+    ratio = g0 / g_target if g_target > g0 else 1.0
+    force, energy = _sliders(p[po + HEADER_PARAMS:po + HEADER_PARAMS + n],
+                             p[po + HEADER_PARAMS + n:po + HEADER_PARAMS + 2 * n], s[eo:eo + n], n, ratio, dx)
     g = g_target
     if g < g0 and 0.5 * (torque0 + g * force) * dx - (g * energy - stored0) < 0.0:
         g = g0  # this step cannot book the breakdown with a non-negative balance: the next one will
