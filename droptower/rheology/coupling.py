@@ -271,6 +271,8 @@ class Coupling:
                 total += k1 * (1 + alpha)
             elif kern.code == K.FILLER_NETWORK:
                 total += filler_network.max_tangent_stiffness(p)
+            elif kern.code == K.MAXWELL_BANK:
+                total += float(np.sum(p[1:1 + int(p[0])]))
         return total
 
     def max_damping(self) -> float:

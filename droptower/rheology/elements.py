@@ -225,7 +225,8 @@ class PowerLaw(ElementSpec):
         return np.column_stack([weight, tau])
 
     def compile(self):
-        return [KernelElement(K.MAXWELL, np.array([k, k * tau]), 5) for k, tau in self.terms()]
+        k, tau = self.terms().T
+        return [KernelElement(K.MAXWELL_BANK, np.concatenate([[k.size], k, k * tau]), 3 + 3 * k.size)]
 
     def complex_stiffness(self, frequency_hz: ArrayLike) -> np.ndarray:
         """K*(f) (N*m/rad) of the Prony series as compiled."""
