@@ -209,10 +209,11 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
 
 
 def portable_path(path: Path) -> str:
-    """A path without this machine's folders: relative to the repository or the installed
-    package's presets (``rig_configs/couplings/x.toml``) when inside them, else the file name."""
+    """A path without this machine's folders: relative to the installed package's presets
+    (``rig_configs/couplings/x.toml``) or the repository when inside them, else the file name.
+    The presets first: an environment inside the repository (``.venv/...``) is no part of it."""
     path = Path(path).resolve()
-    for root in (Path(__file__).resolve().parents[1], Path(resolve(DEFAULT_RIG, "rigs")).resolve().parents[1].parent):
+    for root in (Path(resolve(DEFAULT_RIG, "rigs")).resolve().parents[1].parent, Path(__file__).resolve().parents[1]):
         try:
             return path.relative_to(root).as_posix()
         except ValueError:

@@ -78,9 +78,9 @@ def test_decays_agree_with_the_bench_at_their_own_points(calibration):
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
-    """Seed 004 Fig. 11: no influence of the preload on the coupling's behaviour. The payne
-    element's centre and the matrix branch relax during the preload hold, so the extracted
-    values agree within 1 %."""
+    """Seed 004 Fig. 11: no influence of the preload on the coupling's behaviour. The filler
+    network's centre follows the held twist and its structure recovers from the conditioning
+    during the hold, the matrix branch relaxes, so the extracted values agree within 1 %."""
     rig = load_rig("rapp2022")
     coupling = dt.load_coupling("rapp2022_nr60")
     tests = pd.DataFrame([dict(inertia_kgm2=0.359, drop_mass_kg=2.0, drop_height_m=h, preload_nm=p, repeat=0, seed=1)

@@ -118,6 +118,7 @@ def test_stored_full_study_targets(stored):
     shipped preset: tests/test_nr60_calibration.py.)"""
     summary = json.loads(STORED_SUMMARY.read_text())
     assert "/" not in summary["coupling_file"][:1] and not re.search(r"/(tmp|work|home|root)/", json.dumps(summary))
+    assert not re.search(r"site-packages|\.venv", json.dumps(summary))  # no environment's folders either
     t4 = summary["table4"]["campaign"]
     assert t4["stiffness_rms_deviation_pct"] == pytest.approx(_campaign_rms(stored, "stiffness"), rel=1e-9)
     assert t4["damping_rms_deviation_pct"] == pytest.approx(_campaign_rms(stored, "damping"), rel=1e-9)
