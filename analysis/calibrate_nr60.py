@@ -103,6 +103,10 @@ PRIOR_DECADES = 30.0
 #: this fraction of the largest one (a change along it of 1 decade moves the residuals by < 1e-3x
 #: what the best-determined direction does)
 FLAT_RATIO = 1e-3
+#: finite-difference step of the fit (decades): the fast loop's figures change smoothly only on
+#: this scale (the decay fit's window and the sliders' discrete yield angles make them ripple
+#: below it)
+DIFF_STEP = 0.03
 
 
 def build(values: dict[str, float], matrix: bool = True) -> Coupling:
@@ -330,7 +334,7 @@ def fit(start: dict[str, float], weights: Weights, table: pd.DataFrame, correcti
     values. Returns the values and the undetermined directions at the solution."""
     names = NAMES if weights.matrix else NAMES[:5]
     # the variables are 1 + log10(value / start value): least_squares takes its finite-difference
-    # steps relative to the variable, so each is 0.01 decade (above the fast loop's noise)
+    # steps relative to the variable, so each is DIFF_STEP decades (above the fast loop's ripple)
     shift = np.log10([p[3] for p in PARAMETERS if p[0] in names]) - 1.0
     lo = np.log10([p[1] for p in PARAMETERS if p[0] in names]) - shift
     hi = np.log10([p[2] for p in PARAMETERS if p[0] in names]) - shift
@@ -341,7 +345,7 @@ def fit(start: dict[str, float], weights: Weights, table: pd.DataFrame, correcti
         data = data_residuals(np.r_[x + shift, rest], weights, table, correction, cases)
         return np.r_[data, (x - 1.0) / PRIOR_DECADES]
 
-    sol = least_squares(res, x0, bounds=(lo, hi), diff_step=1e-2, max_nfev=max_evaluations, x_scale=1.0)
+    sol = least_squares(res, x0, bounds=(lo, hi), diff_step=DIFF_STEP, max_nfev=max_evaluations, x_scale=1.0)
     print(f"    least squares: {sol.nfev} evaluations, cost {sol.cost:.4g}, {sol.message}", flush=True)
     flat = flat_directions(sol.jac[:-len(names)], names)
     for f in flat:
