@@ -188,7 +188,10 @@ def test_no_hard_switches_in_ramp_duration_hold_length_or_frequency():
                       simulation_rate_hz=400.0)
     k = ss.storage_stiffness_nm_per_rad
     assert np.all(np.isfinite(k)) and np.all(k > 0)
-    assert np.max(np.abs(np.diff(np.log(k)))) < 0.15  # no step between neighbours a quarter decade apart
+    # the network relaxes with the centre's time below ~0.1 Hz: smoothly, without a step between
+    # neighbours a quarter decade apart (no change much larger than the largest trend's)
+    d1 = np.diff(np.log(k))
+    assert np.max(np.abs(np.diff(d1))) <= 0.5 * np.max(np.abs(d1))
 
 
 # ------------------------------------------------------------------ energy, continuity, convergence

@@ -18,7 +18,10 @@ Höfer & Lion 2009 for a filler structure that breaks down with the strain and r
   the elongation grows (rate-independent, like a Mullins or Payne breakdown), and recovers
   towards 1 with ``recovery_time`` (seconds to minutes): dg/dt = (1 - g) / recovery_time while
   g < g_eq. The Payne softening is thus remembered after a large amplitude, recovers smoothly,
-  and a small tone on a large one sees the network the large one broke down.
+  and a small tone on a large one sees the network the large one broke down. The network's
+  stress relaxes about its rest state with the centre's time (the elongations e_i decay as
+  exp(-t / centre_relaxation_time) besides their motion): a held twist, a preload, leaves no
+  strained friction elements behind.
 
 Energy (exact to round-off for the trapezoidal work ½ (T0 + T1) dx the core books): the
 Iwan springs store g Σ ½ k_i e_i², the sliders dissipate their mean force times their slip.
@@ -98,13 +101,20 @@ def filler_network(p, po, s, so, x0, x1, h):
     eo = so + 3 + N_INTERNAL_FIXED
     stored0 = s[so + 0]
     torque0 = s[so + 2]
+    # the network's stress relaxes about its rest state like the centre (a held twist becomes
+    # unstrained): the elongations shrink by exp(-h/centre_relaxation_time) at the start of the
+    # step; the booked trapezoid adds (1 - relax) torque0 dx / 2 to the energy it releases, so
+    # it is skipped in a step where that sum would be negative (a large step against the torque)
+    relax = s[so + 7]
+    if stored0 * (1.0 - relax * relax) + 0.5 * torque0 * (1.0 - relax) * dx < 0.0:
+        relax = 1.0
     # recovery: re-formed bonds are unstrained, so the elongations shrink by g0 / g (the torque
     # g k e is kept, the stored energy falls) before the step's motion
-    ratio = g0 / g_target if g_target > g0 else 1.0
+    ratio = relax * (g0 / g_target if g_target > g0 else 1.0)
     force, energy = _sliders(p[po + HEADER_PARAMS:po + HEADER_PARAMS + n],
                              p[po + HEADER_PARAMS + n:po + HEADER_PARAMS + 2 * n], s[eo:eo + n], n, ratio, dx)
     g = g_target
-    if g < g0 and 0.5 * (torque0 + g * force) * dx - (g * energy - stored0) < 0.0:
+    if g < g0 and 0.5 * (relax * torque0 + g * force) * dx - (g * energy - relax * relax * stored0) < 0.0:
         g = g0  # this step cannot book the breakdown with a non-negative balance: the next one will
     torque1 = g * force
     stored1 = g * energy
