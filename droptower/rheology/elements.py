@@ -655,8 +655,9 @@ class FillerNetwork(ElementSpec):
     Kraus's 1984 storage shape): friction between filler clusters, a rate-independent loss and
     Masing loops. Its intact fraction g breaks down at once to 1 / (1 + (|e_c| /
     breakdown_angle)^(2m)) when the elongation about a slowly moving centre, e_c, grows, and
-    recovers towards 1 with ``recovery_time``; the centre follows the angle with
-    ``centre_relaxation_time`` (a held preload becomes the network's new rest state).
+    recovers towards 1 with ``recovery_time``; the centre follows the angle, and the network's
+    stress relaxes, with ``centre_relaxation_time`` (a held preload becomes the network's new
+    rest state).
     """
 
     SETTINGS: ClassVar[frozenset[str]] = frozenset({"recovery_time", "centre_relaxation_time", "n"})
