@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from droptower.errors import DroptowerError
+from droptower.extract.decay import fit_decay, start_frequency_and_decay
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
@@ -131,10 +133,17 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["amplitude_deg"] = np.degrees(p1)
     out["amplitude_ref_deg"] = np.degrees(amplitude_ref)
     out["max_twist_deg"] = np.degrees(np.abs(twist.angle_rad) + np.maximum(p1, np.abs(p2)))
-    out["frequency_hz"] = 1.0 / period
+    # frequency and decay as the extractor reads them (its fit over the first cycle, seed 004
+    # eq. 13-16): for an amplitude-dependent loss the two-peak decrement differs from it
+    # (each over its own first period and a quarter: a row's fit must not depend on the batch)
+    fitted = np.array([_first_cycle_fit(t[t <= 1.25 * T], row[t <= 1.25 * T]) if np.isfinite(T) else (np.nan, np.nan)
+                       for row, T in zip(a, period)])
+    omega_fit = np.where(np.isfinite(fitted[:, 0]), fitted[:, 0], omega)
+    delta_fit = np.where(np.isfinite(fitted[:, 1]), fitted[:, 1], delta)
+    out["frequency_hz"] = omega_fit / (2.0 * np.pi)
     out["period_s"] = period
-    out["decay_per_s"] = delta
-    out["damping_ratio"] = damping_ratio(delta, omega)
+    out["decay_per_s"] = delta_fit
+    out["damping_ratio"] = damping_ratio(delta_fit, omega_fit)
     out["peak_torque_nm"] = peak_torque
     out["double_impact"] = np.isfinite(t_second)
     out["second_impact_time_s"] = t_second
@@ -142,6 +151,18 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     out["samples_per_period"] = period * fs
     out["warnings"] = [_warnings(rig, row, duration_s) for row in out.itertuples(index=False)]
     return out
+
+
+def _first_cycle_fit(t: np.ndarray, angle: np.ndarray) -> tuple[float, float]:
+    """(omega rad/s, delta 1/s) of a damped sinusoid fitted to the decay's first cycle, as the
+    extractor fits a log; (NaN, NaN) where the fit fails."""
+    try:
+        omega0, delta0 = start_frequency_and_decay(t, angle, 0.0)
+        window = t <= 2.0 * np.pi / omega0
+        _, delta, omega, _ = fit_decay(t[window], angle[window], omega0, delta0).params
+        return float(omega), float(delta)
+    except (DroptowerError, ValueError, np.linalg.LinAlgError):  # the two-peak estimate stands in
+        return math.nan, math.nan
 
 
 def _warnings(rig: RigConfig, r, duration_s: float) -> list[str]:
