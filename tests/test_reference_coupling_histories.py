@@ -10,32 +10,12 @@ import pytest
 
 from droptower.rheology import load_coupling
 from droptower.servo.steady import steady_state
+from test_rheology_support import band_limited, changes_smoothly, projection, ramp_hold
 
 
 @pytest.fixture(scope="module")
 def coupling():
     return load_coupling("rapp2022_nr60")
-
-
-def band_limited(rng, rate_hz, duration_s, lo_hz, hi_hz, rms_rad):
-    """A random angle with a flat spectrum in [lo_hz, hi_hz] (random phases), RMS rms_rad,
-    starting from 0 (a smooth ramp-in over its first 50 ms)."""
-    n = int(rate_hz * duration_s)
-    f = np.fft.rfftfreq(n, 1 / rate_hz)
-    spectrum = np.where((f >= lo_hz) & (f <= hi_hz), np.exp(2j * np.pi * rng.random(f.size)), 0.0)
-    x = np.fft.irfft(spectrum, n)
-    x *= rms_rad / np.sqrt(np.mean(x ** 2))
-    ramp = np.clip(np.arange(n) / (0.05 * rate_hz), 0, 1)
-    return x * ramp * ramp * (3 - 2 * ramp)
-
-
-def projection(x, torque, frequency_hz, rate_hz, cycles):
-    """(K', K'') at one frequency over the last ``cycles`` whole cycles."""
-    n = int(round(cycles * rate_hz / frequency_hz))
-    t = np.arange(x.size)[-n:] / rate_hz
-    e = np.exp(-2j * np.pi * frequency_hz * t)
-    k = np.mean(torque[-n:] * e) / np.mean(x[-n:] * e)
-    return k.real, k.imag
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -89,15 +69,6 @@ def test_frequency_dependence_of_filled_rubber(coupling):
 def test_ramp_and_hold_change_smoothly(coupling):
     """The torque at the end of a ramp to 2 deg and after a hold changes smoothly with the ramp's
     duration (1.8-2.2 s) and the hold's length (second differences small against first ones)."""
-    rate = 2000.0
-
-    def run(ramp_s, hold_s):
-        n_r, n_h = int(ramp_s * rate), int(hold_s * rate)
-        x = np.r_[np.radians(2.0) * np.arange(1, n_r + 1) / n_r, np.full(n_h, np.radians(2.0))]
-        torque = coupling.respond(x, 1 / rate)
-        return torque[n_r - 1], torque[-1]
-
-    for values in ([run(r, 0.5)[0] for r in (1.8, 1.9, 2.0, 2.1, 2.2)],
-                   [run(2.0, h)[1] for h in (1.8, 1.9, 2.0, 2.1, 2.2)]):
-        d1, d2 = np.diff(values), np.diff(values, 2)
-        assert np.max(np.abs(d2)) <= 0.2 * np.max(np.abs(d1)) + 1e-9 * abs(values[0])
+    angle = np.radians(2.0)
+    assert changes_smoothly([ramp_hold(coupling, angle, r, 0.5)[0] for r in (1.8, 1.9, 2.0, 2.1, 2.2)])
+    assert changes_smoothly([ramp_hold(coupling, angle, 2.0, h)[1] for h in (1.8, 1.9, 2.0, 2.1, 2.2)])

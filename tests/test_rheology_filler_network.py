@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from droptower.rheology import parse_coupling
 from droptower.rheology.elements import FillerNetwork, log_logistic_bins
 from droptower.servo.steady import steady_state
-from test_rheology_support import trapezoid_work
+from test_rheology_support import band_limited, changes_smoothly, projection, ramp_hold, trapezoid_work
 
 NETWORK = {"kind": "filler_network", "stiffness": 16000.0, "critical_angle": 0.004, "exponent": 0.5,
            "breakdown_angle": 0.03, "recovery_time": 10.0, "centre_relaxation_time": 5.0, "n": 24}
@@ -30,25 +30,6 @@ SETTINGS = settings(max_examples=30, deadline=None, derandomize=True, database=N
 def network(**changes):
     el = {**NETWORK, **changes}
     return parse_coupling({"element": [el]}), FillerNetwork(**el)
-
-
-def band_limited(rng, rate_hz, duration_s, lo_hz, hi_hz, rms_rad):
-    """A random angle whose spectrum is flat in [lo_hz, hi_hz] (random phases), scaled to rms_rad."""
-    n = int(rate_hz * duration_s)
-    f = np.fft.rfftfreq(n, 1 / rate_hz)
-    spectrum = np.where((f >= lo_hz) & (f <= hi_hz), np.exp(2j * np.pi * rng.random(f.size)), 0.0)
-    x = np.fft.irfft(spectrum, n)
-    return x * rms_rad / np.sqrt(np.mean(x ** 2))
-
-
-def first_harmonic(x, torque, frequency_hz, rate_hz, cycles):
-    """(K', K'') of the last ``cycles`` cycles by projection (x = A sin w t + rest)."""
-    n = int(round(cycles * rate_hz / frequency_hz))
-    t = np.arange(x.size)[-n:] / rate_hz
-    e = np.exp(-2j * np.pi * frequency_hz * t)
-    cx, ct = 2 * np.mean(x[-n:] * e), 2 * np.mean(torque[-n:] * e)
-    k = ct / cx
-    return k.real, k.imag
 
 
 # ------------------------------------------------------------------ discretisation
@@ -134,10 +115,10 @@ def test_breakdown_is_remembered_and_recovers_with_its_own_time():
     large = np.radians(2.0) * np.sin(2 * np.pi * 10 * t)
     state = coupling.new_state(1)
     before = coupling.simulate(small, 1 / rate, state).torque_nm
-    k_before = first_harmonic(small, before, 10, rate, 2)[0]
+    k_before = projection(small, before, 10, rate, 2)[0]
     coupling.simulate(large, 1 / rate, state)
     after = coupling.simulate(small, 1 / rate, state).torque_nm
-    k_after = first_harmonic(small, after, 10, rate, 2)[0]
+    k_after = projection(small, after, 10, rate, 2)[0]
     assert k_after < 0.9 * k_before
     damage0 = state.values[0, 3]
     hold_rate = 100.0
@@ -158,9 +139,9 @@ def test_a_small_tone_on_a_large_one_softens_within_the_single_tone_loss_range()
     t = np.arange(1, int(rate * 2.0) + 1) / rate
     small = np.radians(0.1) * np.sin(2 * np.pi * 31.25 * t)
     big = np.radians(1.0) * np.sin(2 * np.pi * 2.0 * t)
-    alone = first_harmonic(small, coupling.respond(small, 1 / rate), 31.25, rate, 31.25)
+    alone = projection(small, coupling.respond(small, 1 / rate), 31.25, rate, 31.25)
     both = coupling.respond(small + big, 1 / rate)
-    k2, l2 = first_harmonic(small, both - coupling.respond(big, 1 / rate), 31.25, rate, 31.25)
+    k2, l2 = projection(small, both - coupling.respond(big, 1 / rate), 31.25, rate, 31.25)
     amps = np.radians(np.geomspace(0.05, 3, 12))
     ss = steady_state(coupling, amps, np.full(amps.size, 31.25), cycles=2, run_in_cycles=2)
     assert k2 < 0.9 * alone[0]
@@ -172,17 +153,9 @@ def test_no_hard_switches_in_ramp_duration_hold_length_or_frequency():
     the hold's length (second differences small against first ones), the storage stiffness
     smoothly with the frequency down to 0.01 Hz."""
     coupling, _ = network()
-
-    def ramp_hold(ramp_s, hold_s, rate=2000.0):
-        n_r, n_h = int(ramp_s * rate), int(hold_s * rate)
-        x = np.r_[np.radians(2.0) * np.arange(1, n_r + 1) / n_r, np.full(n_h, np.radians(2.0))]
-        torque = coupling.respond(x, 1 / rate)
-        return torque[n_r - 1], torque[-1]
-
-    for values in ([ramp_hold(r, 1.0)[0] for r in (1.8, 1.9, 2.0, 2.1, 2.2)],
-                   [ramp_hold(2.0, h)[1] for h in (1.8, 1.9, 2.0, 2.1, 2.2)]):
-        d1, d2 = np.diff(values), np.diff(values, 2)
-        assert np.max(np.abs(d2)) <= 0.2 * np.max(np.abs(d1)) + 1e-9 * abs(values[0])
+    angle = np.radians(2.0)
+    assert changes_smoothly([ramp_hold(coupling, angle, r, 1.0)[0] for r in (1.8, 1.9, 2.0, 2.1, 2.2)])
+    assert changes_smoothly([ramp_hold(coupling, angle, 2.0, h)[1] for h in (1.8, 1.9, 2.0, 2.1, 2.2)])
     freqs = np.geomspace(0.01, 1.0, 9)
     ss = steady_state(coupling, np.full(freqs.size, np.radians(0.5)), freqs, cycles=1, run_in_cycles=1,
                       simulation_rate_hz=400.0)
