@@ -812,7 +812,8 @@ run_history = njit(**JIT)(_run_history)
 run_history_parallel = njit(parallel=True, **JIT)(_run_history)
 
 
-# The filler network's kernel lives in its own module and uses the slider-bank helpers above;
-# imported last (as a module, resolved when the dispatch compiles) so that both load in either order. (numba caches the dispatch above
-# with this file: a change of that module alone needs this file touched to recompile.)
+# The filler network's kernel lives in its own module (it takes JIT and CACHE from here), imported
+# last, as a module resolved when the dispatch compiles, so that both load in either order.
+# numba's cache of the dispatch above is keyed on this file only: after changing that module
+# alone, clear the compiled caches (droptower/rheology/__pycache__/*.nbi, *.nbc).
 from droptower.rheology import filler_network as _filler_network  # noqa: E402
