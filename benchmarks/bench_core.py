@@ -8,15 +8,15 @@ Figures printed:
 1. single instance, 1 s of response: wall time and the factor faster than real time (target:
    >= 100x, i.e. <= 10 ms), for issue 2's reference composition (a spring, a 32-element
    rate-dependent elastoslide with p = 7 and two Maxwell branches: :data:`COMPOSITION`) and
-   for the shipped reference coupling ``rapp2022_nr60`` (issue 9: spring, payne envelope,
+   for the shipped reference coupling ``rapp2022_nr60`` (spring, filler network,
    power-law matrix branch);
 2. a batch of 450 instances of the preset, 0.25 s each, in one call: wall time (target <= 2 s);
 3. ``scipy.integrate.solve_ivp`` (Radau, analytic Jacobian) on the composition's equations, at
    equal accuracy (peak torque error <= 0.5 % against a fine-step reference computed by the core
    at 16x the rate), measured in the same run: the ratio of the two CPU times, best of as many
    runs each (target >= 100x; the wall-time ratio alongside).
-   (The payne element reads its amplitude and frequency from the motion's zero crossings: it
-   has no smooth ODE form for solve_ivp.)
+   (The reference coupling's filler network has Coulomb sliders and a breakdown by the
+   largest elongation: no smooth ODE form for solve_ivp.)
 """
 from __future__ import annotations
 

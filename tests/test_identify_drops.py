@@ -192,3 +192,28 @@ def test_template_of_the_reference_coupling_keeps_its_structure():
     rng = np.random.default_rng(1)
     sets = [family.coupling(np.exp(rng.uniform(-1, 1, len(names)))) for _ in range(3)]
     assert Coupling.stack(sets).n_sets == 3
+
+
+@pytest.mark.slow
+def test_template_of_the_reference_coupling_recovers_another_coupling_of_its_structure(tmp_path):
+    """Item 6: a campaign of a coupling with the reference coupling's structure and other numbers
+    (each fitted parameter off by 15-30 %), identified with the template rapp2022_nr60: K' within
+    3 % and the loss factor within 10 % RMS over the tested range."""
+    import tomllib
+
+    from droptower.configs import preset_dir
+
+    data = tomllib.loads((preset_dir("couplings") / "rapp2022_nr60.toml").read_text())
+    changes = {"equilibrium": {"stiffness": 1.2},
+               "filler_network": {"stiffness": 0.8, "critical_angle": 1.3, "breakdown_angle": 0.75},
+               "matrix": {"storage_stiffness": 1.25}}
+    for el in data["element"]:
+        for key, factor in changes[el["name"]].items():
+            el[key] *= factor
+    truth = parse_coupling(data)
+    decays, excluded = read_decays(_campaign(truth, tmp_path, heights=(0.2, 1.0, 3.0)), ReadSettings())
+    assert not excluded
+    result = identify_drops("template", decays, settings=DropFitSettings(holdout_fraction=0.0),
+                            options={"template": "rapp2022_nr60"})
+    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10

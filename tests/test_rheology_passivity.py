@@ -171,6 +171,11 @@ def element(draw, kind):
             el.update(storage_frequency_exponent=draw(st.floats(0.0, 1.0)), loss_frequency_exponent=draw(st.floats(0.0, 1.0)),
                       reference_frequency=draw(log_float(0.1, 1e3)))
         return el
+    if kind == "filler_network":
+        return {"kind": kind, "stiffness": draw(stiffness), "critical_angle": draw(log_float(1e-4, 0.1)),
+                "exponent": draw(st.floats(0.2, 2.0)), "breakdown_angle": draw(log_float(1e-4, 1.0)),
+                "recovery_time": draw(log_float(1e-3, 100.0)), "centre_relaxation_time": draw(log_float(1e-3, 100.0)),
+                "n": draw(st.integers(1, 40))}
     if kind == "power_law":
         lo = draw(log_float(1e-2, 1e3))
         return {"kind": kind, "storage_stiffness": draw(stiffness), "loss_factor": draw(log_float(1e-2, 3.0)),
@@ -268,7 +273,7 @@ def check_energy(coupling, element_dicts, x, dt):
 
 
 KINDS = ["spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl", "masing",
-         "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law"]
+         "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law", "filler_network"]
 
 
 def test_every_kind_is_covered():

@@ -87,3 +87,41 @@ def random_smooth(rng: np.random.Generator, t: np.ndarray, frequency_hz: float, 
     amps = rng.uniform(0.3, 1.0, n_modes) / n_modes
     x = (amps[:, None] * (np.sin(2 * np.pi * freqs[:, None] * t + phases[:, None]) - np.sin(phases[:, None]))).sum(0)
     return x * np.clip(t * frequency_hz, 0.0, 1.0)
+
+
+def band_limited(rng: np.random.Generator, rate_hz: float, duration_s: float, lo_hz: float, hi_hz: float,
+                 rms: float) -> np.ndarray:
+    """A random history with a flat spectrum in [lo_hz, hi_hz] (random phases), scaled to ``rms``,
+    starting from 0 (a smoothstep ramp-in over its first 50 ms)."""
+    n = int(rate_hz * duration_s)
+    f = np.fft.rfftfreq(n, 1 / rate_hz)
+    spectrum = np.where((f >= lo_hz) & (f <= hi_hz), np.exp(2j * np.pi * rng.random(f.size)), 0.0)
+    x = np.fft.irfft(spectrum, n)
+    x *= rms / np.sqrt(np.mean(x ** 2))
+    ramp = np.clip(np.arange(n) / (0.05 * rate_hz), 0, 1)
+    return x * ramp * ramp * (3 - 2 * ramp)
+
+
+def projection(x: np.ndarray, torque: np.ndarray, frequency_hz: float, rate_hz: float, cycles: float) -> tuple[float, float]:
+    """(K', K'') at one frequency: the torque's and the angle's components there over the last
+    ``cycles`` whole cycles (whatever else the history holds)."""
+    n = int(round(cycles * rate_hz / frequency_hz))
+    t = np.arange(x.size)[-n:] / rate_hz
+    e = np.exp(-2j * np.pi * frequency_hz * t)
+    k = np.mean(torque[-n:] * e) / np.mean(x[-n:] * e)
+    return k.real, k.imag
+
+
+def ramp_hold(coupling, angle: float, ramp_s: float, hold_s: float, rate_hz: float = 2000.0) -> tuple[float, float]:
+    """Torques (N*m) at the end of a linear ramp to ``angle`` over ramp_s and after a hold of hold_s."""
+    n_r, n_h = int(ramp_s * rate_hz), int(hold_s * rate_hz)
+    x = np.r_[angle * np.arange(1, n_r + 1) / n_r, np.full(n_h, angle)]
+    torque = coupling.respond(x, 1 / rate_hz)
+    return torque[n_r - 1], torque[-1]
+
+
+def changes_smoothly(values) -> bool:
+    """No switch in a sequence sampled at even steps: its second differences stay at most a fifth
+    of its largest first difference (a step between two samples would be as large as one)."""
+    d1, d2 = np.diff(values), np.diff(values, 2)
+    return bool(np.max(np.abs(d2)) <= 0.2 * np.max(np.abs(d1)) + 1e-9 * abs(values[0]))

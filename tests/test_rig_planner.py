@@ -101,3 +101,24 @@ def test_warnings_where_a_rig_limit_is_broken(tmp_path, rig):
     assert "not a lever fixture" in w and "not one of the rig's" in w
     double = conditions([(0.1557, 2.0, 1.0, 0.0)])
     assert "double impact" in "; ".join(plan(rig, linear(), double)["warnings"][0])
+
+
+@pytest.mark.slow
+def test_plan_agrees_with_simulated_and_extracted_tests_under_preload(rig, tmp_path):
+    """Every condition of Table 2 (3 cases x 10 heights x 3 preloads) on the reference coupling:
+    the planner's frequency within 2 % and damping ratio within 5 % of the test simulated on the
+    rig (pymunk impact, sensors, log) and extracted, preloaded or not."""
+    from droptower.extract import Settings, extract_file
+    from droptower.rig import simulate
+
+    coupling = load_coupling("rapp2022_nr60")
+    cond = load_doe("rapp2022_table2").conditions()[["inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"]]
+    planned = plan(rig, coupling, cond)
+    tests = cond.assign(repeat=0, seed=np.arange(len(cond)) + 1)
+    measured = []
+    for i, result in enumerate(simulate(rig, coupling, tests, duration_s=0.12)):
+        _, extracted = extract_file(result.write_log(tmp_path / f"t{i}.parquet"), Settings())
+        measured.append((extracted.frequency_hz, extracted.damping_ratio))
+    f, d = np.array(measured).T
+    assert np.max(np.abs(planned["frequency_hz"] / f - 1)) <= 0.02
+    assert np.max(np.abs(planned["damping_ratio"] / d - 1)) <= 0.05

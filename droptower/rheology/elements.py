@@ -236,7 +236,8 @@ class PowerLaw(ElementSpec):
         return np.column_stack([weight, tau])
 
     def compile(self):
-        return [KernelElement(K.MAXWELL, np.array([k, k * tau])) for k, tau in self.terms()]
+        k, tau = self.terms().T
+        return [KernelElement(K.MAXWELL_BANK, np.concatenate([[k.size], k, k * tau]))]
 
     def complex_stiffness(self, frequency_hz: ArrayLike) -> np.ndarray:
         """K*(f) (N*m/rad) of the Prony series as compiled."""
@@ -638,11 +639,82 @@ class Payne(ElementSpec):
                 + 1j * (self.loss_stiffness + 2 * self.loss_peak_stiffness * u / (1 + u * u))
                 * ratio ** self.loss_frequency_exponent)
 
+
+# ------------------------------------------------------------------ filler network (Payne effect)
+def log_logistic_bins(median: float, exponent: float, n: int, tail: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Discretise the log-logistic distribution F(a) = u^2 / (1 + u^2), u = (a / median)^exponent,
+    into n points evenly spaced in ln a between the quantiles ``tail`` and 1 - ``tail``.
+
+    Returns (weights summing to 1, points a_i): each point carries the probability of the cell
+    between the midpoints to its neighbours; the first and last carry the tails beyond them.
+    """
+    z_max = np.log((1.0 - tail) / tail)  # the logit of the upper quantile; ln(a/median) = z / (2 exponent)
+    z = np.linspace(-z_max, z_max, n) if n > 1 else np.zeros(1)
+    edges = np.r_[-np.inf, 0.5 * (z[1:] + z[:-1]), np.inf]
+    cdf = 1.0 / (1.0 + np.exp(-edges))
+    return np.diff(cdf), median * np.exp(z / (2.0 * exponent))
+
+
+class FillerNetwork(ElementSpec):
+    """The Payne effect of filled rubber from state variables valid for any history
+    (:mod:`droptower.rheology.filler_network`).
+
+    An Iwan network of ``n`` Jenkins elements (spring in series with a Coulomb slider; stiffness
+    ``stiffness`` in all, yield angles log-logistic about ``critical_angle`` with ``exponent``
+    m: the share of springs still sticking at an amplitude A is 1 / (1 + (A/critical_angle)^(2m)),
+    Kraus's 1984 storage shape): friction between filler clusters, a rate-independent loss and
+    Masing loops. Its intact fraction g breaks down at once to 1 / (1 + (|e_c| /
+    breakdown_angle)^(2m)) when the elongation about a slowly moving centre, e_c, grows, and
+    recovers towards 1 with ``recovery_time``; the centre follows the angle, and the network's
+    stress relaxes, with ``centre_relaxation_time`` (a held preload becomes the network's new
+    rest state).
+    """
+
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"recovery_time", "centre_relaxation_time", "n"})
+    kind: Literal["filler_network"]
+    stiffness: PositiveFloat                   # N*m/rad, the intact network's stiffness (all springs)
+    critical_angle: PositiveFloat              # rad, median yield angle: half the springs slip beyond it
+    exponent: PositiveFloat = 0.55             # -, m: the spread of the yield angles (Kraus: ~0.5-0.7)
+    breakdown_angle: PositiveFloat             # rad, elongation about the centre that breaks half the network
+    recovery_time: PositiveFloat = 10.0        # s, the broken network re-forms with it
+    centre_relaxation_time: PositiveFloat = 5.0  # s, the centre follows the mean angle with it
+    n: PositiveInt = 32                        # -, Jenkins elements resolving the yield distribution
+
+    _n_limit = field_validator("n")(_at_most_max_n)
+
+    def sliders(self) -> tuple[np.ndarray, np.ndarray]:
+        """(stiffness k_i N*m/rad, yield angle a_i rad) of the intact network's Jenkins elements."""
+        weights, angles = log_logistic_bins(self.critical_angle, self.exponent, self.n)
+        return self.stiffness * weights, angles
+
+    def compile(self):
+        k, a = self.sliders()
+        params = np.concatenate([[self.n, self.breakdown_angle, 2 * self.exponent, self.recovery_time,
+                                  self.centre_relaxation_time], k, a])
+        return [KernelElement(K.FILLER_NETWORK, params)]
+
+    def intact_fraction(self, amplitude_rad: ArrayLike) -> np.ndarray:
+        """g_eq(A): the network's intact fraction after a motion of amplitude A about its centre."""
+        return 1.0 / (1.0 + (np.asarray(amplitude_rad, float) / self.breakdown_angle) ** (2 * self.exponent))
+
+    def complex_stiffness(self, amplitude_rad: ArrayLike) -> np.ndarray:
+        """K'(A) + i K''(A) (N*m/rad) in a harmonic motion of amplitude A (rad) about the
+        centre, once the network has broken down to g_eq(A) (recovery within a cycle and the
+        centre's motion left out): Jenkins loops in closed form, sticking springs elastic."""
+        amp = np.asarray(amplitude_rad, float)[..., None]
+        k, a = self.sliders()
+        ratio = np.minimum(a / amp, 1.0)
+        theta = np.arccos(1.0 - 2.0 * ratio)  # the part of the half cycle an element sticks
+        storage = k / np.pi * (theta - 0.5 * np.sin(2.0 * theta))
+        loss = 4.0 * k * ratio * (1.0 - ratio) / np.pi
+        return self.intact_fraction(amp[..., 0]) * np.sum(storage + 1j * loss, axis=-1)
+
 ElementUnion = Annotated[
     Union[Spring, SpringTable, CubicSpring, Dashpot, Maxwell, Prony, Prandtl, Masing, Elastoslide,
-          Mullins, VariableMaxwell, Pfeffer, Payne, PowerLaw],
+          Mullins, VariableMaxwell, Pfeffer, Payne, PowerLaw, FillerNetwork],
     Field(discriminator="kind"),
 ]
 
 ELEMENT_KINDS = ("spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl",
-                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law")
+                 "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law",
+                 "filler_network")

@@ -37,6 +37,8 @@ SLIDER_BANK = 5
 VARIABLE_MAXWELL = 6
 PFEFFER = 7
 PAYNE = 8
+FILLER_NETWORK = 9
+MAXWELL_BANK = 10
 
 N_HEADER = 3  # stored, dissipated, torque
 
@@ -683,6 +685,50 @@ def payne(p, po, s, so, x0, x1, h):
     return t1
 
 
+@njit(cache=CACHE, nogil=True, error_model="numpy", fastmath={"reassoc"})  # vectorised sums
+def _maxwell_terms(p, ko, s, eo, n, dx):
+    """Advance the elongations s[eo:eo+n] of n Maxwell terms (springs p[ko:ko+n]) by the step's
+    cached decay and ramp factors (after them in s); return (torque, stored, dissipated)."""
+    torque = 0.0
+    energy = 0.0
+    dissipated = 0.0
+    for i in range(n):
+        k = p[ko + i]
+        e0 = s[eo + i]
+        e1 = e0 * s[eo + n + i] + dx * s[eo + 2 * n + i]
+        s[eo + i] = e1
+        torque += k * e1
+        energy += k * e1 * e1
+        # dashpot stroke dx - (e1 - e0), carrying the mean spring force
+        dissipated += k * (e0 + e1) * (dx - (e1 - e0))
+    return torque, 0.5 * energy, 0.5 * dissipated
+
+
+@njit(inline="always", **JIT)
+def maxwell_bank(p, po, s, so, x0, x1, h):
+    """n Maxwell terms in parallel in one pass (a Prony series: the power-law branch), each
+    exact as :func:`maxwell` for the step's constant rate.
+
+    params: [n, k_1..k_n, c_1..c_n]; internal: cached h, k_1, c_1 (the key of the cache), then
+    the elongations e_1..e_n, the decays exp(-h k_i/c_i) and the ramp factors tau_i (1 - decay_i)/h.
+    """
+    n = int(p[po])
+    eo = so + 6
+    if s[so + 3] != h or s[so + 4] != p[po + 1] or s[so + 5] != p[po + 1 + n]:
+        s[so + 3] = h
+        s[so + 4] = p[po + 1]
+        s[so + 5] = p[po + 1 + n]
+        for i in range(n):
+            tau = p[po + 1 + n + i] / p[po + 1 + i]
+            s[eo + n + i] = np.exp(-h / tau)
+            s[eo + 2 * n + i] = -tau * np.expm1(-h / tau) / h
+    torque, energy, dissipated = _maxwell_terms(p, po + 1, s, eo, n, x1 - x0)
+    s[so + 0] = energy
+    s[so + 1] += dissipated
+    s[so + 2] = torque
+    return torque
+
+
 # ---------------------------------------------------------------- the compiled coupling
 @njit(inline="always", **JIT)
 def step_element(code, p, po, s, so, x0, x1, h):
@@ -705,6 +751,10 @@ def step_element(code, p, po, s, so, x0, x1, h):
         return pfeffer(p, po, s, so, x0, x1, h)
     if code == PAYNE:
         return payne(p, po, s, so, x0, x1, h)
+    if code == FILLER_NETWORK:
+        return _filler_network.filler_network(p, po, s, so, x0, x1, h)
+    if code == MAXWELL_BANK:
+        return maxwell_bank(p, po, s, so, x0, x1, h)
     return np.nan
 
 
@@ -760,3 +810,10 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
 step_batch = njit(**JIT)(_step_batch)
 run_history = njit(**JIT)(_run_history)
 run_history_parallel = njit(parallel=True, **JIT)(_run_history)
+
+
+# The filler network's kernel lives in its own module (it takes JIT and CACHE from here), imported
+# last, as a module resolved when the dispatch compiles, so that both load in either order.
+# numba's cache of the dispatch above is keyed on this file only: after changing that module
+# alone, clear the compiled caches (droptower/rheology/__pycache__/*.nbi, *.nbc).
+from droptower.rheology import filler_network as _filler_network  # noqa: E402

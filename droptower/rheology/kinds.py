@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from droptower.rheology import filler_network
 from droptower.rheology import kernels as K
 
 HEADER = ("stored_energy_j", "dissipated_energy_j", "torque_nm")
@@ -227,8 +228,25 @@ PAYNE = KernelKind(
               "half_cycle_sign", "mode", "cached_centre_decay", "cached_h", "cached_rest_decay"),
     stiffness_bound=_payne_stiffness, damping_bound=_payne_damping)
 
+MAXWELL_BANK = KernelKind(
+    "maxwell_bank", K.MAXWELL_BANK, K.maxwell_bank, params=("n",),
+    internal=("cached_h", "cached_k1", "cached_c1"),  # then e_1..e_n, their decays and ramp factors: 3n slots
+    # each term's tangent k_i tau_i (1 - exp(-h/tau_i)) / h <= k_i
+    stiffness_bound=lambda v, p, motion: float(np.sum(p[1:1 + int(v["n"])])),
+    n_params=lambda v: 1 + 2 * int(v["n"]), n_internal=lambda v: 3 + 3 * int(v["n"]))
+FILLER_NETWORK = KernelKind(
+    "filler_network", K.FILLER_NETWORK, filler_network.filler_network,
+    params=("n", "breakdown_angle", "two_m", "recovery_time", "centre_relaxation_time"),
+    internal=("damage", "centre_elongation_rad", "cached_h", "cached_recovery_decay", "cached_centre_decay",
+              "cached_centre_gain", "cached_g_cap", "cached_threshold_rad"),  # then e_1..e_n
+    # every spring of the intact network sticking (g <= 1); the element has no viscous part
+    stiffness_bound=lambda v, p, motion: filler_network.max_tangent_stiffness(p),
+    n_params=lambda v: filler_network.HEADER_PARAMS + 2 * int(v["n"]),
+    n_internal=lambda v: filler_network.N_INTERNAL_FIXED + int(v["n"]))
+
 KINDS: dict[int, KernelKind] = {k.code: k for k in (
-    LINEAR_SPRING, TABLE_SPRING, CUBIC_SPRING, DASHPOT, MAXWELL, SLIDER_BANK, VARIABLE_MAXWELL, PFEFFER, PAYNE)}
+    LINEAR_SPRING, TABLE_SPRING, CUBIC_SPRING, DASHPOT, MAXWELL, SLIDER_BANK, VARIABLE_MAXWELL, PFEFFER, PAYNE,
+    MAXWELL_BANK, FILLER_NETWORK)}
 
 
 def kind_of(code: int) -> KernelKind:
