@@ -81,6 +81,10 @@ FACTORIES = {
                         "exponent": r.uniform(0.4, 0.8), "loss_stiffness": r.uniform(0, 500),
                         "loss_peak_stiffness": r.uniform(0, 3e3), "storage_frequency_exponent": r.choice([0.0, 0.1]),
                         "loss_frequency_exponent": r.choice([0.0, 0.1]), "memory_time": 0.5},
+    "filler_network": lambda r: {"stiffness": r.uniform(1e3, 2e4), "critical_angle": r.uniform(1e-3, 2e-2),
+                                 "exponent": r.uniform(0.4, 0.8), "breakdown_angle": r.uniform(1e-3, 5e-2),
+                                 "recovery_time": r.uniform(0.01, 1.0), "centre_relaxation_time": r.uniform(0.01, 1.0),
+                                 "n": 8},
     "power_law": lambda r: {"storage_stiffness": r.uniform(1e3, 5e3), "loss_factor": r.uniform(0.1, 1),
                             "reference_frequency": 100.0, "min_frequency": 10.0, "max_frequency": 1e3},
 }

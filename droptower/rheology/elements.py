@@ -657,7 +657,7 @@ def log_logistic_bins(median: float, exponent: float, n: int, tail: float = 1e-3
 
 class FillerNetwork(ElementSpec):
     """The Payne effect of filled rubber from state variables valid for any history
-    (:mod:`droptower.rheology.filler_network`).
+    (:func:`droptower.rheology.kernels.filler_network` states its variables and energy books).
 
     An Iwan network of ``n`` Jenkins elements (spring in series with a Coulomb slider; stiffness
     ``stiffness`` in all, yield angles log-logistic about ``critical_angle`` with ``exponent``

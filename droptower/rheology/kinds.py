@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from droptower.rheology import filler_network
 from droptower.rheology import kernels as K
 
 HEADER = ("stored_energy_j", "dissipated_energy_j", "torque_nm")
@@ -235,14 +234,14 @@ MAXWELL_BANK = KernelKind(
     stiffness_bound=lambda v, p, motion: float(np.sum(p[1:1 + int(v["n"])])),
     n_params=lambda v: 1 + 2 * int(v["n"]), n_internal=lambda v: 3 + 3 * int(v["n"]))
 FILLER_NETWORK = KernelKind(
-    "filler_network", K.FILLER_NETWORK, filler_network.filler_network,
+    "filler_network", K.FILLER_NETWORK, K.filler_network,
     params=("n", "breakdown_angle", "two_m", "recovery_time", "centre_relaxation_time"),
     internal=("damage", "centre_elongation_rad", "cached_h", "cached_recovery_decay", "cached_centre_decay",
               "cached_centre_gain", "cached_g_cap", "cached_threshold_rad"),  # then e_1..e_n
     # every spring of the intact network sticking (g <= 1); the element has no viscous part
-    stiffness_bound=lambda v, p, motion: filler_network.max_tangent_stiffness(p),
-    n_params=lambda v: filler_network.HEADER_PARAMS + 2 * int(v["n"]),
-    n_internal=lambda v: filler_network.N_INTERNAL_FIXED + int(v["n"]))
+    stiffness_bound=lambda v, p, motion: float(np.sum(p[K.FN_HEADER_PARAMS:K.FN_HEADER_PARAMS + int(v["n"])])),
+    n_params=lambda v: K.FN_HEADER_PARAMS + 2 * int(v["n"]),
+    n_internal=lambda v: K.FN_N_INTERNAL + int(v["n"]))
 
 KINDS: dict[int, KernelKind] = {k.code: k for k in (
     LINEAR_SPRING, TABLE_SPRING, CUBIC_SPRING, DASHPOT, MAXWELL, SLIDER_BANK, VARIABLE_MAXWELL, PFEFFER, PAYNE,

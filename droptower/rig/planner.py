@@ -195,18 +195,6 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     return out
 
 
-def _first_cycle_fit(t: np.ndarray, angle: np.ndarray) -> tuple[float, float]:
-    """(omega rad/s, delta 1/s) of a damped sinusoid fitted to the decay's first cycle, as the
-    extractor fits a log; (NaN, NaN) where the fit fails."""
-    try:
-        omega0, delta0 = start_frequency_and_decay(t, angle, 0.0)
-        window = t <= 2.0 * np.pi / omega0
-        _, delta, omega, _ = fit_decay(t[window], angle[window], omega0, delta0).params
-        return float(omega), float(delta)
-    except (DroptowerError, ValueError, np.linalg.LinAlgError):  # the two-peak estimate stands in
-        return math.nan, math.nan
-
-
 def _warnings(rig: RigConfig, r, duration_s: float) -> list[str]:
     w = []
     if not any(math.isclose(r.inertia_kgm2, j, rel_tol=1e-9) for j in rig.inertias_kgm2):
