@@ -61,10 +61,12 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 
 def test_grid_is_refined_where_interpolation_misses(shipped) -> None:
-    """Where the coupling's response jumps (the heaviest lever at 1000 N*m preload, between 0.195
-    and 0.219 m) the grid's heights close in; elsewhere interpolation in log height stays within
-    the refinement tolerance of a direct prediction at random heights (seeded)."""
-    rig, coupling, _ = shipped
+    """Where a coupling's response jumps (the previous reference coupling, rapp2022_nr60_payne, on
+    the heaviest lever at 1000 N*m preload between 0.195 and 0.219 m: its rest logic) the grid's
+    heights close in; elsewhere interpolation in log height stays within the refinement
+    tolerance of a direct prediction at random heights (seeded)."""
+    rig = shipped[0]
+    coupling = load_coupling("rapp2022_nr60_payne")
     heights, pred = _grid(rig, coupling, [(0.5233, 1.0, 1000.0)], GRID_HEIGHTS)
     assert len(heights) > GRID_HEIGHTS and len(pred) == len(heights)
     jump = (heights > 0.19) & (heights < 0.23)
