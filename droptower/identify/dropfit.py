@@ -37,6 +37,8 @@ from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
 from droptower.identify.fit import Counter, Parameter, clip_to_bounds, fit_rows
 from droptower.identify.lever import at_times, free_decay
+from droptower.identify.search import global_fit
+from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.preload import hold_at
 
@@ -46,8 +48,14 @@ DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer")
 TOL = 1e-6
 #: Weight of the prior toward the starting point, per square root of the number of tests.
 PRIOR_WEIGHT = 1e-3
-#: Random starting points tried (in one batched call) before the least-squares fit.
-STARTS = 12
+#: Candidates of the global search per free parameter (Latin hypercube over the bounds), at least MIN_STARTS.
+STARTS_PER_PARAMETER = 24
+MIN_STARTS = 96
+#: Local least-squares fits from the best distinct candidates.
+LOCAL_FITS = 3
+#: The re-simulation's own accuracy against the rig, relative to a test's amplitude (tested:
+#: within 0.2 %; the integration step's first-order part): the verdict's allowance beside the noise.
+RESIMULATION_ACCURACY = 1e-3
 
 
 @dataclass(frozen=True)
@@ -242,6 +250,8 @@ class DropIdentification:
     wall_s: float
     step_bias: np.ndarray = field(default_factory=lambda: np.zeros(0))
     coupling_file: str | None = None
+    verdict: Verdict | None = None
+    search: dict[str, Any] = field(default_factory=dict)
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -262,7 +272,8 @@ class DropIdentification:
             "holdout_error": self.holdout_error, "tests_used": self.tests_used,
             "tests_held_out": self.tests_held_out, "tests_excluded": self.tests_excluded,
             "evaluations": self.evaluations, "nfev": self.nfev, "wall_s": self.wall_s,
-            "coupling_file": self.coupling_file})
+            "coupling_file": self.coupling_file, **(self.verdict.as_dict() if self.verdict else {}),
+            "search": self.search})
 
 
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
@@ -278,6 +289,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
+    if kind == "zerodim6":  # both branches may act at the drop tower's frequencies: no split of the times
+        options = {"tau_split_s": 0.0, **(options or {})}
     family = family_class(kind)(drop_scale(decays), options)
     fit_idx, hold_idx = holdout_split(decays, settings.holdout_fraction)
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
@@ -286,11 +299,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
-    x0 = start_search(problem, family, x0, free, settings.seed)
-    objective = problem.with_prior(x0, free)
-    sol = fit_rows(params, x0, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
-    if "p" in family.names and not given[family.names.index("p")]:
-        sol = walk_p(problem, family, sol, objective, settings.max_nfev)
+    sol, search = drop_search(problem, family, x0, free, settings,
+                              "p" in family.names and not given[family.names.index("p")])
     sol = problem.without_prior(sol)
     # the integration step's bias: the parameters' shift to the half step, Richardson-scaled
     # for the first-order part of the error (the core's rate-dependent elements, see .lever)
@@ -300,6 +310,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
     std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
     fit_err = summarise(per_test_errors(problem, sol.values))
+    verdict = drop_verdict(problem, sol.values, bound_hits(params, sol.at_bounds), sol.converged)
     hold_err = None
     if hold_idx:
         hold = DropProblem(family, [decays[i] for i in hold_idx], settings)
@@ -307,7 +318,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     return DropIdentification(
         kind, family, sol.values, std, sol.at_bounds, sol.non_identifiable, sol.converged, sol.message, fit_err,
         hold_err, [decays[i].name for i in fit_idx], [decays[i].name for i in hold_idx], list(excluded or []),
-        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z)
+        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z, verdict=verdict, search=search)
 
 
 def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int) -> Any:
@@ -342,24 +353,40 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_n
     return min(fits.values(), key=cost)
 
 
-def start_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray, seed: int) -> np.ndarray:
-    """The best of ``STARTS`` starting points (the first guess and random ones up to a factor
-    e^1.5 ~ 4.5 around it in every free logarithmic parameter; the elastoslide's p over its
-    candidates), all evaluated in one batched call on the fitting tests."""
-    rng = np.random.default_rng(seed)
-    params: list[Parameter] = family.parameters
-    cands = np.repeat(x0[None], STARTS, axis=0)
-    for j, p in enumerate(params):
-        if free[j] and p.log:
-            cands[1:, j] = x0[j] * np.exp(rng.uniform(-1.5, 1.5, STARTS - 1))
-    if "p" in family.names and "p_candidates" in family.options:
-        jp = family.names.index("p")
-        cands[:, jp] = rng.choice([int(v) for v in family.options["p_candidates"]], STARTS)
-        cands[0, jp] = x0[jp]
-    cands = np.array([clip_to_bounds(params, c) for c in cands])
-    r = problem.residuals(cands)
-    cost = np.where(np.isfinite(r).all(axis=1), np.sum(r * r, axis=1), np.inf)
-    return cands[int(np.argmin(cost))]
+def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray,
+                settings: DropFitSettings, choose_p: bool) -> tuple[Any, dict[str, Any]]:
+    """Global search over the bounds (:func:`~droptower.identify.search.global_fit`: the first
+    guess and a Latin hypercube in the optimised variables, the elastoslide's p over its
+    candidates, all in batched calls), then bounded least squares with a weak prior toward
+    each of the best few distinct candidates (and the odd p walked); the lowest cost wins."""
+    params = family.parameters
+    n_free = int(free.sum())
+    choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
+
+    def local(start: np.ndarray) -> Any:
+        objective = problem.with_prior(start, free)
+        sol = fit_rows(params, start, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
+        if choices:
+            sol = walk_p(problem, family, sol, objective, settings.max_nfev)
+        return sol
+
+    n = max(MIN_STARTS, STARTS_PER_PARAMETER * n_free)
+    return global_fit(params, x0, problem.residuals, free=free, n_candidates=n, keep=LOCAL_FITS,
+                      seed=settings.seed, choices=choices, local=local)
+
+
+def drop_verdict(problem: DropProblem, values: np.ndarray, at_bound: list[str], converged: bool) -> Verdict:
+    """The fit's RMS angle error over the fitting tests (rad) against the logs' pre-trigger
+    noise, with the re-simulation's accuracy (:data:`RESIMULATION_ACCURACY` of each test's
+    amplitude) added in quadrature."""
+    a, _ = problem.simulate(values[None])
+    err = ((a[0] - problem.angle) ** 2)[problem.mask]
+    noise = np.array([d.angle_noise_rad for d in problem.decays])
+    counts = problem.mask.sum(axis=1)
+    sigma = float(np.sqrt(np.sum(noise ** 2 * counts) / counts.sum()))
+    accuracy = float(np.sqrt(np.sum((RESIMULATION_ACCURACY * np.array([d.amplitude_rad for d in problem.decays])) ** 2
+                                    * counts) / counts.sum()))
+    return judge(float(np.sqrt(np.mean(err))), sigma, "rad", at_bound, accuracy=accuracy, converged=converged)
 
 
 def tested_range(decays: list[DropDecay]) -> tuple[tuple[float, float], tuple[float, float]]:

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.identify.data import Segment
-from droptower.identify.fit import Identification, Metrics, metrics
+from droptower.identify.fit import Identification, metrics
 
 
 def _clean(value: Any) -> Any:
@@ -96,35 +96,39 @@ def _brief(value: Any) -> str:
 
 
 # ---------------------------------------------------------------------------- comparison
-#: How ``compare-models`` ranks (printed with the ranking).
-RANKING_RULE = ("ranked by BIC = n_eff ln(RSS / n) + k ln(n_eff) on the fitting data (k parameters, n samples, "
-                "n_eff = n (1 - r1) / (1 + r1) for the residual's lag-1 correlation r1): more parameters rank "
-                "higher only if they lower the error by more than they cost; non-converged fits last")
+def ranking_table(results: dict[str, Identification], segments: list[Segment]) -> pd.DataFrame:
+    """One row per family, best first by :data:`~droptower.identify.criterion.RULE`, every
+    family scored on the same compared samples of ``segments`` (its fitting data) against the
+    data's own noise floor; ``delta_bic`` is the distance to the best (above ~10: strong
+    evidence against the family)."""
+    from droptower.identify.criterion import bic
+    from droptower.identify.noise import servo_noise
 
-
-def bic(fit: Metrics, n_parameters: int) -> float:
-    """Bayesian information criterion of a least-squares fit with correlated residuals: the
-    Gaussian log-likelihood and the penalty on the effective number of independent samples."""
-    rho = min(max(fit.residual_lag1, 0.0), 0.99)
-    n_eff = max(fit.n_samples * (1.0 - rho) / (1.0 + rho), 1.0)
-    return n_eff * math.log(max(fit.rmse_nm, 1e-300) ** 2) + n_parameters * math.log(n_eff)
-
-
-def ranking_table(results: dict[str, Identification]) -> pd.DataFrame:
-    """One row per family, best first by :data:`RANKING_RULE`; ``delta_bic`` is the distance
-    to the best (above ~10: strong evidence against the family)."""
+    noise = servo_noise(segments)
     rows = []
     for kind, r in results.items():
+        rss = sum(float(np.sum((p - s.torque_nm)[s.compared] ** 2)) for p, s in zip(r.predict(segments), segments))
         rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
                      "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
-                     "bic": bic(r.fit, r.n_parameters),
+                     "bic": bic(rss, noise.n_samples, noise.n_eff, noise.sigma, r.n_parameters),
                      "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
-    table = pd.DataFrame(rows)
+    return ranked(pd.DataFrame(rows), noise.sigma, noise.n_eff)
+
+
+def ranked(table: pd.DataFrame, sigma: float, n_eff: float) -> pd.DataFrame:
+    """``table`` (columns model, n_parameters, bic, converged) best first by the criterion's
+    rule, with ``delta_bic`` and the common noise floor and effective sample size."""
+    from droptower.identify.criterion import order
+
     if table.empty:
         return table
-    table["_rank"] = ~table["converged"]
-    table = table.sort_values(["_rank", "bic"]).drop(columns="_rank").reset_index(drop=True)
-    table.insert(5, "delta_bic", table["bic"] - table["bic"].iloc[0])
+    names = [m for ok in (True, False) for m in
+             order(list(zip(*(table.loc[table["converged"] == ok, c] for c in ("model", "n_parameters", "bic")))))]
+    table = table.set_index("model").loc[names].reset_index()
+    best = table["bic"][table["converged"]].min() if table["converged"].any() else table["bic"].min()
+    table.insert(table.columns.get_loc("bic") + 1, "delta_bic", table["bic"] - best)
+    table["noise_floor"] = sigma
+    table["n_eff"] = n_eff
     table.index = table.index + 1
     return table
 

@@ -1,0 +1,130 @@
+"""A global search before the local least squares: Latin-hypercube multi-start over the bounds.
+
+Candidates fill the whole box of the free parameters in their optimised variables (the
+logarithm of a positive parameter spanning decades, value / scale otherwise) as a Latin
+hypercube (McKay, Beckman & Conover 1979), so no decade of any parameter is left out; all
+candidates of a batch are evaluated in ONE call of the residual function (the core advances
+every parameter set at once). Bounded least squares (:func:`~droptower.identify.fit.fit_rows`)
+then runs from the best few distinct candidates and the lowest cost wins.
+
+Exchangeable branches (parameters ``tau<i>_s`` with the same bounds, each with its partners
+``<letter><i>_...`` of the same bounds) describe the same coupling in any order: every
+candidate has them sorted by relaxation time, so the search does not spend its candidates on
+copies of one coupling.
+"""
+from __future__ import annotations
+
+import re
+from typing import Callable
+
+import numpy as np
+from scipy.stats import qmc
+
+from droptower.identify.fit import Parameter, RowsFit, clip_to_bounds, fit_rows
+
+#: Candidates evaluated per batch (one call of the residual function each).
+BATCH = 64
+
+
+def exchangeable_branches(parameters: list[Parameter]) -> list[list[int]]:
+    """Index groups, one per branch (its relaxation time first), of branches that differ only
+    by their number: same parameter names apart from it and the same bounds."""
+    names = [p.name for p in parameters]
+    branches: dict[str, list[int]] = {}
+    for i, n in enumerate(names):
+        m = re.fullmatch(r"tau(\d+)_s", n)
+        if m:
+            partners = [j for j, o in enumerate(names) if j != i and re.fullmatch(rf"[a-z]+{m.group(1)}_[a-z_0-9]+", o)
+                        and not o.startswith("tau")]
+            branches[m.group(1)] = [i] + partners
+
+    def signature(group: list[int]) -> tuple:
+        return tuple((re.sub(r"\d+", "#", names[j]), parameters[j].lower, parameters[j].upper) for j in group)
+
+    out: dict[tuple, list[list[int]]] = {}
+    for group in branches.values():
+        out.setdefault(signature(group), []).append(group)
+    return [g for groups in out.values() if len(groups) > 1 for g in groups]
+
+
+def order_branches(parameters: list[Parameter], rows: np.ndarray) -> np.ndarray:
+    """``rows`` with every set of exchangeable branches sorted by relaxation time (ascending)."""
+    groups = exchangeable_branches(parameters)
+    if not groups:
+        return rows
+    rows = rows.copy()
+    sets: dict[tuple, list[list[int]]] = {}
+    for g in groups:
+        sets.setdefault(tuple(re.sub(r"\d+", "#", parameters[j].name) for j in g), []).append(g)
+    for gs in sets.values():
+        block = np.array(gs)  # (branches, parameters per branch)
+        taus = rows[:, block[:, 0]]
+        perm = np.argsort(taus, axis=1)
+        rows[:, block.reshape(-1)] = rows[:, block[perm].reshape(len(rows), -1)]
+    return rows
+
+
+def candidates(parameters: list[Parameter], x0: np.ndarray, free: np.ndarray, n: int, seed: int = 0,
+               choices: dict[int, list[float]] | None = None) -> np.ndarray:
+    """``n`` parameter sets (rows, physical values): ``x0`` first, then a Latin hypercube over
+    the free parameters' bounds in their optimised variables; ``choices``: parameters that take
+    one of a few values (e.g. an odd exponent), drawn among them."""
+    idx = np.flatnonzero(free)
+    rows = np.repeat(np.asarray(x0, float)[None], n, axis=0)
+    if n > 1 and idx.size:
+        unit = qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1)
+        lo, hi = np.array([parameters[i].z_bounds() for i in idx]).T
+        z = lo + unit * (hi - lo)
+        for k, i in enumerate(idx):
+            rows[1:, i] = [parameters[i].to_value(v) for v in z[:, k]]
+    rng = np.random.default_rng(seed)
+    for i, values in (choices or {}).items():
+        rows[1:, i] = rng.choice(values, n - 1)
+    rows = order_branches(parameters, rows)
+    return np.array([clip_to_bounds(parameters, r) for r in rows])
+
+
+def costs(residuals: Callable[[np.ndarray], np.ndarray], rows: np.ndarray, batch: int = BATCH) -> np.ndarray:
+    """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite."""
+    out = []
+    for a in range(0, len(rows), batch):
+        r = residuals(rows[a:a + batch])
+        out.append(np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1), np.inf))
+    return np.concatenate(out)
+
+
+def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray, keep: int,
+                min_distance: float = 0.05) -> np.ndarray:
+    """The ``keep`` lowest-cost rows that differ from each other by more than ``min_distance``
+    of the box (in the optimised variables, largest coordinate)."""
+    lo, hi = np.array([p.z_bounds() for p in parameters]).T
+    span = np.where(hi > lo, hi - lo, 1.0)
+    z = np.array([[p.to_z(v) for p, v in zip(parameters, r)] for r in rows]) / span
+    chosen: list[int] = []
+    for i in np.argsort(cost):
+        if not np.isfinite(cost[i]) or len(chosen) == keep:
+            break
+        if all(np.max(np.abs(z[i] - z[j])) > min_distance for j in chosen):
+            chosen.append(int(i))
+    return rows[chosen]
+
+
+def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+               free: np.ndarray, n_candidates: int, keep: int = 3, seed: int = 0, max_nfev: int | None = None,
+               tol: float = 1e-7, choices: dict[int, list[float]] | None = None,
+               local: Callable[[np.ndarray], RowsFit] | None = None) -> tuple[RowsFit, dict]:
+    """Latin-hypercube search over the bounds, then least squares from the ``keep`` best
+    distinct candidates (``local(start)``, default :func:`fit_rows` on ``residuals``); the
+    fit of lowest cost wins. Returns it and a summary (candidates, their best cost, the local
+    fits' costs)."""
+    rows = candidates(parameters, x0, free, n_candidates, seed, choices)
+    cost = costs(residuals, rows)
+    starts = best_starts(parameters, rows, cost, keep)
+    if local is None:
+        def local(start: np.ndarray) -> RowsFit:
+            return fit_rows(parameters, start, residuals, free=free, max_nfev=max_nfev, tol=tol)
+    fits = [local(s) for s in starts]
+    local_costs = [float(f.residual @ f.residual) for f in fits]
+    best = fits[int(np.argmin(local_costs))]
+    return best, {"candidates": int(n_candidates), "best_candidate_cost": float(np.min(cost)),
+                  "local_fits": len(fits), "local_costs": local_costs}
