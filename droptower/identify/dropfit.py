@@ -252,6 +252,8 @@ class DropIdentification:
     coupling_file: str | None = None
     verdict: Verdict | None = None
     search: dict[str, Any] = field(default_factory=dict)
+    angle_rss_rad2: float = math.nan
+    angle_samples: int = 0
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -289,8 +291,6 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
-    if kind == "zerodim6":  # both branches may act at the drop tower's frequencies: no split of the times
-        options = {"tau_split_s": 0.0, **(options or {})}
     family = family_class(kind)(drop_scale(decays), options)
     fit_idx, hold_idx = holdout_split(decays, settings.holdout_fraction)
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
@@ -310,7 +310,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
     std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
     fit_err = summarise(per_test_errors(problem, sol.values))
-    verdict = drop_verdict(problem, sol.values, bound_hits(params, sol.at_bounds), sol.converged)
+    verdict, rss, n_samples = drop_verdict(problem, sol.values, bound_hits(params, sol.at_bounds), sol.converged)
     hold_err = None
     if hold_idx:
         hold = DropProblem(family, [decays[i] for i in hold_idx], settings)
@@ -318,7 +318,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     return DropIdentification(
         kind, family, sol.values, std, sol.at_bounds, sol.non_identifiable, sol.converged, sol.message, fit_err,
         hold_err, [decays[i].name for i in fit_idx], [decays[i].name for i in hold_idx], list(excluded or []),
-        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z, verdict=verdict, search=search)
+        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z, verdict=verdict, search=search,
+        angle_rss_rad2=rss, angle_samples=n_samples)
 
 
 def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int) -> Any:
@@ -375,10 +376,12 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
                       seed=settings.seed, choices=choices, local=local)
 
 
-def drop_verdict(problem: DropProblem, values: np.ndarray, at_bound: list[str], converged: bool) -> Verdict:
+def drop_verdict(problem: DropProblem, values: np.ndarray, at_bound: list[str],
+                 converged: bool) -> tuple[Verdict, float, int]:
     """The fit's RMS angle error over the fitting tests (rad) against the logs' pre-trigger
     noise, with the re-simulation's accuracy (:data:`RESIMULATION_ACCURACY` of each test's
-    amplitude) added in quadrature."""
+    amplitude) added in quadrature; and the sum of squared angle errors (rad^2) over the
+    compared samples and their number (the ranking's likelihood term)."""
     a, _ = problem.simulate(values[None])
     err = ((a[0] - problem.angle) ** 2)[problem.mask]
     noise = np.array([d.angle_noise_rad for d in problem.decays])
@@ -386,7 +389,8 @@ def drop_verdict(problem: DropProblem, values: np.ndarray, at_bound: list[str], 
     sigma = float(np.sqrt(np.sum(noise ** 2 * counts) / counts.sum()))
     accuracy = float(np.sqrt(np.sum((RESIMULATION_ACCURACY * np.array([d.amplitude_rad for d in problem.decays])) ** 2
                                     * counts) / counts.sum()))
-    return judge(float(np.sqrt(np.mean(err))), sigma, "rad", at_bound, accuracy=accuracy, converged=converged)
+    verdict = judge(float(np.sqrt(np.mean(err))), sigma, "rad", at_bound, accuracy=accuracy, converged=converged)
+    return verdict, float(np.sum(err)), int(err.size)
 
 
 def tested_range(decays: list[DropDecay]) -> tuple[tuple[float, float], tuple[float, float]]:

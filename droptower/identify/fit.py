@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -439,7 +439,8 @@ class Identification:
     coupling: the single coupling written by ``--out``; coupling_note: what that coupling
     represents when the model's parameters depend on amplitude or frequency; extra: the
     family's report (analytic identification, parameter functions, ...); converged: every
-    least-squares stage converged; predict: the model's torque on other segments.
+    least-squares stage converged; predict: the model's torque on other segments; verdict:
+    the fit against the data's noise floor (:class:`~droptower.identify.verdict.Verdict`).
     """
 
     family: str
@@ -455,6 +456,7 @@ class Identification:
     extra: dict = field(default_factory=dict)
     holdout: Metrics | None = None
     time_s: float = 0.0
+    verdict: Any = None
 
     @property
     def converged(self) -> bool:

@@ -38,6 +38,7 @@ def result_dict(ident: Identification) -> dict[str, Any]:
     return _clean({
         "model": ident.family,
         "converged": ident.converged,
+        **(ident.verdict.as_dict() if ident.verdict else {}),
         "n_parameters": ident.n_parameters,
         "parameters": {n: {"value": v, "std_error": ident.std_error.get(n)} for n, v in ident.parameters.items()},
         "derived": ident.derived,
@@ -79,6 +80,13 @@ def result_text(ident: Identification) -> str:
                      f"{'converged' if s.converged else 'not converged: ' + s.message}")
     if ident.coupling_note:
         lines.append(f"coupling: {ident.coupling_note}")
+    if "global_search" in ident.extra:
+        g = ident.extra["global_search"]
+        lines.append(f"global search: {g['candidates']} candidates over the bounds, least squares from the best "
+                     f"{g['local_fits']}" + (f" (the staged fit: nRMSE {100 * ident.extra['staged_fit']['nrmse']:.3f} %)"
+                                             if "staged_fit" in ident.extra else ""))
+    if ident.verdict:
+        lines.append(ident.verdict.text())
     for key in ("analytic", "loading_curve", "p_walk", "amplitude_functions", "frequency_functions"):
         if key in ident.extra:
             lines.append(f"{key.replace('_', ' ')}: {_brief(ident.extra[key])}")
@@ -111,13 +119,37 @@ def ranking_table(results: dict[str, Identification], segments: list[Segment]) -
         rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
                      "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
                      "bic": bic(rss, noise.n_samples, noise.n_eff, noise.sigma, r.n_parameters),
+                     "verdict": r.verdict.verdict if r.verdict else None,
                      "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
-    return ranked(pd.DataFrame(rows), noise.sigma, noise.n_eff)
+    return ranked(pd.DataFrame(rows), {"noise_floor_nm": noise.sigma, "n_eff": noise.n_eff})
 
 
-def ranked(table: pd.DataFrame, sigma: float, n_eff: float) -> pd.DataFrame:
+def drop_ranking_table(results: dict[str, Any]) -> pd.DataFrame:
+    """Families fitted to one drop-test campaign (:class:`~droptower.identify.dropfit.DropIdentification`
+    each, the same fitting tests), ranked like :func:`ranking_table`: the likelihood term on the
+    angle error over the same compared samples, the noise model the logs' pre-trigger noise
+    with the re-simulation's accuracy in quadrature (the verdict's allowance), the sensor noise
+    white (n_eff = n)."""
+    from droptower.identify.criterion import bic
+
+    first = next(iter(results.values()))
+    sigma, n = first.verdict.allowance, first.angle_samples
+    rows = []
+    for kind, r in results.items():
+        if r.angle_samples != n:
+            raise ValueError("drop-test fits ranked together must share their fitting tests")
+        rows.append({"model": kind, "n_parameters": len(r.family.names),
+                     "fit_angle_nrmse_percent": 100 * r.fit_error["angle_nrmse"],
+                     "holdout_angle_nrmse_percent": 100 * r.holdout_error["angle_nrmse"] if r.holdout_error else np.nan,
+                     "bic": bic(r.angle_rss_rad2, n, float(n), sigma, len(r.family.names)),
+                     "verdict": r.verdict.verdict, "fit_time_s": r.wall_s, "evaluations": r.evaluations,
+                     "converged": r.converged})
+    return ranked(pd.DataFrame(rows), {"noise_allowance_rad": sigma, "n_eff": float(n)})
+
+
+def ranked(table: pd.DataFrame, common: dict[str, float]) -> pd.DataFrame:
     """``table`` (columns model, n_parameters, bic, converged) best first by the criterion's
-    rule, with ``delta_bic`` and the common noise floor and effective sample size."""
+    rule, with ``delta_bic`` and the ``common`` columns (the noise model, the effective sample size)."""
     from droptower.identify.criterion import order
 
     if table.empty:
@@ -127,8 +159,8 @@ def ranked(table: pd.DataFrame, sigma: float, n_eff: float) -> pd.DataFrame:
     table = table.set_index("model").loc[names].reset_index()
     best = table["bic"][table["converged"]].min() if table["converged"].any() else table["bic"].min()
     table.insert(table.columns.get_loc("bic") + 1, "delta_bic", table["bic"] - best)
-    table["noise_floor"] = sigma
-    table["n_eff"] = n_eff
+    for key, value in common.items():
+        table[key] = value
     table.index = table.index + 1
     return table
 

@@ -15,12 +15,12 @@ copies of one coupling.
 from __future__ import annotations
 
 import re
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 from scipy.stats import qmc
 
-from droptower.identify.fit import Parameter, RowsFit, clip_to_bounds, fit_rows
+from droptower.identify.fit import Parameter, clip_to_bounds, fit_rows
 
 #: Candidates evaluated per batch (one call of the residual function each).
 BATCH = 64
@@ -60,7 +60,8 @@ def order_branches(parameters: list[Parameter], rows: np.ndarray) -> np.ndarray:
         block = np.array(gs)  # (branches, parameters per branch)
         taus = rows[:, block[:, 0]]
         perm = np.argsort(taus, axis=1)
-        rows[:, block.reshape(-1)] = rows[:, block[perm].reshape(len(rows), -1)]
+        at = np.arange(len(rows))[:, None]
+        rows[at, block.reshape(-1)[None, :]] = rows[at, block[perm].reshape(len(rows), -1)]
     return rows
 
 
@@ -88,8 +89,10 @@ def costs(residuals: Callable[[np.ndarray], np.ndarray], rows: np.ndarray, batch
     """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite."""
     out = []
     for a in range(0, len(rows), batch):
-        r = residuals(rows[a:a + batch])
-        out.append(np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1), np.inf))
+        with np.errstate(all="ignore"):  # candidates far out in the bounds may diverge: they cost inf
+            r = residuals(rows[a:a + batch])
+            out.append(np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1),
+                                np.inf))
     return np.concatenate(out)
 
 
@@ -112,19 +115,20 @@ def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray,
 def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
                free: np.ndarray, n_candidates: int, keep: int = 3, seed: int = 0, max_nfev: int | None = None,
                tol: float = 1e-7, choices: dict[int, list[float]] | None = None,
-               local: Callable[[np.ndarray], RowsFit] | None = None) -> tuple[RowsFit, dict]:
+               local: Callable[[np.ndarray], Any] | None = None,
+               cost_of: Callable[[Any], float] = lambda f: float(f.residual @ f.residual)) -> tuple[Any, dict]:
     """Latin-hypercube search over the bounds, then least squares from the ``keep`` best
     distinct candidates (``local(start)``, default :func:`fit_rows` on ``residuals``); the
-    fit of lowest cost wins. Returns it and a summary (candidates, their best cost, the local
-    fits' costs)."""
+    fit of lowest cost (``cost_of(fit)``) wins. Returns it and a summary (candidates, their
+    best cost, the local fits' costs)."""
     rows = candidates(parameters, x0, free, n_candidates, seed, choices)
     cost = costs(residuals, rows)
     starts = best_starts(parameters, rows, cost, keep)
     if local is None:
-        def local(start: np.ndarray) -> RowsFit:
+        def local(start: np.ndarray) -> Any:
             return fit_rows(parameters, start, residuals, free=free, max_nfev=max_nfev, tol=tol)
     fits = [local(s) for s in starts]
-    local_costs = [float(f.residual @ f.residual) for f in fits]
+    local_costs = [cost_of(f) for f in fits]
     best = fits[int(np.argmin(local_costs))]
     return best, {"candidates": int(n_candidates), "best_candidate_cost": float(np.min(cost)),
                   "local_fits": len(fits), "local_costs": local_costs}
