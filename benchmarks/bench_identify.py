@@ -27,6 +27,19 @@ Identification from drop tests (issue 10; ``--drops`` runs only these, ``--servo
 5. the Table-2 campaign (450 tests of ``rapp2022_nr60``) identified with ``--model template
    --template rapp2022_nr60`` (target <= 5 min on two cores);
 6. baseline measured in the same run: the rig simulating the same tests (pymunk, one batch).
+
+Randomised acceptance (``--random [--n N] [--families a,b]``; N = 30 per family by default):
+
+7. per family (zerodim6, elastoslide, masing, pfeffer, and the reference coupling
+   ``rapp2022_nr60`` as a template with random factors on its numbers) N couplings drawn at
+   random from wide ranges that keep the drop tower's first-cycle frequencies at 15-80 Hz
+   with a few cycles of decay (total stiffness 6-30 kN*m/rad for the rig's inertias, loss
+   factors up to ~0.3); each gets a 12-test virtual campaign (rig ``rapp2022``, sensor noise,
+   three inertias x heights 0.1-3 m) and a servo data set (the test types above, 15 s, 0.5 %
+   noise, 5 s hold-out). Success: drop tests K' <= 3 % and loss factor <= 10 % RMS against the
+   truth on a 4 x 3 servo grid inside the tested range; servo hold-out nRMSE <= 1 %. Printed:
+   success rates per family (target >= 97 %), the worst case, wall and CPU time per fit
+   (target <= 60 s); baseline in the same run: the rig simulating the campaign.
 """
 from __future__ import annotations
 
@@ -153,12 +166,150 @@ def table2() -> None:
           f"target <= 300 s: {'met' if wall <= 300 else 'MISSED'}")
 
 
+# ---------------------------------------------------------------------------- randomised acceptance
+RANDOM_FAMILIES = ("zerodim6", "elastoslide", "masing", "pfeffer", "template")
+#: Total stiffness range (N*m/rad) that puts the rig's inertias (0.156-0.523 kg*m^2) at 15-80 Hz.
+K_RANGE = (6e3, 3e4)
+
+
+def _log_uniform(rng, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def random_truth(kind: str, rng) -> dict:
+    """A coupling of family ``kind`` drawn from wide ranges (the drop tower's band, a few cycles)."""
+    k = _log_uniform(rng, *K_RANGE)
+    tau = lambda: _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))  # noqa: E731
+    if kind == "zerodim6":
+        k1 = k * rng.uniform(0.4, 0.8)
+        k2, k3 = (k - k1) * rng.dirichlet([1.0, 1.0])
+        t2, t3 = sorted([tau(), tau()], reverse=True)
+        return {"name": "random_zerodim6", "element": [
+            {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": k2, "damping": k2 * t2},
+            {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": rng.uniform(0.0, 1.0) * k3 / 0.01,
+             "damping": k3 * t3}]}
+    if kind == "elastoslide":
+        kk = k * rng.uniform(0.6, 1.0)
+        return {"name": "random_elastoslide", "element": [
+            {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
+             "v_r": _log_uniform(rng, 0.05, 1.0), "p": int(rng.choice([3, 5, 7, 9])), "n": 32}]}
+    if kind == "masing":
+        n = 7
+        kp = k * rng.uniform(0.2, 0.5)
+        c1, c2 = k * rng.uniform(0.05, 0.25, 2)
+        t1, t2 = sorted([tau(), tau()])
+        return {"name": "random_masing", "element": [
+            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
+            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n,
+             "alpha": rng.uniform(0.5, 3.0)},
+            {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
+            {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
+    if kind == "pfeffer":
+        alpha = _log_uniform(rng, 0.1, 1.0)
+        return {"name": "random_pfeffer", "element": [
+            {"kind": "pfeffer", "k1": k / (1 + alpha), "alpha": alpha, "beta": rng.uniform(0.0, 0.3), "gamma": tau()}]}
+    if kind == "template":
+        from droptower.identify.data import DataScale
+        from droptower.identify.families import TemplateFamily
+
+        fam = TemplateFamily(DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0), {"template": REFERENCE})
+        factors = np.exp(rng.uniform(np.log(0.6), np.log(1.6), len(fam.parameters)))
+        c = fam.coupling(factors)
+        return {"name": "random_template", "element": [e.model_dump(exclude_none=True) for e in c.elements]}
+    raise ValueError(kind)
+
+
+#: The reference coupling whose structure the template family fits.
+REFERENCE = "rapp2022_nr60"
+
+
+def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True) -> None:
+    import tempfile
+
+    from droptower.identify.dropfit import identify_drops, servo_agreement
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+
+    rig = load_rig("rapp2022")
+    cases = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+    heights = (0.1, 0.4, 1.0, 3.0)
+    hs = histories(0.25)
+    hold_h = {"holdout": H.random_profile(D(1.0), (0.5, 25.0), 5.0, FS, seed=12)}
+    summary = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for fi, kind in enumerate(families):
+            options = {"template": REFERENCE} if kind == "template" else None
+            rows = []
+            for i in range(n):
+                rng = np.random.default_rng(10_000 * (fi + 1) + i)
+                truth = parse_coupling(random_truth(kind, rng))
+                row = {"case": i}
+                if drops_:
+                    tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * a + b) for a, (j, m) in enumerate(cases)
+                             for b, h in enumerate(heights)]
+                    t0 = time.perf_counter()
+                    results = rig_simulate(rig, truth, tests, 0.25)
+                    row["rig_s"] = time.perf_counter() - t0
+                    paths = [r.write_log(Path(tmp) / f"{kind}_{i}_{k}.parquet") for k, r in enumerate(results)]
+                    decays, excluded = read_decays(paths, ReadSettings())
+                    w0, c0 = time.perf_counter(), time.process_time()
+                    result = identify_drops(kind, decays, excluded=excluded, options=options)
+                    row["drop_wall_s"], row["drop_cpu_s"] = time.perf_counter() - w0, time.process_time() - c0
+                    agree = servo_agreement(result.coupling(), truth, decays)
+                    row.update(drop_k=agree["storage_stiffness_rms"], drop_eta=agree["loss_factor_rms"],
+                               drop_ok=agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10,
+                               drop_verdict=result.verdict.verdict, f_min=min(d.frequency_hz for d in decays),
+                               f_max=max(d.frequency_hz for d in decays), tests=len(decays))
+                if servo:
+                    data, _ = records(truth, hs, seed=100 + i)
+                    held, _ = records(truth, hold_h, seed=200 + i)
+                    w0, c0 = time.perf_counter(), time.process_time()
+                    result = identify(kind, data, holdout=held, options=options)
+                    row["servo_wall_s"], row["servo_cpu_s"] = time.perf_counter() - w0, time.process_time() - c0
+                    row.update(servo_holdout=result.holdout.nrmse, servo_ok=result.holdout.nrmse <= 0.01,
+                               servo_verdict=result.verdict.verdict)
+                rows.append(row)
+                print(f"  {kind} #{i}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                                                    for k, v in row.items() if k != "case"), flush=True)
+            summary[kind] = rows
+    print(f"randomised acceptance: {n} random couplings per family (targets: success >= 97 %, each fit <= 60 s)")
+    for kind, rows in summary.items():
+        parts = [f"{kind}:"]
+        if drops_:
+            ok = [r["drop_ok"] for r in rows]
+            worst = max(rows, key=lambda r: max(r["drop_k"] / 0.03, r["drop_eta"] / 0.10))
+            parts.append(f"drop tests {100 * np.mean(ok):.0f} % ({sum(ok)}/{len(ok)}), worst #{worst['case']}: "
+                         f"K' {100 * worst['drop_k']:.2f} %, loss factor {100 * worst['drop_eta']:.2f} % RMS; "
+                         f"time per fit median {np.median([r['drop_wall_s'] for r in rows]):.1f} s wall / "
+                         f"{np.median([r['drop_cpu_s'] for r in rows]):.1f} s CPU, max {max(r['drop_wall_s'] for r in rows):.1f} s "
+                         f"wall; baseline the rig's campaign {np.median([r['rig_s'] for r in rows]):.1f} s "
+                         f"(first-cycle frequencies {min(r['f_min'] for r in rows):.0f}-{max(r['f_max'] for r in rows):.0f} Hz)")
+        if servo:
+            ok = [r["servo_ok"] for r in rows]
+            worst = max(rows, key=lambda r: r["servo_holdout"])
+            parts.append(f"servo {100 * np.mean(ok):.0f} % ({sum(ok)}/{len(ok)}), worst #{worst['case']}: hold-out "
+                         f"nRMSE {100 * worst['servo_holdout']:.3f} %; time per fit median "
+                         f"{np.median([r['servo_wall_s'] for r in rows]):.1f} s wall / "
+                         f"{np.median([r['servo_cpu_s'] for r in rows]):.1f} s CPU, max "
+                         f"{max(r['servo_wall_s'] for r in rows):.1f} s wall")
+        print("  " + "\n    ".join(parts))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="15 s of data instead of 60 s")
     parser.add_argument("--drops", action="store_true", help="only the drop-test identification")
     parser.add_argument("--servo", action="store_true", help="only the servo-record identification")
+    parser.add_argument("--random", action="store_true", help="only the randomised acceptance (items 7)")
+    parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
+    parser.add_argument("--families", default=",".join(RANDOM_FAMILIES), help="families of --random")
     args = parser.parse_args()
+    if args.random:
+        random_acceptance(args.n, [f.strip() for f in args.families.split(",") if f.strip()],
+                          servo=not args.drops, drops_=not args.servo)
+        return
     if not args.servo:
         drops()
         if not args.quick:

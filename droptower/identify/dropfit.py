@@ -53,6 +53,9 @@ STARTS_PER_PARAMETER = 24
 MIN_STARTS = 96
 #: Local least-squares fits from the best distinct candidates.
 LOCAL_FITS = 3
+#: Tests the global search's candidates are evaluated on (spread over inertias and amplitudes):
+#: a large campaign adds no new information to the search, only cost.
+SEARCH_TESTS = 12
 #: The re-simulation's own accuracy against the rig, relative to a test's amplitude (tested:
 #: within 0.2 %; the integration step's first-order part): the verdict's allowance beside the noise.
 RESIMULATION_ACCURACY = 1e-3
@@ -357,9 +360,11 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_n
 def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray,
                 settings: DropFitSettings, choose_p: bool) -> tuple[Any, dict[str, Any]]:
     """Global search over the bounds (:func:`~droptower.identify.search.global_fit`: the first
-    guess and a Latin hypercube in the optimised variables, the elastoslide's p over its
-    candidates, all in batched calls), then bounded least squares with a weak prior toward
-    each of the best few distinct candidates (and the odd p walked); the lowest cost wins."""
+    guess, a quarter of the candidates around it and the rest a Latin hypercube over the whole
+    bounds in the optimised variables, the elastoslide's p over its candidates, all in
+    batched calls on at most :data:`SEARCH_TESTS` tests), then bounded
+    least squares on all fitting tests with a weak prior toward each of the best few distinct
+    candidates (and the odd p walked); the lowest cost wins."""
     params = family.parameters
     n_free = int(free.sum())
     choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
@@ -372,8 +377,17 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
         return sol
 
     n = max(MIN_STARTS, STARTS_PER_PARAMETER * n_free)
-    return global_fit(params, x0, problem.residuals, free=free, n_candidates=n, keep=LOCAL_FITS,
-                      seed=settings.seed, choices=choices, local=local)
+    decays = problem.decays
+    if len(decays) > SEARCH_TESTS:
+        order = sorted(range(len(decays)), key=lambda i: (decays[i].inertia_kgm2, decays[i].amplitude_rad))
+        picked = np.round(np.linspace(0, len(decays) - 1, SEARCH_TESTS)).astype(int)
+        search = DropProblem(family, [decays[order[i]] for i in picked], problem.settings)
+    else:
+        search = problem
+    best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n, keep=LOCAL_FITS,
+                               seed=settings.seed, choices=choices, local=local, near=n // 4)
+    problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
+    return best, {**summary, "search_tests": len(search.decays)}
 
 
 def drop_verdict(problem: DropProblem, values: np.ndarray, at_bound: list[str],

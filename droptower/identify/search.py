@@ -24,6 +24,9 @@ from droptower.identify.fit import Parameter, clip_to_bounds, fit_rows
 
 #: Candidates evaluated per batch (one call of the residual function each).
 BATCH = 64
+#: Half-width of the neighbourhood of the first guess sampled beside the whole box (optimised
+#: variables: e^1.5 ~ 4.5 around a logarithmic parameter).
+NEAR = 1.5
 
 
 def exchangeable_branches(parameters: list[Parameter]) -> list[list[int]]:
@@ -66,16 +69,22 @@ def order_branches(parameters: list[Parameter], rows: np.ndarray) -> np.ndarray:
 
 
 def candidates(parameters: list[Parameter], x0: np.ndarray, free: np.ndarray, n: int, seed: int = 0,
-               choices: dict[int, list[float]] | None = None) -> np.ndarray:
-    """``n`` parameter sets (rows, physical values): ``x0`` first, then a Latin hypercube over
-    the free parameters' bounds in their optimised variables; ``choices``: parameters that take
-    one of a few values (e.g. an odd exponent), drawn among them."""
+               choices: dict[int, list[float]] | None = None, near: int = 0) -> np.ndarray:
+    """``n`` parameter sets (rows, physical values): ``x0`` first, then ``near`` Latin-hypercube
+    points within +-:data:`NEAR` of it (clipped to the bounds), then a Latin hypercube over the
+    free parameters' whole bounds, all in their optimised variables; ``choices``: parameters
+    that take one of a few values (e.g. an odd exponent), drawn among them."""
     idx = np.flatnonzero(free)
     rows = np.repeat(np.asarray(x0, float)[None], n, axis=0)
     if n > 1 and idx.size:
-        unit = qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1)
         lo, hi = np.array([parameters[i].z_bounds() for i in idx]).T
-        z = lo + unit * (hi - lo)
+        z0 = np.array([parameters[i].to_z(x0[i]) for i in idx])
+        m = min(near, n - 1)
+        z = np.empty((n - 1, idx.size))
+        if m:
+            z[:m] = np.clip(z0 - NEAR + 2 * NEAR * qmc.LatinHypercube(d=idx.size, seed=seed + 1).random(m), lo, hi)
+        if n - 1 > m:
+            z[m:] = lo + qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1 - m) * (hi - lo)
         for k, i in enumerate(idx):
             rows[1:, i] = [parameters[i].to_value(v) for v in z[:, k]]
     rng = np.random.default_rng(seed)
@@ -105,7 +114,7 @@ def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray,
     z = np.array([[p.to_z(v) for p, v in zip(parameters, r)] for r in rows]) / span
     chosen: list[int] = []
     for i in np.argsort(cost):
-        if not np.isfinite(cost[i]) or len(chosen) == keep:
+        if cost[i] == np.inf or len(chosen) == keep:
             break
         if all(np.max(np.abs(z[i] - z[j])) > min_distance for j in chosen):
             chosen.append(int(i))
@@ -114,16 +123,20 @@ def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray,
 
 def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
                free: np.ndarray, n_candidates: int, keep: int = 3, seed: int = 0, max_nfev: int | None = None,
-               tol: float = 1e-7, choices: dict[int, list[float]] | None = None,
+               tol: float = 1e-7, choices: dict[int, list[float]] | None = None, near: int = 0,
                local: Callable[[np.ndarray], Any] | None = None,
                cost_of: Callable[[Any], float] = lambda f: float(f.residual @ f.residual)) -> tuple[Any, dict]:
     """Latin-hypercube search over the bounds, then least squares from the ``keep`` best
     distinct candidates (``local(start)``, default :func:`fit_rows` on ``residuals``); the
-    fit of lowest cost (``cost_of(fit)``) wins. Returns it and a summary (candidates, their
-    best cost, the local fits' costs)."""
-    rows = candidates(parameters, x0, free, n_candidates, seed, choices)
+    fit of lowest cost (``cost_of(fit)``) wins. With ``near`` candidates around ``x0`` (a
+    data-driven first guess), the best of those is always one of the starts: a guess whose
+    basin the box's samples miss is still refined. Returns the fit and a summary (candidates,
+    their best cost, the local fits' costs)."""
+    rows = candidates(parameters, x0, free, n_candidates, seed, choices, near)
     cost = costs(residuals, rows)
-    starts = best_starts(parameters, rows, cost, keep)
+    m = 1 + min(near, n_candidates - 1)
+    home = rows[[int(np.argmin(cost[:m]))]] if near else rows[:0]
+    starts = best_starts(parameters, np.concatenate([home, rows]), np.concatenate([[-np.inf] * len(home), cost]), keep)
     if local is None:
         def local(start: np.ndarray) -> Any:
             return fit_rows(parameters, start, residuals, free=free, max_nfev=max_nfev, tol=tol)
