@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -169,63 +170,8 @@ def table2() -> None:
 
 # ---------------------------------------------------------------------------- randomised acceptance
 RANDOM_FAMILIES = ("zerodim6", "elastoslide", "masing", "pfeffer", "template")
-#: Total stiffness range (N*m/rad) that puts the rig's inertias (0.156-0.523 kg*m^2) at 15-80 Hz.
-K_RANGE = (6e3, 3e4)
-
-
-def _log_uniform(rng, lo: float, hi: float) -> float:
-    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
-
-
-def random_truth(kind: str, rng) -> dict:
-    """A coupling of family ``kind`` drawn from wide ranges (the drop tower's band, a few cycles)."""
-    k = _log_uniform(rng, *K_RANGE)
-    tau = lambda: _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))  # noqa: E731
-    if kind == "zerodim6":
-        k1 = k * rng.uniform(0.4, 0.8)
-        k2, k3 = (k - k1) * rng.dirichlet([1.0, 1.0])
-        t3 = tau()
-        t2 = t3 * _log_uniform(rng, 5.0, 100.0)  # two distinguishable branches (closer ones merge into one)
-        return {"name": "random_zerodim6", "element": [
-            {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": k2, "damping": k2 * t2},
-            {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": rng.uniform(0.0, 1.0) * k3 / 0.01,
-             "damping": k3 * t3}]}
-    if kind == "elastoslide":
-        kk = k * rng.uniform(0.6, 1.0)
-        return {"name": "random_elastoslide", "element": [
-            {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
-             "v_r": _log_uniform(rng, 0.05, 1.0), "p": int(rng.choice([3, 5, 7, 9])), "n": 32}]}
-    if kind == "masing":
-        n = 7
-        kp = k * rng.uniform(0.2, 0.5)
-        c1, c2 = k * rng.uniform(0.05, 0.25, 2)
-        t1 = tau()
-        t2 = t1 * _log_uniform(rng, 5.0, 100.0)
-        return {"name": "random_masing", "element": [
-            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
-            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n,
-             "alpha": rng.uniform(0.5, 3.0)},
-            {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
-            {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
-    if kind == "pfeffer":
-        alpha = _log_uniform(rng, 0.1, 1.0)
-        return {"name": "random_pfeffer", "element": [
-            {"kind": "pfeffer", "k1": k / (1 + alpha), "alpha": alpha, "beta": rng.uniform(0.0, 0.3), "gamma": tau()}]}
-    if kind == "template":
-        from droptower.identify.data import DataScale
-        from droptower.identify.families import TemplateFamily
-
-        fam = TemplateFamily(DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0), {"template": REFERENCE})
-        factors = np.exp(rng.uniform(np.log(0.6), np.log(1.6), len(fam.parameters)))
-        c = fam.coupling(factors)
-        return {"name": "random_template", "element": [e.model_dump(exclude_none=True) for e in c.elements]}
-    raise ValueError(kind)
-
-
-#: The reference coupling whose structure the template family fits.
-REFERENCE = "rapp2022_nr60"
-
-
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from random_couplings import REFERENCE, random_truth  # noqa: E402  (shared with the tests)
 def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True) -> None:
     import tempfile
 

@@ -140,3 +140,45 @@ def test_verdict_against_the_noise_floor_and_bounds():
     assert set(judge(1.0, 1.0, "nm", []).as_dict()) >= {"verdict", "reasons", "noise_floor_nm", "error_over_noise"}
     params = [Parameter("k3_gain_nm_per_rad2", 0.0, 10.0, log=False), Parameter("tau2_s", 0.1, 10.0)]
     assert bound_hits(params, ["k3_gain_nm_per_rad2", "tau2_s"]) == ["tau2_s"]
+
+
+#: For data of each family, the family most likely to beat it (the most flexible competitor,
+#: or one that contains it); a family that contains the truth may tie but not win (fewer
+#: parameters first).
+COMPETITOR = {"zerodim6": "masing", "pfeffer": "zerodim6", "masing": "zerodim6", "elastoslide": "masing"}
+
+
+def _servo_records(truth, seed):
+    """Seed 000's test types in short (about 9 s at 2048 Hz) with 0.5 % white noise."""
+    from droptower.servo import histories as H
+
+    fs, d = 2048.0, np.radians
+    hs = {"ramps": H.ramps(d(3.0), d(4.0), fs),
+          "frequency_sweep": H.frequency_sweep([5.0, 10.0, 15.0, 20.0, 25.0], d(1.0), fs, run_in_cycles=2, cycles=2),
+          "amplitude_sweep": H.amplitude_sweep(d(np.array([0.3, 1.0, 2.0, 3.0])), 15.0, fs, run_in_cycles=2,
+                                               cycles=2),
+          "random": H.random_profile(d(1.0), (0.5, 25.0), 5.0, fs, seed=11)}
+    rng = np.random.default_rng(seed)
+    torques = {k: truth.respond(h.angle_rad, h.dt_s) for k, h in hs.items()}
+    sigma = 0.005 * max(np.abs(t).max() for t in torques.values())
+    return [make_segment(h.time_s, h.angle_rad, torques[k] + rng.normal(0, sigma, torques[k].size), name=k)
+            for k, h in hs.items()]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(COMPETITOR))
+def test_data_of_each_family_rank_that_family_first(kind):
+    """Two random parameter sets of each family (seeded, from the benchmark's wide ranges):
+    the true family ranks first against its strongest competitor."""
+    from random_couplings import random_truth
+
+    from droptower.identify import identify
+    from droptower.rheology import parse_coupling
+
+    for i in range(2):
+        truth = parse_coupling(random_truth(kind, np.random.default_rng(500 + i)))
+        data = _servo_records(truth, i)
+        fits = {k: identify(k, data, search="never") for k in (kind, COMPETITOR[kind])}
+        table = ranking_table(fits, data)
+        assert table["model"].iloc[0] == kind, table.to_string()
+        assert fits[kind].verdict.verdict == GOOD

@@ -116,7 +116,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
     The verdict: the fit's RMS error against the data's noise floor (estimated without a
     model: the residual of a local polynomial smoothing of the torque; for drop tests the angle's
-    pre-trigger noise plus the re-simulation's accuracy). An error above 3 times it, or a
+    pre-trigger noise plus the re-simulation's accuracy). An error above 2 times it, or a
     parameter on a bound, is a "poor fit" with the reasons: nothing is written and the exit
     code is 3, unless --accept-poor.
 
@@ -220,7 +220,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     more parameters ranks higher only if it lowers the error by more than its parameters cost;
     within 2 of each other families are tied and the one with fewer parameters ranks first
     (delta_bic: distance to the best; above 10: strong evidence against). The exit code is 3
-    when the best family's verdict is "poor fit" (no family describes the data to within 3
+    when the best family's verdict is "poor fit" (no family describes the data to within 2
     times the noise), unless --accept-poor. It also prints seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
     relative to the worst model on that record). A family whose data requirement these
     records do not meet (overlay: steady sine blocks at several amplitudes and frequencies)

@@ -23,7 +23,7 @@ from typing import Any
 from droptower.identify.fit import Parameter
 
 #: A fit error above this multiple of the noise allowance is a poor fit.
-NOISE_RATIO = 3.0
+NOISE_RATIO = 2.0
 #: Exit code of ``identify`` / ``compare-models`` on a poor fit (2: bad input or no convergence).
 EXIT_POOR_FIT = 3
 GOOD, POOR = "good fit", "poor fit"
