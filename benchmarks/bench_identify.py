@@ -172,7 +172,7 @@ def table2() -> None:
 RANDOM_FAMILIES = ("zerodim6", "elastoslide", "masing", "pfeffer", "template")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from random_couplings import REFERENCE, random_truth  # noqa: E402  (shared with the tests)
-def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True) -> None:
+def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True, first: int = 0) -> None:
     import tempfile
 
     from droptower.identify.dropfit import identify_drops, servo_agreement
@@ -188,11 +188,11 @@ def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: b
     hold_h = {"holdout": H.random_profile(D(1.0), (0.5, 25.0), 5.0, FS, seed=12)}
     summary = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for fi, kind in enumerate(families):
+        for kind in families:
             options = {"template": REFERENCE} if kind == "template" else None
             rows = []
-            for i in range(n):
-                rng = np.random.default_rng(10_000 * (fi + 1) + i)
+            for i in range(first, first + n):
+                rng = np.random.default_rng(10_000 * (RANDOM_FAMILIES.index(kind) + 1) + i)
                 truth = parse_coupling(random_truth(kind, rng))
                 row = {"case": i}
                 if drops_:
@@ -254,10 +254,11 @@ def main() -> None:
     parser.add_argument("--random", action="store_true", help="only the randomised acceptance (items 7)")
     parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
     parser.add_argument("--families", default=",".join(RANDOM_FAMILIES), help="families of --random")
+    parser.add_argument("--first", type=int, default=0, help="index of the first random coupling (--random)")
     args = parser.parse_args()
     if args.random:
         random_acceptance(args.n, [f.strip() for f in args.families.split(",") if f.strip()],
-                          servo=not args.drops, drops_=not args.servo)
+                          servo=not args.drops, drops_=not args.servo, first=args.first)
         return
     if not args.servo:
         drops()

@@ -69,8 +69,10 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
 
 
 def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Parameter]) -> Verdict:
-    """The fit's RMS torque error against the records' noise floor (N*m)."""
-    return judge(result.fit.rmse_nm, noise.sigma, "nm", bound_hits(parameters, result.at_bounds),
+    """The fit's RMS torque error against the records' noise floor (N*m), with the model's
+    discretisation error at the sample step (the last stage's) added in quadrature."""
+    step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
+    return judge(result.fit.rmse_nm, noise.sigma, "nm", bound_hits(parameters, result.at_bounds), accuracy=step,
                  converged=result.converged)
 
 
