@@ -9,9 +9,12 @@ divided by its peak and by the square root of its sample count, so that small dr
 much as large ones. All tests of all parameter sets of a call (a candidate, or the columns of
 a forward-difference Jacobian) decay in ONE batched call of the core.
 
-The fit is bounded trust-region-reflective least squares (:func:`~droptower.identify.fit.fit_rows`)
-from the best of a batch of random starts, with a weak prior toward the start that pins only
-the directions the data do not determine (reported as non-identifiable combinations).
+The fit is a global search (:mod:`.search`: Latin-hypercube candidates over the whole bounds
+and around the first guess, in batched calls) followed by bounded trust-region-reflective
+least squares (:func:`~droptower.identify.fit.fit_rows`) from the best three distinct
+candidates, each with a weak prior toward its start that pins only the directions the data
+do not determine (reported as non-identifiable combinations); the lowest cost wins. The
+verdict (:mod:`.verdict`) compares the angle error with the logs' pre-trigger noise.
 Standard errors: the larger of s^2 (J'J)^-1 inflated for the residual's lag-1 correlation
 and the cluster-robust (sandwich) covariance with the tests as clusters (a test's systematic
 misfit counts once, not once per sample), plus, in quadrature, the parameters' shift when the decays are integrated on half the step (the

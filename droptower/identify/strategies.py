@@ -98,7 +98,8 @@ def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0
     n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
     best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
                                cost_of=lambda f: f.metrics.rmse_nm, near=n // 4)
-    return result_of(s, segments, best.values.copy(), [best], start, extra={"global_search": summary})
+    return result_of(s, segments, best.values.copy(), [best], start,
+                     extra={"global_search": summary, "search_evaluations": n})
 
 
 def _admissible(fam, row: np.ndarray) -> bool:
