@@ -56,6 +56,9 @@ STARTS_PER_PARAMETER = 24
 MIN_STARTS = 96
 #: Local least-squares fits from the best distinct candidates.
 LOCAL_FITS = 3
+#: A fit whose verdict is poor searches again with this many times the candidates (and two
+#: more local fits).
+ESCALATION = 3
 #: Tests the global search's candidates are evaluated on (spread over inertias and amplitudes):
 #: a large campaign adds no new information to the search, only cost.
 SEARCH_TESTS = 12
@@ -305,9 +308,17 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
-    sol, search = drop_search(problem, family, x0, free, settings,
-                              "p" in family.names and not given[family.names.index("p")])
+    choose_p = "p" in family.names and not given[family.names.index("p")]
+    sol, search = drop_search(problem, family, x0, free, settings, choose_p)
     sol = problem.without_prior(sol)
+    if drop_verdict(problem, sol.values, [], True)[0].poor:
+        # the error is many times the noise: search again, wider (more candidates, more local
+        # fits, other draws), and keep the better fit
+        wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True)
+        wider = problem.without_prior(wider)
+        if float(wider.residual @ wider.residual) < float(sol.residual @ sol.residual):
+            sol, search = wider, more
+        search = {**search, "escalated": True}
     # the integration step's bias: the parameters' shift to the half step, Richardson-scaled
     # for the first-order part of the error (the core's rate-dependent elements, see .lever)
     r_fine = problem.residuals(sol.values[None], 2 * settings.substeps)[0]
@@ -361,13 +372,15 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_n
 
 
 def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray,
-                settings: DropFitSettings, choose_p: bool) -> tuple[Any, dict[str, Any]]:
+                settings: DropFitSettings, choose_p: bool, escalate: bool = False) -> tuple[Any, dict[str, Any]]:
     """Global search over the bounds (:func:`~droptower.identify.search.global_fit`: the first
     guess, a quarter of the candidates around it and the rest a Latin hypercube over the whole
     bounds in the optimised variables, the elastoslide's p over its candidates, all in
     batched calls on at most :data:`SEARCH_TESTS` tests), then bounded
     least squares on all fitting tests with a weak prior toward each of the best few distinct
-    candidates (and the odd p walked); the lowest cost wins."""
+    candidates (and the odd p walked); the lowest cost wins. ``escalate``: the second, wider
+    search after a poor fit (:data:`ESCALATION` times the candidates, other draws, two more
+    local fits)."""
     params = family.parameters
     n_free = int(free.sum())
     choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
@@ -379,7 +392,7 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
             sol = walk_p(problem, family, sol, objective, settings.max_nfev)
         return sol
 
-    n = max(MIN_STARTS, STARTS_PER_PARAMETER * n_free)
+    n = max(MIN_STARTS, STARTS_PER_PARAMETER * n_free) * (ESCALATION if escalate else 1)
     decays = problem.decays
     if len(decays) > SEARCH_TESTS:
         order = sorted(range(len(decays)), key=lambda i: (decays[i].inertia_kgm2, decays[i].amplitude_rad))
@@ -387,8 +400,9 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
         search = DropProblem(family, [decays[order[i]] for i in picked], problem.settings)
     else:
         search = problem
-    best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n, keep=LOCAL_FITS,
-                               seed=settings.seed, choices=choices, local=local, near=n // 4)
+    best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n,
+                               keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate,
+                               choices=choices, local=local, near=n // 4)
     problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, {**summary, "search_tests": len(search.decays)}
 
