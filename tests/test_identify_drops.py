@@ -208,6 +208,7 @@ def test_two_branches_in_the_test_band_are_found_and_judged(seed, tmp_path):
     assert result.search["candidates"] >= 96 and result.search["local_fits"] == 3
 
 
+@pytest.mark.slow
 def test_a_family_that_cannot_represent_the_coupling_is_a_poor_fit(logs, tmp_path, capsys):
     """pfeffer (linear) on a zerodim6-type campaign with an amplitude-dependent branch: the
     optimiser converges, the verdict says poor fit with the reason, the CLI exits 3 and writes
