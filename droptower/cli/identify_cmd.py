@@ -41,6 +41,19 @@ class InitFile(StrictModel):
     options: dict[str, Any] = Field(default_factory=dict)
 
 
+def drop_options(command):
+    """The drop-test options ``identify`` and ``compare-models`` share."""
+    for option in reversed([
+            click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
+                         help="Drop tests: share of the tests held out and predicted."),
+            click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia)."),
+            click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata."),
+            click.option("--lever-length-m", type=float,
+                         help="Drop tests: lever length L, overrides the logs' metadata.")]):
+        command = option(command)
+    return command
+
+
 def _read_init(path: str | None) -> InitFile:
     if path is None:
         return InitFile()
@@ -91,11 +104,7 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 @click.option("--from-drop-tests", "drops", is_flag=True,
               help="DATA are drop-test logs or campaign folders: fit the model to the free decays.")
 @click.option("--template", help="Coupling TOML or preset whose numbers --model template scales.")
-@click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
-              help="Drop tests: share of the tests held out and predicted.")
-@click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia).")
-@click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata.")
-@click.option("--lever-length-m", type=float, help="Drop tests: lever length L, overrides the logs' metadata.")
+@drop_options
 @click.option("--predict-servo", type=click.Path(dir_okay=False),
               help="Drop tests: write the fitted model's servo K' and loss factor next to the drop tower's values.")
 @click.option("--accept-poor", is_flag=True,
@@ -201,11 +210,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 @click.option("--from-drop-tests", "drops", is_flag=True,
               help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
 @click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
-@click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
-              help="Drop tests: share of the tests held out and predicted.")
-@click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia).")
-@click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata.")
-@click.option("--lever-length-m", type=float, help="Drop tests: lever length L, overrides the logs' metadata.")
+@drop_options
 @click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
 def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str | None,
                    out: Path | None, as_json: bool, plot_dir: str | None, drops: bool, template: str | None,
