@@ -15,8 +15,26 @@ def _log_uniform(rng, lo: float, hi: float) -> float:
     return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
 
 
+#: Loss factors at 0.5 deg and 30 Hz a draw must have: the decay loses 12-85 % of its
+#: amplitude per cycle (e^(-pi eta)), so a few cycles show it (lighter damping is redrawn).
+LOSS_FACTOR_RANGE = (0.04, 0.6)
+
+
 def random_truth(kind: str, rng) -> dict:
-    """A coupling of family ``kind`` drawn from wide ranges (the drop tower's band, a few cycles)."""
+    """A coupling of family ``kind`` drawn from wide ranges that keep the drop tower's decays at
+    15-80 Hz with a few cycles (:data:`LOSS_FACTOR_RANGE`; a draw outside is redrawn)."""
+    from droptower.rheology import parse_coupling
+    from droptower.servo import run_grid
+
+    while True:
+        data = _draw(kind, rng)
+        eta = float(run_grid(parse_coupling(data), [np.radians(0.5)], [30.0], cycles=2, run_in_cycles=3,
+                             simulation_rate_hz=9600.0)["loss_factor"].iloc[0])
+        if LOSS_FACTOR_RANGE[0] <= eta <= LOSS_FACTOR_RANGE[1]:
+            return data
+
+
+def _draw(kind: str, rng) -> dict:
     k = _log_uniform(rng, *K_RANGE)
     tau = lambda: _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))  # noqa: E731
     if kind == "zerodim6":
