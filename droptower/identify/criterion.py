@@ -16,7 +16,6 @@ bare mention") are a tie, and a tie goes to the family with fewer parameters.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,16 +28,6 @@ RULE = ("BIC = n_eff ln(RSS / (n sigma^2)) + k ln(n_eff) on the same n fitting s
         "effective sample size from the noise's lag-1 correlation; k: fitted parameters); lower is better; "
         f"families within {TIE:g} of each other are tied and a tie goes to fewer parameters; delta_bic > 10: "
         "strong evidence against the family; non-converged fits last")
-
-
-@dataclass(frozen=True)
-class Score:
-    """One family's score on the common samples."""
-
-    model: str
-    n_parameters: int
-    rss: float
-    bic: float
 
 
 def bic(rss: float, n_samples: int, n_eff: float, sigma: float, n_parameters: int) -> float:

@@ -113,15 +113,19 @@ def ranking_table(results: dict[str, Identification], segments: list[Segment]) -
     from droptower.identify.noise import servo_noise
 
     noise = servo_noise(segments)
+    rss = {kind: sum(float(np.sum((p - s.torque_nm)[s.compared] ** 2)) for p, s in zip(r.predict(segments), segments))
+           for kind, r in results.items()}
+    # records too short to smooth: the best family's RMS error stands in for the noise (the
+    # same constant for every family: the order is unchanged)
+    sigma = noise.sigma if math.isfinite(noise.sigma) else math.sqrt(min(rss.values()) / max(noise.n_samples, 1))
     rows = []
     for kind, r in results.items():
-        rss = sum(float(np.sum((p - s.torque_nm)[s.compared] ** 2)) for p, s in zip(r.predict(segments), segments))
         rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
                      "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
-                     "bic": bic(rss, noise.n_samples, noise.n_eff, noise.sigma, r.n_parameters),
+                     "bic": bic(rss[kind], noise.n_samples, noise.n_eff, sigma, r.n_parameters),
                      "verdict": r.verdict.verdict if r.verdict else None,
                      "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
-    return ranked(pd.DataFrame(rows), {"noise_floor_nm": noise.sigma, "n_eff": noise.n_eff})
+    return ranked(pd.DataFrame(rows), {"noise_floor_nm": sigma, "n_eff": noise.n_eff})
 
 
 def drop_ranking_table(results: dict[str, Any]) -> pd.DataFrame:

@@ -5,8 +5,8 @@ The verdict compares the fit error with what the data allow (the noise floor, es
 without a model: :mod:`.noise`) and looks at the parameters:
 
 - ``"good fit"``: the RMS error is at most :data:`NOISE_RATIO` times the allowance (the noise
-  floor, with the simulation's own accuracy added in quadrature where it matters) and no
-  parameter sits on a bound;
+  floor, with the simulation's own accuracy added in quadrature where it matters; without a
+  noise estimate the error is not judged) and no parameter sits on a bound;
 - ``"poor fit"`` otherwise, with the reasons: the model misses structure in the data (a
   local minimum, or a family that cannot represent the coupling), or a parameter ended on a
   bound (the optimum lies outside the box, or the parameter is not supported by the data).
@@ -75,9 +75,10 @@ def judge(error_rms: float, noise_floor: float, unit: str, at_bound: list[str], 
     unit ``unit``); ``accuracy``: the simulation's own error, added to the noise in quadrature;
     ``at_bound``: parameters on a bound that count (:func:`bound_hits`)."""
     allowance = math.hypot(noise_floor, accuracy) if math.isfinite(noise_floor) else accuracy
-    ratio = error_rms / allowance if allowance > 0 else math.inf
+    # no noise estimate (records too short to smooth, no pre-trigger part): the error is not judged
+    ratio = error_rms / allowance if allowance > 0 else math.nan
     reasons = []
-    if not ratio <= NOISE_RATIO:
+    if ratio > NOISE_RATIO:
         reasons.append(f"the fit error is {ratio:.3g} x the noise allowance (limit {NOISE_RATIO:g}): the model misses "
                        "structure in the data (a local minimum, or a family that cannot represent this coupling)")
     if at_bound:
