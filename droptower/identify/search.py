@@ -1,8 +1,8 @@
 """A global search before the local least squares: Latin-hypercube multi-start over the bounds.
 
 Candidates fill the whole box of the free parameters in their optimised variables (the
-logarithm of a positive parameter spanning decades, value / scale otherwise) as a Latin
-hypercube (McKay, Beckman & Conover 1979), so no decade of any parameter is left out; all
+logarithm of a positive parameter spanning decades, value / scale otherwise, a linear one from
+0 over decades spread over them alike) as a Latin hypercube (McKay, Beckman & Conover 1979), so no decade of any parameter is left out; all
 candidates of a batch are evaluated in ONE call of the residual function (the core advances
 every parameter set at once). Bounded least squares (:func:`~droptower.identify.fit.fit_rows`)
 then runs from the best few distinct candidates and the lowest cost wins.
@@ -84,7 +84,14 @@ def candidates(parameters: list[Parameter], x0: np.ndarray, free: np.ndarray, n:
         if m:
             z[:m] = np.clip(z0 - NEAR + 2 * NEAR * qmc.LatinHypercube(d=idx.size, seed=seed + 1).random(m), lo, hi)
         if n - 1 > m:
-            z[m:] = lo + qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1 - m) * (hi - lo)
+            unit = qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1 - m)
+            z[m:] = lo + unit * (hi - lo)
+            # a linear parameter from 0 over decades (a gain, a cubic coefficient): spread over
+            # its decades like a logarithmic one, z = expm1(u ln(1 + z_max)), or almost every
+            # candidate would sit in its top decade
+            for k, i in enumerate(idx):
+                if not parameters[i].log and lo[k] == 0.0 and hi[k] > 10.0:
+                    z[m:, k] = np.expm1(unit[:, k] * np.log1p(hi[k]))
         for k, i in enumerate(idx):
             rows[1:, i] = [parameters[i].to_value(v) for v in z[:, k]]
     rng = np.random.default_rng(seed)
