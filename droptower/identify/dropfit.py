@@ -38,7 +38,7 @@ from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, Parameter, clip_to_bounds, fit_rows
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
