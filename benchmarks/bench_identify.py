@@ -27,11 +27,26 @@ Identification from drop tests (issue 10; ``--drops`` runs only these, ``--servo
 5. the Table-2 campaign (450 tests of ``rapp2022_nr60``) identified with ``--model template
    --template rapp2022_nr60`` (target <= 5 min on two cores);
 6. baseline measured in the same run: the rig simulating the same tests (pymunk, one batch).
+
+Randomised acceptance (``--random [--n N] [--families a,b]``; N = 30 per family by default):
+
+7. per family (zerodim6, elastoslide, masing, pfeffer, and the reference coupling
+   ``rapp2022_nr60`` as a template with random factors on its numbers) N couplings drawn at
+   random from wide ranges that keep the drop tower's first-cycle frequencies at 15-80 Hz
+   with a few cycles of decay (total stiffness 6-30 kN*m/rad for the rig's inertias, loss
+   factors up to ~0.3; two Maxwell branches' relaxation times 5-100x apart, closer ones act
+   as one); each gets a 12-test virtual campaign (rig ``rapp2022``, sensor noise,
+   three inertias x heights 0.1-3 m) and a servo data set (the test types above, 15 s, 0.5 %
+   noise, 5 s hold-out). Success: drop tests K' <= 3 % and loss factor <= 10 % RMS against the
+   truth on a 4 x 3 servo grid inside the tested range; servo hold-out nRMSE <= 1 %. Printed:
+   success rates per family (target >= 97 %), the worst case, wall and CPU time per fit
+   (target <= 60 s); baseline in the same run: the rig simulating the campaign.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -162,14 +177,100 @@ def table2() -> dict[str, float]:
             "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"]}
 
 
+# ---------------------------------------------------------------------------- randomised acceptance
+RANDOM_FAMILIES = ("zerodim6", "elastoslide", "masing", "pfeffer", "template")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from random_couplings import REFERENCE, random_truth  # noqa: E402  (shared with the tests)
+def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True, first: int = 0) -> None:
+    import tempfile
+
+    from droptower.identify.dropfit import identify_drops, servo_agreement
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+
+    rig = load_rig("rapp2022")
+    cases = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+    heights = (0.1, 0.4, 1.0, 3.0)
+    hs = histories(0.25)
+    hold_h = {"holdout": H.random_profile(D(1.0), (0.5, 25.0), 5.0, FS, seed=12)}
+    summary = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in families:
+            options = {"template": REFERENCE} if kind == "template" else None
+            rows = []
+            for i in range(first, first + n):
+                rng = np.random.default_rng(10_000 * (RANDOM_FAMILIES.index(kind) + 1) + i)
+                truth = parse_coupling(random_truth(kind, rng))
+                row = {"case": i}
+                if drops_:
+                    tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * a + b) for a, (j, m) in enumerate(cases)
+                             for b, h in enumerate(heights)]
+                    t0 = time.perf_counter()
+                    results = rig_simulate(rig, truth, tests, 0.25)
+                    row["rig_s"] = time.perf_counter() - t0
+                    paths = [r.write_log(Path(tmp) / f"{kind}_{i}_{k}.parquet") for k, r in enumerate(results)]
+                    decays, excluded = read_decays(paths, ReadSettings())
+                    w0, c0 = time.perf_counter(), time.process_time()
+                    result = identify_drops(kind, decays, excluded=excluded, options=options)
+                    row["drop_wall_s"], row["drop_cpu_s"] = time.perf_counter() - w0, time.process_time() - c0
+                    agree = servo_agreement(result.coupling(), truth, decays)
+                    row.update(drop_k=agree["storage_stiffness_rms"], drop_eta=agree["loss_factor_rms"],
+                               drop_ok=agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10,
+                               drop_verdict=result.verdict.verdict, f_min=min(d.frequency_hz for d in decays),
+                               f_max=max(d.frequency_hz for d in decays), tests=len(decays))
+                if servo:
+                    data, _ = records(truth, hs, seed=100 + i)
+                    held, _ = records(truth, hold_h, seed=200 + i)
+                    w0, c0 = time.perf_counter(), time.process_time()
+                    result = identify(kind, data, holdout=held, options=options)
+                    row["servo_wall_s"], row["servo_cpu_s"] = time.perf_counter() - w0, time.process_time() - c0
+                    row.update(servo_holdout=result.holdout.nrmse, servo_ok=result.holdout.nrmse <= 0.01,
+                               servo_verdict=result.verdict.verdict)
+                rows.append(row)
+                print(f"  {kind} #{i}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                                                    for k, v in row.items() if k != "case"), flush=True)
+            summary[kind] = rows
+    print(f"randomised acceptance: {n} random couplings per family (targets: success >= 97 %, each fit <= 60 s)")
+    for kind, rows in summary.items():
+        parts = [f"{kind}:"]
+        if drops_:
+            ok = [r["drop_ok"] for r in rows]
+            worst = max(rows, key=lambda r: max(r["drop_k"] / 0.03, r["drop_eta"] / 0.10))
+            parts.append(f"drop tests {100 * np.mean(ok):.0f} % ({sum(ok)}/{len(ok)}), worst #{worst['case']}: "
+                         f"K' {100 * worst['drop_k']:.2f} %, loss factor {100 * worst['drop_eta']:.2f} % RMS; "
+                         f"time per fit median {np.median([r['drop_wall_s'] for r in rows]):.1f} s wall / "
+                         f"{np.median([r['drop_cpu_s'] for r in rows]):.1f} s CPU, max {max(r['drop_wall_s'] for r in rows):.1f} s "
+                         f"wall; baseline the rig's campaign {np.median([r['rig_s'] for r in rows]):.1f} s "
+                         f"(first-cycle frequencies {min(r['f_min'] for r in rows):.0f}-{max(r['f_max'] for r in rows):.0f} Hz)")
+        if servo:
+            ok = [r["servo_ok"] for r in rows]
+            worst = max(rows, key=lambda r: r["servo_holdout"])
+            parts.append(f"servo {100 * np.mean(ok):.0f} % ({sum(ok)}/{len(ok)}), worst #{worst['case']}: hold-out "
+                         f"nRMSE {100 * worst['servo_holdout']:.3f} %; time per fit median "
+                         f"{np.median([r['servo_wall_s'] for r in rows]):.1f} s wall / "
+                         f"{np.median([r['servo_cpu_s'] for r in rows]):.1f} s CPU, max "
+                         f"{max(r['servo_wall_s'] for r in rows):.1f} s wall")
+        print("  " + "\n    ".join(parts))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="15 s of data instead of 60 s")
     parser.add_argument("--drops", action="store_true", help="only the drop-test identification")
     parser.add_argument("--servo", action="store_true", help="only the servo-record identification")
+    parser.add_argument("--random", action="store_true", help="only the randomised acceptance (items 7)")
+    parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
+    parser.add_argument("--families", default=",".join(RANDOM_FAMILIES), help="families of --random")
+    parser.add_argument("--first", type=int, default=0, help="index of the first random coupling (--random)")
     json_option(parser)
     args = parser.parse_args()
     figures = {}
+    if args.random:
+        random_acceptance(args.n, [f.strip() for f in args.families.split(",") if f.strip()],
+                          servo=not args.drops, drops_=not args.servo, first=args.first)
+        return
     if not args.servo:
         figures["drops"] = drops()
         if not args.quick:

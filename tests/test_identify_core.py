@@ -138,24 +138,6 @@ def test_non_convergence_is_reported_not_hidden():
     assert "maximum number of function evaluations" in r.message
 
 
-def test_ranking_prefers_the_simpler_family_on_a_tie():
-    """compare-models ranks by BIC: 14 more parameters for a 0.01 % lower RMSE lose; for a
-    20 % lower RMSE they win (issue 10: zerodim20 above zerodim6 by 0.00005 points)."""
-    from types import SimpleNamespace
-
-    from droptower.identify.fit import Metrics
-    from droptower.identify.report import ranking_table
-
-    def fake(n_par, rmse):
-        return SimpleNamespace(n_parameters=n_par, fit=Metrics(rmse, rmse / 100.0, 0.0, 100_000, 100.0),
-                               holdout=None, time_s=1.0, evaluations=10, converged=True)
-
-    tie = ranking_table({"zerodim20": fake(20, 0.99995), "zerodim6": fake(6, 1.0)})
-    assert tie["model"].tolist() == ["zerodim6", "zerodim20"] and tie["delta_bic"].iloc[1] > 10
-    better = ranking_table({"zerodim20": fake(20, 0.8), "zerodim6": fake(6, 1.0)})
-    assert better["model"].tolist() == ["zerodim20", "zerodim6"]
-
-
 def test_every_zerodim20_candidate_is_a_coupling_the_core_accepts():
     """The tables are parametrised so that no candidate the optimiser may propose inside the
     bounds makes a spring or dashpot force fall (issue 10: 6 of 8 realistic data sets failed)."""

@@ -217,3 +217,51 @@ def test_template_of_the_reference_coupling_recovers_another_coupling_of_its_str
                             options={"template": "rapp2022_nr60"})
     agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
+
+
+@pytest.mark.parametrize("seed", [0])
+def test_two_branches_in_the_test_band_are_found_and_judged(seed, tmp_path):
+    """A zerodim6-type coupling drawn at random with BOTH Maxwell branches acting at the drop
+    tower's frequencies (relaxation times 1-30 ms, a decade apart): the start search around
+    one first guess used to end with one time on a bound and still say "converged"; the
+    global search finds it and the verdict is a good fit."""
+    rng = np.random.default_rng(seed)
+    k1, k2, k3 = rng.uniform(5e3, 9e3), rng.uniform(2e3, 4e3), rng.uniform(3e3, 6e3)
+    tau3 = float(np.exp(rng.uniform(np.log(1e-3), np.log(3e-3))))
+    tau2 = tau3 * float(np.exp(rng.uniform(np.log(5.0), np.log(10.0))))
+    truth = parse_coupling({"element": [
+        {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": k2, "damping": k2 * tau2},
+        {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": rng.uniform(0, 50) * k3, "damping": k3 * tau3}]})
+    decays, excluded = read_decays(_campaign(truth, tmp_path), ReadSettings())
+    result = identify_drops("zerodim6", decays, settings=DropFitSettings(holdout_fraction=0.0))
+    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
+    assert result.verdict.verdict == "good fit" and not result.at_bounds
+    assert result.search["candidates"] >= 96 and result.search["local_fits"] == 3
+
+
+@pytest.mark.slow
+def test_a_family_that_cannot_represent_the_coupling_is_a_poor_fit(logs, tmp_path, capsys):
+    """pfeffer (linear) on a zerodim6-type campaign with an amplitude-dependent branch: the
+    optimiser converges, the verdict says poor fit with the reason, the CLI exits 3 and writes
+    nothing; --accept-poor writes it. compare-models --from-drop-tests ranks the true family
+    first with the same criterion."""
+    folder = str(logs["zerodim6"][0].parent)
+    out = tmp_path / "pfeffer.toml"
+    code = main(["identify", "--from-drop-tests", folder, "--model", "pfeffer", "--json", "--out", str(out),
+                 "--holdout-fraction", "0"])
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    assert code == 3 and not out.exists()
+    assert report["converged"] and report["verdict"] == "poor fit" and report["error_over_noise"] > 3
+    assert "noise" in report["reasons"][0] and "poor fit" in captured.err
+    assert main(["identify", "--from-drop-tests", folder, "--model", "pfeffer", "--out", str(out),
+                 "--holdout-fraction", "0", "--accept-poor"]) == 0 and out.exists()
+    capsys.readouterr()
+    code = main(["compare-models", "--from-drop-tests", folder, "--models", "pfeffer,zerodim6", "--json",
+                 "--holdout-fraction", "0"])
+    ranking = json.loads(capsys.readouterr().out)
+    assert code == 0 and "BIC" in ranking["ranking_rule"]
+    rows = ranking["ranking"]
+    assert [r["model"] for r in rows] == ["zerodim6", "pfeffer"]
+    assert rows[0]["verdict"] == "good fit" and rows[1]["delta_bic"] > 10

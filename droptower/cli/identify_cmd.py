@@ -30,6 +30,8 @@ from droptower.validation import StrictModel, validate
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
 MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay")
+#: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_KINDS)
+DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer")
 
 
 class InitFile(StrictModel):
@@ -38,6 +40,19 @@ class InitFile(StrictModel):
     initial: dict[str, float] = Field(default_factory=dict)
     bounds: dict[str, tuple[float, float]] = Field(default_factory=dict)
     options: dict[str, Any] = Field(default_factory=dict)
+
+
+def drop_options(command):
+    """The drop-test options ``identify`` and ``compare-models`` share."""
+    for option in reversed([
+            click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
+                         help="Drop tests: share of the tests held out and predicted."),
+            click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia)."),
+            click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata."),
+            click.option("--lever-length-m", type=float,
+                         help="Drop tests: lever length L, overrides the logs' metadata.")]):
+        command = option(command)
+    return command
 
 
 def _read_init(path: str | None) -> InitFile:
@@ -90,19 +105,18 @@ def _write_coupling(result, out: str, sources: list[str]) -> None:
 @click.option("--from-drop-tests", "drops", is_flag=True,
               help="DATA are drop-test logs or campaign folders: fit the model to the free decays.")
 @click.option("--template", help="Coupling TOML or preset whose numbers --model template scales.")
-@click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
-              help="Drop tests: share of the tests held out and predicted.")
-@click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia).")
-@click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata.")
-@click.option("--lever-length-m", type=float, help="Drop tests: lever length L, overrides the logs' metadata.")
+@drop_options
 @click.option("--predict-servo", type=click.Path(dir_okay=False),
               help="Drop tests: write the fitted model's servo K' and loss factor next to the drop tower's values.")
 @click.option("-v", "--verbose", is_flag=True,
               help="Drop tests: a line per test (its error) and every excluded test; else a summary line.")
+@click.option("--accept-poor", is_flag=True,
+              help="Exit 0 and write --out even when the verdict is 'poor fit' (default: exit code 3, nothing written).")
 def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params_path: str | None,
              holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None, drops: bool,
              template: str | None, holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
-             lever_length_m: float | None, predict_servo: str | None, verbose: bool) -> None:
+             lever_length_m: float | None, predict_servo: str | None, verbose: bool,
+             accept_poor: bool) -> None:
     """Identify a coupling model of family --model from imposed-angle / measured-torque DATA,
     or imposed-displacement / measured-force DATA (translational: mounts, bushings, dampers;
     any length and force units, e.g. mm, in, kN, kip; parameters then named k1_n_per_m, ...
@@ -112,7 +126,15 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     family's staged strategy (seeds 000-004). Reports the parameters with standard errors,
     parameters on a bound, the RMSE normalised by the largest |torque| on the fitting and the
     hold-out data, the residual's lag-1 correlation and the effort. A fit that does not
-    converge is reported and nothing is written (exit code 2).
+    converge is reported and nothing is written (exit code 2). Where the staged fit is poor,
+    a global search (Latin-hypercube candidates over the whole bounds, least squares from the
+    best three) follows and the better fit is kept.
+
+    The verdict: the fit's RMS error against the data's noise floor (estimated without a
+    model: the residual of a local polynomial smoothing of the torque; for drop tests the angle's
+    pre-trigger noise plus the re-simulation's accuracy). An error above 2 times it, or a
+    parameter on a bound, is a "poor fit" with the reasons: nothing is written and the exit
+    code is 3, unless --accept-poor.
 
     With --from-drop-tests, DATA are drop-test logs or campaign folders: every test is
     re-simulated from its impact (the lever J driven by the coupling alone, its initial rate
@@ -155,7 +177,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
         from droptower.cli.identify_drops_cmd import run as run_drops
 
         return run_drops(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
-                         out, as_json, plot_dir, predict_servo, verbose)
+                         out, as_json, plot_dir, predict_servo, verbose, accept_poor)
     if template is not None:
         init.options["template"] = template
     skip_s = float(init.options.get("skip_s", 0.0))
@@ -174,6 +196,12 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
         bad = next(s for s in result.stages if not s.converged)
         raise DroptowerError(f"model {kind}: the fit did not converge (stage '{bad.stage}': {bad.message}); "
                              f"no coupling written", where=None)
+    if result.verdict.poor and not accept_poor:
+        from droptower.identify.verdict import EXIT_POOR_FIT
+
+        click.echo(f"droptower: model {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
+                   f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
+        raise click.exceptions.Exit(EXIT_POOR_FIT)
     if out:
         _write_coupling(result, out, [Path(p).name for p in data])
         wrote(out, f"coupling {kind}, for simulate, campaign, servo")
@@ -187,24 +215,36 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 @click.option("--holdout", type=click.Path(),
               help="Record kept out of every fit: its nRMSE is reported next to the fit's, as a check; the ranking "
                    "stays on the fitting data (BIC).")
-@click.option("--models", default=",".join(MODEL_KINDS), show_default=True,
-              help=f"Families to fit, comma-separated (of {', '.join(MODEL_KINDS)}).")
+@click.option("--models", default=None,
+              help=f"Families to fit, comma-separated (default: {', '.join(MODEL_KINDS)}; with --from-drop-tests "
+                   f"{', '.join(DROP_MODEL_KINDS)}, and template with --template).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the ranking to this table (.csv, .parquet, .json, .xlsx) and the per-record table "
                    "beside it (<name>_per_record.<suffix>).")
 @click.option("--json", "as_json", is_flag=True, help="Print the tables as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False),
               help="Write the RMSE bars (seed 000 Fig. 8) and the overlaid loops to this folder.")
-def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str,
-                   out: Path | None, as_json: bool, plot_dir: str | None) -> None:
-    """Fit every model family on the same DATA (torsional or translational servo records) and
-    rank them.
+@click.option("--from-drop-tests", "drops", is_flag=True,
+              help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
+@click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
+@drop_options
+@click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
+def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str | None,
+                   out: Path | None, as_json: bool, plot_dir: str | None, drops: bool, template: str | None,
+                   holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
+                   accept_poor: bool) -> None:
+    """Fit every model family on the same DATA (torsional or translational servo records, or with
+    --from-drop-tests drop-test logs) and rank them.
 
-    Prints a ranking (parameters, nRMSE on the fitting and hold-out data, fit time), best
-    first by the Bayesian information criterion on the fitting data with the residual's
-    effective sample size (a family with more parameters ranks higher only if it lowers the
-    error by more than its parameters cost; delta_bic: distance to the best), and
-    seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
+    Prints a ranking (parameters, nRMSE on the fitting and hold-out data, BIC, verdict, fit
+    time), best first by one criterion for all families: BIC = n_eff ln(RSS / (n sigma^2)) +
+    k ln(n_eff) on the same n fitting samples, sigma the data's noise floor and n_eff one
+    effective sample size from the noise (never from a family's own residual); a family with
+    more parameters ranks higher only if it lowers the error by more than its parameters cost;
+    within 2 of each other families are tied and the one with fewer parameters ranks first
+    (delta_bic: distance to the best; above 10: strong evidence against). The exit code is 3
+    when the best family's verdict is "poor fit" (no family describes the data to within 2
+    times the noise), unless --accept-poor. It also prints seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
     relative to the worst model on that record). A family whose data requirement these
     records do not meet (overlay: steady sine blocks at several amplitudes and frequencies)
     is skipped with the reason and the others are ranked; families whose fit fails or does not
@@ -212,24 +252,37 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     ranking: it adds each family's error on a record none of them was fitted to.
 
     \b
+    With --from-drop-tests, DATA are drop-test logs or campaign folders: every family
+    (elastoslide, zerodim6, masing, pfeffer; template with --template) is fitted to the same
+    fitting tests' free decays and ranked by the same criterion on the angle error (sigma:
+    the logs' pre-trigger noise with the re-simulation's accuracy).
+
+    \b
     Examples:
       droptower compare-models sweep_*.csv --holdout check.csv --plot compare/
       droptower compare-models sweep.csv --models zerodim6,elastoslide --out ranking.xlsx
+      droptower compare-models --from-drop-tests runs/campaign --template rapp2022_nr60
     """
     from tqdm import tqdm
 
-    from droptower.identify.report import RANKING_RULE, plot_comparison, ranking_table, record_table
+    from droptower.identify.criterion import RULE
+    from droptower.identify.report import plot_comparison, ranking_table, record_table
     from droptower.identify.strategies import identify as run
     from droptower.io.tables import check_table_path, write_table
 
-    kinds = [k.strip() for k in models.split(",") if k.strip()]
-    unknown = [k for k in kinds if k not in MODEL_KINDS]
+    known = DROP_MODEL_KINDS + ("template",) if drops else MODEL_KINDS
+    default = DROP_MODEL_KINDS + (("template",) if template else ()) if drops else MODEL_KINDS
+    kinds = [k.strip() for k in models.split(",") if k.strip()] if models is not None else list(default)
+    unknown = [k for k in kinds if k not in known]
     if unknown or not kinds:
         raise DroptowerError(f"unknown model famil{'ies' if len(unknown) > 1 else 'y'} {', '.join(unknown)} "
-                             f"(known: {', '.join(MODEL_KINDS)})" if unknown else "no model family given",
+                             f"(known: {', '.join(known)})" if unknown else "no model family given",
                              where="--models")
     if out is not None:
         check_table_path(out, "--out")
+    if drops:
+        return compare_drops(data, kinds, channels, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
+                             out, as_json, accept_poor)
     segments = _read_data(data, channels, 0.0)
     held = _read_data((holdout,), channels, 0.0) if holdout else None
     results, failures, skipped = {}, [], []
@@ -249,17 +302,17 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
                 failures.append(f"{kind}: the fit did not converge")
     if not results:
         raise DroptowerError(f"no model family could be fitted to these records ({'; '.join(skipped)})")
-    ranking = ranking_table(results)
+    ranking = ranking_table(results, segments)
     records = record_table(results, segments + (held or []))
     if out is not None:
         wrote(write_table(ranking.rename_axis("rank").reset_index(), out, "--out"), f"ranking of {len(ranking)} families")
         wrote(write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out"),
               f"per record, {len(records)} rows")
     if as_json:
-        click.echo(json.dumps({"ranking_rule": RANKING_RULE, "ranking": json.loads(ranking.to_json(orient="records")),
+        click.echo(json.dumps({"ranking_rule": RULE, "ranking": json.loads(ranking.to_json(orient="records")),
                                "records": json.loads(records.to_json(orient="records"))}, indent=1))
     else:
-        click.echo(f"ranking ({RANKING_RULE}; nRMSE: RMSE in % of the largest |torque|):")
+        click.echo(f"ranking ({RULE}; nRMSE: RMSE in % of the largest |torque|):")
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.3f}"))
         click.echo("\nper record (seed 000 Fig. 8): nRMSE % / RMSE relative to the worst model")
         if not records.empty:
@@ -277,3 +330,58 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
         for line in failures:
             click.echo(f"droptower: failed: {line}", err=True)
         raise click.exceptions.Exit(2)
+    _exit_if_best_is_poor(ranking, accept_poor)
+
+
+def _exit_if_best_is_poor(ranking, accept_poor: bool) -> None:
+    """Exit code 3 when the best-ranked family's verdict is a poor fit (unless ``accept_poor``)."""
+    from droptower.identify.verdict import EXIT_POOR_FIT, POOR
+
+    best = ranking.iloc[0]
+    if best["verdict"] == POOR and not accept_poor:
+        click.echo(f"droptower: the best-ranked family {best['model']} is a poor fit: no family describes these data "
+                   f"to within the noise (--accept-poor: exit 0; exit code {EXIT_POOR_FIT})", err=True)
+        raise click.exceptions.Exit(EXIT_POOR_FIT)
+
+
+def compare_drops(data: tuple[str, ...], kinds: list[str], channels: tuple[str, ...], template: str | None,
+                  holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
+                  out: Path | None, as_json: bool, accept_poor: bool) -> None:
+    """compare-models --from-drop-tests: every family fitted to the same tests, ranked by the one criterion."""
+    from droptower.cli.identify_drops_cmd import prepare
+    from droptower.identify.criterion import RULE
+    from droptower.identify.dropfit import identify_drops
+    from droptower.identify.report import drop_ranking_table
+    from droptower.io.tables import write_table
+
+    decays, excluded, settings, options, _ = prepare(data, None, channels, InitFile(), template, holdout_fraction, rig,
+                                                     inertia_kgm2, lever_length_m)
+    if "template" in kinds and "template" not in options:
+        raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
+    results, failures = {}, []
+    for kind in kinds:
+        progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ...")
+        opts = {"template": options["template"]} if kind == "template" else {}
+        try:
+            results[kind] = identify_drops(kind, decays, excluded=excluded, settings=settings, options=opts)
+        except DroptowerError as exc:
+            failures.append(f"{kind}: {exc.message}")
+            continue
+        if not results[kind].converged:
+            failures.append(f"{kind}: the fit did not converge")
+    if not results:
+        raise DroptowerError(f"no model family could be fitted to these drop tests ({'; '.join(failures)})")
+    ranking = drop_ranking_table(results)
+    if out is not None:
+        write_table(ranking.rename_axis("rank").reset_index(), out, "--out")
+    if as_json:
+        click.echo(json.dumps({"ranking_rule": RULE, "ranking": json.loads(ranking.to_json(orient="records"))},
+                              indent=1))
+    else:
+        click.echo(f"ranking ({RULE}; angle nRMSE: RMS angle error in % of each test's peak, RMS over tests):")
+        click.echo(ranking.to_string(float_format=lambda v: f"{v:.4g}"))
+    if failures:
+        for line in failures:
+            click.echo(f"droptower: failed: {line}", err=True)
+        raise click.exceptions.Exit(2)
+    _exit_if_best_is_poor(ranking, accept_poor)

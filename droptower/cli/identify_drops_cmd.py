@@ -44,6 +44,11 @@ def drop_report_text(result: Any, verbose: bool = False) -> str:
     lines.append(f"initial rate from: {', '.join(sources)} (impact_force: L * impulse / J; angle_slope: the angle's "
                  "slope after the onset)")
     lines.append(f"effort:  {result.evaluations} model evaluations, {result.nfev} optimiser steps, {result.wall_s:.2f} s")
+    if result.search:
+        lines.append(f"global search: {result.search['candidates']} candidates over the bounds, least squares from "
+                     f"the best {result.search['local_fits']}")
+    if result.verdict:
+        lines.append(result.verdict.text())
     per_test = result.fit_error["per_test"] + (result.holdout_error["per_test"] if result.holdout_error else [])
     if not verbose:
         worst = max(per_test, key=lambda r: r["angle_nrmse"])
@@ -158,11 +163,13 @@ def plot_servo_prediction(table: Any, out_dir: str) -> Path:
     return save_figure(servo_prediction_figure(table), Path(out_dir) / "identify_drop_servo_prediction.png", 110)
 
 
-def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,
-        holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
-        out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None,
-        verbose: bool = False) -> None:
-    from droptower.identify.dropfit import DropFitSettings, identify_drops
+def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], init: Any, template: str | None,
+            holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
+            lever_length_m: float | None, verbose: bool = False) -> tuple[list, list, Any, dict, Any]:
+    """The campaign's decays, the excluded logs (reported on stderr: the first few, or with
+    ``verbose`` all), the fit settings, the family options and the read settings, from the
+    command line's options."""
+    from droptower.identify.dropfit import DropFitSettings
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.io import parse_channel_options
 
@@ -202,10 +209,23 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         click.echo(f"droptower: excluded {e['file']}: {e['reason']}", err=True)
     if len(excluded) > EXCLUDED_SHOWN and not verbose:
         click.echo(f"droptower: excluded {len(excluded) - EXCLUDED_SHOWN} more test(s) (--verbose names them)", err=True)
+    return decays, excluded, settings, options, read
+
+
+def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,
+        holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
+        out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None,
+        verbose: bool = False, accept_poor: bool = False) -> None:
+    from droptower.identify.dropfit import identify_drops
+    from droptower.identify.verdict import EXIT_POOR_FIT
+
+    decays, excluded, settings, options, read = prepare(data, kind, channels, init, template, holdout_fraction, rig,
+                                                        inertia_kgm2, lever_length_m, verbose)
     progress(f"identify: fitting {kind} to {len(decays)} drop test(s) ...")
     result = identify_drops(kind, decays, excluded=excluded, settings=settings, init=init.initial, bounds=init.bounds,
                             options=options)
-    if result.converged and out:
+    poor = result.verdict is not None and result.verdict.poor and not accept_poor
+    if result.converged and out and not poor:
         result.coupling_file = str(out)
     click.echo(json.dumps(result.as_dict(), indent=1) if as_json else drop_report_text(result, verbose))
     if predict_servo or plot_dir:
@@ -221,6 +241,10 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
     if not result.converged:
         raise DroptowerError(f"model {kind}: the fit to the drop tests did not converge ({result.message}); "
                              "no coupling written")
+    if poor:
+        click.echo(f"droptower: model {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
+                   f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
+        raise click.exceptions.Exit(EXIT_POOR_FIT)
     if out:
         _write(result, out, len(result.tests_used))
         wrote(out, f"coupling {kind}, for simulate, campaign, servo")

@@ -9,9 +9,12 @@ divided by its peak and by the square root of its sample count, so that small dr
 much as large ones. All tests of all parameter sets of a call (a candidate, or the columns of
 a forward-difference Jacobian) decay in ONE batched call of the core.
 
-The fit is bounded trust-region-reflective least squares (:func:`~droptower.identify.fit.fit_rows`)
-from the best of a batch of random starts, with a weak prior toward the start that pins only
-the directions the data do not determine (reported as non-identifiable combinations).
+The fit is a global search (:mod:`.search`: Latin-hypercube candidates over the whole bounds
+and around the first guess, in batched calls) followed by bounded trust-region-reflective
+least squares (:func:`~droptower.identify.fit.fit_rows`) from the best three distinct
+candidates, each with a weak prior toward its start that pins only the directions the data
+do not determine (reported as non-identifiable combinations); the lowest cost wins. The
+verdict (:mod:`.verdict`) compares the angle error with the logs' pre-trigger noise.
 Standard errors: the larger of s^2 (J'J)^-1 inflated for the residual's lag-1 correlation
 and the cluster-robust (sandwich) covariance with the tests as clusters (a test's systematic
 misfit counts once, not once per sample), plus, in quadrature, the parameters' shift when the decays are integrated on half the step (the
@@ -24,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -35,8 +38,10 @@ from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, Parameter, clip_to_bounds, fit_rows
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows
 from droptower.identify.lever import at_times, free_decay
+from droptower.identify.search import global_fit
+from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.preload import hold_at
 
@@ -46,8 +51,20 @@ DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer")
 TOL = 1e-6
 #: Weight of the prior toward the starting point, per square root of the number of tests.
 PRIOR_WEIGHT = 1e-3
-#: Random starting points tried (in one batched call) before the least-squares fit.
-STARTS = 12
+#: Candidates of the global search per free parameter (Latin hypercube over the bounds), at least MIN_STARTS.
+STARTS_PER_PARAMETER = 24
+MIN_STARTS = 96
+#: Local least-squares fits from the best distinct candidates.
+LOCAL_FITS = 3
+#: A fit whose verdict is poor searches again with this many times the candidates (and two
+#: more local fits).
+ESCALATION = 3
+#: Tests the global search's candidates are evaluated on (spread over inertias and amplitudes):
+#: a large campaign adds no new information to the search, only cost.
+SEARCH_TESTS = 12
+#: The re-simulation's own accuracy against the rig, relative to a test's amplitude (tested:
+#: within 0.2 %; the integration step's first-order part): the verdict's allowance beside the noise.
+RESIMULATION_ACCURACY = 1e-3
 
 
 @dataclass(frozen=True)
@@ -241,6 +258,10 @@ class DropIdentification:
     nfev: int
     wall_s: float
     coupling_file: str | None = None
+    verdict: Verdict | None = None
+    search: dict[str, Any] = field(default_factory=dict)
+    angle_rss_rad2: float = math.nan
+    angle_samples: int = 0
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -261,7 +282,8 @@ class DropIdentification:
             "holdout_error": self.holdout_error, "tests_used": self.tests_used,
             "tests_held_out": self.tests_held_out, "tests_excluded": self.tests_excluded,
             "evaluations": self.evaluations, "nfev": self.nfev, "wall_s": self.wall_s,
-            "coupling_file": self.coupling_file})
+            "coupling_file": self.coupling_file, **(self.verdict.as_dict() if self.verdict else {}),
+            "search": self.search})
 
 
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
@@ -285,12 +307,17 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
-    x0 = start_search(problem, family, x0, free, settings.seed)
-    objective = problem.with_prior(x0, free)
-    sol = fit_rows(params, x0, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
-    if "p" in family.names and not given[family.names.index("p")]:
-        sol = walk_p(problem, family, sol, objective, settings.max_nfev)
+    choose_p = "p" in family.names and not given[family.names.index("p")]
+    sol, search = drop_search(problem, family, x0, free, settings, choose_p)
     sol = problem.without_prior(sol)
+    if drop_verdict(problem, sol.values, [], True)[0].poor:
+        # the error is many times the noise: search again, wider (more candidates, more local
+        # fits, other draws), and keep the better fit
+        wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True)
+        wider = problem.without_prior(wider)
+        if float(wider.residual @ wider.residual) < float(sol.residual @ sol.residual):
+            sol, search = wider, more
+        search = {**search, "escalated": True}
     # the integration step's bias: the parameters' shift to the half step, Richardson-scaled
     # for the first-order part of the error (the core's rate-dependent elements, see .lever)
     r_fine = problem.residuals(sol.values[None], 2 * settings.substeps)[0]
@@ -299,6 +326,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
     std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
     fit_err = summarise(per_test_errors(problem, sol.values))
+    verdict, rss, n_samples = drop_verdict(problem, sol.values, bound_hits(params, sol.at_bounds), sol.converged)
     hold_err = None
     if hold_idx:
         hold = DropProblem(family, [decays[i] for i in hold_idx], settings)
@@ -306,7 +334,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     return DropIdentification(
         kind, family, sol.values, std, sol.at_bounds, sol.non_identifiable, sol.converged, sol.message, fit_err,
         hold_err, [decays[i].name for i in fit_idx], [decays[i].name for i in hold_idx], list(excluded or []),
-        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, bias_z)
+        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, verdict=verdict, search=search,
+        angle_rss_rad2=rss, angle_samples=n_samples)
 
 
 def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int) -> Any:
@@ -341,24 +370,57 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_n
     return min(fits.values(), key=cost)
 
 
-def start_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray, seed: int) -> np.ndarray:
-    """The best of ``STARTS`` starting points (the first guess and random ones up to a factor
-    e^1.5 ~ 4.5 around it in every free logarithmic parameter; the elastoslide's p over its
-    candidates), all evaluated in one batched call on the fitting tests."""
-    rng = np.random.default_rng(seed)
-    params: list[Parameter] = family.parameters
-    cands = np.repeat(x0[None], STARTS, axis=0)
-    for j, p in enumerate(params):
-        if free[j] and p.log:
-            cands[1:, j] = x0[j] * np.exp(rng.uniform(-1.5, 1.5, STARTS - 1))
-    if "p" in family.names and "p_candidates" in family.options:
-        jp = family.names.index("p")
-        cands[:, jp] = rng.choice([int(v) for v in family.options["p_candidates"]], STARTS)
-        cands[0, jp] = x0[jp]
-    cands = np.array([clip_to_bounds(params, c) for c in cands])
-    r = problem.residuals(cands)
-    cost = np.where(np.isfinite(r).all(axis=1), np.sum(r * r, axis=1), np.inf)
-    return cands[int(np.argmin(cost))]
+def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray,
+                settings: DropFitSettings, choose_p: bool, escalate: bool = False) -> tuple[Any, dict[str, Any]]:
+    """Global search over the bounds (:func:`~droptower.identify.search.global_fit`: the first
+    guess, a quarter of the candidates around it and the rest a Latin hypercube over the whole
+    bounds in the optimised variables, the elastoslide's p over its candidates, all in
+    batched calls on at most :data:`SEARCH_TESTS` tests), then bounded
+    least squares on all fitting tests with a weak prior toward each of the best few distinct
+    candidates (and the odd p walked); the lowest cost wins. ``escalate``: the second, wider
+    search after a poor fit (:data:`ESCALATION` times the candidates, other draws, two more
+    local fits)."""
+    params = family.parameters
+    n_free = int(free.sum())
+    choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
+
+    def local(start: np.ndarray) -> Any:
+        objective = problem.with_prior(start, free)
+        sol = fit_rows(params, start, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
+        if choices:
+            sol = walk_p(problem, family, sol, objective, settings.max_nfev)
+        return sol
+
+    n = max(MIN_STARTS, STARTS_PER_PARAMETER * n_free) * (ESCALATION if escalate else 1)
+    decays = problem.decays
+    if len(decays) > SEARCH_TESTS:
+        order = sorted(range(len(decays)), key=lambda i: (decays[i].inertia_kgm2, decays[i].amplitude_rad))
+        picked = np.round(np.linspace(0, len(decays) - 1, SEARCH_TESTS)).astype(int)
+        search = DropProblem(family, [decays[order[i]] for i in picked], problem.settings)
+    else:
+        search = problem
+    best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n,
+                               keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate,
+                               choices=choices, local=local, near=n // 4)
+    problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
+    return best, {**summary, "search_tests": len(search.decays)}
+
+
+def drop_verdict(problem: DropProblem, values: np.ndarray, at_bound: list[str],
+                 converged: bool) -> tuple[Verdict, float, int]:
+    """The fit's RMS angle error over the fitting tests (rad) against the logs' pre-trigger
+    noise, with the re-simulation's accuracy (:data:`RESIMULATION_ACCURACY` of each test's
+    amplitude) added in quadrature; and the sum of squared angle errors (rad^2) over the
+    compared samples and their number (the ranking's likelihood term)."""
+    a, _ = problem.simulate(values[None])
+    err = ((a[0] - problem.angle) ** 2)[problem.mask]
+    noise = np.array([d.angle_noise_rad for d in problem.decays])
+    counts = problem.mask.sum(axis=1)
+    sigma = float(np.sqrt(np.sum(noise ** 2 * counts) / counts.sum()))
+    accuracy = float(np.sqrt(np.sum((RESIMULATION_ACCURACY * np.array([d.amplitude_rad for d in problem.decays])) ** 2
+                                    * counts) / counts.sum()))
+    verdict = judge(float(np.sqrt(np.mean(err))), sigma, "rad", at_bound, accuracy=accuracy, converged=converged)
+    return verdict, float(np.sum(err)), int(err.size)
 
 
 def tested_range(decays: list[DropDecay]) -> tuple[tuple[float, float], tuple[float, float]]:

@@ -46,7 +46,9 @@ class DropDecay:
     minus its pre-trigger mean; torque_nm (N,) or None: torque minus its pre-trigger mean;
     inertia_kgm2: J; rate0_rad_per_s: the lever's rate just after the impact; rate_source:
     ``impact_force`` or ``angle_slope``; frequency_hz, amplitude_rad: the first cycle's
-    frequency and peak angle (for scaling, grids and reports); dt_s: sample step.
+    frequency and peak angle (for scaling, grids and reports); dt_s: sample step;
+    angle_noise_rad: the angle's standard deviation before the trigger (the sensor's noise
+    floor, the lever at rest; 0 when unknown).
     """
 
     name: str
@@ -60,6 +62,7 @@ class DropDecay:
     amplitude_rad: float
     dt_s: float
     metadata: dict[str, Any] = field(default_factory=dict)
+    angle_noise_rad: float = 0.0
 
     @property
     def torque_amplitude_nm(self) -> float:
@@ -143,7 +146,7 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
     first = sel[t[sel] <= t_impact + 0.5 * period]
     dt = float(np.median(np.diff(t_all)))
     return DropDecay(name, t[sel] - t_impact, y[sel], torque, float(inertia), float(rate0), source,
-                     1.0 / period, float(np.max(np.abs(y[first]))), dt, dict(signals.metadata))
+                     1.0 / period, float(np.max(np.abs(y[first]))), dt, dict(signals.metadata), noise)
 
 
 def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[list[DropDecay], list[dict[str, str]]]:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -180,7 +180,9 @@ class FitResult:
     at_bounds: names of fitted parameters that ended on a bound; metrics: on the fitting data;
     nfev, njev: optimiser function and Jacobian evaluations; evaluations: parameter sets
     simulated over the data (a Jacobian of n columns counts n); converged: the optimiser met a
-    tolerance (not the evaluation limit); message: the optimiser's word.
+    tolerance (not the evaluation limit); message: the optimiser's word; step_error_nm: the
+    model's own discretisation error at the step it is fitted on (twice the RMS change of its
+    torque when integrated on half the step: first order), an allowance beside the noise.
     """
 
     stage: str
@@ -198,6 +200,7 @@ class FitResult:
     converged: bool
     message: str
     non_identifiable: list[dict[str, float]] = field(default_factory=list)
+    step_error_nm: float = 0.0
 
     def params(self) -> dict[str, float]:
         return dict(zip(self.names, map(float, self.values)))
@@ -282,9 +285,13 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
     fine = residuals(sol.values[None, :], 2 * int(getattr(model, "substeps", 1)))[0]
     bias_z = 2.0 * np.linalg.lstsq(sol.jacobian, -(fine - sol.residual), rcond=None)[0]
     std = sol.std_error(m.residual_lag1, extra_z=np.where(np.isfinite(bias_z), bias_z, 0.0))
+    # the model's own discretisation error at the step it is fitted on: twice its change on
+    # half the step (first order), RMS over the compared samples
+    step_error = 2.0 * float(np.sqrt(np.mean((fine - sol.residual) ** 2))) if fine.size else 0.0
     return FitResult(stage, [p.name for p in params], sol.values, free, std, sol.at_bounds, m, sol.nfev,
                      sol.njev, counter.evaluations, counter.core_calls, time.perf_counter() - start,
-                     sol.converged, sol.message, sol.non_identifiable)
+                     sol.converged, sol.message, sol.non_identifiable,
+                     step_error if np.isfinite(step_error) else 0.0)
 
 
 @dataclass
@@ -439,7 +446,8 @@ class Identification:
     coupling: the single coupling written by ``--out``; coupling_note: what that coupling
     represents when the model's parameters depend on amplitude or frequency; extra: the
     family's report (analytic identification, parameter functions, ...); converged: every
-    least-squares stage converged; predict: the model's torque on other segments.
+    least-squares stage converged; predict: the model's torque on other segments; verdict:
+    the fit against the data's noise floor (:class:`~droptower.identify.verdict.Verdict`).
     """
 
     family: str
@@ -455,6 +463,7 @@ class Identification:
     extra: dict = field(default_factory=dict)
     holdout: Metrics | None = None
     time_s: float = 0.0
+    verdict: Any = None
 
     @property
     def converged(self) -> bool:

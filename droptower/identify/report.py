@@ -16,9 +16,9 @@ import pandas as pd
 
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
-from droptower.identify.fit import Identification, Metrics, metrics
-from droptower.io.fields import field_name, translate_fields
+from droptower.identify.fit import Identification, metrics
 from droptower.io.droptower_log import save_figure
+from droptower.io.fields import field_name, translate_fields
 
 
 def _clean(value: Any) -> Any:
@@ -49,6 +49,7 @@ def result_dict(ident: Identification) -> dict[str, Any]:
     return translate_fields(_clean({
         "model": ident.family,
         "converged": ident.converged,
+        **(ident.verdict.as_dict() if ident.verdict else {}),
         "n_parameters": ident.n_parameters,
         "parameters": {n: {"value": v, "std_error": ident.std_error.get(n)} for n, v in ident.parameters.items()},
         "derived": ident.derived,
@@ -96,6 +97,13 @@ def result_text(ident: Identification) -> str:
                      f"{'converged' if s.converged else 'not converged: ' + s.message}")
     if ident.coupling_note:
         lines.append(f"coupling: {ident.coupling_note}")
+    if "global_search" in ident.extra:
+        g = ident.extra["global_search"]
+        lines.append(f"global search: {g['candidates']} candidates over the bounds, least squares from the best "
+                     f"{g['local_fits']}" + (f" (the staged fit: nRMSE {100 * ident.extra['staged_fit']['nrmse']:.3f} %)"
+                                             if "staged_fit" in ident.extra else ""))
+    if ident.verdict:
+        lines.append(ident.verdict.text())
     extra = translate_fields(ident.extra, units)
     for key in ("analytic", "loading_curve", "p_walk", "amplitude_functions", "frequency_functions"):
         if key in extra:
@@ -114,35 +122,67 @@ def _brief(value: Any) -> str:
 
 
 # ---------------------------------------------------------------------------- comparison
-#: How ``compare-models`` ranks (printed with the ranking).
-RANKING_RULE = ("ranked by BIC = n_eff ln(RSS / n) + k ln(n_eff) on the fitting data (k parameters, n samples, "
-                "n_eff = n (1 - r1) / (1 + r1) for the residual's lag-1 correlation r1): more parameters rank "
-                "higher only if they lower the error by more than they cost; non-converged fits last")
+def ranking_table(results: dict[str, Identification], segments: list[Segment]) -> pd.DataFrame:
+    """One row per family, best first by :data:`~droptower.identify.criterion.RULE`, every
+    family scored on the same compared samples of ``segments`` (its fitting data) against the
+    data's own noise floor; ``delta_bic`` is the distance to the best (above ~10: strong
+    evidence against the family)."""
+    from droptower.identify.criterion import bic
+    from droptower.identify.noise import servo_noise
 
-
-def bic(fit: Metrics, n_parameters: int) -> float:
-    """Bayesian information criterion of a least-squares fit with correlated residuals: the
-    Gaussian log-likelihood and the penalty on the effective number of independent samples."""
-    rho = min(max(fit.residual_lag1, 0.0), 0.99)
-    n_eff = max(fit.n_samples * (1.0 - rho) / (1.0 + rho), 1.0)
-    return n_eff * math.log(max(fit.rmse_nm, 1e-300) ** 2) + n_parameters * math.log(n_eff)
-
-
-def ranking_table(results: dict[str, Identification]) -> pd.DataFrame:
-    """One row per family, best first by :data:`RANKING_RULE`; ``delta_bic`` is the distance
-    to the best (above ~10: strong evidence against the family)."""
+    noise = servo_noise(segments)
+    rss = {kind: sum(float(np.sum((p - s.torque_nm)[s.compared] ** 2)) for p, s in zip(r.predict(segments), segments))
+           for kind, r in results.items()}
+    # records too short to smooth: the best family's RMS error stands in for the noise (the
+    # same constant for every family: the order is unchanged)
+    sigma = noise.sigma if math.isfinite(noise.sigma) else math.sqrt(min(rss.values()) / max(noise.n_samples, 1))
     rows = []
     for kind, r in results.items():
         rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
                      "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
-                     "bic": bic(r.fit, r.n_parameters),
+                     "bic": bic(rss[kind], noise.n_samples, noise.n_eff, sigma, r.n_parameters),
+                     "verdict": r.verdict.verdict if r.verdict else None,
                      "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
-    table = pd.DataFrame(rows)
+    return ranked(pd.DataFrame(rows), {"noise_floor_nm": sigma, "n_eff": noise.n_eff})
+
+
+def drop_ranking_table(results: dict[str, Any]) -> pd.DataFrame:
+    """Families fitted to one drop-test campaign (:class:`~droptower.identify.dropfit.DropIdentification`
+    each, the same fitting tests), ranked like :func:`ranking_table`: the likelihood term on the
+    angle error over the same compared samples, the noise model the logs' pre-trigger noise
+    with the re-simulation's accuracy in quadrature (the verdict's allowance), the sensor noise
+    white (n_eff = n)."""
+    from droptower.identify.criterion import bic
+
+    first = next(iter(results.values()))
+    sigma, n = first.verdict.allowance, first.angle_samples
+    rows = []
+    for kind, r in results.items():
+        if r.angle_samples != n:
+            raise ValueError("drop-test fits ranked together must share their fitting tests")
+        rows.append({"model": kind, "n_parameters": len(r.family.names),
+                     "fit_angle_nrmse_percent": 100 * r.fit_error["angle_nrmse"],
+                     "holdout_angle_nrmse_percent": 100 * r.holdout_error["angle_nrmse"] if r.holdout_error else np.nan,
+                     "bic": bic(r.angle_rss_rad2, n, float(n), sigma, len(r.family.names)),
+                     "verdict": r.verdict.verdict, "fit_time_s": r.wall_s, "evaluations": r.evaluations,
+                     "converged": r.converged})
+    return ranked(pd.DataFrame(rows), {"noise_allowance_rad": sigma, "n_eff": float(n)})
+
+
+def ranked(table: pd.DataFrame, common: dict[str, float]) -> pd.DataFrame:
+    """``table`` (columns model, n_parameters, bic, converged) best first by the criterion's
+    rule, with ``delta_bic`` and the ``common`` columns (the noise model, the effective sample size)."""
+    from droptower.identify.criterion import order
+
     if table.empty:
         return table
-    table["_rank"] = ~table["converged"]
-    table = table.sort_values(["_rank", "bic"]).drop(columns="_rank").reset_index(drop=True)
-    table.insert(5, "delta_bic", table["bic"] - table["bic"].iloc[0])
+    names = [m for ok in (True, False) for m in
+             order(list(zip(*(table.loc[table["converged"] == ok, c] for c in ("model", "n_parameters", "bic")))))]
+    table = table.set_index("model").loc[names].reset_index()
+    best = table["bic"][table["converged"]].min() if table["converged"].any() else table["bic"].min()
+    table.insert(table.columns.get_loc("bic") + 1, "delta_bic", table["bic"] - best)
+    for key, value in common.items():
+        table[key] = value
     table.index = table.index + 1
     return table
 

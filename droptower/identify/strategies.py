@@ -10,26 +10,43 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import numpy as np
+
 from droptower.errors import DroptowerError
 from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
-from droptower.identify.families.stages import setup
-from droptower.identify.fit import Identification
+from droptower.identify.families.stages import Setup, result_of, setup
+from droptower.identify.fit import Identification, Parameter, least_squares_fit, simulate
+from droptower.identify.noise import NoiseFloor, servo_noise
+from droptower.identify.search import global_fit
+from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.io.fields import torsional_fields
+
+#: Values of ``identify(search=...)``.
+SEARCH_MODES = ("auto", "always", "never")
+#: Families whose identification is one parameter vector for all data (the global search's
+#: result replaces the staged one); overlay's parameters come from a map of sine blocks.
+SEARCHABLE = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "template")
+#: Candidates of the servo global search per free parameter, at least MIN_CANDIDATES.
+CANDIDATES_PER_PARAMETER = 16
+MIN_CANDIDATES = 64
 
 
 def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | None = None,
              bounds: dict[str, tuple[float, float]] | None = None, options: dict[str, Any] | None = None,
              holdout: list[Segment] | None = None, previous: dict[str, Identification] | None = None,
-             file: str | None = None) -> Identification:
+             file: str | None = None, search: str = "auto", seed: int = 0) -> Identification:
     """Identify model family ``kind`` from ``segments``.
 
     init, bounds, options: from ``--params INIT.toml`` (parameter name -> initial value;
     name -> [lower, upper]; family options); holdout: data for the hold-out RMSE;
     previous: results of other families on the same data (zerodim20 starts from zerodim6's).
     Translational records (``Segment.units``) may name parameters and options for their units
-    (``k1_n_per_m``, ``amplitude_mm``) or the torsional way. A fit that does not converge is
-    returned with ``converged`` False: the caller decides.
+    (``k1_n_per_m``, ``amplitude_mm``) or the torsional way.
+    search: ``"auto"`` runs the global search (:func:`global_search`) when the family's
+    staged strategy ends in a poor fit, ``"always"`` after it in any case, ``"never"`` not;
+    the better of the two is kept. Every result carries its verdict (:mod:`.verdict`). A fit
+    that does not converge is returned with ``converged`` False: the caller decides.
     """
     start = time.perf_counter()
     if not segments:
@@ -37,8 +54,62 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     units = common_units(segments + list(holdout or []), "fitting and hold-out records")
     init, bounds, options = (torsional_fields(given or {}, units) for given in (init, bounds, options))
     s = setup(family_class(kind), segments, init, bounds, options, file)
+    if search not in SEARCH_MODES:
+        raise DroptowerError(f"search must be one of {', '.join(SEARCH_MODES)}, got {search!r}")
     result = STRATEGIES[kind](s, segments, start, previous=previous)
+    noise = servo_noise(segments)
+    result.verdict = servo_verdict(result, noise, s.family.parameters)
+    if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE):
+        searched = global_search(s, segments, start, seed)
+        searched.verdict = servo_verdict(searched, noise, s.family.parameters)
+        searched.extra["staged_fit"] = {"nrmse": result.fit.nrmse, "verdict": result.verdict.verdict}
+        if searched.fit.rmse_nm < result.fit.rmse_nm:
+            result = searched
+        else:
+            result.extra["global_search"] = searched.extra["global_search"]
     if holdout:
         result.evaluate_holdout(holdout)
     result.time_s = time.perf_counter() - start
     return result
+
+
+def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Parameter]) -> Verdict:
+    """The fit's RMS torque error against the records' noise floor (N*m), with the model's
+    discretisation error at the sample step (the last stage's) added in quadrature."""
+    step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
+    return judge(result.fit.rmse_nm, noise.sigma, "nm", bound_hits(parameters, result.at_bounds), accuracy=step,
+                 converged=result.converged)
+
+
+def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0) -> Identification:
+    """Latin-hypercube candidates over the whole bounds (every batch in one core call), then the
+    joint least squares from the best three distinct ones (:func:`~droptower.identify.search.global_fit`)."""
+    fam = s.family
+    free = ~s.given
+    masks = [seg.compared for seg in segments]
+
+    def residuals(rows: np.ndarray) -> np.ndarray:
+        try:
+            per_row = simulate(fam, rows, segments)
+        except DroptowerError:  # a candidate the core refuses: evaluate one by one
+            return np.array([residuals(r[None])[0] if _admissible(fam, r) else np.full(sum(m.sum() for m in masks), np.inf)
+                             for r in rows])
+        return np.array([np.concatenate([(t - seg.torque_nm)[m] for t, seg, m in zip(per, segments, masks)])
+                         for per in per_row])
+
+    def local(x: np.ndarray):
+        return least_squares_fit(fam, segments, x, free=free, stage="global search: joint", max_nfev=s.max_nfev)
+
+    n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
+    best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
+                               cost_of=lambda f: f.metrics.rmse_nm, near=n // 4)
+    return result_of(s, segments, best.values.copy(), [best], start,
+                     extra={"global_search": summary, "search_evaluations": n})
+
+
+def _admissible(fam, row: np.ndarray) -> bool:
+    try:
+        fam.coupling(row)
+        return True
+    except DroptowerError:
+        return False

@@ -111,7 +111,10 @@ def identify_pfeffer(s: Setup, segments: list[Segment], start: float, **_) -> Id
             k_stat = min(evals, key=lambda e: e[1].frequency_hz)[1].storage_stiffness_nm_per_rad
     if evals and k_stat and k_stat > 0:
         freqs = np.array([ev.frequency_hz for _, ev in evals])
-        f_layout = float(fam.options["layout_frequency_hz"]) or float(np.median(freqs))
+        # default: the measured block frequency nearest the median (the median of an even
+        # number of block frequencies lies between two blocks)
+        f_layout = float(fam.options["layout_frequency_hz"]) or float(
+            freqs[np.argmin(np.abs(np.log(freqs / np.median(freqs))))])
         near = np.abs(np.log(freqs / f_layout)) <= np.log(1.1)
         if not near.any():
             raise DroptowerError(f"no steady sine block near the layout frequency {f_layout:g} Hz "

@@ -20,27 +20,31 @@ class ZeroDim6(Family):
 
     K3 = k3 + gain |e| with e the branch spring's deformation (linear in the deformation, as
     in seed 000 Fig. 11). The Maxwell branches are parameterised by relaxation times tau =
-    C / K; the slow branch relaxes slower than ``tau_split_s``, the fast one faster.
+    C / K. Option ``tau_split_s`` > 0 confines the slow branch to relaxation times above it and
+    the fast one below; the default 0 lets both span the whole range (both branches may act at
+    the test frequencies; the staged start still gives K2-C2 the slow ramps and K3-C3 the sweeps).
     """
 
     kind = "zerodim6"
     title = "zero-dimensional six-parameter model: K1 || Maxwell(K2, C2) || Maxwell(K3 + gain |e|, C3)"
     source = "seed 000 (zero-dimensional model), section 5 / Fig. 11"
-    OPTIONS = {"tau_split_s": 0.1}
+    OPTIONS = {"tau_split_s": 0.0}
 
     def _parameters(self):
         s, split = self.scale, float(self.options["tau_split_s"])
+        slow, fast = ((split, 1e4), (1e-6, split)) if split > 0 else ((1e-6, 1e4), (1e-6, 1e4))
         return [stiffness_parameter("k1_nm_per_rad", s), stiffness_parameter("k2_nm_per_rad", s),
-                Parameter("tau2_s", split, 1e4), stiffness_parameter("k3_nm_per_rad", s),
+                Parameter("tau2_s", *slow), stiffness_parameter("k3_nm_per_rad", s),
                 Parameter("k3_gain_nm_per_rad2", 0.0, 1e3 * s.stiffness_nm_per_rad / s.amplitude_rad, log=False,
                           scale=s.stiffness_nm_per_rad / s.amplitude_rad),
-                Parameter("tau3_s", 1e-6, split)]
+                Parameter("tau3_s", *fast)]
 
     def guess(self):
         s = self.scale
         k = s.stiffness_nm_per_rad
         tau3 = 0.3 / (2 * np.pi * max(s.frequency_hz, 1e-3))
-        return np.array([0.5 * k, 0.3 * k, 10 * float(self.options["tau_split_s"]), 0.5 * k, 0.0, tau3])
+        tau2 = 10 * float(self.options["tau_split_s"]) or 1.0
+        return np.array([0.5 * k, 0.3 * k, tau2, 0.5 * k, 0.0, tau3])
 
     def elements(self, v):
         k1, k2, tau2, k3, gain, tau3 = v

@@ -1,0 +1,154 @@
+"""A global search before the local least squares: Latin-hypercube multi-start over the bounds.
+
+Candidates fill the whole box of the free parameters in their optimised variables (the
+logarithm of a positive parameter spanning decades, value / scale otherwise, a linear one from
+0 over decades spread over them alike) as a Latin hypercube (McKay, Beckman & Conover 1979), so no decade of any parameter is left out; all
+candidates of a batch are evaluated in ONE call of the residual function (the core advances
+every parameter set at once). Bounded least squares (:func:`~droptower.identify.fit.fit_rows`)
+then runs from the best few distinct candidates and the lowest cost wins.
+
+Exchangeable branches (parameters ``tau<i>_s`` with the same bounds, each with its partners
+``<letter><i>_...`` of the same bounds) describe the same coupling in any order: every
+candidate has them sorted by relaxation time, so the search does not spend its candidates on
+copies of one coupling.
+"""
+from __future__ import annotations
+
+import re
+from typing import Any, Callable
+
+import numpy as np
+from scipy.stats import qmc
+
+from droptower.identify.fit import Parameter, clip_to_bounds, fit_rows
+
+#: Candidates evaluated per batch (one call of the residual function each).
+BATCH = 64
+#: Half-width of the neighbourhood of the first guess sampled beside the whole box (optimised
+#: variables: e^1.5 ~ 4.5 around a logarithmic parameter).
+NEAR = 1.5
+
+
+def exchangeable_branches(parameters: list[Parameter]) -> list[list[int]]:
+    """Index groups, one per branch (its relaxation time first), of branches that differ only
+    by their number: same parameter names apart from it and the same bounds."""
+    names = [p.name for p in parameters]
+    branches: dict[str, list[int]] = {}
+    for i, n in enumerate(names):
+        m = re.fullmatch(r"tau(\d+)_s", n)
+        if m:
+            partners = [j for j, o in enumerate(names) if j != i and re.fullmatch(rf"[a-z]+{m.group(1)}_[a-z_0-9]+", o)
+                        and not o.startswith("tau")]
+            branches[m.group(1)] = [i] + partners
+
+    def signature(group: list[int]) -> tuple:
+        return tuple((re.sub(r"\d+", "#", names[j]), parameters[j].lower, parameters[j].upper) for j in group)
+
+    out: dict[tuple, list[list[int]]] = {}
+    for group in branches.values():
+        out.setdefault(signature(group), []).append(group)
+    return [g for groups in out.values() if len(groups) > 1 for g in groups]
+
+
+def order_branches(parameters: list[Parameter], rows: np.ndarray) -> np.ndarray:
+    """``rows`` with every set of exchangeable branches sorted by relaxation time (ascending)."""
+    groups = exchangeable_branches(parameters)
+    if not groups:
+        return rows
+    rows = rows.copy()
+    sets: dict[tuple, list[list[int]]] = {}
+    for g in groups:
+        sets.setdefault(tuple(re.sub(r"\d+", "#", parameters[j].name) for j in g), []).append(g)
+    for gs in sets.values():
+        block = np.array(gs)  # (branches, parameters per branch)
+        taus = rows[:, block[:, 0]]
+        perm = np.argsort(taus, axis=1)
+        at = np.arange(len(rows))[:, None]
+        rows[at, block.reshape(-1)[None, :]] = rows[at, block[perm].reshape(len(rows), -1)]
+    return rows
+
+
+def candidates(parameters: list[Parameter], x0: np.ndarray, free: np.ndarray, n: int, seed: int = 0,
+               choices: dict[int, list[float]] | None = None, near: int = 0) -> np.ndarray:
+    """``n`` parameter sets (rows, physical values): ``x0`` first, then ``near`` Latin-hypercube
+    points within +-:data:`NEAR` of it (clipped to the bounds), then a Latin hypercube over the
+    free parameters' whole bounds, all in their optimised variables; ``choices``: parameters
+    that take one of a few values (e.g. an odd exponent), drawn among them."""
+    idx = np.flatnonzero(free)
+    rows = np.repeat(np.asarray(x0, float)[None], n, axis=0)
+    if n > 1 and idx.size:
+        lo, hi = np.array([parameters[i].z_bounds() for i in idx]).T
+        z0 = np.array([parameters[i].to_z(x0[i]) for i in idx])
+        m = min(near, n - 1)
+        z = np.empty((n - 1, idx.size))
+        if m:
+            z[:m] = np.clip(z0 - NEAR + 2 * NEAR * qmc.LatinHypercube(d=idx.size, seed=seed + 1).random(m), lo, hi)
+        if n - 1 > m:
+            unit = qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1 - m)
+            z[m:] = lo + unit * (hi - lo)
+            # a linear parameter from 0 over decades (a gain, a cubic coefficient): spread over
+            # its decades like a logarithmic one, z = expm1(u ln(1 + z_max)), or almost every
+            # candidate would sit in its top decade
+            for k, i in enumerate(idx):
+                if not parameters[i].log and lo[k] == 0.0 and hi[k] > 10.0:
+                    z[m:, k] = np.expm1(unit[:, k] * np.log1p(hi[k]))
+        for k, i in enumerate(idx):
+            rows[1:, i] = [parameters[i].to_value(v) for v in z[:, k]]
+    rng = np.random.default_rng(seed)
+    for i, values in (choices or {}).items():
+        rows[1:, i] = rng.choice(values, n - 1)
+    rows = order_branches(parameters, rows)
+    return np.array([clip_to_bounds(parameters, r) for r in rows])
+
+
+def costs(residuals: Callable[[np.ndarray], np.ndarray], rows: np.ndarray, batch: int = BATCH) -> np.ndarray:
+    """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite."""
+    out = []
+    for a in range(0, len(rows), batch):
+        with np.errstate(all="ignore"):  # candidates far out in the bounds may diverge: they cost inf
+            r = residuals(rows[a:a + batch])
+            out.append(np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1),
+                                np.inf))
+    return np.concatenate(out)
+
+
+def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray, keep: int,
+                min_distance: float = 0.05) -> np.ndarray:
+    """The ``keep`` lowest-cost rows that differ from each other by more than ``min_distance``
+    of the box (in the optimised variables, largest coordinate)."""
+    lo, hi = np.array([p.z_bounds() for p in parameters]).T
+    span = np.where(hi > lo, hi - lo, 1.0)
+    z = np.array([[p.to_z(v) for p, v in zip(parameters, r)] for r in rows]) / span
+    chosen: list[int] = []
+    for i in np.argsort(cost):
+        if cost[i] == np.inf or len(chosen) == keep:
+            break
+        if all(np.max(np.abs(z[i] - z[j])) > min_distance for j in chosen):
+            chosen.append(int(i))
+    return rows[chosen]
+
+
+def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+               free: np.ndarray, n_candidates: int, keep: int = 3, seed: int = 0, max_nfev: int | None = None,
+               tol: float = 1e-7, choices: dict[int, list[float]] | None = None, near: int = 0,
+               local: Callable[[np.ndarray], Any] | None = None,
+               cost_of: Callable[[Any], float] = lambda f: float(f.residual @ f.residual)) -> tuple[Any, dict]:
+    """Latin-hypercube search over the bounds, then least squares from the ``keep`` best
+    distinct candidates (``local(start)``, default :func:`fit_rows` on ``residuals``); the
+    fit of lowest cost (``cost_of(fit)``) wins. With ``near`` candidates around ``x0`` (a
+    data-driven first guess), the best of those is always one of the starts: a guess whose
+    basin the box's samples miss is still refined. Returns the fit and a summary (candidates,
+    their best cost, the local fits' costs)."""
+    rows = candidates(parameters, x0, free, n_candidates, seed, choices, near)
+    cost = costs(residuals, rows)
+    m = 1 + min(near, n_candidates - 1)
+    home = rows[[int(np.argmin(cost[:m]))]] if near else rows[:0]
+    starts = best_starts(parameters, np.concatenate([home, rows]), np.concatenate([[-np.inf] * len(home), cost]), keep)
+    if local is None:
+        def local(start: np.ndarray) -> Any:
+            return fit_rows(parameters, start, residuals, free=free, max_nfev=max_nfev, tol=tol)
+    fits = [local(s) for s in starts]
+    local_costs = [cost_of(f) for f in fits]
+    best = fits[int(np.argmin(local_costs))]
+    return best, {"candidates": int(n_candidates), "best_candidate_cost": float(np.min(cost)),
+                  "local_fits": len(fits), "local_costs": local_costs}

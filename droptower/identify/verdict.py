@@ -1,0 +1,89 @@
+"""An honest verdict on an identification: its error against the data's own noise floor.
+
+``converged`` says only that the optimiser met its tolerance: a local minimum converges too.
+The verdict compares the fit error with what the data allow (the noise floor, estimated
+without a model: :mod:`.noise`) and looks at the parameters:
+
+- ``"good fit"``: the RMS error is at most :data:`NOISE_RATIO` times the allowance (the noise
+  floor, with the simulation's own accuracy added in quadrature where it matters; without a
+  noise estimate the error is not judged) and no parameter sits on a bound;
+- ``"poor fit"`` otherwise, with the reasons: the model misses structure in the data (a
+  local minimum, or a family that cannot represent the coupling), or a parameter ended on a
+  bound (the optimum lies outside the box, or the parameter is not supported by the data).
+  A linear parameter on a lower bound of 0 is a term switched off, not a bound hit.
+
+The command line exits with :data:`EXIT_POOR_FIT` on a poor fit unless ``--accept-poor``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from droptower.identify.fit import Parameter
+
+#: A fit error above this multiple of the noise allowance is a poor fit.
+NOISE_RATIO = 2.0
+#: Exit code of ``identify`` / ``compare-models`` on a poor fit (2: bad input or no convergence).
+EXIT_POOR_FIT = 3
+GOOD, POOR = "good fit", "poor fit"
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """verdict: ``"good fit"`` or ``"poor fit"``; reasons: why it is poor; error_over_noise:
+    the RMS fit error over the noise allowance; noise_floor: the data's noise (unit in
+    ``unit``); allowance: the noise floor with the simulation's accuracy added."""
+
+    verdict: str
+    error_over_noise: float
+    noise_floor: float
+    allowance: float
+    unit: str
+    reasons: list[str] = field(default_factory=list)
+
+    @property
+    def poor(self) -> bool:
+        return self.verdict == POOR
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "reasons": list(self.reasons), "error_over_noise": self.error_over_noise,
+                f"noise_floor_{self.unit}": self.noise_floor, f"noise_allowance_{self.unit}": self.allowance,
+                "noise_ratio_limit": NOISE_RATIO}
+
+    def text(self) -> str:
+        head = (f"verdict: {self.verdict} (fit error {self.error_over_noise:.2f} x the noise allowance "
+                f"{self.allowance:.3g} {self.unit.replace('_', '*')}; limit {NOISE_RATIO:g})")
+        return head + "".join(f"\n  - {r}" for r in self.reasons)
+
+
+def bound_hits(parameters: list[Parameter], at_bounds: list[str]) -> list[str]:
+    """Parameters on a bound that count against a fit (not a linear term switched off at 0)."""
+    by_name = {p.name: p for p in parameters}
+    out = []
+    for name in at_bounds:
+        p = by_name.get(name)
+        if p is not None and not p.log and p.lower == 0.0:
+            continue
+        out.append(name)
+    return out
+
+
+def judge(error_rms: float, noise_floor: float, unit: str, at_bound: list[str], *,
+          accuracy: float = 0.0, converged: bool = True) -> Verdict:
+    """The verdict on a fit of RMS error ``error_rms`` to data of noise ``noise_floor`` (same
+    unit ``unit``); ``accuracy``: the simulation's own error, added to the noise in quadrature;
+    ``at_bound``: parameters on a bound that count (:func:`bound_hits`)."""
+    allowance = math.hypot(noise_floor, accuracy) if math.isfinite(noise_floor) else accuracy
+    # no noise estimate (records too short to smooth, no pre-trigger part): the error is not judged
+    ratio = error_rms / allowance if allowance > 0 else math.nan
+    reasons = []
+    if ratio > NOISE_RATIO:
+        reasons.append(f"the fit error is {ratio:.3g} x the noise allowance (limit {NOISE_RATIO:g}): the model misses "
+                       "structure in the data (a local minimum, or a family that cannot represent this coupling)")
+    if at_bound:
+        reasons.append(f"parameter(s) on a bound: {', '.join(at_bound)} (the best fit lies outside the bounds, or the "
+                       "data do not support the parameter)")
+    if not converged:
+        reasons.append("the optimiser did not converge")
+    return Verdict(POOR if reasons else GOOD, ratio, noise_floor, allowance, unit, reasons)

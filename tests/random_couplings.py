@@ -1,0 +1,78 @@
+"""Couplings of the identification's families drawn at random (shared by the tests and
+``benchmarks/bench_identify.py``): wide ranges that keep the drop tower's first-cycle
+frequencies at 15-80 Hz for the rig's inertias (0.156-0.523 kg*m^2) with a few cycles of decay."""
+from __future__ import annotations
+
+import numpy as np
+
+#: The reference coupling whose structure the template family fits.
+REFERENCE = "rapp2022_nr60"
+#: Total stiffness range (N*m/rad) that puts the rig's inertias (0.156-0.523 kg*m^2) at 15-80 Hz.
+K_RANGE = (6e3, 3e4)
+
+
+def _log_uniform(rng, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+#: Loss factors at 0.5 deg and 30 Hz a draw must have: the decay loses 12-85 % of its
+#: amplitude per cycle (e^(-pi eta)), so a few cycles show it (lighter damping is redrawn).
+LOSS_FACTOR_RANGE = (0.04, 0.6)
+
+
+def random_truth(kind: str, rng) -> dict:
+    """A coupling of family ``kind`` drawn from wide ranges that keep the drop tower's decays at
+    15-80 Hz with a few cycles (:data:`LOSS_FACTOR_RANGE`; a draw outside is redrawn)."""
+    from droptower.rheology import parse_coupling
+    from droptower.servo import run_grid
+
+    while True:
+        data = _draw(kind, rng)
+        eta = float(run_grid(parse_coupling(data), [np.radians(0.5)], [30.0], cycles=2, run_in_cycles=3,
+                             simulation_rate_hz=9600.0)["loss_factor"].iloc[0])
+        if LOSS_FACTOR_RANGE[0] <= eta <= LOSS_FACTOR_RANGE[1]:
+            return data
+
+
+def _draw(kind: str, rng) -> dict:
+    k = _log_uniform(rng, *K_RANGE)
+    tau = lambda: _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))  # noqa: E731
+    if kind == "zerodim6":
+        k1 = k * rng.uniform(0.4, 0.8)
+        k2, k3 = (k - k1) * rng.dirichlet([1.0, 1.0])
+        t3 = tau()
+        t2 = t3 * _log_uniform(rng, 5.0, 100.0)  # two distinguishable branches (closer ones merge into one)
+        return {"name": "random_zerodim6", "element": [
+            {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": k2, "damping": k2 * t2},
+            {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": rng.uniform(0.0, 1.0) * k3 / 0.01,
+             "damping": k3 * t3}]}
+    if kind == "elastoslide":
+        kk = k * rng.uniform(0.6, 1.0)
+        return {"name": "random_elastoslide", "element": [
+            {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
+             "v_r": _log_uniform(rng, 0.05, 1.0), "p": int(rng.choice([3, 5, 7, 9])), "n": 32}]}
+    if kind == "masing":
+        n = 7
+        kp = k * rng.uniform(0.2, 0.5)
+        c1, c2 = k * rng.uniform(0.05, 0.25, 2)
+        t1 = tau()
+        t2 = t1 * _log_uniform(rng, 5.0, 100.0)
+        return {"name": "random_masing", "element": [
+            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
+            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n,
+             "alpha": rng.uniform(0.5, 3.0)},
+            {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
+            {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
+    if kind == "pfeffer":
+        alpha = _log_uniform(rng, 0.1, 1.0)
+        return {"name": "random_pfeffer", "element": [
+            {"kind": "pfeffer", "k1": k / (1 + alpha), "alpha": alpha, "beta": rng.uniform(0.0, 0.3), "gamma": tau()}]}
+    if kind == "template":
+        from droptower.identify.data import DataScale
+        from droptower.identify.families import TemplateFamily
+
+        fam = TemplateFamily(DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0), {"template": REFERENCE})
+        factors = np.exp(rng.uniform(np.log(0.6), np.log(1.6), len(fam.parameters)))
+        c = fam.coupling(factors)
+        return {"name": "random_template", "element": [e.model_dump(exclude_none=True) for e in c.elements]}
+    raise ValueError(kind)
