@@ -120,9 +120,9 @@ def test_identify_cli_on_an_inch_kip_export_writes_a_translational_coupling(case
     files = exports["in"]
     out = tmp_path / "fitted.toml"
     code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--model", family,
-                 "--holdout", str(files["random"]), "--json", "--out", str(out)])
+                 "--holdout", str(files["random"]), "--json", "--out", str(out), "--accept-poor"])
     report = json.loads(capsys.readouterr().out)
-    assert code == 0
+    assert code == 0 and report["verdict"] == EXPECTED_VERDICT[family]
     assert report["units"] == "translational"
     assert report["holdout"]["nrmse"] == pytest.approx(twin.holdout.nrmse, rel=1e-9)
     written = load_coupling(out)
@@ -132,6 +132,11 @@ def test_identify_cli_on_an_inch_kip_export_writes_a_translational_coupling(case
     assert 'units = "translational"' in out.read_text()
 
 
+#: The verdict on each twin: the bushing has friction that the linear Pfeffer family lacks (its
+#: hold-out error, 1.75 %, is 3.5x the 0.5 % noise), so its fit is honestly a poor one.
+EXPECTED_VERDICT = {"elastoslide": "good fit", "pfeffer": "poor fit"}
+
+
 @pytest.mark.parametrize("case", ["seed002_bushing"], indirect=True)
 def test_translational_names_in_the_params_file(case, tmp_path, capsys):
     """Initial values and bounds may be named for the translational reading (k1_n_per_m);
@@ -139,12 +144,18 @@ def test_translational_names_in_the_params_file(case, tmp_path, capsys):
     preset, family, twin, exports = case
     files = exports["mm"]
     init = tmp_path / "init.toml"
-    init.write_text("[initial]\nk1_n_per_m = 9.0e5\n[bounds]\nk1_n_per_m = [1.0e5, 1.0e7]\n")
-    code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--model", "pfeffer",
-                 "--params", str(init), "--json"])
-    report = json.loads(capsys.readouterr().out)
-    assert code == 0 and report["converged"]
-    assert report["parameters"]["k1_n_per_m"]["value"] == pytest.approx(twin.parameters["k1_nm_per_rad"], rel=1e-3)
+    fitted = {}
+    for name in ("k1_n_per_m", "k1_nm_per_rad"):  # the translational reading, or the torsional one
+        init.write_text(f"[initial]\n{name} = 9.0e5\n[bounds]\n{name} = [1.0e5, 1.0e7]\n")
+        code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--model", "pfeffer",
+                     "--params", str(init), "--json", "--accept-poor"])
+        report = json.loads(capsys.readouterr().out)
+        assert code == 0 and report["converged"] and report["verdict"] == EXPECTED_VERDICT["pfeffer"]
+        fitted[name] = report["parameters"]["k1_n_per_m"]["value"]
+    # both names set the same parameter: the same fit, inside the given bounds, near the twin's
+    assert fitted["k1_n_per_m"] == pytest.approx(fitted["k1_nm_per_rad"], rel=1e-12)
+    assert 1.0e5 <= fitted["k1_n_per_m"] <= 1.0e7
+    assert fitted["k1_n_per_m"] == pytest.approx(twin.parameters["k1_nm_per_rad"], rel=0.05)
     init.write_text("[initial]\nk2_n_per_m = 9.0e5\n")
     code = main(["identify", str(files["ramps"]), "--model", "pfeffer", "--params", str(init)])
     err = capsys.readouterr().err
@@ -155,7 +166,7 @@ def test_compare_models_on_translational_records(case, capsys):
     preset, family, twin, exports = case
     files = exports["in"]
     code = main(["compare-models", *[str(files[k]) for k in files if k != "random"], "--holdout", str(files["random"]),
-                 "--models", f"zerodim6,{family}", "--json"])
+                 "--models", f"zerodim6,{family}", "--json", "--accept-poor"])
     tables = json.loads(capsys.readouterr().out)
     assert code == 0
     ranking = {row["model"]: row for row in tables["ranking"]}
