@@ -1,4 +1,4 @@
-"""Calibrate the reference coupling ``rapp2022_nr60`` on a joint objective (issue 9).
+"""Calibrate the reference coupling ``rapp2022_nr60`` on a joint objective.
 
     python analysis/calibrate_nr60.py [--out calibration_out] [--write-preset] [--work calibration_work]
 
@@ -11,17 +11,17 @@ test band and above: K' rising with frequency at a nearly flat loss factor).
 
 Objective, every figure through the evaluation a lab would use:
 
-- Table 4 (seed 004): the drop tests' stiffness and damping ratio, each row's case
+- Table 4 (Rapp et al. 2022): the drop tests' stiffness and damping ratio, each row's case
   interpolated at its amplitude (:func:`droptower.compare.reference_map.compare_reference`);
 - drop tower vs servo bench without the map: each drop test's decay (c, d) against the
   steady-state sine test at the decay's own amplitude and frequency (storage stiffness K' and
-  the drop-tower-equivalent damping ratio, NOTES §1.7);
+  the drop-tower-equivalent damping ratio, docs/theory.md#damping-measures);
 - the loss factor at 1 Hz at least 0.7x that at 30 Hz (1.5 deg) and the third harmonic of the
   torque at most 5 % of the fundamental (1.5 deg, 30 Hz): penalties beyond 0.75x and 4.5 %.
 
-Fast inner loop: the free decay of the lever (inertia J, the impact law's initial rate, NOTES
-§1.2) on the core at 38.4 kHz after the rig's preload procedure, fitted over its first cycle
-with the extractor's own fit (NOTES §1.4); all 30 conditions (3 cases x the 10 drop heights of
+Fast inner loop: the free decay of the lever (inertia J, the impact law's initial rate,
+docs/theory.md#impact) on the core at 38.4 kHz after the rig's preload procedure, fitted over its first cycle
+with the extractor's own fit (docs/theory.md#extraction); all 30 conditions (3 cases x the 10 drop heights of
 Table 2) in one batch. Output space mapping: a reduced campaign through the whole pipeline
 (pymunk impact, sensors, logs, extraction) gives per row the ratio pipeline / fast loop, and the
 fast loop is re-fitted against the targets so corrected.
@@ -67,12 +67,12 @@ from droptower.servo.steady import rubber_figures, steady_state
 from run_study import real_time_factor
 
 REPOSITORY = Path(__file__).resolve().parents[1]
-CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (NOTES §1.1)
+CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (docs/theory.md#rig)
 LEVER_M, RESTITUTION = 0.2, 0.5
 HEIGHTS_M = np.array([0.05, 0.2, 0.4, 0.55, 0.7, 1.0, 1.4, 1.8, 3.5, 6.0])  # Table 2
 RATE_HZ = 38_400.0
 DURATION_S = 0.075
-#: the targets of issue 9 (percent RMS, ratios)
+#: the reference coupling's targets (percent RMS, ratios)
 TARGETS = {"table4_stiffness_rms_pct": 5.0, "table4_damping_rms_pct": 12.0,
            "servo_inside_stiffness_rms_pct": 6.0, "servo_inside_damping_rms_pct": 7.0,
            "loss_factor_ratio_1hz_30hz_min": 0.7, "third_harmonic_pct_max": 5.0, "real_time_factor_min": 100.0}
@@ -126,11 +126,11 @@ def build(values: dict[str, float], matrix: bool = True) -> Coupling:
                          "terms_per_decade": POWER_LAW_TERMS_PER_DECADE})
     return parse_coupling({
         "name": "rapp2022_nr60",
-        "description": "Natural-rubber disc coupling, Shore A 60 (seed 004): equilibrium spring + filler network "
+        "description": "Natural-rubber disc coupling, Shore A 60 (Rapp et al. 2022): equilibrium spring + filler network "
                        "(Iwan friction network whose structure breaks down with the strain and recovers in time: "
                        "Payne effect, rate-independent loss) + power-law matrix branch spread over the test band, "
                        "calibrated by analysis/calibrate_nr60.py on Table 4 and drop tower vs servo bench jointly",
-        "source": "seed 004 (Rapp et al. 2022) Table 4; Iwan (1966) / Masing friction network with Kraus (1984) "
+        "source": "Rapp et al. 2022, Table 4; Iwan (1966) / Masing friction network with Kraus (1984) "
                   "shapes; power-law (fractional) viscoelasticity as a Prony series",
         "element": [{k: (float(x) if isinstance(x, (int, float, np.floating)) else x) for k, x in e.items()}
                     for e in elements]})
@@ -139,7 +139,7 @@ def build(values: dict[str, float], matrix: bool = True) -> Coupling:
 # ---------------------------------------------------------------- the fast loop
 def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[float, float, float, float]:
     """(amplitude deg at the window's middle, frequency Hz, stiffness N*m/deg, d_ratio) of the
-    first complete cycle, fitted like the extractor does (NOTES §1.4)."""
+    first complete cycle, fitted like the extractor does (docs/theory.md#extraction)."""
     omega0, delta0 = start_frequency_and_decay(t, angle, 0.0)
     window = t <= 2 * np.pi / omega0
     fit = fit_decay(t[window], angle[window], omega0, delta0)
@@ -168,7 +168,7 @@ def predict(coupling: Coupling) -> pd.DataFrame:
 
 def servo_at(coupling: Coupling, points: pd.DataFrame, cycles: int = 5) -> pd.DataFrame:
     """Steady-state K' (N*m/deg) and the drop-tower-equivalent d at each point's own amplitude
-    and frequency (the map-free comparison, NOTES §1.7); ``cycles`` run-in and evaluated cycles
+    and frequency (the map-free comparison, docs/theory.md#damping-measures); ``cycles`` run-in and evaluated cycles
     (the objective uses 2: the filler network's loops close in the first cycle)."""
     ss = steady_state(coupling, np.radians(points["amplitude_deg"].to_numpy()), points["frequency_hz"].to_numpy(),
                       cycles=cycles, run_in_cycles=cycles)
@@ -322,7 +322,7 @@ CANDIDATES = [
     Candidate("joint", Weights()),
     Candidate("joint_servo_heavy", Weights(servo_stiffness=0.02, servo_damping=0.02)),
     # shown for the trade-off only: without the matrix branch the model has no frequency
-    # dependence at all (issue 9, item 2), so it is not eligible as the preset
+    # dependence at all, so it is not eligible as the preset
     Candidate("joint_without_matrix", Weights(matrix=False), eligible=False),
 ]
 

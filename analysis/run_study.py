@@ -1,4 +1,4 @@
-"""The study of seed 004, end to end, on the virtual rig: campaign -> map -> servo validation ->
+"""The study of Rapp et al. 2022, end to end, on the virtual rig: campaign -> map -> servo validation ->
 comparison with the paper's measured map (Table 4), into one report folder.
 
     python analysis/run_study.py [--out report] [--reduced] [--coupling rapp2022_nr60] [--workers N]
@@ -7,16 +7,16 @@ comparison with the paper's measured map (Table 4), into one report folder.
    no preload: 15 tests) on the rig ``rapp2022`` with the coupling (default the calibrated
    ``rapp2022_nr60``): simulated, logged, extracted from the logs (``droptower campaign``),
    into ``OUT/campaign/`` (resumed if it is there already);
-2. the characteristic map, seed 004 eq. 19 and eq. 20 (``droptower map``): ``OUT/map.json``
+2. the characteristic map, Rapp et al. 2022, eq. 19 and eq. 20 (``droptower map``): ``OUT/map.json``
    and Fig. 10, 12, 13;
-3. the servo-hydraulic validation, NOTES §1.6 sweeps on the virtual servo bench
+3. the servo-hydraulic validation, docs/theory.md#servo sweeps on the virtual servo bench
    (``droptower validate``; ``--reduced``: fewer steps): ``OUT/validation.csv``, Fig. 14;
 4. the comparison with Table 4 (shipped: ``droptower/data/rapp2022_table4_map.csv``): per row the
    map at the row's amplitude and frequency and the campaign's tests interpolated at the row's
    case and amplitude: ``OUT/table4_comparison.csv``, printed with the acceptance (RMS <= 5 %
    stiffness, <= 12 % damping ratio); the map-free check (drop tests placed on the servo points
    inside the tested hull: ``OUT/map_free_check.csv``), the coupling's loss-factor ratio, third
-   harmonic and speed, and the targets of issue 9, each met or missed;
+   harmonic and speed, and the reference coupling's targets, each met or missed;
 5. the map form chosen by cross-validation (``droptower map --form auto``) on Table 4 and on the
    campaign, its errors and time (not with ``--reduced``);
 6. ``OUT/index.html`` with every table and figure, and ``OUT/summary.json`` (with the hashes of
@@ -52,7 +52,7 @@ from droptower.rig.config import load_rig
 from droptower.servo.steady import rubber_figures
 from provenance import provenance  # analysis/provenance.py
 
-REFERENCE = table4_path()  # seed 004 Table 4, shipped with the package
+REFERENCE = table4_path()  # Rapp et al. 2022, Table 4, shipped with the package
 REDUCED_HEIGHTS_M = [0.05, 0.4, 1.0, 3.5, 6.0]
 TABLE4_FIGURE = "table4_comparison.png"
 
@@ -91,7 +91,7 @@ def plot_table4(comparison: pd.DataFrame, results: pd.DataFrame, path: Path) -> 
         ax.set_xticks([0.1, 0.2, 0.5, 1, 2, 5])
         ax.grid(True, alpha=0.3, which="both")
         ax.legend(fontsize=8)
-    fig.suptitle("Virtual campaign vs the paper's measured map (seed 004 Table 4). Squares: Table 4; lines: campaign "
+    fig.suptitle("Virtual campaign vs the paper's measured map (Rapp et al. 2022, Table 4). Squares: Table 4; lines: campaign "
                  "interpolated at its amplitudes;\ncrosses: map at Table 4's amplitude and frequency; dots: single tests",
                  fontsize=10)
     fig.savefig(path, dpi=110)
@@ -111,7 +111,7 @@ def write_index(out: Path, facts: dict[str, Any], sections: list[tuple[str, str]
     study = "<table class='data'>" + "".join(
         f"<tr><th>{html.escape(k)}</th><td style='text-align:left'>{html.escape(str(v))}</td></tr>"
         for k, v in facts.items()) + "</table>"
-    return write_report(out / "campaign", out / "index.html", title="Drop-tower study of seed 004 on the virtual rig",
+    return write_report(out / "campaign", out / "index.html", title="Drop-tower study of Rapp et al. 2022 on the virtual rig",
                         extra_sections=[("The study", study), *sections])
 
 
@@ -133,7 +133,7 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
               progress: bool = True) -> dict[str, Any]:
     """Run the study into ``out``; returns the summary (also written to ``out/summary.json``)."""
     if not REFERENCE.is_file():
-        raise DroptowerError("Table 4 of seed 004 is needed for the comparison and is absent", file=REFERENCE)
+        raise DroptowerError("Table 4 of Rapp et al. 2022 is needed for the comparison and is absent", file=REFERENCE)
     t0 = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     doe = reduced_plan(out) if reduced else DEFAULT_DOE
@@ -150,7 +150,7 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     usable, excluded = select_tests(results)
     map_figures, _ = plot_all(usable, fit, out)
 
-    # 3. servo validation (NOTES §1.6, §1.7)
+    # 3. servo validation (docs/theory.md#servo, #damping-measures)
     points = run_sweeps(run.spec.coupling, reduced=reduced)
     validation = validate_map(fit, points)
     write_validation(out, validation, fit, points)
@@ -168,7 +168,7 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
     table4 = pd.read_csv(REFERENCE)
     comparison, comparison_summary = compare_reference(table4, fit, results)
     write_csv(out / "table4_comparison.csv", comparison)
-    # the same per preload: the paper saw no influence of the preload (seed 004 Fig. 11)
+    # the same per preload: the paper saw no influence of the preload (Rapp et al. 2022, Fig. 11)
     by_preload = {f"{p:g}": compare_reference(table4, None, results, p)[1]["campaign"]
                   for p in sorted(results["preload_nm"].unique())} if results["preload_nm"].nunique() > 1 else {}
     plot_table4(comparison, results, out / TABLE4_FIGURE)
@@ -199,15 +199,15 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
         "campaign": f"campaign/ (manifest.json, results.parquet, results.csv, logs/); {t_campaign:.1f} s",
         "record length after the impact": f"{run.spec.duration_s:g} s",
     }, [
-        ("Comparison with Table 4 of seed 004", _pre(format_comparison(comparison_summary) + by_preload_text(by_preload))
+        ("Comparison with Table 4 of Rapp et al. 2022", _pre(format_comparison(comparison_summary) + by_preload_text(by_preload))
          + _img(TABLE4_FIGURE)
          + "<p><a href='table4_comparison.csv'>table4_comparison.csv</a></p>" + _table_html(comparison)),
-        ("Characteristic map (seed 004 eq. 19, eq. 20)", _pre(fit.summary()) + "<p><a href='map.json'>map.json</a></p>"
+        ("Characteristic map (Rapp et al. 2022, eq. 19, eq. 20)", _pre(fit.summary()) + "<p><a href='map.json'>map.json</a></p>"
          + "".join(_img(p.name) for p in map_figures)),
-        ("Targets of the reference coupling (issue 9)", _pre(format_targets(summary["targets"]))),
+        ("Targets of the reference coupling", _pre(format_targets(summary["targets"]))),
         ("Map-free check: drop tests placed on the servo points", _pre(format_check(check)) if check is not None
          else "<p>no servo point inside the tested hull</p>"),
-        ("Servo-hydraulic validation (seed 004 Fig. 14)", _pre(format_summary(validation)) + _img("fig14_servo_validation.png")
+        ("Servo-hydraulic validation (Rapp et al. 2022, Fig. 14)", _pre(format_summary(validation)) + _img("fig14_servo_validation.png")
          + "<p><a href='validation.csv'>validation.csv</a>, <a href='servo_results.csv'>servo_results.csv</a></p>"
          + _table_html(validation.table)),
         ("Tests excluded from the map", _table_html(excluded_table) if len(excluded_table) else "<p>none</p>"),
@@ -252,7 +252,7 @@ def real_time_factor(coupling, rate_hz: float = 38_400.0, repeats: int = 5) -> f
     return float(1.0 / best)
 
 
-#: issue 9's targets: (summary path, limit, "max" or "min", what)
+#: the reference coupling's targets: (summary path, limit, "max" or "min", what)
 TARGETS = [
     (("table4", "campaign", "stiffness_rms_deviation_pct"), 5.0, "max", "campaign vs Table 4, stiffness rms %"),
     (("table4", "campaign", "damping_rms_deviation_pct"), 12.0, "max", "campaign vs Table 4, damping ratio rms %"),
@@ -265,7 +265,7 @@ TARGETS = [
 
 
 def target_table(summary: dict[str, Any]) -> list[dict[str, Any]]:
-    """Each target of issue 9 with the study's figure and whether it is met."""
+    """Each target of the reference coupling with the study's figure and whether it is met."""
     rows = []
     for path, limit, kind, what in TARGETS:
         value = summary
@@ -305,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
     print(format_comparison(summary["table4"]) + by_preload_text(summary["table4_by_preload_nm"]))
     if summary["map_free_check"] is not None:
         print(format_check(MapFreeCheck(pd.DataFrame(), summary["map_free_check"])))
-    print("targets of the reference coupling (issue 9):")
+    print("targets of the reference coupling:")
     print(format_targets(summary["targets"]))
     print(f"report: {args.out / 'index.html'}")
     return 0

@@ -1,6 +1,6 @@
-"""Benchmark: the full Table-2 campaign (seed 004, 450 tests) simulated, logged and extracted.
+"""Benchmark: the full Table-2 campaign (Rapp et al. 2022, 450 tests) simulated, logged and extracted.
 
-Target (issue 5): <= 60 s wall on this 2-core machine, peak memory <= 2 GB. Prints the wall
+Target: <= 60 s wall on this 2-core machine, peak memory <= 2 GB. Prints the wall
 time, the CPU time per phase summed over the workers (simulation; sensor sampling and log
 writing; reading back and extraction), peak memory of the main process and of the largest
 worker (and their sum over all processes as an upper bound: forked workers share pages), and

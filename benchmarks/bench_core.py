@@ -1,4 +1,4 @@
-"""Speed of the rheological core (issues 2 and 9).
+"""Speed of the rheological core.
 
     python benchmarks/bench_core.py [--coupling rapp2022_nr60] [--quick]
 
@@ -6,7 +6,7 @@ Driven at 38.4 kHz by a 30 Hz sine of 1.5 deg (the middle of the drop tower's am
 Figures printed:
 
 1. single instance, 1 s of response: wall time and the factor faster than real time (target:
-   >= 100x, i.e. <= 10 ms), for issue 2's reference composition (a spring, a 32-element
+   >= 100x, i.e. <= 10 ms), for the core's reference composition (a spring, a 32-element
    rate-dependent elastoslide with p = 7 and two Maxwell branches: :data:`COMPOSITION`) and
    for the shipped reference coupling ``rapp2022_nr60`` (spring, filler network,
    power-law matrix branch);
@@ -34,9 +34,9 @@ from timing import best_of, json_option, write_figures
 RATE_HZ = 38_400.0
 FREQ_HZ = 30.0
 AMPLITUDE_RAD = np.deg2rad(1.5)
-#: issue 2's reference composition (the reference coupling of that time, without its later
+#: the core's reference composition (the reference coupling of that time, without its later
 #: softening branch; one Maxwell branch plain instead of saturating)
-COMPOSITION = {"name": "issue 2 reference composition", "element": [
+COMPOSITION = {"name": "reference composition", "element": [
     {"kind": "spring", "stiffness": 6846.39},
     {"kind": "elastoslide", "phi0": 0.04844, "k": 1747.2, "k0": 0.0, "v_r": 118.9, "p": 7, "n": 32},
     {"kind": "maxwell", "stiffness": 2000.0, "damping": 4.0},
@@ -53,7 +53,7 @@ def ode_system(coupling: dt.Coupling):
 
     Supports the element kinds of the reference coupling: springs, static curves, Maxwell
     branches (linear, or a force table in series with a linear dashpot) and rate-dependent
-    slider banks (seed 001 eq. 13).
+    slider banks (the elastoslide paper, eq. 13).
     """
     springs, maxwell_k, maxwell_c, bank_k, bank_f, curves, branches = 0.0, [], [], [], [], [], []
     v_r = p_exp = None

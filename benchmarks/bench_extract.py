@@ -1,6 +1,6 @@
 """Benchmark: ``droptower extract`` throughput on 10 000-sample CSV logs, parsing included.
 
-Target (issue 4): >= 100 logs/s on this machine. Prints logs/s, the share of time spent
+Target: >= 100 logs/s on this machine. Prints logs/s, the share of time spent
 parsing (read_any + map_channels) and fitting (extract), and the ratio to a naive baseline
 measured in the same run: ``pandas.read_csv`` + ``scipy.optimize.curve_fit`` of the same
 decay model over the first cycle (impact from the force peak, no uncertainties, no flags).

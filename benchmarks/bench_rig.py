@@ -1,4 +1,4 @@
-"""Speed of the virtual drop tower (issue 3).
+"""Speed of the virtual drop tower.
 
     python benchmarks/bench_rig.py [--coupling rapp2022_nr60] [--workers 2] [--quick]
 

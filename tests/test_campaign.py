@@ -24,7 +24,7 @@ from droptower.cli.main import main
 from droptower.io import read_any
 
 # Kelvin-Voigt coupling: the drop tower must give c = J (omega^2 + delta^2) = k and
-# d_ratio = (exp(4 pi delta / omega) - 1) / 2 with delta = c_d / (2 J) (NOTES §1.3-1.4).
+# d_ratio = (exp(4 pi delta / omega) - 1) / 2 with delta = c_d / (2 J) (docs/theory.md#decay, #extraction).
 K_NM_PER_RAD, C_NMS_PER_RAD = 14000.0, 8.0
 LINEAR = f'name = "linear"\n[[element]]\nkind = "spring"\nstiffness = {K_NM_PER_RAD}\n' \
          f'[[element]]\nkind = "dashpot"\ndamping = {C_NMS_PER_RAD}\n'
@@ -87,7 +87,7 @@ def test_pipeline_recovers_the_linear_coupling(reference):
     assert list(table.columns[-5:]) == ["flags", "log_file", "status", "error", "simulation_warnings"]
     assert table["test_id"].tolist() == list(range(8))
     assert (table["status"] == "done").all()
-    # closed forms of the damped single-degree-of-freedom oscillator (NOTES §1.3-1.4)
+    # closed forms of the damped single-degree-of-freedom oscillator (docs/theory.md#decay, #extraction)
     delta = C_NMS_PER_RAD / (2 * J)
     omega = math.sqrt(K_NM_PER_RAD / J - delta**2)
     np.testing.assert_allclose(table["stiffness_nm_per_rad"], K_NM_PER_RAD, rtol=1e-3)

@@ -96,7 +96,7 @@ def test_run_simulate_channels_extract(folder):
     channels = json.loads(_ok("channels", str(log), "--json").stdout)
     assert {c["name"] for c in channels} >= {"angle_rad", "torque_nm"}
     rows = json.loads(_ok("extract", str(log), "--json").stdout)
-    # Kelvin-Voigt coupling: c = J (omega^2 + delta^2) = k (seed 004 eq. 15)
+    # Kelvin-Voigt coupling: c = J (omega^2 + delta^2) = k (Rapp et al. 2022, eq. 15)
     assert rows[0]["stiffness_nm_per_rad"] == pytest.approx(14000.0, rel=0.01)
 
 

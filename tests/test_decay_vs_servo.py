@@ -1,7 +1,7 @@
-"""Regression tests of the drop tower vs servo comparison itself (issue 9, item 4).
+"""Regression tests of the drop tower vs servo comparison itself.
 
-- A spring + dashpot coupling: the drop tower's damping ratio (first-cycle decay fit, seed 004
-  eq. 16) equals the bench's drop-tower-equivalent damping ratio (NOTES §1.7), so the
+- A spring + dashpot coupling: the drop tower's damping ratio (first-cycle decay fit, Rapp et al. 2022,
+  eq. 16) equals the bench's drop-tower-equivalent damping ratio (docs/theory.md#damping-measures), so the
   like-for-like comparison is sound;
 - a linear Maxwell coupling: the decay's delta and omega are those of the complex eigenvalue of
   J s^2 + K*(s) = 0, K*(s) = k + k_m tau s / (1 + tau s);
@@ -32,7 +32,7 @@ J = 0.359
 
 def first_cycle(coupling, rate0=3.0, inertia=J):
     """(amplitude rad at the window's middle, delta 1/s, omega rad/s) of the first cycle, fitted
-    like the extractor does (NOTES §1.4)."""
+    like the extractor does (docs/theory.md#extraction)."""
     at_rest = Pretwist(np.zeros(1), np.zeros(1), coupling.new_state(1))
     dec = free_decay(coupling, np.array([inertia]), np.array([rate0]), at_rest, 1 / 38400, 0.1)
     t, a = dec.time_s[1:], dec.angle_rad[0, 1:]
@@ -85,6 +85,6 @@ def test_map_free_check_lands_on_the_points_and_compares(tmp_path):
     np.testing.assert_allclose(check.table["decay_frequency_hz"], f, rtol=0.01)
     s = check.summary["decay_vs_servo"]
     assert s["n_points"] == 2
-    # sensors add noise and the test-setup resonance (NOTES §1.1): the extraction's accuracy
+    # sensors add noise and the test-setup resonance (docs/theory.md#rig): the extraction's accuracy
     assert s["stiffness_rms_deviation_pct"] < 0.5 and s["damping_rms_deviation_pct"] < 2.0
     assert "decay vs servo" in format_check(check)

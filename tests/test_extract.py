@@ -1,4 +1,4 @@
-"""The extractor (seed 004 eq. 13-18, NOTES §1.3, §1.4, §1.7) against closed forms,
+"""The extractor (Rapp et al. 2022, eq. 13-18, docs/theory.md#decay, #extraction, #damping-measures) against closed forms,
 the paper's Tables 3 and 4, and synthetic logs with known stiffness and damping."""
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ DEG = math.pi / 180.0
 
 # --- formulas ----------------------------------------------------------------------------
 
-# seed 004 Table 3: δ_var (1/s), ω_var (rad/s), d_ratio as printed
+# Rapp et al. 2022, Table 3: δ_var (1/s), ω_var (rad/s), d_ratio as printed
 TABLE3 = [(33.031, 293.64, 1.5552), (18.373, 164.81, 1.5295), (16.426, 154.59, 1.4005)]
 
 
@@ -56,9 +56,9 @@ def test_reference_amplitude_is_the_envelope_mid_window():
     assert sdof.reference_amplitude(2.0, 10.0, 0.04) == pytest.approx(2.0 * math.exp(-0.2))
 
 
-def test_notes_1_7_numbers():
-    # NOTES §1.7: r = 0.05 -> ψ 0.63, d_ratio 0.44; r = 0.10 -> both ≈ 1.25; r = 0.12 -> ψ 1.49, d_ratio 1.76.
-    # The notes quote ψ ≈ 2πη; the DIN definition (W_el = ½ T̂ φ̂) gives 2πη / √(1 + η²).
+def test_damping_measures_numbers_of_the_theory():
+    # docs/theory.md#damping-measures: r = 0.05 -> ψ 0.63, d_ratio 0.44; r = 0.10 -> both ≈ 1.25; r = 0.12 -> ψ 1.49, d_ratio 1.76.
+    # docs/theory.md#damping-measures quotes ψ ≈ 2πη; the DIN definition (W_el = ½ T̂ φ̂) gives 2πη / √(1 + η²).
     for r, psi, d in [(0.05, 0.63, 0.44), (0.10, 1.25, 1.25), (0.12, 1.49, 1.76)]:
         eta = sdof.loss_factor(r, 1.0)
         assert 2 * np.pi * eta == pytest.approx(psi, abs=0.01)
@@ -69,7 +69,7 @@ def test_notes_1_7_numbers():
 def test_loss_factor_and_psi_are_those_of_the_kelvin_voigt_loop():
     """Drive T = cφ + dφ' with φ = φ̂ sin ωt: η = K''/K' from the first harmonic, ψ = W_D / (½T̂φ̂)
     with W_D the loop area and T̂ the torque amplitude, computed numerically (DIN 740-2
-    definitions, NOTES §1.7)."""
+    definitions, docs/theory.md#damping-measures)."""
     J, delta, omega = 0.359, 21.0, 196.0
     c, d = sdof.stiffness(J, omega, delta), 2 * J * delta
     t = np.linspace(0.0, 2 * np.pi / omega, 20001)
@@ -108,12 +108,12 @@ def test_synthetic_linear_log(rate, d_ratio):
     moved = result.impact_time_s - (drop.pretrigger_s + drop.pulse_s / 2)
     envelope = drop.amplitude_deg * DEG * np.exp(-drop.delta * (result.window_end_s / 2 + moved))
     assert result.amplitude_ref_rad == pytest.approx(envelope, rel=0.01)
-    # the first complete cycle (seed 004)
+    # the first complete cycle (Rapp et al. 2022)
     assert result.window_end_s == pytest.approx(2 * np.pi / drop.omega, rel=0.01)
-    # servo-comparable damping of the same linear coupling (NOTES §1.7)
+    # servo-comparable damping of the same linear coupling (docs/theory.md#damping-measures)
     assert result.loss_factor == pytest.approx(sdof.loss_factor(drop.delta, drop.omega), rel=0.03)
     assert result.relative_damping_psi == pytest.approx(sdof.relative_damping(drop.delta, drop.omega), rel=0.03)
-    # impact: the fit's start velocity and the force impulse agree with the truth (NOTES §1.2)
+    # impact: the fit's start velocity and the force impulse agree with the truth (docs/theory.md#impact)
     assert result.decay_fit_initial_rate_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.01)
     assert result.lever_rate_after_rad_per_s == pytest.approx(drop.impact_velocity_rad_per_s, rel=0.02)
     # offsets: sensor offset + preload, removed before fitting

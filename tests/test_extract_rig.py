@@ -1,6 +1,6 @@
 """The extractor on the virtual drop tower's logs: a linear Kelvin–Voigt coupling (spring and
 dashpot) of known stiffness and damping goes through the pymunk rig, its sensors and the log
-file, and comes back out of ``extract_file`` (seed 004 eq. 15-17)."""
+file, and comes back out of ``extract_file`` (Rapp et al. 2022, eq. 15-17)."""
 from __future__ import annotations
 
 import numpy as np
@@ -30,5 +30,5 @@ def test_linear_coupling_through_the_virtual_rig(tmp_path):
         assert result.stiffness_torque_nm_per_rad == pytest.approx(stiffness, rel=0.02)
         assert result.double_impact == drop.double_impact
         assert result.torque_offset_nm == pytest.approx(drop.test.preload_nm, abs=20.0)
-        # the force impulse and the fitted start velocity agree (angular momentum, NOTES §1.2)
+        # the force impulse and the fitted start velocity agree (angular momentum, docs/theory.md#impact)
         assert result.lever_rate_after_rad_per_s == pytest.approx(result.decay_fit_initial_rate_rad_per_s, rel=0.02)

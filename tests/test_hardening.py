@@ -1,4 +1,4 @@
-"""Issue 11: absurd sizes, deep nesting, full disks, permissions, concurrent campaigns, exit codes.
+"""Absurd sizes, deep nesting, full disks, permissions, concurrent campaigns, exit codes.
 
 Each kind of fault is tried with several cases; every one must end in one line naming the file
 (or option) and the problem, exit code 2, no traceback, and nothing allocated or written that

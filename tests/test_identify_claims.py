@@ -1,8 +1,8 @@
 """The source papers' claims about identified models, on data the core generated:
 
-- seed 000: the six-parameter model stays within a few tenths of a percent (of the largest
+- the zero-dimensional model paper: the six-parameter model stays within a few tenths of a percent (of the largest
   torque) of the 20-parameter lookup-table model's RMSE (the paper: 1.5 % against 1.3 %);
-- seed 002: the identified linear Pfeffer model gives the same K*(Omega) in the time domain
+- Scheiblegger et al. 2013: the identified linear Pfeffer model gives the same K*(Omega) in the time domain
   (virtual servo bench) as its closed-form frequency response;
 - the loop of a lab: servo-bench records of the reference coupling -> identify -> coupling
   TOML -> drop test on the virtual rig -> extracted stiffness within 5 % of the original's.
@@ -50,7 +50,7 @@ def test_seed002_time_domain_equals_frequency_domain():
     closed = Pfeffer(kind="pfeffer", k1=k1, alpha=alpha, beta=beta, gamma=gamma).complex_stiffness(2 * np.pi * np.array(freqs))
     measured = bench["storage_stiffness_nm_per_rad"].to_numpy() + 1j * bench["loss_stiffness_nm_per_rad"].to_numpy()
     np.testing.assert_allclose(measured, closed, rtol=2e-3)
-    # and the loss angle runs through a peak between static and high frequency, as seed 002 Fig. 9
+    # and the loss angle runs through a peak between static and high frequency, as Scheiblegger et al. 2013, Fig. 9
     assert np.angle(closed[1]) > np.angle(closed[0])
 
 

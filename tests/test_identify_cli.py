@@ -19,7 +19,7 @@ TRUTH = "seed000_six_parameter"
 
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory):
-    """Servo records of the seed 000 preset as droptower CSV logs (angle in deg, like a lab)."""
+    """Servo records of the zero-dimensional model paper's preset as droptower CSV logs (angle in deg, like a lab)."""
     folder = tmp_path_factory.mktemp("identify_logs")
     truth = load_coupling(TRUTH)
     rng = np.random.default_rng(7)
@@ -130,7 +130,7 @@ def test_compare_models_ranking_and_fig8_table(logs, tmp_path, capsys):
     assert "skipped 1 family (data requirement not met): overlay: model overlay needs steady sine blocks" in captured.err
     ranking = [ln.split() for ln in captured.out.split("per record")[0].splitlines() if ln[:1].isdigit()]
     assert [row[1] for row in ranking] == ["zerodim6", "pfeffer"]  # the data come from a six-parameter coupling
-    assert "per record (seed 000 Fig. 8)" in captured.out and "random.csv" in captured.out
+    assert "per record (the zero-dimensional model paper, Fig. 8)" in captured.out and "random.csv" in captured.out
     assert (tmp_path / "cmp" / "compare_models_rmse.png").exists()
     assert (tmp_path / "cmp" / "compare_models_loops.png").exists()
 

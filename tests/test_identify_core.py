@@ -140,7 +140,7 @@ def test_non_convergence_is_reported_not_hidden():
 
 def test_every_zerodim20_candidate_is_a_coupling_the_core_accepts():
     """The tables are parametrised so that no candidate the optimiser may propose inside the
-    bounds makes a spring or dashpot force fall (issue 10: 6 of 8 realistic data sets failed)."""
+    bounds makes a spring or dashpot force fall (without it 6 of 8 realistic data sets failed)."""
     from droptower.identify.families import ZeroDim20
     from droptower.identify.fit import clip_to_bounds
 

@@ -42,7 +42,7 @@ def logs(tmp_path_factory):
 
 @pytest.mark.parametrize("damping, order", [(0.0, 2), (5.0, 1)])
 def test_free_decay_matches_the_linear_closed_form(damping, order):
-    """Kelvin-Voigt lever: J phi'' + d phi' + c phi = 0 (NOTES §1.3): second order for the
+    """Kelvin-Voigt lever: J phi'' + d phi' + c phi = 0 (docs/theory.md#decay): second order for the
     elastic part, first order where the core's dashpot sees the step's mean rate."""
     c, j, rate0 = 20000.0, 0.359, 3.0
     kv = parse_coupling({"element": [{"kind": "spring", "stiffness": c}, {"kind": "dashpot", "damping": damping}]})

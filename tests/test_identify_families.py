@@ -84,7 +84,7 @@ def test_pfeffer_analytic_then_least_squares():
     for name, key in (("k1_nm_per_rad", "k1"), ("alpha", "alpha"), ("beta", "beta"), ("gamma_s", "gamma")):
         assert r.parameters[name] == pytest.approx(true[key], rel=0.01)
     a = r.extra["analytic"]
-    # seed 002's analytic route: k1 = static stiffness, alpha = DH - 1 and the loss angle at the
+    # Scheiblegger et al.'s (2013) analytic route: k1 = static stiffness, alpha = DH - 1 and the loss angle at the
     # layout frequency met exactly by beta
     assert a["k1_nm_per_rad"] == pytest.approx(true["k1"], rel=0.01)
     assert a["alpha"] == pytest.approx(a["dynamic_hardening"] - 1.0)
@@ -145,7 +145,7 @@ def test_overlay_reproduces_the_map_of_a_kelvin_voigt_coupling():
     assert np.median(np.abs(error)) < 2e-3 and np.max(np.abs(error)) < 0.015  # 0.3 deg blocks: noise
     assert r.extra["map"]["fit"]["stiffness_rms_error_pct"] < 0.5
     assert r.derived["k_nm_per_rad"] == pytest.approx(k, rel=0.01)
-    # the map's damping ratio depends on the amplitude and the stiffness only (seed 004 eq. 20):
+    # the map's damping ratio depends on the amplitude and the stiffness only (Rapp et al. 2022, eq. 20):
     # a viscous loss factor rising with frequency is followed only on average (the documented
     # limit of the overlay), so the random profile is reproduced within 1 % of its largest
     # torque, not within the noise

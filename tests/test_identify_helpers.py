@@ -17,7 +17,7 @@ def coupling(*elements: dict) -> Coupling:
 
 
 def fitting_histories(fs: float = FS) -> dict[str, H.History]:
-    """Seed 000's test types: slow ramps, a preloaded sine, frequency and amplitude sweeps, steps."""
+    """The zero-dimensional model paper's test types: slow ramps, a preloaded sine, frequency and amplitude sweeps, steps."""
     return {
         "ramps": H.ramps(D(3.0), D(1.0), fs),
         "preload": H.sine(5.0, D(1.0), fs, offset_rad=D(2.0), run_in_cycles=10, cycles=10),
@@ -28,7 +28,7 @@ def fitting_histories(fs: float = FS) -> dict[str, H.History]:
 
 
 def random_history(fs: float = FS, seed: int = 3, duration_s: float = 8.0) -> dict[str, H.History]:
-    """Seed 000's validation test: a band-limited random profile."""
+    """The zero-dimensional model paper's validation test: a band-limited random profile."""
     return {"random": H.random_profile(D(1.0), (0.5, 20.0), duration_s, fs, seed=seed)}
 
 

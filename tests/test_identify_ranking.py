@@ -149,7 +149,7 @@ COMPETITOR = {"zerodim6": "masing", "pfeffer": "zerodim6", "masing": "zerodim6",
 
 
 def _servo_records(truth, seed):
-    """Seed 000's test types in short (about 9 s at 2048 Hz) with 0.5 % white noise."""
+    """The zero-dimensional model paper's test types in short (about 9 s at 2048 Hz) with 0.5 % white noise."""
     from droptower.servo import histories as H
 
     fs, d = 2048.0, np.radians

@@ -1,5 +1,5 @@
-"""Translational servo records (mounts, bushings, dampers) as labs export them: seed 001's
-elastoslide specimen and seed 002's bushing identified from displacement / force records
+"""Translational servo records (mounts, bushings, dampers) as labs export them: the elastoslide paper's
+elastoslide specimen and Scheiblegger et al.'s (2013) bushing identified from displacement / force records
 written in mm / kN and in / kip (converted here through pint), with the same figures as their
 torsional twins (the same coupling read as rad / N*m); time stamps printed with 4 and 5
 decimals identified as the exact record."""
@@ -22,7 +22,7 @@ from droptower.servo import histories as H
 FS = 512.0
 UREG = pint.UnitRegistry()
 #: (preset, family, amplitude of the fitting histories in mm, their frequencies in Hz)
-CASES = {"seed001_specimen": ("elastoslide", 1.0, (2.5, 5.0, 7.5)),  # seed 001: 0.25-5 mm, 2.5-7.5 Hz
+CASES = {"seed001_specimen": ("elastoslide", 1.0, (2.5, 5.0, 7.5)),  # the elastoslide paper: 0.25-5 mm, 2.5-7.5 Hz
          "seed002_bushing": ("pfeffer", 0.5, (1.0, 5.0, 10.0, 30.0))}
 #: (length unit, force unit) of the lab exports
 EXPORTS = (("mm", "kN"), ("in", "kip"))
@@ -110,7 +110,7 @@ def test_translational_records_identify_as_their_torsional_twin(case, length_uni
     assert r.coupling.units == "translational"
     if family == "elastoslide":
         assert report["parameters"]["k_n_per_m"]["value"] == pytest.approx(r.parameters["k_nm_per_rad"])
-        assert report["parameters"]["k_n_per_m"]["value"] == pytest.approx(504510.0, rel=0.01)  # seed 001 Table 1
+        assert report["parameters"]["k_n_per_m"]["value"] == pytest.approx(504510.0, rel=0.01)  # the elastoslide paper, Table 1
     else:
         assert report["parameters"]["k1_n_per_m"]["value"] == pytest.approx(r.parameters["k1_nm_per_rad"])
 

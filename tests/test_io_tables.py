@@ -109,7 +109,7 @@ def test_map_out_csv_is_the_coefficient_table_and_json_the_map(tmp_path: Path, c
     fit = MapFit.from_json(tmp_path / "map.json")
     assert table["coefficient"].tolist() == [f"k{i}" for i in range(1, 14)]
     np.testing.assert_allclose(table["value"], [fit.coefficients[f"k{i}"] for i in range(1, 14)], rtol=1e-12)
-    assert table.loc[0, "unit"] == "N*m/deg" and table.loc[0, "equation"] == "seed 004 eq. 19"
+    assert table.loc[0, "unit"] == "N*m/deg" and table.loc[0, "equation"] == "Rapp et al. 2022, eq. 19"
     capsys.readouterr()
     assert main(["map", str(results), "--out", str(tmp_path / "map.yaml")]) == 2
     assert "unknown table format" in capsys.readouterr().err

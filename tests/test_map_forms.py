@@ -1,4 +1,4 @@
-"""Map forms beyond eq. 19/20 (issue 12): cross-validation, the automatic choice of terms with
+"""Map forms beyond eq. 19/20: cross-validation, the automatic choice of terms with
 identifiability pruning, and the targets on the paper's Table 4 (shipped copy)."""
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def auto_map(table4: pd.DataFrame) -> MapFit:
 
 @pytest.mark.slow
 def test_auto_meets_the_targets_on_table4(table4: pd.DataFrame, auto_map: MapFit) -> None:
-    """Issue 12's targets on Table 4: damping ratio cross-validated RMS <= 8 % (the paper's
+    """The map-form targets on Table 4: damping ratio cross-validated RMS <= 8 % (the paper's
     eq. 20 fits 12.3 %), stiffness <= 1.5 % fitted and cross-validated, and every coefficient
     identifiable: off its bound, unique, uncertainty below half its value. The fit errors are
     recomputed here from the coefficients."""

@@ -1,4 +1,4 @@
-"""Characteristic map (seed 004 eq. 19 and eq. 20, NOTES §1.5): fit on the paper's Table 4,
+"""Characteristic map (Rapp et al. 2022, eq. 19 and eq. 20, docs/theory.md#map): fit on the paper's Table 4,
 synthetic round trips, exclusions, map.json, bad input and the ``droptower map`` command."""
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ TRUE_RATIO = np.array([110.0, 0.05, 690.0, 1.5, 5000.0, 10.0])
 
 def design() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A Table-2-like plan: 3 inertias × 10 amplitudes, frequency falling with amplitude
-    (Payne effect, seed 004 Fig. 10) -> amplitude (deg), frequency (Hz), inertia (kg·m²)."""
+    (Payne effect, Rapp et al. 2022, Fig. 10) -> amplitude (deg), frequency (Hz), inertia (kg·m²)."""
     a = np.tile(np.geomspace(0.15, 3.2, 10), 3)
     f = np.repeat([45.0, 28.0, 23.0], 10) * a**-0.12
     return a, f, np.repeat([0.1557, 0.359, 0.5233], 10)
@@ -55,7 +55,7 @@ def table4_map(table4: pd.DataFrame) -> MapFit:
 
 # ---- the paper's Table 4 ----------------------------------------------------------------------
 def test_table4_fit_reaches_the_global_minimum(table4: pd.DataFrame, table4_map: MapFit) -> None:
-    """Eq. 19 and eq. 20 fitted to the 30 rows of Table 4 (seed 004).
+    """Eq. 19 and eq. 20 fitted to the 30 rows of Table 4 (Rapp et al. 2022).
 
     Reference values, found outside this test: the lowest RMS relative stiffness error eq. 19
     reaches on these rows (with the physical bounds, all parameters ≥ 0) is 1.361 % (max 3.51 %);
@@ -86,7 +86,7 @@ def test_table4_fit_reaches_the_global_minimum(table4: pd.DataFrame, table4_map:
 
 def test_table4_map_is_physically_sane(table4_map: MapFit) -> None:
     """Positive stiffness and damping in the measured range and on a grid beyond it; stiffness
-    falls with amplitude (~3×, NOTES §1.6) and rises with frequency inside the range."""
+    falls with amplitude (~3×, docs/theory.md#servo) and rises with frequency inside the range."""
     m, r = table4_map, table4_map.range
     a, f = np.meshgrid(np.geomspace(0.5 * r.amplitude_deg_min, 1.5 * r.amplitude_deg_max, 50),
                        np.linspace(0.5 * r.frequency_hz_min, 1.5 * r.frequency_hz_max, 50))

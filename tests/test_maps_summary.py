@@ -1,4 +1,4 @@
-"""Per-condition summary (mean ± std over repeats) and seed 004 Fig. 11 (the preload's effect)."""
+"""Per-condition summary (mean ± std over repeats) and Rapp et al. 2022, Fig. 11 (the preload's effect)."""
 from __future__ import annotations
 
 from pathlib import Path

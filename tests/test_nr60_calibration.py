@@ -1,4 +1,4 @@
-"""The shipped reference coupling ``rapp2022_nr60`` and its calibration (issue 9).
+"""The shipped reference coupling ``rapp2022_nr60`` and its calibration.
 
 The calibration (analysis/calibrate_nr60.py) stores every candidate's figures in
 analysis/results/nr60_candidates.csv and writes the best as the preset; the full study's
@@ -60,7 +60,7 @@ def test_the_preset_is_rubber_like():
     figures = rubber_figures(dt.load_coupling("rapp2022_nr60"))
     assert figures["loss_factor_ratio"] >= 0.7
     assert figures["third_harmonic_pct"] <= 5.0
-    assert 0.1 < figures["loss_factor"] < 0.35  # Table 4's d of 0.5-2 is eta 0.1-0.25 (NOTES 1.7)
+    assert 0.1 < figures["loss_factor"] < 0.35  # Table 4's d of 0.5-2 is eta 0.1-0.25 (docs/theory.md#damping-measures)
 
 
 def test_decays_against_the_bench_at_their_own_points(calibration):
@@ -83,7 +83,7 @@ def test_decays_against_the_bench_at_their_own_points(calibration):
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
-    """Seed 004 Fig. 11: no influence of the preload on the coupling's behaviour. The filler
+    """Rapp et al. 2022, Fig. 11: no influence of the preload on the coupling's behaviour. The filler
     network's centre follows the held twist and its structure recovers from the conditioning
     during the hold, the matrix branch relaxes, so the extracted values agree within 1 %."""
     rig = load_rig("rapp2022")

@@ -1,6 +1,6 @@
 """The shipped coupling presets: each loads and documents itself; the reference coupling
-``rapp2022_nr60`` behaves qualitatively like the paper's natural-rubber coupling (seed 004
-Table 4, NOTES 1.1/1.4/1.6). (Passivity, energy balance, time-step convergence and the TOML
+``rapp2022_nr60`` behaves qualitatively like the paper's natural-rubber coupling (Rapp et al. 2022,
+Table 4, docs/theory.md#rig, #extraction, #servo). (Passivity, energy balance, time-step convergence and the TOML
 round trip of every preset: test_rheology_passivity/_convergence/_batch.)"""
 from __future__ import annotations
 
@@ -16,6 +16,9 @@ from test_rheology_support import first_harmonic, preset_paths, sine
 EXPECTED = {"seed001_specimen", "seed001_lag_damper", "seed002_bushing", "seed003_masing",
             "seed000_six_parameter", "rapp2022_nr60"}
 
+#: The source papers' short forms (docs/references.md): every preset names the one it rests on.
+PAPERS = ("Rapp et al.", "zero-dimensional model paper", "elastoslide paper", "Scheiblegger", "Heine & Plagemann")
+
 
 def test_the_presets_are_shipped():
     assert EXPECTED <= {p.stem for p in preset_paths()}
@@ -27,13 +30,13 @@ def test_preset_documents_itself(path):
     coupling = load_coupling(path.stem)                     # by preset name, as users do
     assert coupling.name == path.stem
     assert len(coupling.description) > 40
-    assert "seed" in coupling.source.lower()
+    assert any(p in coupling.source for p in PAPERS)  # cites a paper of docs/references.md
     assert coupling.units in ("torsional", "translational")
     assert np.all(np.isfinite(coupling.params)) and coupling.max_tangent_stiffness(0.05) > 0
 
 
 def test_seed001_presets_hold_the_table_values():
-    """Seed 001 Table 1 (specimen, no preload) and Table 2 (lag damper), converted to N and m."""
+    """The elastoslide paper, Table 1 (specimen, no preload) and Table 2 (lag damper), converted to N and m."""
     for name, table in [("seed001_specimen", (0.0068, 504.51e3, 44.44e3, 50e-3, 7)),
                         ("seed001_lag_damper", (0.0015, 6436e3, 2915e3, 15e-3, 7))]:
         coupling = load_coupling(name)
@@ -52,7 +55,7 @@ def _evaluate(coupling, amplitude_deg, frequency_hz):
     K' is compared with the drop tower's c = J (w^2 + delta^2), which is K' of the equivalent
     Kelvin-Voigt coupling; the damping ratio converts the loss factor eta = K''/K' by the
     equivalent Kelvin-Voigt coupling at its own frequency, eta = 2r/(1 + r^2),
-    d = 1/2 (e^(4 pi r) - 1) (NOTES 1.4, 1.7): an approximation for a nonlinear coupling."""
+    d = 1/2 (e^(4 pi r) - 1) (docs/theory.md#extraction, #damping-measures): an approximation for a nonlinear coupling."""
     amplitude = np.deg2rad(amplitude_deg)
     t, x, dt = sine(amplitude, frequency_hz, SPC, RUN_IN + 1)
     k_storage, k_loss = first_harmonic(t, coupling.respond(x, dt), amplitude, frequency_hz, SPC)
@@ -65,7 +68,7 @@ FREQUENCIES_HZ = [20.0, 40.0, 60.0]
 
 @pytest.fixture(scope="module")
 def grid():
-    """K' (N*m/deg) and d over amplitude x frequency (the drop tower's range, NOTES 1.6).
+    """K' (N*m/deg) and d over amplitude x frequency (the drop tower's range, docs/theory.md#servo).
 
     The damping of the calibrated coupling is held to Table 4 in the drop tower's own measure
     (free decay, tests/test_nr60_calibration.py, tests/test_study.py), not by this steady-sine
@@ -89,7 +92,7 @@ def test_reference_coupling_structure():
 def test_stiffness_falls_with_amplitude(grid):
     stiffness, _ = grid
     assert np.all(np.diff(stiffness, axis=1) < 0)
-    # Table 4: ~390 -> ~145 N*m/deg from 0.15 to 3 deg (2.7x); NOTES 1.6 "about 3x"
+    # Table 4: ~390 -> ~145 N*m/deg from 0.15 to 3 deg (2.7x); docs/theory.md#servo "about 3x"
     ratio = stiffness[:, 0] / stiffness[:, -1]
     assert np.all((ratio > 1.5) & (ratio < 3.5))
 
@@ -120,7 +123,7 @@ def test_stiffness_level_against_table4(near_deg, within_deg):
 def test_damping_level_against_table4():
     """Rough level over all 30 rows: the geometric mean of the bench's d_model / d_table lies
     between 0.4 and 2. The drop-tower-equivalent d of a sine evaluation approximates the
-    free-decay value (NOTES 1.7); for the filler network's friction loss the decays read 30-60 %
+    free-decay value (docs/theory.md#damping-measures); for the filler network's friction loss the decays read 30-60 %
     more d than the bench at their own points, and the joint calibration leaves the decays ~1/3
     below Table 4 (analysis/README.md), so the bench's level is ~0.45x Table 4's."""
     table = _table4()

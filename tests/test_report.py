@@ -1,4 +1,4 @@
-"""``droptower report`` (issue 12): one self-contained offline HTML file of a campaign or an
+"""``droptower report``: one self-contained offline HTML file of a campaign or an
 ``extract --out`` results table; failures and flags first with their reasons, the map with
 fit and cross-validated errors, a sortable per-test table, per-test decay-fit plots that show
 the fit the table reports; and in headless Chromium: no console errors, the table sorts, a
@@ -20,7 +20,7 @@ from droptower.cli.main import main
 from droptower.maps import fit_map
 from droptower.report import write_report
 
-# 3 cases of seed 004 Table 2 x 4 heights, no preload: 12 tests, enough for a map
+# 3 cases of Rapp et al. 2022, Table 2 x 4 heights, no preload: 12 tests, enough for a map
 PLAN = """name = "report_test"
 base_seed = 7
 repeats = 1
@@ -104,13 +104,13 @@ def test_map_section_gives_coefficients_and_cross_validated_errors(campaign: Pat
     assert "leave-one-drop-height-out (4 folds)" in section
     for value in (fit.stats.stiffness_rms_error_pct, fit.stats.damping_ratio_cv_rms_error_pct):
         assert f">{value:.4g}<" in section
-    assert ">k13<" in section and "seed 004 eq. 20" in section
+    assert ">k13<" in section and "Rapp et al. 2022, eq. 20" in section
     assert "class=\"plotly-graph-div\"" in section
 
 
 def test_decay_plots_show_the_fit_the_table_reports(campaign: Path, report: Path) -> None:
     """Every test with a log has its figure; the drawn fit is φ̂·e^(−δt)·cos(ωt − Φ) with the
-    table's values (seed 004 eq. 13), the window shading is the table's window."""
+    table's values (Rapp et al. 2022, eq. 13), the window shading is the table's window."""
     fits = _fits(report.read_text())
     table = pd.read_parquet(campaign / "results.parquet")
     assert sorted(fits) == [f"test_{i:05d}" for i in range(12)]

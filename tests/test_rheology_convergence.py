@@ -29,7 +29,7 @@ def _change_on_halving(coupling, rate_hz):
     """Relative change of the torque history at the common samples when the step halves.
 
     History: three periods of the preset's representative frequency, a sine (0.7 of its
-    amplitude) plus a band-limited random part (seed 000's random profile; 0.6 of it; fixed
+    amplitude) plus a band-limited random part (the zero-dimensional model paper's random profile; 0.6 of it; fixed
     seed), both evaluated in closed form at every sample of either rate."""
     amplitude, frequency = preset_scale(coupling)
     n = int(round(3.0 / frequency * rate_hz))

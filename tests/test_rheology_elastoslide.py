@@ -1,7 +1,7 @@
-"""The distributed rate-dependent elastoslide element against seed 001's closed forms (NOTES 2.2).
+"""The distributed rate-dependent elastoslide element against the elastoslide paper's closed forms (docs/theory.md#elastoslide).
 
 - steady sliding: a slider of yield force f* sliding at a constant rate v carries
-  f* (v / v_r)^(1/p) (seed 001 eq. 12/13 at dx0/dt = v);
+  f* (v / v_r)^(1/p) (the elastoslide paper, eq. 12/13 at dx0/dt = v);
 - the Coulomb limit p -> infinity: loop energy W_D of the Masing closed form;
 - the initial loading curve eq. 24 from the discretised exponential distribution (eq. 25).
 """
@@ -102,7 +102,7 @@ AMPLITUDES_A = [0.1, 0.3, 1.0, 2.0, 5.0]  # amplitude x a
 @pytest.mark.parametrize("c_amplitude", AMPLITUDES_A)
 def test_loop_energy_tends_to_masing_closed_form(c_amplitude):
     """As p grows the elastoslide becomes a Coulomb (Jenkins) bank and its loop energy tends
-    to the Masing closed form of NOTES 2.2.
+    to the Masing closed form of docs/theory.md#elastoslide.
 
     At finite p the sliders relax near every reversal (their force falls like (v/v_r)^(1/p)
     as the rate goes to 0) and creep below yield, which widens the loop by O(ln(range of
@@ -120,7 +120,7 @@ def test_loop_energy_tends_to_masing_closed_form(c_amplitude):
     assert abs(err_1001) < abs(err_101) / 3
 
 
-# seed 001 Table 1, specimen without preload, in N and m
+# the elastoslide paper, Table 1, specimen without preload, in N and m
 PHI0, K_LEAD, K0, V_R = 0.0068, 504510.0, 44440.0, 0.05
 
 
@@ -139,7 +139,7 @@ def _loading_curve_error(p, n, rate_ratio, steps=10000):
 
 @pytest.mark.parametrize("rate_ratio", [1.0, 1e-3])
 def test_initial_loading_curve_eq24_seed001_specimen(rate_ratio):
-    """Seed 001 eq. 24 from the discretised model of Table 1's specimen (n = 32, p = 7).
+    """The elastoslide paper, eq. 24 from the discretised model of Table 1's specimen (n = 32, p = 7).
 
     At v = v_r a sliding element carries exactly f*, so eq. 24 holds as printed; a slow ramp
     (v << v_r) does not remove the rate effect, it scales every slider force by

@@ -1,4 +1,4 @@
-"""Prandtl (Jenkins) and Masing elements against closed forms (seed 003, NOTES 2.2 and 2.4).
+"""Prandtl (Jenkins) and Masing elements against closed forms (Heine & Plagemann 2014, docs/theory.md#elastoslide, #masing).
 
 Coulomb sliders are rate independent and updated by return mapping, so at the samples the
 model is exact for any time step: these tests use round-off tolerances.
@@ -14,7 +14,7 @@ K_R, R_MAX, ALPHA, N = 300.0, 3.0, 3.0, 7  # seed003_masing preset values: N*m/r
 
 
 def _yields():
-    """Seed 003 eq. 4: R_i = R exp(alpha (eta_i - 1)), eta_i = (i - 1)/(n - 1), i = 1..n."""
+    """Heine & Plagemann 2014, eq. 4: R_i = R exp(alpha (eta_i - 1)), eta_i = (i - 1)/(n - 1), i = 1..n."""
     eta = (np.arange(1, N + 1) - 1) / (N - 1)
     return R_MAX * np.exp(ALPHA * (eta - 1))
 
@@ -37,7 +37,7 @@ def _path(turning_points, per_leg=400):
 
 def test_masing_rule_with_memory():
     """Masing's rule: after a reversal at (x_r, F_r) the branch is F_r -/+ 2 F_bb(|x - x_r|/2)
-    (seed 003 / NOTES 2.2 eq. 26), with F_bb the virgin curve; and the memory rule: when a
+    (the elastoslide paper, eq. 26; docs/theory.md#masing-rule), with F_bb the virgin curve; and the memory rule: when a
     branch reaches the previous reversal point, the inner loop closes and the curve continues
     on the branch it left (return-point memory of the Iwan bank).
 

@@ -1,5 +1,5 @@
-"""History effects: Mullins first cycles (seed 000 eq. 3) and the constricted (waisted)
-Masing loop (seed 003 eq. 6)."""
+"""History effects: Mullins first cycles (the zero-dimensional model paper, eq. 3) and the constricted (waisted)
+Masing loop (Heine & Plagemann 2014, eq. 6)."""
 from __future__ import annotations
 
 import numpy as np
@@ -28,9 +28,9 @@ def _mullins(fast=K_FAST, **slow):
 
 
 def test_first_cycles_stiffer_than_steady_cycles():
-    """Seed 000 eq. 3, T = k1 LP(x) + k2 (x - LP(x)): after a step of the mean angle the fast
+    """The zero-dimensional model paper, eq. 3, T = k1 LP(x) + k2 (x - LP(x)): after a step of the mean angle the fast
     stiffness carries the step and relaxes to the slow one over tau, so the first cycle of a
-    preloaded sine has a higher peak-to-peak secant stiffness than the late ones (seed 000
+    preloaded sine has a higher peak-to-peak secant stiffness than the late ones (the zero-dimensional model paper,
     Fig. 7). Late cycles (after 11 tau) are the steady linear response, whose secant is
     |K*| = |k1 + (k2 - k1) i w tau / (1 + i w tau)| (exact for a sine, up to the sampling of
     the peaks: rtol 1e-4). The first cycle: the decaying step torque (k2 - k1) MEAN e^(-t/tau)
@@ -50,7 +50,7 @@ def test_no_mullins_without_fast_part():
 
 
 def test_first_cycles_stiffer_with_slow_curve():
-    """The same with the slow part as a static curve (seed 000's k1(theta) lookup)."""
+    """The same with the slow part as a static curve (the zero-dimensional model paper's k1(theta) lookup)."""
     curve = {"angle": [-0.1, 0.0, 0.01, 0.1], "torque": [-120.0, 0.0, 10.0, 120.0]}
     secant = _preloaded_sine(_mullins(slow_curve={"kind": "spring_table", **curve}))
     assert secant[0] > 1.15 * secant[-1]
@@ -88,7 +88,7 @@ def _masing(constriction=None):
 
 
 def test_constriction_scales_the_bank_by_s_of_x():
-    """Seed 003 eq. 6: the Prandtl sum is multiplied by S(x) = (|tanh(P x)| + K)/(1 + K); the
+    """Heine & Plagemann 2014, eq. 6: the Prandtl sum is multiplied by S(x) = (|tanh(P x)| + K)/(1 + K); the
     bank's own state does not depend on S, so torque_constricted = S(x) torque_plain at every
     sample (rtol 1e-12)."""
     x, plain = _steady_loop(_masing())

@@ -102,7 +102,7 @@ def _window_fit(t, angle, start_periods, periods):
 def test_free_decay_is_one_damped_mode_matching_the_bench():
     """With an amplitude-independent setting (critical angle far beyond the swing) the element
     is a linear, rate-independent complex stiffness: the decay is a single damped mode whose
-    damping ratio equals the bench's drop-tower-equivalent one (NOTES §1.7), whatever the window."""
+    damping ratio equals the bench's drop-tower-equivalent one (docs/theory.md#damping-measures), whatever the window."""
     coupling = parse_coupling({"element": [{"kind": "spring", "stiffness": 8000.0},
                                            {**PAYNE, "critical_angle": 10.0, "loss_stiffness": 2500.0,
                                             "loss_peak_stiffness": 0.0}]})

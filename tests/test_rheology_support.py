@@ -19,12 +19,12 @@ PRESET_DIR = REPO / "rig_configs" / "couplings"
 #: rad or m, and frequency in Hz), from the ranges its source tested. Presets not listed fall
 #: back to DEFAULT_SCALE of their units.
 PRESET_SCALE = {
-    "rapp2022_nr60": (np.deg2rad(1.5), 40.0),     # seed 004: 0.15-3.2 deg, 20-60 Hz
-    "seed001_specimen": (2.5e-3, 2.5),           # seed 001 Fig. 9: 2.5 mm, 2.5 Hz
-    "seed001_lag_damper": (2.5e-3, 5.0),         # seed 001: 0.25-5 mm, lag/rev 5 Hz
-    "seed002_bushing": (0.5e-3, 10.0),           # seed 002: +-0.1 and 1 mm at 10 Hz
-    "seed003_masing": (0.02, 10.0),              # seed 003: 2-20 Hz (normalised amplitudes)
-    "seed000_six_parameter": (0.02, 15.0),       # seed 000: 5-25 Hz sweeps
+    "rapp2022_nr60": (np.deg2rad(1.5), 40.0),     # Rapp et al. 2022: 0.15-3.2 deg, 20-60 Hz
+    "seed001_specimen": (2.5e-3, 2.5),           # the elastoslide paper, Fig. 9: 2.5 mm, 2.5 Hz
+    "seed001_lag_damper": (2.5e-3, 5.0),         # the elastoslide paper: 0.25-5 mm, lag/rev 5 Hz
+    "seed002_bushing": (0.5e-3, 10.0),           # Scheiblegger et al. 2013: +-0.1 and 1 mm at 10 Hz
+    "seed003_masing": (0.02, 10.0),              # Heine & Plagemann 2014: 2-20 Hz (normalised amplitudes)
+    "seed000_six_parameter": (0.02, 15.0),       # the zero-dimensional model paper: 5-25 Hz sweeps
 }
 DEFAULT_SCALE = {"torsional": (np.deg2rad(1.5), 20.0), "translational": (1e-3, 10.0)}
 

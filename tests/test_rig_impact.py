@@ -1,4 +1,4 @@
-"""Closed forms of the drop-tower impact and free decay (NOTES §1.2-1.3)."""
+"""Closed forms of the drop-tower impact and free decay (docs/theory.md#impact, #decay)."""
 import numpy as np
 import pytest
 
@@ -27,7 +27,7 @@ def test_impact_law_conserves_momentum_and_obeys_restitution(m1, J, k):
 
 
 def test_paper_mass_choice_direction_of_rebound():
-    """Seed 004 Fig. 4: the lightest lever reverses the 1 kg mass; with 2 kg it barely moves on."""
+    """Rapp et al. 2022, Fig. 4: the lightest lever reverses the 1 kg mass; with 2 kg it barely moves on."""
     light = impact_velocities(1.0, 0.1557, L, 1.0, 0.5)
     heavy = impact_velocities(2.0, 0.1557, L, 1.0, 0.5)
     assert light.drop_mass_after_m_per_s < 0  # upwards

@@ -1,4 +1,4 @@
-"""The campaign planner: nonlinear free decay, double-impact check, warnings (issue 3)."""
+"""The campaign planner: nonlinear free decay, double-impact check, warnings."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The pymunk drop tower against the closed forms, the energy balance and itself (issue 3)."""
+"""The pymunk drop tower against the closed forms, the energy balance and itself."""
 import math
 
 import numpy as np
@@ -16,7 +16,7 @@ from droptower.rig.impact import impact_velocities
 from droptower.rig.planner import plan
 from droptower.rig.simulate import DropTest, simulate
 
-K_LIN = 14000.0                          # N*m/rad, NOTES §1.2
+K_LIN = 14000.0                          # N*m/rad, docs/theory.md#impact
 R_DECAY = math.log(4.0) / (4 * math.pi)  # delta/omega of the damping ratio 1.5 (eq. 16)
 J2 = 0.359
 D_LIN = 2 * R_DECAY / math.sqrt(1 + R_DECAY**2) * math.sqrt(K_LIN * J2)  # damping ratio 1.5 on case 2
@@ -35,7 +35,7 @@ def linear():
 
 
 def test_post_impact_velocities_and_restitution(rig, linear):
-    """NOTES §1.2 within 1 % for 0.05-6 m, both masses, all three inertias; restitution within 1 %."""
+    """docs/theory.md#impact within 1 % for 0.05-6 m, both masses, all three inertias; restitution within 1 %."""
     tests = [DropTest(J, m, h) for J in (0.1557, 0.359, 0.5233) for m in (1.0, 2.0) for h in (0.05, 0.55, 1.8, 6.0)]
     results = simulate(rig, linear, tests, duration_s=2e-4)
     for t, r in zip(tests, results):
@@ -64,7 +64,7 @@ def test_energy_balance_over_the_record(rig, linear, coupling_name):
 
 
 def test_free_decay_matches_the_linear_solution(rig, linear):
-    """NOTES §1.3: phi = phi'(0+)/omega e^(-delta t) sin(omega t); frequency and decay within 0.5 %."""
+    """docs/theory.md#decay: phi = phi'(0+)/omega e^(-delta t) sin(omega t); frequency and decay within 0.5 %."""
     r = simulate(rig, linear, [DropTest(J2, 2.0, 1.0)], duration_s=0.19)[0]
     t0 = r.impact_time_s
     end = r.contacts[1].start_s if len(r.contacts) > 1 else r.time_s[-1]
@@ -143,7 +143,7 @@ def test_too_coarse_a_step_is_a_one_line_error(tmp_path, rig, linear):
 
 
 def test_second_impact_within_one_step_of_the_exact_impact(rig, linear):
-    """Issue 11: the striker's penetration at the impact (up to v1 dt) is undone, so the second
+    """The striker's penetration at the impact (up to v1 dt) is undone, so the second
     impact of 2 kg on the lightest lever comes when the exact impact law and free decay say
     (the planner), within one internal step at every Table-2 height; left in place it came
     21-35 us (2-3 steps) early."""

@@ -136,7 +136,7 @@ def test_drop_mass_resting_on_the_lever_is_not_an_impact():
 
 
 def test_laser_reads_the_vertical_displacement_at_its_radius_and_back():
-    """Issue 11: the laser looks along a fixed vertical line at the spot radius R, as the drop mass
+    """The laser looks along a fixed vertical line at the spot radius R, as the drop mass
     falls along one at L: it reads R tan(phi) (the impact geometry's L tan(phi)), not the arc
     R phi, and the reader inverts exactly that, so writing and reading agree at any angle."""
     from droptower.io.mapping import laser_angle, laser_distance

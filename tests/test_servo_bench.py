@@ -4,12 +4,12 @@ Tolerances, sampled at 2048 Hz (the paper's bench) and simulated at >= 38.4 kHz 
 steps per cycle (the bench's defaults):
 - Kelvin-Voigt, Maxwell, generalized Maxwell: |K*_bench - K*| <= 0.2 % of |K*| (and K', K''
   each within 0.2 % where they exceed a tenth of |K*|), 1 to 100 Hz;
-- Pfeffer K*(Omega) of NOTES 2.3 (seed 002's time/frequency agreement): 0.5 %;
+- Pfeffer K*(Omega) of docs/theory.md#pfeffer (Scheiblegger et al.'s (2013) time/frequency agreement): 0.5 %;
 - linear models: W_D = pi K'' phi_hat^2 and psi = 2 pi eta / sqrt(1 + eta^2) within 1e-4;
 - Coulomb Prandtl element: loop area 4 f (phi_hat - f/k) within 1e-3 up to 10 Hz (the
   one-eighth-cycle smoothing alone scales loop areas by 1 - 2e-4); at 60 Hz the kinked loop's
   harmonics alias at 2048 Hz (3e-3), sampled at 38.4 kHz 5e-4.
-The measured errors are 10-100 times smaller (see the report of issue 2).
+The measured errors are 10-100 times smaller.
 """
 import math
 
@@ -76,7 +76,7 @@ def test_generalized_maxwell_closed_form():
 @pytest.mark.parametrize("alpha,beta,gamma", [(0.5, 0.3, 0.01), (2.0, 0.0, 0.002), (1.0, 3.0, 0.05),
                                               (0.2, 1.0, 0.001), (5.0, 0.5, 0.02)])
 def test_pfeffer_time_domain_equals_its_complex_stiffness(alpha, beta, gamma):
-    # seed 002: time-domain and frequency-domain results must agree for the linear model
+    # Scheiblegger et al. 2013: time-domain and frequency-domain results must agree for the linear model
     el = Pfeffer(kind="pfeffer", k1=10000.0, alpha=alpha, beta=beta, gamma=gamma)
     freqs = [1.0, 5.0, 20.0, 60.0, 100.0]
     df = run_grid(_coupling(el.model_dump()), [0.01], freqs)
@@ -87,7 +87,7 @@ def test_pfeffer_time_domain_equals_its_complex_stiffness(alpha, beta, gamma):
 
 def test_linear_loop_area_and_relative_damping():
     # elliptic loop: W_D = pi K'' phi_hat^2 exactly, psi = W_D / (T_hat phi_hat / 2)
-    # = 2 pi eta / sqrt(1 + eta^2), i.e. psi ~ 2 pi eta to first order (NOTES 1.7)
+    # = 2 pi eta / sqrt(1 + eta^2), i.e. psi ~ 2 pi eta to first order (docs/theory.md#damping-measures)
     coupling = _coupling({"kind": "spring", "stiffness": 9000.0}, {"kind": "maxwell", "stiffness": 6000.0,
                                                                    "damping": 60.0})
     df = run_grid(coupling, AMPS, FREQS)
@@ -97,7 +97,7 @@ def test_linear_loop_area_and_relative_damping():
     np.testing.assert_allclose(df["relative_damping_psi"], 2 * np.pi * eta / np.sqrt(1 + eta ** 2), rtol=1e-4)
     np.testing.assert_allclose(df["angle_amplitude_rad"], df["amplitude_rad"], rtol=2e-4)
     assert np.all(np.abs(df["relative_damping_psi"] / (2 * np.pi * eta) - 1) < eta ** 2 / 2 + 1e-4)
-    # the drop-tower-equivalent ratio is a different number (NOTES 1.7): it is labelled so
+    # the drop-tower-equivalent ratio is a different number (docs/theory.md#damping-measures): it is labelled so
     r = (1 - np.sqrt(1 - eta ** 2)) / eta
     np.testing.assert_allclose(df["drop_tower_equivalent_damping_ratio"], 0.5 * np.expm1(4 * np.pi * r), rtol=1e-9)
 
@@ -205,7 +205,7 @@ def test_sweeps_and_dual_frequency_through_a_coupling():
     evs = evaluate_history(sweep, coupling.respond(sweep.angle_rad, sweep.dt_s))
     for ev, f in zip(evs, [2.0, 8.0, 25.0]):
         assert abs(ev.complex_stiffness_nm_per_rad / k_star(f) - 1) < 2e-3
-    # seed 001's dual-frequency test: 5 Hz + 7.5 Hz evaluated over the 2.5 Hz common period
+    # the elastoslide paper's dual-frequency test: 5 Hz + 7.5 Hz evaluated over the 2.5 Hz common period
     dual = H.dual_frequency((5.0, 7.5), (0.01, 0.02), fs, run_in_cycles=3, cycles=3)
     (ev,) = evaluate_history(dual, coupling.respond(dual.angle_rad, dual.dt_s))
     for h in ev.harmonics:

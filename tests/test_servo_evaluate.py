@@ -11,7 +11,7 @@ from droptower.servo.evaluate import smoothing_window
 
 
 def _record(fs, f, amp, k1, k2, *, mean_angle=0.0, mean_torque=0.0, extra=None, cycles=8):
-    """A sine angle and the torque K' phi + (K''/omega) dphi/dt (+ extra(t)), seed 001 eq. 5."""
+    """A sine angle and the torque K' phi + (K''/omega) dphi/dt (+ extra(t)), the elastoslide paper, eq. 5."""
     w = 2 * np.pi * f
     t = np.arange(int(cycles / f * fs) + 1) / fs
     phi = amp * np.sin(w * t + 0.3)
@@ -24,7 +24,7 @@ def _record(fs, f, amp, k1, k2, *, mean_angle=0.0, mean_torque=0.0, extra=None, 
 @pytest.mark.parametrize("fs,f", [(2048.0, 30.0), (2048.0, 7.3), (2048.0, 100.0), (500.0, 3.0)])
 @pytest.mark.parametrize("smooth", [True, False])
 def test_first_harmonic_of_an_elliptic_loop_is_exact(fs, f, smooth):
-    # non-integer samples per cycle: the whole-cycle resampling keeps seed 001 eq. 6 exact
+    # non-integer samples per cycle: the whole-cycle resampling keeps the elastoslide paper, eq. 6 exact
     k1, k2, amp = 12000.0, 3000.0, 0.02
     t, phi, torque = _record(fs, f, amp, k1, k2, mean_angle=0.01, mean_torque=-40.0)
     ev = evaluate_cycles(t, phi, torque, f, 2.0 / f, 5, smooth=smooth)
@@ -108,9 +108,9 @@ def test_smoothing_window_is_an_eighth_of_a_cycle_or_off():
     assert smoothing_window(2048.0, 100.0) == 0  # 2.6 samples: too few, no smoothing
 
 
-def test_drop_tower_equivalent_damping_ratio_matches_notes():
-    # NOTES 1.7: a linear Kelvin-Voigt coupling at its damped frequency, r = delta / omega
-    # NOTES prints d_ratio to two decimals: 1.25 at r = 0.10, 0.44 at 0.05, 1.76 at 0.12
+def test_drop_tower_equivalent_damping_ratio_matches_the_theory():
+    # docs/theory.md#damping-measures: a linear Kelvin-Voigt coupling at its damped frequency, r = delta / omega
+    # docs/theory.md#damping-measures quotes d_ratio to two decimals: 1.25 at r = 0.10, 0.44 at 0.05, 1.76 at 0.12
     for r, d in [(0.10, 1.25), (0.05, 0.44), (0.12, 1.76)]:
         eta = 2 * r / (1 + r * r)
         assert float(drop_tower_equivalent_damping_ratio(eta)) == pytest.approx(d, abs=0.01)

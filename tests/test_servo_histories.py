@@ -76,7 +76,7 @@ def test_amplitude_sweep_levels():
 
 
 def test_dual_frequency_common_period_and_waveform():
-    assert H.common_frequency([5.0, 7.5]) == 2.5  # seed 001's 1/rev and lag/rev tests
+    assert H.common_frequency([5.0, 7.5]) == 2.5  # the elastoslide paper's 1/rev and lag/rev tests
     assert H.common_frequency([3.0, 4.5, 6.0]) == 1.5
     h = H.dual_frequency((5.0, 7.5), (0.01, 0.02), FS, run_in_cycles=2, cycles=3)
     _covers(h)

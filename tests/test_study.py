@@ -104,7 +104,7 @@ def test_reduced_study_writes_the_report(reduced):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # index.html is the campaign's report (droptower report) followed by the study's sections
     for heading in ("Failures and flags", "Characteristic map", "Tests", "Decay fit", "The study",
-                    "Comparison with Table 4 of seed 004"):
+                    "Comparison with Table 4 of Rapp et al. 2022"):
         assert f"<h2>{heading}</h2>" in index, heading
     assert index.index("<h2>Decay fit</h2>") < index.index("<h2>The study</h2>")
 
@@ -133,7 +133,7 @@ def test_stored_full_study_is_table4_and_consistent(stored):
 
 
 def test_stored_full_study_targets(stored):
-    """Issue 9's targets in the stored full study: each one's flag says what its value says, the
+    """The reference coupling's targets in the stored full study: each one's flag says what its value says, the
     Table-4 figures are those of the stored comparison, no machine path is stored, and the
     map-free check holds the drop tower to the bench. (That the stored study belongs to the
     shipped preset: tests/test_nr60_calibration.py.)"""

@@ -1,4 +1,4 @@
-"""``droptower validate``: a map against servo sweeps (NOTES §1.6-1.7, seed 004 Fig. 14) and
+"""``droptower validate``: a map against servo sweeps (docs/theory.md#servo, #damping-measures, Rapp et al. 2022, Fig. 14) and
 against a measured map (Table 4): closed forms on a Kelvin-Voigt coupling, measured-results
 input in every accepted form, the reference comparison, and one-line errors."""
 from __future__ import annotations
@@ -50,7 +50,7 @@ def kv_points(kv_file):
 
 
 def servo_d(frequency_hz):
-    """The drop-tower-equivalent damping ratio of the Kelvin-Voigt coupling (NOTES §1.7)."""
+    """The drop-tower-equivalent damping ratio of the Kelvin-Voigt coupling (docs/theory.md#damping-measures)."""
     return sdof.drop_tower_equivalent_damping_ratio(C_NMS_PER_RAD * 2 * np.pi * np.asarray(frequency_hz) / K_NM_PER_RAD)
 
 

@@ -1,5 +1,5 @@
 """Campaigns: a whole test plan simulated on the virtual drop tower, logged and extracted on the
-one data path real logs take (``droptower campaign``; seed 004 Table 2, NOTES §1.1).
+one data path real logs take (``droptower campaign``; Rapp et al. 2022, Table 2, docs/theory.md#rig).
 
 ``run_campaign(out, rig, coupling, doe, workers=..., scheduler=..., resume=...)`` fills a
 folder with one log and one result record per test, a manifest and the results table

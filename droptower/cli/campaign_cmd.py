@@ -1,4 +1,4 @@
-"""``droptower campaign``: a whole test plan simulated, logged and extracted (seed 004 Table 2)."""
+"""``droptower campaign``: a whole test plan simulated, logged and extracted (Rapp et al. 2022, Table 2)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -101,7 +101,7 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
         if summary["preload_nm"].nunique() > 1:
             options.wrote(plot_preload_effect(summary, run.root / FIG11, f"{run.spec.coupling.name} on "
                                               f"{run.spec.rig.name}, plan {run.spec.doe.name}"),
-                          "preload effect (seed 004 Fig. 11)")
+                          "preload effect (Rapp et al. 2022, Fig. 11)")
     if run.failed:
         click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
         for test_id, error in run.failed:

@@ -1,5 +1,5 @@
 """``droptower extract PATH...``: stiffness and damping of drop tests from their logs
-(seed 004 Fig. 9, eq. 13-18; NOTES §1.4, §1.7)."""
+(Rapp et al. 2022, Fig. 9, eq. 13-18; docs/theory.md#extraction, #damping-measures)."""
 from __future__ import annotations
 
 import json
@@ -74,7 +74,7 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
               help="Write the results table to this file (.csv, .parquet, .json or .xlsx).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as a JSON list of objects.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Draw per test the angle and torque with their fits (seed 004 Fig. 9) into this folder.")
+              help="Draw per test the angle and torque with their fits (Rapp et al. 2022, Fig. 9) into this folder.")
 @click.option("--delimiter", default=None, help="CSV field separator (default: sniffed).")
 @click.option("--decimal", type=click.Choice([".", ","]), default=None, help="CSV decimal separator (default: sniffed).")
 @click.option("--header-lines", type=int, default=None, help="CSV lines above the names row (default: sniffed).")
@@ -88,8 +88,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
 
     Per test: impact and pre-trigger baseline (offsets, preload), least-squares fit of
     φ̂·e^(−δt)·cos(ωt − Φ) over the window, c_dyn,M1 = J(ω² + δ²), d_ratio = ½(e^(4πδ/ω) − 1),
-    φ̂_ref, f (seed 004 eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
-    loss factor η and relative damping ψ (NOTES §1.7); standard uncertainties (*_std), the fit
+    φ̂_ref, f (Rapp et al. 2022, eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
+    loss factor η and relative damping ψ (docs/theory.md#damping-measures); standard uncertainties (*_std), the fit
     error and flags (double_impact, clipping, too_few_samples_per_period, short_window,
     poor_fit). J, L and the laser radius: --inertia-kgm2/--lever-length-m/--sensor-radius-m, else
     the log's metadata, else the rig (its inertia only if it has a single lever fixture).

@@ -123,7 +123,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     and --out writes a coupling with units = "translational", in N/m and N*s/m).
 
     Bounded trust-region-reflective least squares on the torque error, preceded by the
-    family's staged strategy (seeds 000-004). Reports the parameters with standard errors,
+    family's staged strategy (the five source papers in docs/references.md). Reports the parameters with standard errors,
     parameters on a bound, the RMSE normalised by the largest |torque| on the fitting and the
     hold-out data, the residual's lag-1 correlation and the effort. A fit that does not
     converge is reported and nothing is written (exit code 2). Where the staged fit is poor,
@@ -223,7 +223,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
                    "beside it (<name>_per_record.<suffix>).")
 @click.option("--json", "as_json", is_flag=True, help="Print the tables as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False),
-              help="Write the RMSE bars (seed 000 Fig. 8) and the overlaid loops to this folder.")
+              help="Write the RMSE bars (the zero-dimensional model paper, Fig. 8) and the overlaid loops to this folder.")
 @click.option("--from-drop-tests", "drops", is_flag=True,
               help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
 @click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
@@ -244,7 +244,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     within 2 of each other families are tied and the one with fewer parameters ranks first
     (delta_bic: distance to the best; above 10: strong evidence against). The exit code is 3
     when the best family's verdict is "poor fit" (no family describes the data to within 2
-    times the noise), unless --accept-poor. It also prints seed 000's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
+    times the noise), unless --accept-poor. It also prints the zero-dimensional model paper's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
     relative to the worst model on that record). A family whose data requirement these
     records do not meet (overlay: steady sine blocks at several amplitudes and frequencies)
     is skipped with the reason and the others are ranked; families whose fit fails or does not
@@ -314,7 +314,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     else:
         click.echo(f"ranking ({RULE}; nRMSE: RMSE in % of the largest |torque|):")
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.3f}"))
-        click.echo("\nper record (seed 000 Fig. 8): nRMSE % / RMSE relative to the worst model")
+        click.echo("\nper record (the zero-dimensional model paper, Fig. 8): nRMSE % / RMSE relative to the worst model")
         if not records.empty:
             pct = records.pivot(index="record", columns="model", values="nrmse_percent")
             rel = records.pivot(index="record", columns="model", values="rmse_over_max_rmse")

@@ -67,7 +67,7 @@ def drop_report_text(result: Any, verbose: bool = False) -> str:
 
 def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any) -> tuple[Any, str]:
     """The fitted model on a servo grid over the tested amplitude and frequency range (K', loss
-    factor, the drop-tower-equivalent damping ratio), next to the drop tower's map (seed 004
+    factor, the drop-tower-equivalent damping ratio), next to the drop tower's map (Rapp et al. 2022,
     eq. 19-20 fitted to the first-cycle evaluations of the same logs) at the same points.
     Returns the table and a note on the map."""
     import pandas as pd
@@ -98,7 +98,7 @@ def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any)
     a, f = table["amplitude_deg"].to_numpy(), table["frequency_hz"].to_numpy()
     table["map_stiffness_nm_per_deg"] = fitted.stiffness_nm_per_deg(a, f)
     table["map_damping_ratio"] = fitted.damping_ratio(a, f)
-    return table, f"drop-tower map (seed 004 eq. 19-20) from {len(rows)} first-cycle evaluations"
+    return table, f"drop-tower map (Rapp et al. 2022, eq. 19-20) from {len(rows)} first-cycle evaluations"
 
 
 #: two curves closer than this share of their axis's span everywhere look like one line (about

@@ -26,7 +26,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "channels": ("droptower.cli.channels_cmd", "channels", "List the channels a log file holds."),
     "extract": ("droptower.cli.extract_cmd", "extract", "Extract stiffness and damping from drop-test logs."),
     "campaign": ("droptower.cli.campaign_cmd", "campaign", "Simulate, log and extract a whole test plan."),
-    "map": ("droptower.cli.map_cmd", "map_command", "Fit the characteristic map (seed 004 eq. 19-20)."),
+    "map": ("droptower.cli.map_cmd", "map_command", "Fit the characteristic map (Rapp et al. 2022, eq. 19-20)."),
     "report": ("droptower.cli.report_cmd", "report", "Write an HTML report of a campaign or a results table."),
     "validate": ("droptower.cli.validate_cmd", "validate", "Compare a map with servo-hydraulic sweeps."),
     "identify": ("droptower.cli.identify_cmd", "identify", "Identify a coupling model from torque-angle data."),

@@ -1,4 +1,4 @@
-"""``droptower map``: fit the characteristic map (seed 004 eq. 19 and eq. 20) to a results table."""
+"""``droptower map``: fit the characteristic map (Rapp et al. 2022, eq. 19 and eq. 20) to a results table."""
 from __future__ import annotations
 
 import json
@@ -20,7 +20,7 @@ from droptower.errors import DroptowerError
 @click.option("--plot", "plot_dir", type=click.Path(path_type=Path, file_okay=False), default=None,
               help="Write the paper's Fig. 10, 12 and 13 as PNG files into this folder.")
 @click.option("--form", type=click.Choice(["paper", "velocity", "auto"]), default="paper", show_default=True,
-              help="paper: seed 004 eq. 19/20; velocity: stiffness and c/d also fall with amplitude x frequency; "
+              help="paper: Rapp et al. 2022, eq. 19/20; velocity: stiffness and c/d also fall with amplitude x frequency; "
                    "auto: the terms with the least cross-validated error whose coefficients are all identifiable.")
 @click.option("--nested-cv", is_flag=True,
               help="With --form auto: also cross-validate the choice of terms (nested: each fold chooses without "

@@ -32,9 +32,9 @@ TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "prelo
 def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, as_json: bool,
          plot_path: str | None) -> None:
     """Predict every condition of a test plan (repeats collapsed): post-impact velocities and
-    impact energy (NOTES §1.2), angle amplitude, frequency, damping ratio and peak torque from a
+    impact energy (docs/theory.md#impact), angle amplitude, frequency, damping ratio and peak torque from a
     free decay on the nonlinear coupling (preload included), and the double-impact check of
-    seed 004 (NOTES §1.3). Warns where a rig limit is broken: twist beyond the coupling limit,
+    Rapp et al. 2022 (docs/theory.md#decay). Warns where a rig limit is broken: twist beyond the coupling limit,
     torque or impact force beyond the sensor range, fewer than 20 samples per period, a record
     shorter than 3/4 period, a double impact.
 

@@ -55,7 +55,7 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
     """Drive COUPLING (a coupling TOML file or a preset name) with sine tests on the virtual
     servo-hydraulic bench and evaluate each like a test lab: K', K'', |K*|, loss angle, loss
     factor, damping work (loop area), relative damping psi (DIN 740-2 style) and the
-    drop-tower-equivalent damping ratio (NOTES §1.7).
+    drop-tower-equivalent damping ratio (docs/theory.md#damping-measures).
 
     A translational coupling (units = "translational": a mount, bushing or damper) is driven
     by displacement: --amplitude-mm and --preload-n instead of --amplitude-deg and

@@ -43,14 +43,14 @@ def json_safe(value: Any) -> Any:
               help="Write the sampled test as a droptower log (.csv or .parquet).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
-              help="Draw the paths of drop mass and lever tip (seed 004 Fig. 4) and the angle and torque.")
+              help="Draw the paths of drop mass and lever tip (Rapp et al. 2022, Fig. 4) and the angle and torque.")
 def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: float, preload_nm: float,
              duration_s: float, seed: int, out: str | None, as_json: bool, plot_path: str | None) -> None:
     """Simulate one drop test: the drop mass falls from HEIGHT onto the lever (inertia J) and the
     coupling, pre-twisted to the preload, rings down. Prints the post-impact velocities (simulated
     and by the impact law), impact energy, contacts and double impact, peak angle and torque, and
     the energy balance; writes the log the rig's sensors would record. A double impact is a
-    second contact within the lever's first oscillation period (seed 004, NOTES §1.3).
+    second contact within the lever's first oscillation period (Rapp et al. 2022, docs/theory.md#decay).
 
     \b
     Examples:
@@ -79,7 +79,7 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
         from droptower.rig.plots import plot_test
 
         summary["plot"] = str(plot_test(result, plot_path))
-        wrote(summary["plot"], "drop mass and lever paths (seed 004 Fig. 4), angle and torque")
+        wrote(summary["plot"], "drop mass and lever paths (Rapp et al. 2022, Fig. 4), angle and torque")
     if as_json:
         click.echo(json.dumps(json_safe(summary), indent=1))
         return

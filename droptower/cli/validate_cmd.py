@@ -1,5 +1,5 @@
-"""``droptower validate``: a characteristic map against servo-hydraulic sweeps (seed 004 Fig. 14)
-and, optionally, against a measured map such as seed 004 Table 4."""
+"""``droptower validate``: a characteristic map against servo-hydraulic sweeps (Rapp et al. 2022, Fig. 14)
+and, optionally, against a measured map such as Rapp et al. 2022, Table 4."""
 from __future__ import annotations
 
 import json
@@ -28,7 +28,7 @@ from droptower.configs import DEFAULT_COUPLING
                    "amplitude_deg=Amp:rad); repeatable. Lab names (Amplitude [°], Frequenz [Hz], Verlustfaktor, "
                    "Speichersteifigkeit [Nm/°]) are found without it.")
 @click.option("--reference", type=click.Path(path_type=Path), default=None,
-              help="Also compare with a measured map table (e.g. seed 004 Table 4: inertia_kgm2, amplitude_deg, "
+              help="Also compare with a measured map table (e.g. Rapp et al. 2022, Table 4: inertia_kgm2, amplitude_deg, "
                    "frequency_hz, stiffness_nm_per_deg, damping_ratio).")
 @click.option("--results", type=click.Path(path_type=Path), default=None,
               help="With --reference: the campaign (folder or results table) whose tests are interpolated at "
@@ -43,12 +43,12 @@ from droptower.configs import DEFAULT_COUPLING
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,
              results: Path | None, quick: bool, out: Path | None, table_format: str, as_json: bool) -> None:
-    """Predict the servo-hydraulic sweeps of NOTES §1.6 from the map and compare: frequency
+    """Predict the servo-hydraulic sweeps of docs/theory.md#servo from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
     10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
 
-    Stiffness: the map's c (= J(omega^2 + delta^2), seed 004 eq. 15) against the servo's storage
-    stiffness K'. Damping like with like (NOTES §1.7): the map's damping ratio (the drop tower's
+    Stiffness: the map's c (= J(omega^2 + delta^2), Rapp et al. 2022, eq. 15) against the servo's storage
+    stiffness K'. Damping like with like (docs/theory.md#damping-measures): the map's damping ratio (the drop tower's
     d = E_diss/E_el, eq. 16) against the servo's drop-tower-equivalent d; the loss factor and the
     relative damping psi of both are reported alongside. Deviations (map / servo - 1) are
     summarised inside and outside the drop tower's measured range.

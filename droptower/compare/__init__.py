@@ -1,11 +1,11 @@
-"""Validation of characteristic maps: against servo-hydraulic sweeps (seed 004 Fig. 14, NOTES
-§1.6-1.7) and against a measured map such as seed 004 Table 4.
+"""Validation of characteristic maps: against servo-hydraulic sweeps (Rapp et al. 2022, Fig. 14,
+docs/theory.md#servo, #damping-measures) and against a measured map such as Rapp et al. 2022, Table 4.
 
-- :mod:`.servo_points`: the NOTES §1.6 sweeps on the virtual servo bench, or measured servo
+- :mod:`.servo_points`: the docs/theory.md#servo sweeps on the virtual servo bench, or measured servo
   results from a table;
 - :mod:`.validation`: map vs servo points, deviations inside and outside the measured range,
   damping compared like with like (the drop tower's d_ratio);
-- :mod:`.fig14`: the four panels of seed 004 Fig. 14;
+- :mod:`.fig14`: the four panels of Rapp et al. 2022, Fig. 14;
 - :mod:`.reference_map`: a campaign and its map vs a measured map (Table 4).
 
 Downstream of maps, servo and rheology; only the CLI and ``analysis/`` import it.

@@ -1,4 +1,4 @@
-"""Seed 004 Fig. 14: the map against the servo-hydraulic sweeps, four panels.
+"""Rapp et al. 2022, Fig. 14: the map against the servo-hydraulic sweeps, four panels.
 
 (a) stiffness and (b) damping ratio over frequency for the frequency sweeps, (c) stiffness and
 (d) damping ratio over amplitude for the amplitude sweeps. Servo points as markers, the map as
@@ -55,7 +55,7 @@ def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=7)
     s = validation.summary
-    fig.suptitle("Map (lines; dashed: extrapolated) vs servo-hydraulic sweeps (markers), seed 004 Fig. 14\n"
+    fig.suptitle("Map (lines; dashed: extrapolated) vs servo-hydraulic sweeps (markers), Rapp et al. 2022, Fig. 14\n"
                  f"inside the tested hull: stiffness rms {s['inside']['stiffness_rms_deviation_pct']:.1f} %, damping rms "
                  f"{s['inside']['damping_rms_deviation_pct']:.1f} %; outside it: {s['outside']['stiffness_rms_deviation_pct']:.1f} %, "
                  f"{s['outside']['damping_rms_deviation_pct']:.1f} %", fontsize=10)

@@ -4,7 +4,7 @@
 - ``validation_summary.json``: RMS / max deviations inside and outside the range, definitions;
 - ``servo_results.csv``: the servo points as measured or simulated (readable by
   ``--servo-results``);
-- ``fig14_servo_validation.png``: seed 004 Fig. 14;
+- ``fig14_servo_validation.png``: Rapp et al. 2022, Fig. 14;
 - with a reference map: ``reference_comparison.csv`` and ``reference_summary.json``.
 """
 from __future__ import annotations

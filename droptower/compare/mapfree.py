@@ -9,11 +9,11 @@ run through the whole pipeline (pymunk rig, sensors, log, extraction). Then, per
 
 - decay vs servo: the extracted stiffness and damping ratio against the servo bench at the
   decay's own amplitude and frequency (storage stiffness K', the drop-tower-equivalent d;
-  NOTES §1.7), with the loss factor and the decay ratio r = delta/omega alongside;
+  docs/theory.md#damping-measures), with the loss factor and the decay ratio r = delta/omega alongside;
 - map vs decay: the map at the decay's point against the decay (the map's misfit there);
 - map vs servo: the map at the servo point against the bench (what validation reports).
 
-The drop height follows from the rate by the impact law (NOTES §1.2) with the heaviest of the
+The drop height follows from the rate by the impact law (docs/theory.md#impact) with the heaviest of the
 rig's drop masses that still rebounds clearly (m1 <= k m2 / 2), so no second impact.
 """
 from __future__ import annotations
@@ -54,7 +54,7 @@ class Placement:
 
 def _decay_points(coupling: Coupling, rig: RigConfig, inertia: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """(B, 2): amplitude (deg, window middle) and frequency (Hz) of each free decay's first
-    cycle, fitted like the extractor (NOTES §1.4)."""
+    cycle, fitted like the extractor (docs/theory.md#extraction)."""
     at_rest = pretwist(coupling, np.zeros(inertia.size), rig.simulation.preload_ramp_s, rig.simulation.preload_hold_s)
     dec = free_decay(coupling, inertia, rate, at_rest, STEP_S)
     t = dec.time_s[1:]
@@ -102,7 +102,7 @@ def place_drop_tests(coupling: Coupling, rig: RigConfig, amplitude_deg: np.ndarr
     # lowest drop height; lighter than all of them only where none does
     masses = np.sort(np.asarray(rig.drop_masses_kg, float))
     m1 = np.array([masses[masses <= 0.5 * k * m].max() if np.any(masses <= 0.5 * k * m) else 0.5 * k * m for m in m2])
-    v1 = rate * lever * (m1 + m2) / (m1 * (1 + k))                          # NOTES §1.2 solved for v1
+    v1 = rate * lever * (m1 + m2) / (m1 * (1 + k))                          # docs/theory.md#impact solved for v1
     return Placement(pd.DataFrame({"inertia_kgm2": inertia, "rate_rad_per_s": rate, "drop_mass_kg": m1,
                                    "drop_height_m": v1 ** 2 / (2 * G), "amplitude_deg": reached[:, 0],
                                    "frequency_hz": reached[:, 1]}))

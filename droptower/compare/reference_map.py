@@ -1,4 +1,4 @@
-"""Compare a virtual campaign and its map with a measured map such as seed 004 Table 4.
+"""Compare a virtual campaign and its map with a measured map such as Rapp et al. 2022, Table 4.
 
 For each row of the measured map (its case's inertia, amplitude, frequency, stiffness and
 damping ratio):
@@ -6,13 +6,13 @@ damping ratio):
 - ``map_*``: the fitted map (eq. 19, eq. 20) at the row's amplitude and frequency;
 - ``campaign_*``: the campaign's own extracted tests of the row's case (same inertia and drop
   mass), averaged per drop height over repeats and preloads (the paper found no influence of
-  the preload, seed 004 Fig. 11; one preload can be selected), interpolated linearly in log amplitude at the row's
+  the preload, Rapp et al. 2022, Fig. 11; one preload can be selected), interpolated linearly in log amplitude at the row's
   amplitude (extrapolated from the two outermost heights beyond them; ``campaign_extrapolated``
   says so). The campaign's frequency at that amplitude is reported too: where the coupling's
   stiffness is off, so is the frequency the case's inertia gives.
 
 Deviations are ``100 (virtual - measured) / measured`` in percent. The acceptance: RMS over the
-rows <= 5 % for stiffness and <= 12 % for the damping ratio (issue 9: the level the paper's own
+rows <= 5 % for stiffness and <= 12 % for the damping ratio (the level the paper's own
 map reaches on Table 4, 12.3 %; eq. 20 cannot follow the case dependence of the damping).
 """
 from __future__ import annotations

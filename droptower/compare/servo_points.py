@@ -1,4 +1,4 @@
-"""The servo-hydraulic points a map is validated against: the sweeps of NOTES §1.6 run on the
+"""The servo-hydraulic points a map is validated against: the sweeps of docs/theory.md#servo run on the
 virtual servo bench, or measured servo results read from a table.
 
 Both give a *servo table*, one row per (sweep, point):
@@ -7,9 +7,9 @@ Both give a *servo table*, one row per (sweep, point):
 - ``amplitude_deg``, ``frequency_hz``: the point;
 - ``servo_stiffness_nm_per_deg``: the stiffness compared with the map (see ``stiffness_definition``);
 - ``servo_damping_ratio``: the drop tower's damping ratio d = E_diss / E_el of the linear
-  Kelvin-Voigt coupling with the servo's loss factor (NOTES §1.7,
+  Kelvin-Voigt coupling with the servo's loss factor (docs/theory.md#damping-measures,
   :func:`droptower.sdof.drop_tower_equivalent_damping_ratio`): the map's damping is the drop
-  tower's d_ratio (seed 004 eq. 16), so it is compared with this, like with like;
+  tower's d_ratio (Rapp et al. 2022, eq. 16), so it is compared with this, like with like;
 - ``servo_loss_factor`` (eta = K''/K') and ``servo_relative_damping_psi`` (psi = W_D / W_el,
   DIN 740-2), reported alongside; ``servo_dynamic_stiffness_nm_per_deg`` (|K*|) when known.
 
@@ -46,7 +46,7 @@ from droptower.errors import DroptowerError
 from droptower.io.fields import field_name
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
-#: NOTES §1.6: frequency sweeps at these amplitudes (deg) up to these frequencies (Hz) ...
+#: docs/theory.md#servo: frequency sweeps at these amplitudes (deg) up to these frequencies (Hz) ...
 FREQUENCY_SWEEPS = {0.5: 100.0, 1.5: 60.0, 2.5: 20.0}
 #: ... and amplitude sweeps at these frequencies (Hz) up to these amplitudes (deg).
 AMPLITUDE_SWEEPS = {1.0: 10.0, 10.0: 6.0, 30.0: 2.0}
@@ -82,7 +82,7 @@ class ServoPoints:
 
 
 def sweep_points(reduced: bool = False) -> pd.DataFrame:
-    """The (sweep, amplitude_deg, frequency_hz) rows of the NOTES §1.6 sweeps."""
+    """The (sweep, amplitude_deg, frequency_hz) rows of the docs/theory.md#servo sweeps."""
     f_steps = REDUCED_FREQUENCY_STEPS_HZ if reduced else FREQUENCY_STEPS_HZ
     a_steps = REDUCED_AMPLITUDE_STEPS_DEG if reduced else AMPLITUDE_STEPS_DEG
     rows = []
@@ -185,7 +185,7 @@ def _infer_sweeps(amplitude: np.ndarray, frequency: np.ndarray) -> list[str]:
 
 
 def _eta_from(table: pd.DataFrame, damping: str) -> np.ndarray:
-    """Loss factor eta from whichever damping column the table has (NOTES §1.7)."""
+    """Loss factor eta from whichever damping column the table has (docs/theory.md#damping-measures)."""
     values = table[damping].to_numpy(float)
     if damping == "loss_factor":
         return values
@@ -229,6 +229,6 @@ def _definitions(stiffness: str, damping: str) -> tuple[str, str]:
     }[stiffness]
     source = {"drop_tower_equivalent_damping_ratio": "given", "loss_factor": "from the loss factor",
               "loss_angle_deg": "from the loss angle", "relative_damping_psi": "from psi"}[damping]
-    return (f"map stiffness (seed 004 eq. 19, c = J(omega^2 + delta^2)) vs servo {stiffness_text}",
-            "damping ratio d = E_diss/E_el of the drop tower (seed 004 eq. 16): map vs the servo's "
-            f"drop-tower-equivalent d of the linear coupling with its loss factor eta ({source}; NOTES §1.7)")
+    return (f"map stiffness (Rapp et al. 2022, eq. 19, c = J(omega^2 + delta^2)) vs servo {stiffness_text}",
+            "damping ratio d = E_diss/E_el of the drop tower (Rapp et al. 2022, eq. 16): map vs the servo's "
+            f"drop-tower-equivalent d of the linear coupling with its loss factor eta ({source}; docs/theory.md#damping-measures)")

@@ -1,6 +1,6 @@
-"""Validate a characteristic map against servo-hydraulic points (seed 004 Fig. 14, NOTES §1.6-1.7).
+"""Validate a characteristic map against servo-hydraulic points (Rapp et al. 2022, Fig. 14, docs/theory.md#servo, #damping-measures).
 
-The map (seed 004 eq. 19, eq. 20) predicts stiffness and damping ratio at every servo point;
+The map (Rapp et al. 2022, eq. 19, eq. 20) predicts stiffness and damping ratio at every servo point;
 the deviations, ``100 (map - servo) / servo`` in percent, are summarised per region:
 ``inside`` the convex hull of the drop tests' (amplitude, frequency) points, where the map
 interpolates (:meth:`MapFit.in_range`); ``rectangle``, inside the rectangle of the tests'
@@ -8,7 +8,7 @@ extremes, the paper's statement of its range ("~20-60 Hz, ~0.15-3.2 deg": its co
 test, since larger drops give larger amplitudes at lower frequencies); ``outside`` the hull;
 ``all`` (the paper: within 6 % stiffness and about 7 % damping, errors growing outside).
 
-Damping like with like (NOTES §1.7): the map's damping is the drop tower's d_ratio, compared
+Damping like with like (docs/theory.md#damping-measures): the map's damping is the drop tower's d_ratio, compared
 with the servo's drop-tower-equivalent d_ratio; the loss factor eta and the decay ratio
 r = delta/omega of the linear coupling with the map's d_ratio are compared with the servo's
 alongside (d grows like exp(4 pi r), so its deviations are about twice eta's), and the
@@ -68,7 +68,7 @@ def deviation_stats(stiffness_pct: np.ndarray, damping_pct: np.ndarray, loss_fac
 def map_damping_measures(damping_ratio: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(eta, psi) of the linear Kelvin-Voigt coupling whose drop-tower damping ratio is given:
     r = delta/omega from eq. 16, eta = 2r / (1 + r^2), psi = 2 pi eta / sqrt(1 + eta^2) (DIN 740-2,
-    W_el = T_hat phi_hat / 2, as the servo bench evaluates it; NOTES §1.7)."""
+    W_el = T_hat phi_hat / 2, as the servo bench evaluates it; docs/theory.md#damping-measures)."""
     r = sdof.decay_ratio(damping_ratio)
     return sdof.loss_factor(r, 1.0), sdof.relative_damping(r, 1.0)
 

@@ -1,10 +1,10 @@
-"""Stiffness and damping from drop-test logs (seed 004 eq. 13-18, NOTES §1.3, §1.4, §1.7).
+"""Stiffness and damping from drop-test logs (Rapp et al. 2022, eq. 13-18, docs/theory.md#decay, #extraction, #damping-measures).
 
 ``extract(signals, inertia_kgm2=..., window="first-cycle") -> ExtractionResult`` evaluates one
 test given as SI :class:`~droptower.io.signals.DropSignals`; ``extract_file(path, Settings())``
 reads, maps and evaluates one log file; :mod:`droptower.sdof` holds eq. 15, 16, 18
 and the servo-comparable damping measures; :class:`SyntheticDrop` makes logs with known
-stiffness and damping; :func:`droptower.extract.plot.plot_fit` draws seed 004 Fig. 9.
+stiffness and damping; :func:`droptower.extract.plot.plot_fit` draws Rapp et al. 2022, Fig. 9.
 """
 from droptower.extract.extractor import extract
 from droptower.extract.files import Settings, extract_file, result_row

@@ -1,4 +1,4 @@
-"""Least-squares fits of the free decay after the impact (seed 004 eq. 13, 14 and 17).
+"""Least-squares fits of the free decay after the impact (Rapp et al. 2022, eq. 13, 14 and 17).
 
 Angle: φ(t) = φ̂·e^(−δt)·cos(ωt − Φ), fitted over (φ̂, δ, ω, Φ) with
 :func:`scipy.optimize.least_squares` from robust starting values. Torque (eq. 17): δ and ω
@@ -56,13 +56,13 @@ class TorqueFit:
 
 
 def decay(params: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """φ̂·e^(−δt)·cos(ωt − Φ) (seed 004 eq. 13)."""
+    """φ̂·e^(−δt)·cos(ωt − Φ) (Rapp et al. 2022, eq. 13)."""
     amp, delta, omega, phase = params
     return amp * np.exp(-delta * t) * np.cos(omega * t - phase)
 
 
 def torque_model(params: np.ndarray, delta: float, omega: float, t: np.ndarray) -> np.ndarray:
-    """e^(−δt)(a cos ωt + b sin ωt) + offset = T̂ e^(−δt) cos(ωt − Φ_T) + offset (seed 004 eq. 17)."""
+    """e^(−δt)(a cos ωt + b sin ωt) + offset = T̂ e^(−δt) cos(ωt − Φ_T) + offset (Rapp et al. 2022, eq. 17)."""
     a, b, offset = params
     env = np.exp(-delta * t)
     return env * (a * np.cos(omega * t) + b * np.sin(omega * t)) + offset
@@ -132,7 +132,7 @@ def start_frequency_and_decay(t: np.ndarray, y: np.ndarray, noise: float) -> tup
 
 
 def fit_decay(t: np.ndarray, y: np.ndarray, omega0: float, delta0: float, baseline_var: float = 0.0) -> DecayFit:
-    """Least-squares fit of φ̂ e^(−δt) cos(ωt − Φ) to (t, y) (seed 004 eq. 13-14).
+    """Least-squares fit of φ̂ e^(−δt) cos(ωt − Φ) to (t, y) (Rapp et al. 2022, eq. 13-14).
 
     Starting amplitude and phase come from the linear least-squares solution for the given
     starting ω and δ (robust against noise in any single sample). baseline_var: variance of

@@ -1,7 +1,7 @@
 """Every drop in a continuous recording: where each one starts and which samples are its own.
 
 A lab often records a series of drops in one file (five repeats of one height, a morning's
-drops). Each drop is an impact after a quiet stretch: on the force channel a pulse (seed 004:
+drops). Each drop is an impact after a quiet stretch: on the force channel a pulse (Rapp et al. 2022:
 ~0.3 ms) standing out of the force's running median; without one the angular velocity jumping
 out of its band after rest (to three times the band within 2 ms: a preload being set moves
 slower). Pulses less than ``min_spacing_s`` after a drop's first impact are that drop's later

@@ -1,5 +1,5 @@
-"""Stiffness and damping of one drop test from its signals (seed 004 Fig. 9, eq. 13-18;
-NOTES §1.3, §1.4, §1.7).
+"""Stiffness and damping of one drop test from its signals (Rapp et al. 2022, Fig. 9, eq. 13-18;
+docs/theory.md#decay, #extraction, #damping-measures).
 
 Steps: impact onset and pre-trigger baseline (:mod:`.impact`; the pre-trigger means remove
 sensor offsets and the preload), starting frequency and decay from the angle after the impact,
@@ -127,7 +127,7 @@ _DERIVED_NAMES = ("frequency_hz", "omega_rad_per_s", "delta_per_s", "amplitude_r
 
 def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_length_m: float | None = None,
             window: str | Window = "first-cycle") -> ExtractionResult:
-    """Extract stiffness and damping from one drop test (seed 004 eq. 13-18, NOTES §1.4).
+    """Extract stiffness and damping from one drop test (Rapp et al. 2022, eq. 13-18, docs/theory.md#extraction).
 
     signals: SI signals of the test; inertia_kgm2: rotating inertia J (default: the log's
     metadata ``inertia_kgm2``); lever_length_m: lever arm L (default: metadata
@@ -200,7 +200,7 @@ def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None,
     fit_rate = abs(float(amp * (omega * np.sin(phase) - delta * np.cos(phase))))
     rate_after, rate_from = lever_rate_after(signals, inertia, lever_length_m, impact.impulse_ns)
 
-    # a second contact counts as a double impact within the first period (NOTES §1.3, as the
+    # a second contact counts as a double impact within the first period (docs/theory.md#double-impact, as the
     # rig's check) or the fit window; a later one is reported but does not disturb the fit
     second_after = float(t[impact.second_onset]) if impact.second_onset is not None else np.nan
     double = bool(second_after <= max(2 * np.pi / omega, end))

@@ -4,8 +4,8 @@ The impact is the largest excursion of the force channel (or, without one, of th
 Its onset is where the signal leaves the pre-trigger band: the threshold is the larger of
 ``NOISE_FACTOR`` standard deviations of the pre-trigger noise and ``PEAK_FRACTION`` of the
 peak. A second impact is a later excursion of the force beyond the same threshold after the
-force stayed back in the band for at least ``MIN_GAP_S`` (seed 004: the impact lasts ~0.3 ms;
-a second contact comes back milliseconds later, NOTES §1.2-1.3).
+force stayed back in the band for at least ``MIN_GAP_S`` (Rapp et al. 2022: the impact lasts ~0.3 ms;
+a second contact comes back milliseconds later, docs/theory.md#impact, #decay).
 """
 from __future__ import annotations
 

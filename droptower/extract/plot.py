@@ -1,4 +1,4 @@
-"""Seed 004 Fig. 9: the measured angle with its decay fit, and the torque with its fit (eq. 17).
+"""Rapp et al. 2022, Fig. 9: the measured angle with its decay fit, and the torque with its fit (eq. 17).
 
 Drawn with matplotlib's object API on the Agg canvas (no pyplot state, no display needed).
 """

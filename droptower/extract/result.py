@@ -53,19 +53,19 @@ TEXT_OUTPUTS = ("lever_rate_after_from",)
 
 @dataclass
 class ExtractionResult:
-    """Stiffness and damping of one drop test, SI units (seed 004 eq. 13-18, NOTES §1.4).
+    """Stiffness and damping of one drop test, SI units (Rapp et al. 2022, eq. 13-18, docs/theory.md#extraction).
 
     Decay fit: amplitude_rad φ̂ (at the impact), delta_per_s δ, omega_rad_per_s ω, phase_rad Φ;
     frequency_hz f = ω/2π; amplitude_ref_rad φ̂_ref (eq. 18, middle of the window);
     stiffness_nm_per_rad c_dyn,M1 = J(ω² + δ²) (eq. 15); damping_ratio ½(e^(4πδ/ω) − 1) (eq. 16);
     stiffness_torque_nm_per_rad c_dyn,M2 = T(φ_max)/φ_max (eq. 17), stiffness_deviation M2/M1 − 1;
-    loss_factor η and relative_damping_psi ψ: servo-comparable (NOTES §1.7), the values a
+    loss_factor η and relative_damping_psi ψ: servo-comparable (docs/theory.md#damping-measures), the values a
     servo bench would measure on the linear Kelvin–Voigt coupling with this decay.
     fit_error: RMS residual / peak of the fitted angle over the window (torque_fit_error the same
     for the torque). Times: impact_time_s (output ``impact_onset_time_s``: where the force pulse, else the
     angle, starts) on the log's clock; window_start_s, window_end_s and
     second_impact_after_s (first later contact, NaN if none) since the impact. double_impact:
-    a second contact within the first period (NOTES §1.3) or the fit window. angle_offset_rad, torque_offset_nm: pre-trigger
+    a second contact within the first period (docs/theory.md#decay) or the fit window. angle_offset_rad, torque_offset_nm: pre-trigger
     means (sensor offsets and preload). Impact (independent of the window): lever_rate_after_rad_per_s
     φ'(0+) from the force impulse, L·∫F dt / J, else from the impact law on the log's drop mass,
     height and restitution (lever_rate_after_from: ``"impact_force"``, ``"impact_law"`` or ``""``

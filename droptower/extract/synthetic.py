@@ -1,12 +1,12 @@
 """Synthetic drop-test logs with known stiffness and damping: the linear single-degree-of-
-freedom free decay after a short impact (NOTES §1.3), as a drop-tower amplifier records it.
+freedom free decay after a short impact (docs/theory.md#decay), as a drop-tower amplifier records it.
 
 Angle: φ(t) = φ̂·e^(−δτ)·sin(ωτ), τ = time since the impact (lever at rest before it); with
 a second impact the closed-form response to the second kick is superposed (the system is
 linear). Torque of the linear Kelvin–Voigt coupling: T = c·φ + d·φ' with d = 2Jδ (so that
 c = J(ω² + δ²), eq. 15), plus an optional decaying test-setup ringing (500–800 Hz) that the
-angle does not see (seed 004, Fig. 9). Impact force: a half-sine pulse whose impulse ∫F dt
-= J·φ'(0)/L gives the lever its start velocity (NOTES §1.2), sampled as the average over
+angle does not see (Rapp et al. 2022, Fig. 9). Impact force: a half-sine pulse whose impulse ∫F dt
+= J·φ'(0)/L gives the lever its start velocity (docs/theory.md#impact), sampled as the average over
 each sample interval (the amplifier's anti-aliasing filter), so a pulse shorter than a sample
 still shows up at 2048 Hz. Sensor offsets, a preload and white noise on every channel.
 """

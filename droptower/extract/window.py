@@ -1,8 +1,8 @@
-"""The fit window after the impact: ``first-cycle`` (seed 004: the first complete cycle),
+"""The fit window after the impact: ``first-cycle`` (Rapp et al. 2022: the first complete cycle),
 ``N-cycles`` (e.g. ``2-cycles``) or a length in seconds (e.g. ``0.05``).
 
 A window shorter than three quarters of a period is refused: the damping cannot be deduced
-from less (seed 004, section "Theory of Impact Investigation").
+from less (Rapp et al. 2022, section "Theory of Impact Investigation").
 """
 from __future__ import annotations
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from droptower.errors import DroptowerError, WriteError
 from droptower.rheology.coupling import Coupling
 
-#: the default internal step: the rig's sample rate (seed 004: 38.4 kHz)
+#: the default internal step: the rig's sample rate (Rapp et al. 2022: 38.4 kHz)
 DEFAULT_STEP_S = 1.0 / 38_400.0
 
 

@@ -1,7 +1,7 @@
 """Load cycles in an imposed angle history: turning points, cycles, steady blocks, first harmonic.
 
-The staged identifications need to know where the data hold steady sine cycles (seed 001's
-initial loading curve from loop peaks, seed 003's per-amplitude levels, seed 002's dynamic
+The staged identifications need to know where the data hold steady sine cycles (the elastoslide paper's
+initial loading curve from loop peaks, Heine & Plagemann's (2014) per-amplitude levels, Scheiblegger et al.'s (2013) dynamic
 stiffness and loss angle at a layout frequency). Cycles are found from the angle alone, the
 way a test engineer reads a record: significant turning points (reversals larger than the
 noise), a cycle from one maximum to the next, blocks of consecutive cycles of the same

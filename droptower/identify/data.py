@@ -27,7 +27,7 @@ from droptower.io.timebase import regular_time
 
 #: Duration of the half-cosine ramp from 0 rad to a record's first angle (s). The core starts
 #: every history at 0 rad in its virgin state; a record that starts preloaded is reached
-#: smoothly, and the ramp is never compared (seed 000 also leaves the preload application
+#: smoothly, and the ramp is never compared (the zero-dimensional model paper also leaves the preload application
 #: out of the fit).
 LEAD_IN_S = 1.0
 #: Fewest samples a record may have.

@@ -2,7 +2,7 @@
 
 Every test is re-simulated from its impact (:mod:`.lever`): the lever (inertia J) starts at
 rest position with the rate the impact gave it (:mod:`.droplogs`) and decays freely on the
-candidate coupling, which starts in the state the rig's conditioning leaves it in (seed 004's
+candidate coupling, which starts in the state the rig's conditioning leaves it in (Rapp et al.'s (2022)
 pre-straining; ``conditioning=False``: virgin). The residual is the angle over the compared
 window (and the torque where the log has it, weighted by ``torque_weight``), each test's part
 divided by its peak and by the square root of its sample count, so that small drops count as

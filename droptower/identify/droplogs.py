@@ -1,4 +1,4 @@
-"""Drop-test logs -> the measured free decays a coupling model is fitted to (NOTES §1.3-1.4).
+"""Drop-test logs -> the measured free decays a coupling model is fitted to (docs/theory.md#decay, #extraction).
 
 Per log: channels mapped as for ``droptower extract``; the impact located by the extractor's
 :func:`~droptower.extract.impact.find_impact`; pre-trigger means removed (sensor offsets and
@@ -12,7 +12,7 @@ the preload); the lever's rate just after the impact from
 
 The compared window runs from the end of the contact over ``cycles`` periods, or up to a
 later contact of the drop mass (it falls back onto the lever); a log with a second impact
-within ``MIN_WINDOW_PERIODS`` periods (a double impact, NOTES §1.3) is excluded (named, with
+within ``MIN_WINDOW_PERIODS`` periods (a double impact, docs/theory.md#double-impact) is excluded (named, with
 the time), like a log that cannot be read or holds no impact; the others go on.
 """
 from __future__ import annotations
@@ -121,7 +121,7 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
     if force is not None and lever is not None:
         pulse = slice(impact.onset - 1, impact.contact_end + 1)
         f = force[pulse] - float(np.median(force[pre]))
-        t_impact = float(np.sum(t[pulse] * f) / np.sum(f))   # the pulse's centroid (NOTES §1.2)
+        t_impact = float(np.sum(t[pulse] * f) / np.sum(f))   # the pulse's centroid (docs/theory.md#impact)
         rate0, source = lever * impact.impulse_ns / inertia, "impact_force"
     else:
         t_impact, rate0 = _slope_rate(t, y, impact.contact_end, period)

@@ -1,13 +1,13 @@
 """Bounded nonlinear least squares on the torque error under imposed angle histories.
 
-The optimiser is SciPy's trust-region-reflective method (seed 000 used MATLAB's TRF). Every
+The optimiser is SciPy's trust-region-reflective method (the zero-dimensional model paper used MATLAB's TRF). Every
 parameter is optimised in a normalised variable (its logarithm, or its value over a scale)
 so that one trust region suits them all. The Jacobian is a forward difference whose columns
 are all simulated in ONE call of the core: the perturbed parameter sets are stacked on the
 core's batch axis (:meth:`Coupling.stack`), together with every segment of the data, and the
 core's parallel loop runs them at once.
 
-Quality is reported as seed 000 does: the RMSE of the torque normalised by the largest
+Quality is reported as the zero-dimensional model paper does: the RMSE of the torque normalised by the largest
 measured |torque| (``nrmse``), on the fitting data and on held-out data.
 """
 from __future__ import annotations
@@ -136,7 +136,7 @@ class Metrics:
     """Torque error of a model on some data.
 
     rmse_nm: root mean square of (model - measured) over the compared samples;
-    nrmse: rmse_nm / max |measured torque| (seed 000's measure, a fraction, not percent);
+    nrmse: rmse_nm / max |measured torque| (the zero-dimensional model paper's measure, a fraction, not percent);
     residual_lag1: lag-1 autocorrelation of the residual (near 0: white, the model explains
     all structure; near 1: systematic misfit or strongly coloured noise); n_samples.
     """
@@ -249,7 +249,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
 
     Trust-region reflective least squares on the sum over segments of (model - measured)^2
     over the compared samples. The Jacobian's columns go to the core in one batched call.
-    ``per_segment`` (S, n): each segment's own values of the fixed parameters (seed 003's
+    ``per_segment`` (S, n): each segment's own values of the fixed parameters (Heine & Plagemann's (2014)
     amplitude-dependent parameters while its frequency-dependent ones are fitted); the free
     ones are shared. ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
     optimiser's function evaluations; reaching it means "not converged".
@@ -279,7 +279,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
 
     sol = fit_rows(params, initial, residuals, free=free, max_nfev=max_nfev, tol=tol)
     m = metrics(segments, torques(sol.values[None, :])[0])
-    # the integration step's bias (seed 000's records are sampled coarser than the bench
+    # the integration step's bias (the zero-dimensional model paper's records are sampled coarser than the bench
     # integrates): the parameters' shift when the model is integrated on half the step,
     # Richardson-scaled for the first-order error of the core's rate-dependent elements
     fine = residuals(sol.values[None, :], 2 * int(getattr(model, "substeps", 1)))[0]

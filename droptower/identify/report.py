@@ -3,7 +3,7 @@
 Every field carries its unit in its name, for the records' units (``k1_nm_per_rad`` for
 torsional records, ``k1_n_per_m`` for translational ones, see :mod:`droptower.io.fields`);
 RMSE values are given as the fraction ``nrmse`` and as ``nrmse_percent`` of the largest
-measured |torque| or |force| (seed 000's measure).
+measured |torque| or |force| (the zero-dimensional model paper's measure).
 """
 from __future__ import annotations
 
@@ -188,7 +188,7 @@ def ranked(table: pd.DataFrame, common: dict[str, float]) -> pd.DataFrame:
 
 
 def record_table(results: dict[str, Identification], segments: list[Segment]) -> pd.DataFrame:
-    """Seed 000 Fig. 8 as a table: per record and model, the RMSE as percent of the largest
+    """The zero-dimensional model paper, Fig. 8 as a table: per record and model, the RMSE as percent of the largest
     |torque| of all records (8b) and relative to the largest RMSE of that record over the
     models (8a)."""
     peak = max(float(np.nanmax(np.abs(s.torque_nm))) for s in segments)
@@ -272,7 +272,7 @@ def plot_identification(ident: Identification, segments: list[Segment], out_dir:
 
 def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, segment: Segment,
                     out_dir: str | Path) -> list[Path]:
-    """Seed 000 Fig. 8 (bars of the per-record RMSE, relative to the largest and in percent of
+    """The zero-dimensional model paper, Fig. 8 (bars of the per-record RMSE, relative to the largest and in percent of
     the largest torque) and the hysteresis loops of every model overlaid on ``segment``."""
     plt = _pyplot()
     out = make_folder(out_dir)
@@ -284,7 +284,7 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
         pivot.plot.bar(ax=ax, rot=30)
         ax.set_title(title)
         ax.set_xlabel("")
-    fig.suptitle("models compared per record (seed 000 Fig. 8)")
+    fig.suptitle("models compared per record (the zero-dimensional model paper, Fig. 8)")
     fig.tight_layout()
     paths.append(save_figure(fig, out / "compare_models_rmse.png", 110))
     plt.close(fig)

@@ -1,4 +1,4 @@
-"""Identify one model family: bind it to the data and run its staged strategy (NOTES §2).
+"""Identify one model family: bind it to the data and run its staged strategy (docs/theory.md#elements).
 
 Every strategy ends in (or consists of) bounded least squares on the torque error
 (:func:`~droptower.identify.fit.least_squares_fit`); the stages before it are the papers' own

@@ -229,7 +229,7 @@ def laser_distance(angle_rad: np.ndarray, radius_m: float) -> np.ndarray:
     """What the laser reads (m) at the lever angle ``angle_rad``: it looks along a fixed vertical
     line at the horizontal distance ``radius_m`` from the axis, as the drop mass falls along one at
     the lever length L, so it sees the lever surface move by radius * tan(angle) (the impact
-    geometry's L tan(phi), NOTES §1.2), not the arc radius * angle (0.09 % apart at 3 deg)."""
+    geometry's L tan(phi), docs/theory.md#impact), not the arc radius * angle (0.09 % apart at 3 deg)."""
     return radius_m * np.tan(angle_rad)
 
 

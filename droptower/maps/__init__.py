@@ -1,4 +1,4 @@
-"""Characteristic maps of seed 004 (eq. 19 stiffness, eq. 20 damping; NOTES §1.5).
+"""Characteristic maps of Rapp et al. 2022 (eq. 19 stiffness, eq. 20 damping; docs/theory.md#map).
 
 ``fit_map(results)`` fits both equations to a results table (``droptower extract --out``,
 ``droptower campaign``, or the paper's Table 4) and returns a :class:`MapFit`, which predicts

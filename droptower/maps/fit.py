@@ -1,4 +1,4 @@
-"""Fit a map form, by default Rapp et al. 2022 eq. 19 (stiffness) and eq. 20 (damping), to a
+"""Fit a map form, by default Rapp et al. 2022, eq. 19 (stiffness) and eq. 20 (damping), to a
 table of drop tests.
 
 Every form, the paper's included, goes the same way (:func:`droptower.maps.select.fit_form`,
@@ -15,7 +15,7 @@ constant); so c > 0 everywhere. Eq. 20's k8, k10, k12 ≥ 0 keep c/d and thus d 
 (allowing a negative one gave the same optimum on the paper's Table 4).
 
 Eq. 20 is fitted so that the damping ratio the map predicts, c_map(φ̂, f) / (c/d)(φ̂), matches
-the measured one: the map's damping goes through its stiffness (seed 004, text after eq. 20).
+the measured one: the map's damping goes through its stiffness (Rapp et al. 2022, text after eq. 20).
 """
 from __future__ import annotations
 

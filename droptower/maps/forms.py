@@ -1,6 +1,6 @@
 """Map forms: the stiffness c(φ̂, f) and the stiffness-over-damping c/d(φ̂, f) as sums of terms.
 
-Seed 004 writes both equations as sums of "coefficient × shape" terms (eq. 19, eq. 20); a
+Rapp et al. 2022 writes both equations as sums of "coefficient × shape" terms (eq. 19, eq. 20); a
 :class:`MapForm` is such a pair of term lists, so the paper's form and forms beyond it are
 evaluated, fitted and stored the same way. Units are the paper's: φ̂ (``a``) in deg, f in Hz,
 c and c/d in N·m/deg. Term kinds:
@@ -164,8 +164,8 @@ class MapForm:
 
     def equations(self) -> dict[str, str]:
         """The two equations as text (the ``equations`` of ``map.json``)."""
-        ref = "  (seed 004 eq. 19)" if self.stiffness == PAPER.stiffness else ""
-        ref20 = "  (seed 004 eq. 20)" if self.ratio == PAPER.ratio else ""
+        ref = "  (Rapp et al. 2022, eq. 19)" if self.stiffness == PAPER.stiffness else ""
+        ref20 = "  (Rapp et al. 2022, eq. 20)" if self.ratio == PAPER.ratio else ""
         return {"stiffness_nm_per_deg": self.stiffness.text(self.stiffness_names) + ref,
                 "damping_ratio": f"stiffness_nm_per_deg / ({self.ratio.text(self.ratio_names)}){ref20}",
                 "a": "amplitude_deg", "f": "frequency_hz"}
@@ -174,7 +174,7 @@ class MapForm:
         return {"name": self.name, "stiffness_terms": list(self.stiffness.terms), "ratio_terms": list(self.ratio.terms)}
 
 
-#: Seed 004 eq. 19 and eq. 20: the default and the reference.
+#: Rapp et al. 2022, eq. 19 and eq. 20: the default and the reference.
 PAPER = MapForm("paper", Equation(("exp_amplitude", "exp_amplitude", "sqrt_frequency", "exp_frequency")),
                 Equation(("exp_amplitude", "exp_amplitude", "exp_amplitude")))
 #: Stiffness and c/d that also fall with the velocity amplitude φ̂·f: what ``auto`` chooses on

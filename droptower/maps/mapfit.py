@@ -1,4 +1,4 @@
-"""A fitted characteristic map: coefficients of seed 004 eq. 19 and eq. 20 (or of another
+"""A fitted characteristic map: coefficients of Rapp et al. 2022, eq. 19 and eq. 20 (or of another
 :class:`~droptower.maps.forms.MapForm`), how well they fit and cross-validate, where they were
 measured, and the ``map.json`` file that carries them.
 
@@ -127,7 +127,7 @@ class MapRange:
 
 @dataclass
 class MapFit:
-    """The characteristic map of seed 004 (eq. 19 and eq. 20, or another ``form``) fitted to drop tests.
+    """The characteristic map of Rapp et al. 2022 (eq. 19 and eq. 20, or another ``form``) fitted to drop tests.
 
     coefficients / uncertainties: ``"k1"`` … ``"k13"`` in the paper's units (:data:`UNITS`;
     another form: ``form.units``);
@@ -163,7 +163,7 @@ class MapFit:
         return self.form.stiffness.value(self.stiffness_params, amplitude_deg, frequency_hz)
 
     def damping_ratio(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
-        """Damping ratio d = E_diss/E_el (-, seed 004 eq. 16): stiffness over c/d (eq. 19 / eq. 20)."""
+        """Damping ratio d = E_diss/E_el (-, Rapp et al. 2022, eq. 16): stiffness over c/d (eq. 19 / eq. 20)."""
         return self.stiffness_nm_per_deg(amplitude_deg, frequency_hz) / self.form.ratio.value(
             self.ratio_params, amplitude_deg, frequency_hz)
 
@@ -174,7 +174,7 @@ class MapFit:
 
     def in_rectangle(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
         """True inside the rectangle of the tests' extremes, the paper's statement of the range
-        ("~20-60 Hz and ~0.15-3.2 deg", seed 004, validation section)."""
+        ("~20-60 Hz and ~0.15-3.2 deg", Rapp et al. 2022, validation section)."""
         return self.range.in_rectangle(amplitude_deg, frequency_hz)
 
     # ---- map.json ----------------------------------------------------------------------
@@ -205,8 +205,8 @@ class MapFit:
         import pandas as pd
 
         paper = self.form == PAPER
-        stiffness = "seed 004 eq. 19" if paper else "stiffness"
-        ratio = "seed 004 eq. 20" if paper else "stiffness over damping ratio"
+        stiffness = "Rapp et al. 2022, eq. 19" if paper else "stiffness"
+        ratio = "Rapp et al. 2022, eq. 20" if paper else "stiffness over damping ratio"
         return pd.DataFrame([{
             "coefficient": k, "equation": stiffness if k in self.form.stiffness_names else ratio,
             "unit": UNIT_TEXT[u], "value": self.coefficients[k],
@@ -286,7 +286,7 @@ class MapFit:
         s, r, form = self.stats, self.range, self.form
         paper = form == PAPER
         lines = [
-            f"characteristic map ({'seed 004 eq. 19, eq. 20' if paper else f'form {form.name}'}) from "
+            f"characteristic map ({'Rapp et al. 2022, eq. 19, eq. 20' if paper else f'form {form.name}'}) from "
             f"{self.source or 'results'}: {s.n_tests} tests used, {len(self.excluded)} excluded",
             f"measured range: amplitude {r.amplitude_deg_min:.3g}-{r.amplitude_deg_max:.3g} deg, "
             f"frequency {r.frequency_hz_min:.4g}-{r.frequency_hz_max:.4g} Hz",

@@ -1,4 +1,4 @@
-"""The paper's map figures (seed 004 Fig. 10, 12, 13) as PNG files.
+"""The paper's map figures (Rapp et al. 2022, Fig. 10, 12, 13) as PNG files.
 
 Uses matplotlib's object API (``Figure`` renders with the Agg canvas), so no global backend is
 touched. Tests are grouped by rotating inertia when the table has ``inertia_kgm2`` (the paper's
@@ -68,7 +68,7 @@ def plot_parameter_variation(tests: pd.DataFrame, path: Path) -> list[str]:
         ax.set_title(title)
         ax.grid(True, alpha=0.3)
     axes[-1].legend()
-    fig.suptitle("Effect of parameter variation (seed 004 Fig. 10)")
+    fig.suptitle("Effect of parameter variation (Rapp et al. 2022, Fig. 10)")
     save_figure(fig, path, 120)
     return notes
 
@@ -95,7 +95,7 @@ def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
            title=f"rms {fit.stats.stiffness_rms_error_pct:.2f} %, max {fit.stats.stiffness_max_error_pct:.2f} %")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    fig.suptitle(f"Stiffness map, {_label(fit, 'seed 004 eq. 19')} (Fig. 12)")
+    fig.suptitle(f"Stiffness map, {_label(fit, 'Rapp et al. 2022, eq. 19')} (Fig. 12)")
     save_figure(fig, path, 120)
 
 
@@ -123,7 +123,7 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
                  f"max {fit.stats.damping_ratio_max_error_pct:.1f} %")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    fig.suptitle(f"Damping ratio map, {_label(fit, 'seed 004 eq. 20')} (Fig. 13)")
+    fig.suptitle(f"Damping ratio map, {_label(fit, 'Rapp et al. 2022, eq. 20')} (Fig. 13)")
     save_figure(fig, path, 120)
 
 

@@ -1,9 +1,9 @@
-"""A campaign's results per test condition, and seed 004 Fig. 11 (the preload's effect).
+"""A campaign's results per test condition, and Rapp et al. 2022, Fig. 11 (the preload's effect).
 
 ``condition_summary(results)`` collapses the repeats: one row per (case, inertia, drop mass,
 drop height, preload) with ``n_tests`` (extracted tests without an unusable flag) and the mean
 and sample standard deviation (``*_std_over_repeats``, ddof = 1; NaN for a single test) of
-amplitude, frequency, stiffness and damping ratio. ``plot_preload_effect`` draws seed 004
+amplitude, frequency, stiffness and damping ratio. ``plot_preload_effect`` draws Rapp et al. 2022,
 Fig. 11: stiffness and damping ratio over amplitude, one series per case and preload with
 ± std bars, so a preload that does not change the coupling shows as coinciding series.
 """
@@ -46,7 +46,7 @@ def preload_effect_pct(summary: pd.DataFrame, quantity: str) -> float:
 
 
 def plot_preload_effect(summary: pd.DataFrame, path: str | Path, title: str) -> Path:
-    """Seed 004 Fig. 11 from a :func:`condition_summary` (see the module docstring)."""
+    """Rapp et al. 2022, Fig. 11 from a :func:`condition_summary` (see the module docstring)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -79,7 +79,7 @@ def plot_preload_effect(summary: pd.DataFrame, path: str | Path, title: str) -> 
                      fontsize=9)
         ax.grid(True, alpha=0.3)
     axes[1].legend(fontsize=7, ncol=1 + len(cases) * len(preloads) // 10)
-    fig.suptitle(f"Fig. 11 (seed 004): preload effect, mean ± std over repeats; {title}", fontsize=10)
+    fig.suptitle(f"Fig. 11 (Rapp et al. 2022): preload effect, mean ± std over repeats; {title}", fontsize=10)
     fig.tight_layout()
     path = save_figure(fig, path, 120)
     plt.close(fig)

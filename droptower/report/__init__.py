@@ -1,5 +1,5 @@
 """``droptower report``: one self-contained HTML report of a campaign folder or of an
-``extract --out`` results table with its logs (issue 12).
+``extract --out`` results table with its logs.
 
 :func:`write_report` reads the run (:mod:`droptower.report.run`), fits the map
 (:func:`droptower.maps.fit_map`), draws the decay fit of every test again from its log

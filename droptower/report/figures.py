@@ -1,5 +1,5 @@
 """The report's interactive figures (plotly): the map over the tests, and per test the measured
-angle and torque with their decay fits (seed 004 Fig. 9) and the fit window.
+angle and torque with their decay fits (Rapp et al. 2022, Fig. 9) and the fit window.
 
 Figures are plotly figure dicts; the page embeds plotly.js once and draws them.
 """

@@ -144,7 +144,7 @@ def page(title: str, facts: list[tuple[str, str]], problems: str, map_html: str,
     sections = [("summary", "Summary", facts_table(facts)), ("problems", "Failures and flags", problems),
                 ("map", "Characteristic map", map_html), ("tests", "Tests", tests_html),
                 ("fits", "Decay fit", "<p id='decay-note'>Measured angle and torque with the fitted decay "
-                 "(seed 004 eq. 13, 17): solid in the fit window (shaded), dashed beyond. Choose a test by its "
+                 "(Rapp et al. 2022, eq. 13, 17): solid in the fit window (shaded), dashed beyond. Choose a test by its "
                  "name in the table.</p><h3 id='decay-title'></h3><p id='decay-message' class='warn'></p><div id='decay'></div>")]
     sections += [(f"extra{i}", heading, body) for i, (heading, body) in enumerate(extra_sections)]
     nav = "".join(f"<a href='#{sid}'>{html.escape(heading)}</a>" for sid, heading, _ in sections)

@@ -19,7 +19,7 @@ from droptower.maps.results import read_results
 
 #: Why a flag is raised (droptower.extract.extractor), shown next to every flagged test.
 FLAG_REASONS = {
-    "double_impact": "a second impact within the first period or the fit window restarts the decay (NOTES §1.3)",
+    "double_impact": "a second impact within the first period or the fit window restarts the decay (docs/theory.md#double-impact)",
     "clipping": "a channel sits at its extreme: the peaks are cut",
     "too_few_samples_per_period": "fewer than 20 samples per period",
     "short_window": "the fit window is shorter than the requested one (three quarters of a period at least)",

@@ -1,4 +1,4 @@
-"""The rheological core: coupling models of seeds 000-003 as fast, composable elements.
+"""The rheological core: the coupling models of docs/theory.md#elements as fast, composable elements.
 
 - :mod:`.elements`: the element kinds of a coupling file (validated specs);
 - :mod:`.kernels`: their compiled per-step updates (numba), with energy accounting;

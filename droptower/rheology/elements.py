@@ -95,7 +95,7 @@ class Spring(ElementSpec):
 
 
 class SpringTable(ElementSpec):
-    """Static nonlinear curve T(angle), piecewise linear (seed 002's k1 table).
+    """Static nonlinear curve T(angle), piecewise linear (Scheiblegger et al.'s (2013) k1 table).
 
     The curve must pass through (0, 0) and rise monotonically (a passive, stable spring);
     outside the table it continues with the end slopes.
@@ -127,7 +127,7 @@ class SpringTable(ElementSpec):
 
 
 class CubicSpring(ElementSpec):
-    """T = A*angle^3 + B*angle (seed 003's nonlinear spring)."""
+    """T = A*angle^3 + B*angle (Heine & Plagemann's (2014) nonlinear spring)."""
 
     kind: Literal["cubic_spring"]
     a: float = Field(description="N*m/rad^3")
@@ -155,7 +155,7 @@ class Dashpot(ElementSpec):
 
 
 class Maxwell(ElementSpec):
-    """Spring in series with a dashpot (seed 000 eq. 1); relaxation time damping/stiffness."""
+    """Spring in series with a dashpot (the zero-dimensional model paper, eq. 1); relaxation time damping/stiffness."""
 
     kind: Literal["maxwell"]
     stiffness: PositiveFloat  # N*m/rad
@@ -267,7 +267,7 @@ class Prandtl(ElementSpec):
 
 
 class Constriction(StrictModel):
-    """Seed 003's loop-waist scaling S(x) = (|tanh(P x)| + K) / (1 + K)."""
+    """Heine & Plagemann's (2014) loop-waist scaling S(x) = (|tanh(P x)| + K) / (1 + K)."""
 
     p: PositiveFloat               # 1/rad
     k: NonNegativeFloat            # -
@@ -282,13 +282,13 @@ def _at_most_max_n(n: int) -> int:
 
 
 def masing_yield_torques(max_yield_torque: float, alpha: float, n: int) -> np.ndarray:
-    """Seed 003: R_i = R exp(alpha (eta_i - 1)), eta_i = (i - 1)/(n - 1), i = 1..n."""
+    """Heine & Plagemann 2014: R_i = R exp(alpha (eta_i - 1)), eta_i = (i - 1)/(n - 1), i = 1..n."""
     eta = np.arange(n) / max(n - 1, 1)
     return max_yield_torque * np.exp(alpha * (eta - 1.0))
 
 
 class Masing(ElementSpec):
-    """n Prandtl elements in parallel, equal stiffness, exponentially distributed limits (seed 003)."""
+    """n Prandtl elements in parallel, equal stiffness, exponentially distributed limits (Heine & Plagemann 2014)."""
 
     kind: Literal["masing"]
     n: PositiveInt = 7
@@ -344,7 +344,7 @@ def exponential_bins(phi0: float, n: int, f_min: float, f_max: float) -> tuple[n
 
 
 class Elastoslide(ElementSpec):
-    """Distributed rate-dependent elastoslide model (seed 001, NOTES 2.2).
+    """Distributed rate-dependent elastoslide model (the elastoslide paper, docs/theory.md#elastoslide).
 
     A parallel spring k0 plus a continuum of elastoslide elements (leading spring k, slider
     yield force f* with density phi(f*)), discretised into ``n`` elements. The default
@@ -406,7 +406,7 @@ class Elastoslide(ElementSpec):
         return [KernelElement(K.LINEAR_SPRING, np.array([self.k0])), bank] if self.k0 > 0 else [bank]
 
 
-# ------------------------------------------------------------------ seed 000
+# ------------------------------------------------------------------ the zero-dimensional model paper
 class Table(StrictModel):
     """A lookup table (x, y) with linear interpolation."""
 
@@ -422,7 +422,7 @@ class Table(StrictModel):
 
 
 class Mullins(ElementSpec):
-    """Seed 000 eq. 3: the angle split by a first-order low-pass (time constant tau) into a
+    """The zero-dimensional model paper, eq. 3: the angle split by a first-order low-pass (time constant tau) into a
     slow part carried by ``slow_stiffness`` (or the static curve ``slow_curve``) and a fast
     part carried by ``fast_stiffness``.
 
@@ -484,7 +484,7 @@ class ForceTable(StrictModel):
 
 
 class VariableMaxwell(ElementSpec):
-    """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
+    """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (the zero-dimensional model paper).
 
     The branch spring's force at its own deformation e (so the branch stays passive) is
     (k0 + gain |e|) e; or k(e) e with k from ``stiffness_table`` (x in rad, y in N*m/rad; the
@@ -544,14 +544,14 @@ def _rises(x: list[float], coefficient: list[float]) -> bool:
     return bool(np.all(np.diff(force) > 0))
 
 
-# ------------------------------------------------------------------ seed 002
+# ------------------------------------------------------------------ Scheiblegger et al. 2013
 class PfefferFriction(StrictModel):
-    """Amplitude-dependent friction torque F_NL of seed 002, as smoothed Coulomb friction.
+    """Amplitude-dependent friction torque F_NL of Scheiblegger et al. 2013, as smoothed Coulomb friction.
 
     ``n`` Prandtl elements of equal stiffness whose limits are spread log-uniformly between
     ``min_yield_angle`` and ``max_yield_angle`` (rad, the elongation at which each slips), each
     carrying ``max_torque / n``: the friction torque then grows logarithmically with amplitude
-    between those angles, as in seed 002's "logarithmic increase of F_NL over amplitude".
+    between those angles, as in Scheiblegger et al.'s (2013) "logarithmic increase of F_NL over amplitude".
     """
 
     max_torque: PositiveFloat       # N*m, full-slip friction torque
@@ -572,7 +572,7 @@ class PfefferFriction(StrictModel):
 
 
 class Pfeffer(ElementSpec):
-    """Pfeffer bushing model, frequency part (seed 002, NOTES 2.3).
+    """Pfeffer bushing model, frequency part (Scheiblegger et al. 2013, docs/theory.md#pfeffer).
 
     Main spring k1 in parallel with a dashpot c1 in series with (k2 || c2);
     alpha = k2/k1, beta = c2/c1, gamma = c1/k1 (s). Optional amplitude-dependent friction.
@@ -592,13 +592,13 @@ class Pfeffer(ElementSpec):
         return out
 
     def complex_stiffness(self, omega: np.ndarray) -> np.ndarray:
-        """K*(Omega) of NOTES 2.3 (N*m/rad), for the linear part."""
+        """K*(Omega) of docs/theory.md#pfeffer (N*m/rad), for the linear part."""
         iw = 1j * np.asarray(omega, float) * self.gamma
         return self.k1 * (1.0 + iw * (1.0 - 1.0 / (1.0 + self.beta + self.alpha / iw)))
 
 
 
-# ------------------------------------------------------------------ Payne effect (NOTES 1.8)
+# ------------------------------------------------------------------ Payne effect (docs/theory.md#payne)
 class Payne(ElementSpec):
     """Kraus-type amplitude-dependent complex stiffness (the Payne effect of filled rubber).
 

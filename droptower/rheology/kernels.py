@@ -98,7 +98,7 @@ def linear_spring(p, po, s, so, x0, x1, h):
 
 @njit(**JIT)
 def table_spring(p, po, s, so, x0, x1, h):
-    """T = f(x), piecewise linear through the table (seed 002's k1 table).
+    """T = f(x), piecewise linear through the table (Scheiblegger et al.'s (2013) k1 table).
 
     params: [n, x_1..x_n, T_1..T_n, E_1..E_n] with E_i the stored energy at x_i (the integral
     of f from 0, precomputed), so the energy at x is E_i plus one trapezoid.
@@ -115,7 +115,7 @@ def table_spring(p, po, s, so, x0, x1, h):
 
 @njit(inline="always", **JIT)
 def cubic_spring(p, po, s, so, x0, x1, h):
-    """T = A x^3 + B x (seed 003). params: [A, B]."""
+    """T = A x^3 + B x (Heine & Plagemann 2014). params: [A, B]."""
     a = p[po + 0]
     b = p[po + 1]
     s[so + 0] = 0.25 * a * x1 ** 4 + 0.5 * b * x1 * x1
@@ -135,7 +135,7 @@ def dashpot(p, po, s, so, x0, x1, h):
 
 @njit(inline="always", **JIT)
 def maxwell(p, po, s, so, x0, x1, h):
-    """Spring k in series with dashpot c (seed 000 eq. 1), exact for a linear ramp in the step.
+    """Spring k in series with dashpot c (the zero-dimensional model paper, eq. 1), exact for a linear ramp in the step.
 
     params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), then a cache of
     the step's coefficients, keyed on h k and c: e1 = e0 exp(-h k/c) + dx tau (1 - exp(-h k/c)) / h.
@@ -161,7 +161,7 @@ def maxwell(p, po, s, so, x0, x1, h):
 
 @njit(**JIT)
 def _constriction(x, p_c, k_c):
-    """S(x) = (|tanh(P x)| + K) / (1 + K) (seed 003 constriction of the loop waist)."""
+    """S(x) = (|tanh(P x)| + K) / (1 + K) (Heine & Plagemann's (2014) constriction of the loop waist)."""
     return (abs(np.tanh(p_c * x)) + k_c) / (1.0 + k_c)
 
 
@@ -208,7 +208,7 @@ FAST_MAX_EXPONENT = 32  # _ipow_small handles exponents below 32 (5 bits)
 def _bank_rate_dependent(scales, yield_angles, elong, trial, work, v_r, p_exp, n, dx, h):
     """Backward-Euler update of every element of a rate-dependent elastoslide bank.
 
-    Seed 001 eq. 13/17: de/dt = dx/dt - v_r (k e / f*)^p. In the normalised elongation
+    the elastoslide paper, eq. 13/17: de/dt = dx/dt - v_r (k e / f*)^p. In the normalised elongation
     u = k e / f* (``scales`` = k / f*) the implicit step reads u + A u^p = B with
     A = h v_r k / f* and B = k (e0 + dx) / f*, an odd, increasing function of u, convex for
     u > 0: one root, found by Newton's method (``yield_angles`` = f* / k = 1 / scales, to
@@ -281,9 +281,9 @@ def slider_bank(p, po, s, so, x0, x1, h):
     """n springs k_i each in series with a slider of limit f_i, in parallel (Iwan / Masing).
 
     params: [n, v_r, p, P, K, k_1..k_n, f_1..f_n, k_1/f_1..k_n/f_n, f_1/k_1..f_n/k_n]
-      p == 0: Coulomb sliders (Prandtl/Jenkins elements, seed 003; return mapping);
-      p odd : rate-dependent elastoslide sliders (seed 001 eq. 13), slip rate v_r (e k/f)^p;
-      P > 0 : the bank's torque is scaled by the constriction S(x) (seed 003), K its floor.
+      p == 0: Coulomb sliders (Prandtl/Jenkins elements, Heine & Plagemann 2014; return mapping);
+      p odd : rate-dependent elastoslide sliders (the elastoslide paper, eq. 13), slip rate v_r (e k/f)^p;
+      P > 0 : the bank's torque is scaled by the constriction S(x) (Heine & Plagemann 2014), K its floor.
     internal: elongations e_1..e_n, then 2n scratch slots (trial elongations, Newton iterates).
     """
     n = int(p[po + 0])
@@ -417,7 +417,7 @@ def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
 
 @njit(**JIT)
 def variable_maxwell(p, po, s, so, x0, x1, h):
-    """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (seed 000).
+    """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (the zero-dimensional model paper).
 
     params: [k0, g, c0, nk, nc, force_mode, e_1..e_nk, k_1..k_nk (or f_1..f_nk), v_1..v_nc, c_1..c_nc]
     and, in force mode, the stored energies E_1..E_nk at the knots and the slopes of the segments.
@@ -466,7 +466,7 @@ def variable_maxwell(p, po, s, so, x0, x1, h):
 
 @njit(**JIT)
 def pfeffer(p, po, s, so, x0, x1, h):
-    """Pfeffer frequency part (seed 002, NOTES 2.3): k1 parallel to c1 in series with (k2 || c2).
+    """Pfeffer frequency part (Scheiblegger et al. 2013, docs/theory.md#pfeffer): k1 parallel to c1 in series with (k2 || c2).
 
     params: [k1, alpha, beta, gamma] with k2 = alpha k1, c1 = gamma k1, c2 = beta c1.
     internal: z, the Kelvin-Voigt deflection, then a cache of (lambda h, exp(-lambda h)); dz/dt = (du/dt - (alpha/gamma) z) / (1 + beta),
@@ -517,7 +517,7 @@ def _kraus(amp, angle_c, m):
 
 @njit(**JIT)
 def payne(p, po, s, so, x0, x1, h):
-    """Kraus-type amplitude-dependent complex stiffness, causal and passive (NOTES 1.8).
+    """Kraus-type amplitude-dependent complex stiffness, causal and passive (docs/theory.md#payne).
 
     A spring k(A) acting on the elongation e = x - x_c about a centre x_c that follows the
     mean angle (a Maxwell relaxation of time ``centre_tau``, so a held preload relaxes it),

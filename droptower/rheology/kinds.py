@@ -129,7 +129,7 @@ def _table_spring_stiffness(v, p, motion):
 def _slider_bank_stiffness(v, p, motion):
     # the springs act in series with sliders (a slipping one adds no stiffness); the constriction
     # S(x) = (|tanh(P x)| + K)/(1 + K) <= 1 adds S'(x) times the bank force, and a Coulomb bank's
-    # force is at most the sum of its limits (seed 003). A rate-dependent bank carries no constriction.
+    # force is at most the sum of its limits (Heine & Plagemann 2014). A rate-dependent bank carries no constriction.
     n = int(v["n"])
     springs, limits = p[5:5 + n], p[5 + n:5 + 2 * n]
     p_c, k_c = v["constriction_p"], v["constriction_k"]

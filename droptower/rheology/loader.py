@@ -4,7 +4,7 @@ File layout (SI, torsional units; see ``rig_configs/couplings/README.md``)::
 
     name = "example"
     description = "spring + Maxwell branch"
-    source = "seed 000, Table 2"          # where the numbers come from
+    source = "the zero-dimensional model paper, Table 2"          # where the numbers come from
     units = "torsional"                   # or "translational" (m, N): labels only
     [[element]]
     kind = "spring"

@@ -1,4 +1,4 @@
-"""The virtual drop tower (seed 004, NOTES §1.1-1.3): a pymunk scene whose restitution impact
+"""The virtual drop tower (Rapp et al. 2022, docs/theory.md#rig, #impact, #decay): a pymunk scene whose restitution impact
 drives the rheological coupling, sampled like the real rig, and a planner for test campaigns.
 
 - :mod:`.config`: rig and test-plan files (:func:`load_rig`, :func:`load_doe`);
@@ -9,7 +9,7 @@ drives the rheological coupling, sampled like the real rig, and a planner for te
 - :mod:`.simulate`: tests -> :class:`DropResult` (summary, channels, log);
 - :mod:`.lever`: the lever's free decay on the coupling, compiled (plan and identification);
 - :mod:`.planner`: predictions per test condition, batched through the coupling;
-- :mod:`.plots`: seed 004 Fig. 4 and the plan's figure.
+- :mod:`.plots`: Rapp et al. 2022, Fig. 4 and the plan's figure.
 """
 from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
 from droptower.rig.planner import plan

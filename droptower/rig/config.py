@@ -3,7 +3,7 @@
 A rig file (``rig_configs/rigs/*.toml``) describes a drop tower: lever, fixtures, limits, the
 restitution of the mass-lever contact, the simulation's time step and the sensors. A test plan
 (``rig_configs/doe/*.toml``) lists groups of (inertia, drop mass) crossed with drop heights,
-preloads and repeats (seed 004 Table 2, NOTES §1.1); :meth:`DOE.tests` expands it into one row
+preloads and repeats (Rapp et al. 2022, Table 2, docs/theory.md#rig); :meth:`DOE.tests` expands it into one row
 per test. See ``rig_configs/rigs/rapp2022.toml`` and ``rig_configs/doe/rapp2022_table2.toml``.
 """
 from __future__ import annotations
@@ -53,7 +53,7 @@ class Simulation(StrictModel):
 
 
 class Resonance(StrictModel):
-    """Test-setup resonance on the force-measurement side (seed 004: ringing on the torque only).
+    """Test-setup resonance on the force-measurement side (Rapp et al. 2022: ringing on the torque only).
 
     The measured torque is T + strength * (H(T) - T), H a 2nd-order low-pass of unit DC gain
     with this natural frequency and damping ratio.
@@ -96,7 +96,7 @@ class Sensors(StrictModel):
 
 
 class RigConfig(StrictModel):
-    """A drop tower (seed 004 Table 1). SI units; angles in degrees only where named ``_deg``."""
+    """A drop tower (Rapp et al. 2022, Table 1). SI units; angles in degrees only where named ``_deg``."""
 
     name: str = ""
     description: str = ""
@@ -243,7 +243,7 @@ class Group(StrictModel):
 
 
 class DOE(StrictModel):
-    """A test plan: every group x heights x preloads x repeats (seed 004 Table 2)."""
+    """A test plan: every group x heights x preloads x repeats (Rapp et al. 2022, Table 2)."""
 
     name: str = ""
     description: str = ""

@@ -1,11 +1,11 @@
-"""Closed forms of the drop-tower impact and free decay (NOTES §1.2-1.3, seed 004 eq. 1-12).
+"""Closed forms of the drop-tower impact and free decay (docs/theory.md#impact, #decay, Rapp et al. 2022, eq. 1-12).
 
 Sign convention throughout: positive = downwards for velocities and paths, positive angle =
 the direction the impact turns the lever. All functions take numpy arrays (any shape that
 broadcasts) or floats.
 
-The impact law is the corrected one of NOTES §1.2 (momentum and Newton's restitution law);
-the printed eq. 6, 7 and 9 of seed 004 do not conserve momentum and are not used.
+The impact law is the corrected one of docs/theory.md#impact (momentum and Newton's restitution law);
+the printed eq. 6, 7 and 9 of Rapp et al. 2022 do not conserve momentum and are not used.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-G = 9.81  # m/s^2, seed 004
+G = 9.81  # m/s^2, Rapp et al. 2022
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class ImpactVelocities:
 
 def impact_velocities(drop_mass_kg, inertia_kgm2, lever_length_m, height_m, restitution,
                       gravity_m_per_s2: float = G) -> ImpactVelocities:
-    """NOTES §1.2: the lever as the equivalent mass m2 = J/L^2 at rest, hit by m1 at sqrt(2 g h).
+    """docs/theory.md#impact: the lever as the equivalent mass m2 = J/L^2 at rest, hit by m1 at sqrt(2 g h).
 
         v1' = v1 (m1 - k m2) / (m1 + m2),   v2' = v1 m1 (1 + k) / (m1 + m2),   phi'(0+) = v2'/L
     """
@@ -59,7 +59,7 @@ def impact_velocities(drop_mass_kg, inertia_kgm2, lever_length_m, height_m, rest
 
 
 def linear_free_decay(stiffness_nm_per_rad, damping_nms_per_rad, inertia_kgm2, rate0_rad_per_s, t_s):
-    """NOTES §1.3: J phi'' + d phi' + c phi = 0 from phi(0) = 0, phi'(0) = rate0 (underdamped).
+    """docs/theory.md#decay: J phi'' + d phi' + c phi = 0 from phi(0) = 0, phi'(0) = rate0 (underdamped).
 
     phi(t) = rate0/omega e^(-delta t) sin(omega t), delta = d/(2J), omega = sqrt(c/J - delta^2).
     Returns (angle_rad, delta_per_s, omega_rad_per_s).
@@ -74,7 +74,7 @@ def linear_free_decay(stiffness_nm_per_rad, damping_nms_per_rad, inertia_kgm2, r
 
 
 def drop_mass_path(velocity_after_m_per_s, t_s, gravity_m_per_s2: float = G):
-    """Seed 004 eq. 10: x1(t) = v1' t + g t^2 / 2 below the impact point (m, positive down)."""
+    """Rapp et al. 2022, eq. 10: x1(t) = v1' t + g t^2 / 2 below the impact point (m, positive down)."""
     t = np.asarray(t_s, float)
     return np.asarray(velocity_after_m_per_s, float) * t + 0.5 * gravity_m_per_s2 * t ** 2
 
@@ -83,7 +83,7 @@ def lever_tip_path(angle_rad, lever_length_m):
     """Where the lever meets the vertical line of the striker: x2 = L tan(phi) (m, positive down).
 
     The drop mass is guided vertically at horizontal distance L from the axis, so it meets the
-    lever's top line at L tan(phi) (NOTES §1.3 writes L phi or L sin phi; the difference is
+    lever's top line at L tan(phi) (docs/theory.md#decay writes L phi or L sin phi; the difference is
     below 0.1 % of x2 for the few degrees of a drop test).
     """
     return np.asarray(lever_length_m, float) * np.tan(np.asarray(angle_rad, float))
@@ -91,7 +91,7 @@ def lever_tip_path(angle_rad, lever_length_m):
 
 def second_impact_time(t_s: np.ndarray, x_mass_m: np.ndarray, x_tip_m: np.ndarray,
                        horizon_s: np.ndarray | float = np.inf) -> np.ndarray:
-    """NOTES §1.3: the first time the drop mass reaches the lever tip again (x1 >= x2).
+    """docs/theory.md#decay: the first time the drop mass reaches the lever tip again (x1 >= x2).
 
     t_s (N,) from the impact (t_s[0] = 0); x_mass_m, x_tip_m (..., N) paths from
     :func:`drop_mass_path` and :func:`lever_tip_path`. The search starts once the two have

@@ -1,9 +1,9 @@
 """Predict a test plan before running it: amplitudes, frequencies, torques, double impacts.
 
-For every distinct test condition: the impact law (NOTES §1.2) gives the lever's rate after
+For every distinct test condition: the impact law (docs/theory.md#impact) gives the lever's rate after
 the impact; a free decay of the lever on the *nonlinear* coupling, preload twist included,
 gives the first period, peaks, decay and peak torque; the drop mass's free flight against the
-lever tip's path gives the double-impact check of seed 004 (NOTES §1.3: a second impact
+lever tip's path gives the double-impact check of Rapp et al. 2022 (docs/theory.md#double-impact: a second impact
 within the first oscillation period). All conditions advance together through the coupling's
 batch axis, integrated by :mod:`droptower.rig.lever` exactly like the pymunk scene
 (symplectic Euler at the rig's internal step), so plan and simulation agree.
@@ -26,7 +26,7 @@ from droptower.rig.preload import Pretwist, pretwist
 from droptower.sdof import damping_ratio, reference_amplitude
 
 MIN_SAMPLES_PER_PERIOD = 20   # fewer samples per oscillation and the decay fit has too little to work with
-MIN_RECORD_PERIODS = 0.75     # seed 004 / NOTES §1.4: at least three quarters of a period after the impact
+MIN_RECORD_PERIODS = 0.75     # Rapp et al. 2022 / docs/theory.md#extraction: at least three quarters of a period after the impact
 #: A campaign's record after the impact: this many of the longest predicted first period ...
 RECORD_PERIODS = 2.0
 #: ... but at least this long (s), rounded up to RECORD_ROUND_S.
@@ -124,7 +124,7 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     """One row per condition (columns of :meth:`DOE.conditions`): predictions and warnings.
 
     Columns shared with ``simulate --json`` and ``extract`` name the same quantity there:
-    ``amplitude_deg`` is the first cycle's phi_ref (Rapp et al. 2022 eq. 18, extract's default
+    ``amplitude_deg`` is the first cycle's phi_ref (Rapp et al. 2022, eq. 18, extract's default
     window), ``first_peak_deg`` the first peak, ``first_period_s`` and
     ``first_period_frequency_hz`` the first period (as simulate), ``decay_coefficient_per_s``,
     ``damping_ratio`` from the first cycle's two peaks, ``second_impact_after_s``.

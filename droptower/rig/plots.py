@@ -1,4 +1,4 @@
-"""Figures of the virtual drop tower: one test (seed 004 Fig. 4 and the traces) and a test plan.
+"""Figures of the virtual drop tower: one test (Rapp et al. 2022, Fig. 4 and the traces) and a test plan.
 
 matplotlib with the Agg backend (files only), imported when a figure is drawn.
 """
@@ -27,7 +27,7 @@ def _pyplot():
 
 
 def plot_test(result: "DropResult", path: str | Path) -> Path:
-    """Seed 004 Fig. 4 (drop mass and lever tip paths around the impact, contacts marked) over
+    """Rapp et al. 2022, Fig. 4 (drop mass and lever tip paths around the impact, contacts marked) over
     the recorded angle and torque channels (what the log holds) and the coupling's own torque."""
     plt = _pyplot()
     t_ms = 1e3 * result.time_s

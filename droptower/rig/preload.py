@@ -1,6 +1,6 @@
 """The preload: a static pre-twist of the coupling, set by a screw on the lever before the drop.
 
-Seed 004 (Table 1, "Experimental Setup"): "by applying a force on the lever arm using a screw,
+Rapp et al. 2022 (Table 1, "Experimental Setup"): "by applying a force on the lever arm using a screw,
 the coupling can be pre-deformed prior to the experiment" (0, 0.5, 1 kN*m). Here the screw
 turns the lever slowly (a smooth quasi-static ramp over ``ramp_s``) to the twist at which the
 coupling, after a conditioning oscillation of decreasing amplitude about the twist and a hold
@@ -25,10 +25,10 @@ SETTLE_STEPS = 100          # last stretch of the hold, at a fine step (the test
 SETTLE_STEP_S = 1e-4
 TOLERANCE = 1e-9            # relative torque error of the twist
 MAX_ITER = 80
-# Conditioning at the twist (as seed 004's pre-straining: "~100 cycles with amplitude decreasing
+# Conditioning at the twist (as Rapp et al.'s (2022) pre-straining: "~100 cycles with amplitude decreasing
 # to zero"): an oscillation about the twist whose amplitude falls to zero wipes the friction
 # elements' memory of the ramp, so the preload leaves no residual friction torque that the
-# first swings after the impact would release (seed 004 Fig. 11: no influence of the preload).
+# first swings after the impact would release (Rapp et al. 2022, Fig. 11: no influence of the preload).
 CONDITIONING_CYCLES = 20
 CONDITIONING_AMPLITUDE_RAD = np.deg2rad(5.0)
 CONDITIONING_FREQUENCY_HZ = 2.0

@@ -1,20 +1,20 @@
 """The drop tower as a pymunk scene: many independent tests in one space, stepped together.
 
-Each scene (seed 004 Fig. 5, NOTES §1.1): a lever on a pivot (PivotJoint to the static body)
+Each scene (Rapp et al. 2022, Fig. 5, docs/theory.md#rig): a lever on a pivot (PivotJoint to the static body)
 with moment of inertia J about the pivot and its centre of gravity on the axis, so gravity
 makes no torque; a drop mass with a round striker, guided vertically (GrooveJoint) above the
 point at horizontal distance L from the axis. The lever's angle is the coupling's twist in the
 direction the impact turns it (the tip points to -x, so the impact turns it counter-clockwise,
 pymunk's positive sense).
 
-Physics choices (the reasons are the accuracy targets of issue 3):
+Physics choices (the reasons are the rig's accuracy targets):
 
 - SI units, gravity -g along y. ``collision_slop`` is 1 nm, far below the penetration of one
   step (v1 dt >= 0.3 m/s x 13 us = 4 um); pymunk's default (0.1 units) would be 100 mm.
 - Restitution is set to k on the mass-lever arbiter in ``pre_solve``, every step of a contact
   (pymunk recomputes it each step as the product of the shapes' elasticities, left at 0 here,
   so a missed override would show as a plastic impact). The solver then enforces Newton's law
-  on the normal relative velocity, which with the pivot gives NOTES §1.2.
+  on the normal relative velocity, which with the pivot gives docs/theory.md#impact.
 - The coupling torque is applied to the lever at every internal step (pymunk clears
   ``Body.torque`` after each step). pymunk moves positions with the old velocity before it
   applies forces, so the torque is evaluated at the angle the step will reach,

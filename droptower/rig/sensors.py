@@ -1,4 +1,4 @@
-"""Sampling a simulated drop test like the real rig's sensors (seed 004 "Experimental Setup").
+"""Sampling a simulated drop test like the real rig's sensors (Rapp et al. 2022 "Experimental Setup").
 
 - Laser distance sensor looking at the lever along a fixed vertical line at the spot radius:
   ``laser_distance_m = radius * tan(angle) + noise`` (:func:`droptower.io.mapping.laser_distance`,
@@ -7,13 +7,13 @@
   twist included; ``angle_rad`` is the angle read back from the laser distance, so it carries
   the laser's noise.
 - Flange torque (force sensor on the coupling flange): the coupling torque, preload included,
-  seen through the optional test-setup resonance (seed 004 Fig. 8: ringing on the torque that
+  seen through the optional test-setup resonance (Rapp et al. 2022, Fig. 8: ringing on the torque that
   the angle does not show): T_meas = T + s (H(T) - T), H the 2nd-order low-pass
   w^2 / (p^2 + 2 z w p + w^2), discretised with a zero-order hold at the sample rate, starting
   at rest at the pre-trigger torque. Then noise, and saturation at the sensor's range.
 - Impact force (piezo sensor at the lever tip): the simulated contact force history (the
   impulses of every solver step, :mod:`.scene`), each impulse seen as a half-sine pulse of the
-  configured contact duration (seed 004: ~0.3 ms) centred on its time (the rigid impact is the
+  configured contact duration (Rapp et al. 2022: ~0.3 ms) centred on its time (the rigid impact is the
   limit of a symmetric pulse, so the lever's velocity jump sits at the pulse's centroid) and
   scaled so that its samples sum to exactly the impulse (sum F dt = impulse). The impact, a
   single-step impulse, becomes one 0.3 ms pulse; the drop mass resting on the lever, a long

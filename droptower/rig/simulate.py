@@ -55,7 +55,7 @@ class DropResult:
     impact point. Energies (J, on ``energy_time_s``) as in :class:`~droptower.rig.scene.SceneRecord`.
     contact_impulse_ns (N,): the contacts' impulse on the drop mass in each sample (N*s; the
     contact force history the force sensor sees). contacts: every contact of the drop mass with
-    the lever; predicted: NOTES §1.2 closed forms.
+    the lever; predicted: docs/theory.md#impact closed forms.
     """
 
     rig: RigConfig
@@ -102,7 +102,7 @@ class DropResult:
 
     @property
     def double_impact(self) -> bool:
-        """A second contact within the lever's first oscillation period (seed 004, NOTES §1.3);
+        """A second contact within the lever's first oscillation period (Rapp et al. 2022, docs/theory.md#decay);
         without a complete period in the record, within the record."""
         period = self.period_s
         second = self.second_impact_time_s

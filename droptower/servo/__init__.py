@@ -1,8 +1,8 @@
 """The virtual servo-hydraulic bench: imposed angle histories, lab-style evaluation, grids.
 
 - :mod:`.histories`: sine with preload offset, sweeps, dual-frequency, steps, ramps, random;
-- :mod:`.evaluate`: steady-state cycles -> K', K'', |K*|, loss angle, W_D, psi (seed 001 eq. 6,
-  DIN 740-2 style), and the drop-tower-equivalent damping ratio (NOTES §1.7);
+- :mod:`.evaluate`: steady-state cycles -> K', K'', |K*|, loss angle, W_D, psi (the elastoslide paper, eq. 6,
+  DIN 740-2 style), and the drop-tower-equivalent damping ratio (docs/theory.md#damping-measures);
 - :mod:`.bench`: :func:`run_grid` drives a coupling over amplitudes x frequencies, batched;
   :func:`run_records` gives the raw time records of the same runs;
 - :mod:`.plots`: hysteresis loops.

@@ -6,7 +6,7 @@ one frequency share one history length and run as one batch (``Coupling.simulate
 batch row per amplitude); the frequencies run one after another.
 
 Like a real bench, the coupling runs on a fine time step and the record is sampled at the
-acquisition rate ``sample_rate_hz`` (2048 Hz on the paper's bench, NOTES §1.1). The fine step
+acquisition rate ``sample_rate_hz`` (2048 Hz on the paper's bench, docs/theory.md#rig). The fine step
 matters: the kernels see the angle linear between steps, so a dashpot reads the rate of the
 last step, half a step h late, which shifts K' by about K'' * omega * h / 2 (at h = 1/2048 s
 and 30 Hz, 4.6 % of K''). The fine rate is at least ``simulation_rate_hz`` (default the

@@ -1,25 +1,24 @@
 """Lab-style evaluation of steady-state cycles of a torque-angle record (SI).
 
-What a test lab does with a servo-hydraulic sine test (ISO 4664-1, DIN 740-2; NOTES §1.6,
-§1.7), on a record sampled at a uniform rate:
+What a test lab does with a servo-hydraulic sine test (ISO 4664-1, DIN 740-2; docs/theory.md#servo, #damping-measures), on a record sampled at a uniform rate:
 
-1. smooth angle and torque with a Savitzky-Golay filter one eighth of a cycle wide (NOTES
-   §1.6); when that is fewer than :data:`MIN_WINDOW` samples the signals stay unsmoothed and
+1. smooth angle and torque with a Savitzky-Golay filter one eighth of a cycle wide
+   (docs/theory.md#servo); when that is fewer than :data:`MIN_WINDOW` samples the signals stay unsmoothed and
    the result says so (``smoothing_window_samples = 0``);
 2. cut the evaluation cycles (the run-in cycles before them are discarded) and resample them
    by cubic-spline interpolation onto :data:`POINTS_PER_CYCLE` points per cycle, so that the
    window holds exactly whole cycles whatever the sample rate, peaks between samples are
    found, and the loop closes;
 3. first-harmonic storage and loss stiffness from the Fourier coefficients over the whole
-   cycles (seed 001 eq. 6): K* = K' + iK'' = (T_c - i T_s) / (phi_c - i phi_s), dynamic
+   cycles (the elastoslide paper, eq. 6): K* = K' + iK'' = (T_c - i T_s) / (phi_c - i phi_s), dynamic
    stiffness |K*|, loss angle arg K*, loss factor eta = K''/K';
 4. damping work W_D, the loop area (closed integral of T dphi) per cycle, from the signals
    themselves (a polygon over the resampled loop, not through the Fourier coefficients);
    elastic work W_el = T_hat phi_hat / 2 with T_hat, phi_hat half peak-to-peak; relative
    damping psi = W_D / W_el (DIN 740-2 style). For a linear model W_D = pi K'' phi_hat^2
-   and psi = 2 pi eta / sqrt(1 + eta^2), which is 2 pi eta to first order (NOTES §1.7);
+   and psi = 2 pi eta / sqrt(1 + eta^2), which is 2 pi eta to first order (docs/theory.md#damping-measures);
 5. for comparison with the drop tower, clearly labelled, the drop-tower-equivalent damping
-   ratio of NOTES §1.4/§1.7 (:func:`drop_tower_equivalent_damping_ratio`).
+   ratio of docs/theory.md#extraction, #damping-measures (:func:`drop_tower_equivalent_damping_ratio`).
 
 Smoothing is linear, zero-phase and the same for both signals, so it leaves K' and K''
 unchanged; it scales the first harmonics by its gain at the test frequency (1 - 1e-4 for the
@@ -63,7 +62,7 @@ def smoothing_window(sample_rate_hz: float, frequency_hz: float) -> int:
 
 @dataclass(frozen=True)
 class Harmonic:
-    """First-harmonic result at one excitation frequency (seed 001 eq. 6)."""
+    """First-harmonic result at one excitation frequency (the elastoslide paper, eq. 6)."""
 
     frequency_hz: float
     angle_amplitude_rad: float          # amplitude of the angle's Fourier component
@@ -228,7 +227,7 @@ def evaluate_cycles(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.nda
     ys = CubicSpline(t, y)(tq)
     x_per, y_per = xs[:-1], ys[:-1]
 
-    # seed 001 eq. 6 via the DFT over whole cycles: X[k] = (N/2)(c_k - i s_k)
+    # the elastoslide paper, eq. 6 via the DFT over whole cycles: X[k] = (N/2)(c_k - i s_k)
     fx, fy = np.fft.rfft(x_per), np.fft.rfft(y_per)
     n = x_per.size
     harmonics = []

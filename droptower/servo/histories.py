@@ -8,9 +8,9 @@ the imposed angle or its rate would start transients that the run-in cycles must
 out. Oscillating segments hold whole cycles, so their evaluation windows close.
 
 The test patterns are those of the source papers: sines with a preload offset, stepped
-frequency and amplitude sweeps (seed 004 §1.6 of NOTES, seed 000), two superposed sines
-(seed 001 eq. 3), steps and slow ramps (seed 000), and a band-limited random profile
-(seed 000's validation test).
+frequency and amplitude sweeps (Rapp et al. 2022, docs/theory.md#servo, the zero-dimensional model paper), two superposed sines
+(the elastoslide paper, eq. 3), steps and slow ramps (the zero-dimensional model paper), and a band-limited random profile
+(the zero-dimensional model paper's validation test).
 """
 from __future__ import annotations
 
@@ -227,7 +227,7 @@ def amplitude_sweep(amplitudes_rad: Sequence[float], frequency_hz: float, sample
 def common_frequency(frequencies_hz: Sequence[float], max_denominator: int = 1000) -> float:
     """The highest frequency of which all ``frequencies_hz`` are integer multiples (Hz).
 
-    Seed 001 evaluates its 5 Hz + 7.5 Hz dual-frequency tests over the 2.5 Hz common period.
+    The elastoslide paper evaluates its 5 Hz + 7.5 Hz dual-frequency tests over the 2.5 Hz common period.
     Frequencies are read as fractions with denominators up to ``max_denominator``.
     """
     fracs = [Fraction(f).limit_denominator(max_denominator) for f in frequencies_hz]
@@ -241,10 +241,10 @@ def common_frequency(frequencies_hz: Sequence[float], max_denominator: int = 100
 def dual_frequency(frequencies_hz: tuple[float, float], amplitudes_rad: tuple[float, float], sample_rate_hz: float,
                    *, offset_rad: float = 0.0, run_in_cycles: int = 5, cycles: int = 5,
                    ramp_cycles: int = 2) -> History:
-    """Two superposed sines, x = A1 sin(2 pi f1 t) + A2 sin(2 pi f2 t) (seed 001 eq. 3).
+    """Two superposed sines, x = A1 sin(2 pi f1 t) + A2 sin(2 pi f2 t) (the elastoslide paper, eq. 3).
 
     Cycles count periods of the common frequency (:func:`common_frequency`, 2.5 Hz for
-    seed 001's 5 + 7.5 Hz), so the evaluation window holds whole cycles of both components.
+    the elastoslide paper's 5 + 7.5 Hz), so the evaluation window holds whole cycles of both components.
     """
     _check_rate(sample_rate_hz, frequencies_hz)
     _check_cycles(run_in_cycles, cycles, ramp_cycles)
@@ -269,7 +269,7 @@ def dual_frequency(frequencies_hz: tuple[float, float], amplitudes_rad: tuple[fl
 
 def steps(levels_rad: Sequence[float], sample_rate_hz: float, *, hold_s: float = 1.0,
           rise_s: float = 0.01) -> History:
-    """Steps from level to level (seed 000's step tests): each ``rise`` is a raised cosine of
+    """Steps from level to level (the zero-dimensional model paper's step tests): each ``rise`` is a raised cosine of
     ``rise_s`` seconds (a servo's finite slew), each ``hold`` lasts ``hold_s`` seconds."""
     _check_rate(sample_rate_hz, [])
     if not (hold_s > 0 and rise_s > 0):
@@ -286,7 +286,7 @@ def steps(levels_rad: Sequence[float], sample_rate_hz: float, *, hold_s: float =
 
 def ramps(peak_rad: float, rate_rad_per_s: float, sample_rate_hz: float, *, cycles: int = 1,
           offset_rad: float = 0.0) -> History:
-    """Slow triangular load ramps at a constant rate (seed 000's quasi-static ramps):
+    """Slow triangular load ramps at a constant rate (the zero-dimensional model paper's quasi-static ramps):
     per cycle offset -> offset + peak -> offset - peak -> offset, every leg a ``ramp``."""
     _check_rate(sample_rate_hz, [])
     if not (peak_rad > 0 and rate_rad_per_s > 0 and cycles >= 1):
@@ -304,7 +304,7 @@ def ramps(peak_rad: float, rate_rad_per_s: float, sample_rate_hz: float, *, cycl
 
 def random_profile(rms_rad: float, band_hz: tuple[float, float], duration_s: float, sample_rate_hz: float, *,
                    seed: int = 0, offset_rad: float = 0.0, fade_s: float | None = None) -> History:
-    """Band-limited random angle (seed 000's random validation test), reproducible by ``seed``.
+    """Band-limited random angle (the zero-dimensional model paper's random validation test), reproducible by ``seed``.
 
     White Gaussian noise from ``numpy.random.default_rng(seed)``, filtered zero-phase by a
     4th-order Butterworth band-pass ``band_hz`` = (low, high) (low = 0: low-pass), faded in

@@ -24,7 +24,7 @@ MIN_STEPS_PER_CYCLE = 4096
 
 @dataclass(frozen=True)
 class SteadyState:
-    """Per row (B,): storage and loss stiffness (N*m/rad, first harmonic, seed 001 eq. 6), the
+    """Per row (B,): storage and loss stiffness (N*m/rad, first harmonic, the elastoslide paper, eq. 6), the
     loss factor; ``harmonic_ratio`` (B, harmonics + 1): |T_n| / |T_1| for n = 0 .. harmonics
     (n = 0: the mean torque over the first harmonic's amplitude)."""
 
@@ -74,7 +74,7 @@ def steady_state(coupling: Coupling, amplitudes_rad: ArrayLike, frequencies_hz: 
 
 def rubber_figures(coupling: Coupling, amplitude_rad: float = np.radians(1.5), frequency_hz: float = 30.0,
                    low_frequency_hz: float = 1.0) -> dict[str, float]:
-    """How rubber-like a coupling's steady state is (issue 9's criteria, at 1.5 deg by default):
+    """How rubber-like a coupling's steady state is (the reference coupling's criteria, at 1.5 deg by default):
     ``loss_factor_ratio`` eta(low_frequency_hz) / eta(frequency_hz) (filled rubber: weakly
     frequency dependent, >= 0.7 from 1 to 30 Hz) and ``third_harmonic_pct``, the torque's third
     harmonic in percent of its fundamental at (amplitude, frequency_hz) (elliptic loops: small)."""

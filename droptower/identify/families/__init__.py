@@ -1,7 +1,7 @@
 """The model families of the source papers, one module each (its parameters and its strategy).
 
-Families (NOTES §2): ``zerodim6`` and ``zerodim20`` (seed 000), ``elastoslide`` (seed 001),
-``pfeffer`` (seed 002), ``masing`` (seed 003), ``overlay`` (seed 004's map), ``template`` (any
+Families (docs/theory.md#elements): ``zerodim6`` and ``zerodim20`` (the zero-dimensional model paper), ``elastoslide`` (the elastoslide paper),
+``pfeffer`` (Scheiblegger et al. 2013), ``masing`` (Heine & Plagemann 2014), ``overlay`` (Rapp et al.'s (2022) map), ``template`` (any
 coupling file, its numbers scaled). Every module
 holds the family class (parameters, bounds, first guess, coupling) and its staged
 identification strategy; :mod:`.base` the family base class, :mod:`.stages` the stages they

@@ -1,4 +1,4 @@
-"""Seed 001's distributed rate-dependent elastoslide model (eq. 13-25): family and strategy.
+"""The elastoslide paper's distributed rate-dependent elastoslide model (eq. 13-25): family and strategy.
 
 phi0, k, k0 from the initial loading curve through the loop tips at several amplitudes
 (eq. 24), then v_r by a batched grid search, k, k0, v_r jointly, and p (odd) by walking the
@@ -20,7 +20,7 @@ from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import Counter, FitResult, Identification, Parameter, batch_search, clip_to_bounds
 
 class ElastoslideFamily(Family):
-    """Seed 001's distributed rate-dependent elastoslide model: phi0, k, k0, v_r, p; with
+    """The elastoslide paper's distributed rate-dependent elastoslide model: phi0, k, k0, v_r, p; with
     option ``maxwell_terms`` (0-2, default 0) also Maxwell branches (c_i, tau_i) in parallel
     for viscous frequency dependence (the structure of the ``rapp2022_nr60`` preset).
 
@@ -30,7 +30,7 @@ class ElastoslideFamily(Family):
 
     kind = "elastoslide"
     title = "distributed rate-dependent elastoslide model (phi0, k, k0, v_r, p)"
-    source = "seed 001 (distributed rate-dependent elastoslide model), eq. 13-25"
+    source = "the elastoslide paper (distributed rate-dependent elastoslide model), eq. 13-25"
     OPTIONS = {"n": 32, "p_candidates": [3, 5, 7, 9, 11], "maxwell_terms": 0}
 
     def _parameters(self):
@@ -79,12 +79,12 @@ class ElastoslideFamily(Family):
 
 
 def loading_curve(amplitude_rad: np.ndarray, phi0: float, k: float, k0: float) -> np.ndarray:
-    """Seed 001 eq. 24: T = (1/phi0) (1 - exp(-k phi0 A)) + k0 A (N*m)."""
+    """The elastoslide paper, eq. 24: T = (1/phi0) (1 - exp(-k phi0 A)) + k0 A (N*m)."""
     return (1.0 - np.exp(-k * phi0 * amplitude_rad)) / phi0 + k0 * amplitude_rad
 
 
 def loop_tips(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray]:
-    """Seed 001 Fig. 10: points of the initial loading curve from steady loops.
+    """The elastoslide paper, Fig. 10: points of the initial loading curve from steady loops.
 
     For every steady block: the half swing of the angle between its turning points, and half
     the difference of the torques AT those turning points (the loop tips, where the rate is
@@ -108,7 +108,7 @@ def loop_tips(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fit_loading_curve(amplitude_rad: np.ndarray, torque_nm: np.ndarray) -> tuple[float, float, float] | None:
-    """Seed 001 eq. 24 through the loop tips by least squares: (phi0 1/(N*m), k, k0 N*m/rad).
+    """The elastoslide paper, eq. 24 through the loop tips by least squares: (phi0 1/(N*m), k, k0 N*m/rad).
 
     Needs at least three amplitude levels spanning a factor of 1.5; else None.
     """
@@ -130,8 +130,8 @@ def fit_loading_curve(amplitude_rad: np.ndarray, torque_nm: np.ndarray) -> tuple
 
 
 def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
-    """Seed 001's route. Any angle history gives the same torque for (phi0, v_r) and
-    (phi0 / a, v_r a^p), so phi0 is taken from the loop-tip loading curve (eq. 24, as seed 001
+    """The elastoslide paper's route. Any angle history gives the same torque for (phi0, v_r) and
+    (phi0 / a, v_r a^p), so phi0 is taken from the loop-tip loading curve (eq. 24, as the elastoslide paper
     does) and the identifiable combination is reported as the mean slip torque of the yield
     distribution when sliding at 1 rad/s, (1/phi0) (1 rad/s / v_r)^(1/p)."""
     fam: ElastoslideFamily = s.family  # type: ignore[assignment]
@@ -161,7 +161,7 @@ def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -
     extra["search_evaluations"] = counter.evaluations
     # phi0 stays at the loading-curve value: the model is invariant under phi0 -> phi0 / a,
     # v_r -> v_r a^p (every slider's f* scales by a, and v_r (k e / f*)^p is unchanged), so
-    # only v_r phi0^p is identifiable; seed 001 fixes phi0 by the loading curve the same way
+    # only v_r phi0^p is identifiable; the elastoslide paper fixes phi0 by the loading curve the same way
     continuous = ["k_nm_per_rad", "k0_nm_per_rad", "v_r_rad_per_s"] + fam.names[5:]
     fits = {int(x[ip]): s.fit(segments, x, continuous, f"joint at p = {int(x[ip])}")}
     if not s.given[ip]:

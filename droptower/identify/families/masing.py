@@ -1,4 +1,4 @@
-"""Seed 003's Masing model with Prandtl elements (NOTES §2.4): family and strategy.
+"""Heine & Plagemann's (2014) Masing model with Prandtl elements (docs/theory.md#masing): family and strategy.
 
 One global fit, then A, B, k, R, alpha per amplitude level and each as a function of
 amplitude, then the Maxwell stiffnesses per frequency level and as linear functions of
@@ -21,16 +21,16 @@ from droptower.identify.fit import (Identification, Parameter, at_bounds, clip_t
                                     simulate_rows)
 
 class MasingFamily(Family):
-    """Seed 003's Masing model: n Prandtl elements (stiffness k each, limits R e^{alpha(eta-1)})
+    """Heine & Plagemann's (2014) Masing model: n Prandtl elements (stiffness k each, limits R e^{alpha(eta-1)})
     + cubic spring A x^3 + B x + two Maxwell elements (C_i, D_i = C_i tau_i), optionally with
     the constriction S(x) = (|tanh(P x)| + K)/(1 + K).
 
-    Seed 003 works in units normalised by R; here R (N*m) is a parameter.
+    Heine & Plagemann 2014 works in units normalised by R; here R (N*m) is a parameter.
     """
 
     kind = "masing"
     title = "Masing model: Prandtl elements + cubic spring + two Maxwell elements"
-    source = "seed 003 (Masing model with Prandtl elements), NOTES 2.4"
+    source = "Heine & Plagemann 2014 (Masing model with Prandtl elements), docs/theory.md#masing"
     OPTIONS = {"n": 7, "constriction": False, "amplitude_deg": 0.0, "frequency_hz": 0.0,
                "amplitude_function": "auto"}
     MASING = ("a_nm_per_rad3", "b_nm_per_rad", "k_nm_per_rad", "r_nm", "alpha")
@@ -81,7 +81,7 @@ class MasingFamily(Family):
 
 
 def fit_function(x: np.ndarray, y: np.ndarray, std: np.ndarray | None = None, form: str = "auto") -> dict[str, Any]:
-    """A parameter as a function of amplitude or frequency (seed 003).
+    """A parameter as a function of amplitude or frequency (Heine & Plagemann 2014).
 
     Forms: ``constant``, ``poly1``, ``poly4`` (degree up to 4, at most n - 2), ``exp``
     (a + b exp(-c x)), or ``auto``: the form with the lowest corrected Akaike criterion

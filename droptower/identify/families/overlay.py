@@ -1,4 +1,4 @@
-"""Seed 004's characteristic map as a model (eq. 19-20): family and strategy.
+"""Rapp et al.'s (2022) characteristic map as a model (eq. 19-20): family and strategy.
 
 The first-harmonic stiffness and damping of every steady block mapped with eq. 19-20; the
 model is a Kelvin-Voigt coupling following the map.
@@ -19,7 +19,7 @@ from droptower.identify.families.stages import Setup, steady_blocks
 from droptower.identify.fit import FitResult, Identification, Parameter, metrics
 
 class OverlayFamily(Family):
-    """Seed 004's characteristic map as a model: a linear Kelvin-Voigt coupling (spring k,
+    """Rapp et al.'s (2022) characteristic map as a model: a linear Kelvin-Voigt coupling (spring k,
     dashpot c) whose k and c follow the map at each cycle's amplitude and frequency.
 
     The parameter vector is one (k, c) pair; the map is identified by the strategy.
@@ -27,7 +27,7 @@ class OverlayFamily(Family):
 
     kind = "overlay"
     title = "characteristic-map overlay: Kelvin-Voigt with map stiffness and damping"
-    source = "seed 004 (drop-tower characteristic map), eq. 19-20"
+    source = "Rapp et al. 2022 (drop-tower characteristic map), eq. 19-20"
     OPTIONS = {"amplitude_deg": 0.0, "frequency_hz": 0.0}
 
     def _parameters(self):
@@ -51,7 +51,7 @@ def kelvin_voigt_from_map(fitted: Any, amplitude_deg: np.ndarray, frequency_hz: 
 
     The map's damping ratio is the drop tower's d = E_diss / E_el; the Kelvin-Voigt coupling
     with that d swinging at its damped frequency has r = delta / omega = ln(1 + 2 d) / (4 pi)
-    and loss factor eta = 2 r / (1 + r^2) (NOTES §1.4, §1.7), so c = eta k / Omega.
+    and loss factor eta = 2 r / (1 + r^2) (docs/theory.md#extraction, #damping-measures), so c = eta k / Omega.
     """
     r = fitted.range
     a = np.clip(amplitude_deg, r.amplitude_deg_min, r.amplitude_deg_max)
@@ -63,7 +63,7 @@ def kelvin_voigt_from_map(fitted: Any, amplitude_deg: np.ndarray, frequency_hz: 
 
 
 def identify_overlay(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
-    """Seed 004's map as a model. Every steady sine block is evaluated like a servo test
+    """Rapp et al.'s (2022) map as a model. Every steady sine block is evaluated like a servo test
     (K', loss factor); the map (eq. 19 for the stiffness K', eq. 20 for the drop-tower damping
     ratio equivalent to the loss factor, :func:`droptower.servo.drop_tower_equivalent_damping_ratio`)
     is fitted with :func:`droptower.maps.fit.fit_map`. The model's torque is k theta + c dtheta/dt
@@ -110,7 +110,7 @@ def identify_overlay(s: Setup, segments: list[Segment], start: float, **_) -> Id
     f_out = float(fam.options["frequency_hz"]) or float(table["frequency_hz"].median())
     k_out, c_out = (float(v) for v in kelvin_voigt_from_map(fitted, np.array(amp_out), np.array(f_out)))
     v_out = np.array([k_out, c_out])
-    stage = FitResult("map (seed 004 eq. 19-20) by droptower.maps.fit_map", fam.names, v_out,
+    stage = FitResult("map (Rapp et al. 2022, eq. 19-20) by droptower.maps.fit_map", fam.names, v_out,
                       np.ones(2, bool), np.full(2, np.nan), list(fitted.at_bounds), fit_metrics, 0, 0, 0, 0,
                       time.perf_counter() - start, True, "map fitted")
     names = [f"{k}_{u}" for k, u in zip(fitted.coefficients, _map_units())]

@@ -1,4 +1,4 @@
-"""Seed 002's linear Pfeffer bushing model (NOTES §2.3): family and strategy.
+"""Scheiblegger et al.'s (2013) linear Pfeffer bushing model (docs/theory.md#pfeffer): family and strategy.
 
 The analytic route (k1 = static stiffness, alpha = DH - 1, gamma from the loss-peak
 frequency, beta until the loss angle at the layout frequency matches), then least squares.
@@ -20,12 +20,12 @@ from droptower.identify.fit import Identification, Parameter, clip_to_bounds, me
 from droptower.rheology.elements import Pfeffer
 
 class PfefferFamily(Family):
-    """Seed 002's linear Pfeffer model: k1 || c1 in series with (k2 || c2); alpha = k2/k1,
-    beta = c2/c1, gamma = c1/k1 (NOTES §2.3)."""
+    """Scheiblegger et al.'s (2013) linear Pfeffer model: k1 || c1 in series with (k2 || c2); alpha = k2/k1,
+    beta = c2/c1, gamma = c1/k1 (docs/theory.md#pfeffer)."""
 
     kind = "pfeffer"
     title = "linear Pfeffer bushing model (k1, alpha, beta, gamma)"
-    source = "seed 002 (Pfeffer bushing model, linearised), NOTES 2.3"
+    source = "Scheiblegger et al. 2013 (Pfeffer bushing model, linearised), docs/theory.md#pfeffer"
     OPTIONS = {"layout_frequency_hz": 0.0, "peak_frequency_hz": 0.0}
 
     def _parameters(self):
@@ -53,7 +53,7 @@ def pfeffer_complex_stiffness(v: np.ndarray, omega: np.ndarray | float) -> np.nd
 
 def pfeffer_analytic(k_stat: float, k_dyn: float, loss_angle_rad: float, layout_frequency_hz: float,
                      peak_frequency_hz: float) -> dict[str, Any]:
-    """Seed 002's analytic identification of the linear Pfeffer model (NOTES §2.3).
+    """Scheiblegger et al.'s (2013) analytic identification of the linear Pfeffer model (docs/theory.md#pfeffer).
 
     k1 = k_stat; k2 = k_stat (DH - 1) with DH = k_dyn / k_stat, so alpha = DH - 1; gamma puts
     the loss-angle peak of the beta = 0 model (k1 || Maxwell(k2, c1): tan delta peaks at

@@ -1,4 +1,4 @@
-"""Stages the families' identification strategies share (NOTES §2).
+"""Stages the families' identification strategies share (docs/theory.md#elements).
 
 :class:`Setup` binds a family to its data and starting values; :func:`result_of` makes the
 :class:`~droptower.identify.fit.Identification` of one parameter vector; the helpers find the
@@ -128,7 +128,7 @@ def static_stiffness(segments: list[Segment]) -> float | None:
 
     Whole cycles are averaged where the second half oscillates. In a periodic steady state a
     Maxwell branch (or the Pfeffer branch) carries no mean torque, so this is the parallel
-    static spring (seed 000's K1 "from average values"; seed 002's k_stat). None if no
+    static spring (the zero-dimensional model paper's K1 "from average values"; Scheiblegger et al.'s (2013) k_stat). None if no
     record has a mean angle clearly away from 0.
     """
     num = den = 0.0

@@ -1,4 +1,4 @@
-"""Seed 000's lookup-table model with the Mullins filter (section 4, eq. 3): family and strategy.
+"""The zero-dimensional model paper's lookup-table model with the Mullins filter (section 4, eq. 3): family and strategy.
 
 The six-parameter fit mapped exactly onto the tables and the Mullins filter, then all 20
 parameters jointly.
@@ -23,12 +23,12 @@ FAR = 1e3
 
 
 class ZeroDim20(Family):
-    """Seed 000's lookup-table model with the Mullins filter, 20 parameters.
+    """The zero-dimensional model paper's lookup-table model with the Mullins filter, 20 parameters.
 
     Mullins filter (eq. 3): slow stiffness, fast minus slow stiffness, time constant tau (3);
     a Maxwell branch whose spring stiffness is a 9-point table over its deformation
     (breakpoints evenly over +-the largest amplitude of the data) and whose damping is an
-    8-point table over its rate (0 .. the largest rate of the data): 9 + 8 = 17. Seed 000
+    8-point table over its rate (0 .. the largest rate of the data): 9 + 8 = 17. The zero-dimensional model paper
     reduced its 45 lookup values to 20; this is one such choice. Beyond their breakpoints the
     tables hold their end values. Within them it contains the six-parameter model exactly
     (tables linear in |e| and constant), so it starts from that fit.
@@ -43,7 +43,7 @@ class ZeroDim20(Family):
 
     kind = "zerodim20"
     title = "zero-dimensional lookup-table model with Mullins filter (20 parameters)"
-    source = "seed 000 (zero-dimensional model), section 4, eq. 3"
+    source = "the zero-dimensional model paper (zero-dimensional model), section 4, eq. 3"
     OPTIONS = {"deformation_max_rad": 0.0, "rate_max_rad_per_s": 0.0}
     N_STIFF = 9
     N_DAMP = 8
@@ -137,7 +137,7 @@ def _excess(c: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 def branch_ranges(v6: np.ndarray, segments: list[Segment]) -> tuple[float, float]:
     """Largest deformation of the K3 spring and largest rate of the C3 dashpot (rad, rad/s)
-    that the six-parameter model ``v6`` visits on ``segments``: where seed 000's lookup tables
+    that the six-parameter model ``v6`` visits on ``segments``: where the zero-dimensional model paper's lookup tables
     of the same branch need their breakpoints."""
     k3, gain, tau3 = v6[3], v6[4], v6[5]
     six = ZeroDim6(DataScale.of(segments))
@@ -168,7 +168,7 @@ def identify_zerodim20(s: Setup, segments: list[Segment], start: float, previous
             s.set_estimate(x, name, value)
             p = fam.parameters[i]
             if i >= 3 and not s.bounded[i]:
-                # seed 000: "sound constraints" - a table value (or force rise between
+                # the zero-dimensional model paper: "sound constraints" - a table value (or force rise between
                 # breakpoints) stays within a factor of TABLE_RANGE of the six-parameter start, so
                 # a breakpoint the data hardly reach cannot run off (and spoil the model just
                 # beyond the fitting data)

@@ -1,4 +1,4 @@
-"""Seed 000's six-parameter model (section 5, Fig. 11): the family and its staged strategy.
+"""The zero-dimensional model paper's six-parameter model (section 5, Fig. 11): the family and its staged strategy.
 
 K1 from static averages (in a periodic steady state the Maxwell branches carry no mean
 torque, so mean torque / mean angle = K1), K2-C2 on slow ramps, K3-C3 on the sine sweeps,
@@ -16,10 +16,10 @@ from droptower.identify.families.stages import STAGE_TOL, Setup, result_of, spli
 from droptower.identify.fit import FitResult, Identification, Parameter
 
 class ZeroDim6(Family):
-    """Seed 000's six-parameter model: spring K1 || Maxwell(K2, C2) || Maxwell(K3(e), C3).
+    """The zero-dimensional model paper's six-parameter model: spring K1 || Maxwell(K2, C2) || Maxwell(K3(e), C3).
 
     K3 = k3 + gain |e| with e the branch spring's deformation (linear in the deformation, as
-    in seed 000 Fig. 11). The Maxwell branches are parameterised by relaxation times tau =
+    in the zero-dimensional model paper, Fig. 11). The Maxwell branches are parameterised by relaxation times tau =
     C / K. Option ``tau_split_s`` > 0 confines the slow branch to relaxation times above it and
     the fast one below; the default 0 lets both span the whole range (both branches may act at
     the test frequencies; the staged start still gives K2-C2 the slow ramps and K3-C3 the sweeps).
@@ -27,7 +27,7 @@ class ZeroDim6(Family):
 
     kind = "zerodim6"
     title = "zero-dimensional six-parameter model: K1 || Maxwell(K2, C2) || Maxwell(K3 + gain |e|, C3)"
-    source = "seed 000 (zero-dimensional model), section 5 / Fig. 11"
+    source = "the zero-dimensional model paper (zero-dimensional model), section 5 / Fig. 11"
     OPTIONS = {"tau_split_s": 0.0}
 
     def _parameters(self):
