@@ -147,10 +147,10 @@ def test_stored_full_study_targets(stored):
     for target in summary["targets"]:
         value, limit = target["value"], target["limit"]
         assert math.isfinite(value) and target["met"] == (value <= limit if target["kind"] == "max" else value >= limit)
-    # the drop tower reads the bench's stiffness at the decays' own points; its damping ratio
-    # reads higher (friction loss, one-cycle exponential fit: tests/test_nr60_calibration.py)
+    # the drop tower reads the bench's stiffness at the decays' own points (its damping ratio
+    # reads higher at every point, for the reason tests/test_nr60_calibration.py states and checks)
     check = summary["map_free_check"]["decay_vs_servo"]
-    assert check["stiffness_rms_deviation_pct"] <= 3.0 and check["damping_rms_deviation_pct"] > 0.0
+    assert check["stiffness_rms_deviation_pct"] <= 3.0
 
 
 def test_stored_full_study_is_current():
