@@ -54,6 +54,7 @@ def test_seed002_time_domain_equals_frequency_domain():
     assert np.angle(closed[1]) > np.angle(closed[0])
 
 
+@pytest.mark.slow
 def test_round_trip_servo_bench_identify_drop_tower(tmp_path):
     """Records of the reference coupling on the virtual servo bench (simulated on a fine step,
     sampled at 2048 Hz like the paper's bench) in the drop tower's range (0.3-0.9 deg,

@@ -96,6 +96,7 @@ def test_round_trip_on_unknown_couplings(logs, kind):
         assert any({"phi0_per_nm", "v_r_rad_per_s"} <= set(c) for c in result.non_identifiable)
 
 
+@pytest.mark.slow
 def test_template_family_follows_any_coupling_file(logs, tmp_path):
     """kind template: the truth's own structure as the template, its numbers off by 20-40 %."""
     data = json.loads(json.dumps(TRUTHS["zerodim6"]))
@@ -113,6 +114,7 @@ def test_template_family_follows_any_coupling_file(logs, tmp_path):
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
 
 
+@pytest.mark.slow
 def test_angle_only_logs(logs):
     """Without torque and force channels the rate comes from the angle's slope; the fit still holds."""
     settings = ReadSettings(roles={"torque": "-", "impact_force": "-"})
@@ -219,6 +221,7 @@ def test_template_of_the_reference_coupling_recovers_another_coupling_of_its_str
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0])
 def test_two_branches_in_the_test_band_are_found_and_judged(seed, tmp_path):
     """A zerodim6-type coupling drawn at random with BOTH Maxwell branches acting at the drop

@@ -51,6 +51,7 @@ def test_nested_cv_needs_auto(capsys):
     assert "--form auto" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_map_prints_the_nested_error_next_to_the_fit(monkeypatch, capsys):
     import json
 
