@@ -190,10 +190,12 @@ def test_a_changed_preset_or_source_makes_the_stored_study_stale():
 
 
 #: The reduced study against the stored full study: (summary path, tolerance in points of the
-#: figure, why the two differ). In brackets the differences reduced - full measured with
-#: rapp2022_nr60 and with the calibration's `table4_only` candidate (same elements, other
-#: parameters; analysis/results/nr60_candidates.csv): each tolerance is about twice the larger,
-#: room for another coupling's curvature, not for a broken data path.
+#: figure, why the two differ). In brackets the differences reduced - full measured with the
+#: previous reference coupling (payne element) and its `table4_only` candidate, then with the
+#: filler-network reference coupling: each tolerance is about twice the largest. The damping
+#: figures of the filler network spread more from point to point (single deviations up to 40 % in
+#: the map vs servo, 56 % in the decays vs servo; eq. 20 fits its damping within 32 % only), so an
+#: RMS over fewer points moves more: their tolerances follow that spread, not a broken data path.
 REDUCED_VS_FULL = [
     (("table4", "campaign", "stiffness_rms_deviation_pct"), 0.4,
      "each Table-4 row is interpolated (in log amplitude) between 5 drop heights instead of 10; repeats and "
@@ -202,18 +204,21 @@ REDUCED_VS_FULL = [
      "as the stiffness: interpolation between 5 instead of 10 drop heights [-0.21, -0.18]"),
     (("table4", "map", "stiffness_rms_deviation_pct"), 0.3,
      "eq. 19 fitted to 15 tests instead of 450 (the fits' own RMS errors: 0.08 vs 0.10 %) [-0.01, +0.01]"),
-    (("table4", "map", "damping_rms_deviation_pct"), 1.0,
-     "eq. 20 fitted to 15 tests instead of 450 (the fits' own damping RMS errors differ by 0.5 points) [+0.07, +0.01]"),
+    (("table4", "map", "damping_rms_deviation_pct"), 14.0,
+     "eq. 20 fitted to 15 tests instead of 450; it follows the filler network's damping within 32 % RMS only, so "
+     "which tests it is fitted to moves it [+0.07, +0.01; +7.0]"),
     (("servo_validation", "inside", "stiffness_rms_deviation_pct"), 0.5,
      "a smaller hull (5 heights, fewer servo steps): the RMS over 3 servo points instead of 7, whose single "
      "deviations spread over 1.2-1.9 % [-0.18, -0.21]"),
-    (("servo_validation", "inside", "damping_rms_deviation_pct"), 2.0,
-     "the RMS over 3 servo points instead of 7, whose single deviations spread up to 16.6 % (24.6 %) [-0.73, -0.82]"),
+    (("servo_validation", "inside", "damping_rms_deviation_pct"), 10.5,
+     "the RMS over 3 servo points instead of 7, whose single deviations spread up to 16.6 % (24.6 %; the filler "
+     "network: 40 %) [-0.73, -0.82; -5.2]"),
     (("map_free_check", "decay_vs_servo", "stiffness_rms_deviation_pct"), 0.3,
      "decays placed on 3 servo points instead of 7; each point's deviation is the coupling's (the drop test's "
      "first cycle against a steady sine), not the campaign's [-0.01, -0.04]"),
-    (("map_free_check", "decay_vs_servo", "damping_rms_deviation_pct"), 1.5,
-     "decays placed on 3 servo points instead of 7 (single deviations up to 13.3 % (19.0 %)) [-0.14, -0.66]"),
+    (("map_free_check", "decay_vs_servo", "damping_rms_deviation_pct"), 7.0,
+     "decays placed on 3 servo points instead of 7 (single deviations up to 13.3 % (19.0 %; the filler network: "
+     "56 %)) [-0.14, -0.66; -3.5]"),
     (("coupling_figures", "loss_factor_ratio"), 1e-9, "computed from the coupling alone, not from the campaign [0, 0]"),
     (("coupling_figures", "third_harmonic_pct"), 1e-6, "computed from the coupling alone [0, 0]"),
 ]
