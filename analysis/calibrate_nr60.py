@@ -55,7 +55,7 @@ from droptower.campaign import run_campaign
 from droptower.compare import run_sweeps, validate_map
 from droptower.compare.reference_map import compare_reference
 from droptower.data import table4_path
-from droptower.extract.decay import fit_decay, start_frequency_and_decay
+from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.maps import fit_map
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
 from droptower.rig.config import load_rig

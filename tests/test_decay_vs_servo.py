@@ -18,7 +18,7 @@ import pytest
 
 from droptower.compare.mapfree import format_check, run_check
 from droptower.configs import resolve
-from droptower.extract.decay import fit_decay, start_frequency_and_decay
+from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.planner import free_decay

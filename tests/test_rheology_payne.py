@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droptower.extract.decay import fit_decay, start_frequency_and_decay
+from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.rheology import parse_coupling
 from droptower.rheology.elements import Payne, PowerLaw
 from droptower.rig.planner import free_decay

@@ -29,7 +29,7 @@ import tomli_w
 from droptower import sdof
 from droptower.compare.validation import deviation_stats
 from droptower.errors import DroptowerError
-from droptower.extract.decay import fit_decay, start_frequency_and_decay
+from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.maps import MapFit
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig

@@ -14,7 +14,7 @@ import numpy as np
 
 from droptower.errors import DroptowerError, not_in_range
 from droptower import sdof
-from droptower.extract.decay import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
+from droptower.decayfit import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
 from droptower.extract.impact import find_impact
 from droptower.extract.result import ExtractionResult
 from droptower.extract.uncertainty import propagate

@@ -25,7 +25,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from droptower.errors import DroptowerError
-from droptower.extract.decay import start_frequency_and_decay
+from droptower.decayfit import start_frequency_and_decay
 from droptower.extract.extractor import metadata_value
 from droptower.extract.impact import find_impact
 from droptower.io.logsettings import LogSettings

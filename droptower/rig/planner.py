@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.errors import DroptowerError
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
@@ -102,7 +103,6 @@ def extractor_view(time_s: np.ndarray, angle_rad: np.ndarray, period_s: float,
     up to five zero crossings) and never beyond :data:`VIEW_PERIODS` of ``period_s``, so a
     condition's view does not depend on the batch it was planned in. NaNs where no cycle
     completes."""
-    from droptower.extract.decay import fit_decay, start_frequency_and_decay  # the extractor's own fit
 
     if not np.isfinite(period_s):
         return np.nan, np.nan, np.nan

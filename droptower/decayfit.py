@@ -1,5 +1,8 @@
 """Least-squares fits of the free decay after the impact (Rapp et al. 2022, eq. 13, 14 and 17).
 
+Shared by the extractor (measured logs), the planner (predicted decays: a plan predicts what the
+extractor will report), identification and the comparisons, so they all read a decay the same way.
+
 Angle: φ(t) = φ̂·e^(−δt)·cos(ωt − Φ), fitted over (φ̂, δ, ω, Φ) with
 :func:`scipy.optimize.least_squares` from robust starting values. Torque (eq. 17): δ and ω
 fixed from the angle fit, T(t) = T̂·e^(−δt)·cos(ωt − Φ_T) + offset, which is linear in
