@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from droptower.design.coverage import Target, in_hull, plane
+from droptower.design.coverage import Target, covered_fraction, in_hull, plane
 from droptower.errors import DroptowerError
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
@@ -274,8 +274,7 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
         raise DroptowerError(f"no drop of rig {rig.name} with coupling {coupling.name} is possible without hitting a "
                              "limit (double impact, twist, sensor ranges)")
     all_pts = plane(feasible["amplitude_deg"], feasible["frequency_hz"])
-    grid = target.grid()
-    reachable = float(np.mean(in_hull(all_pts, grid)))
+    reachable = covered_fraction(all_pts, target)
     if reachable == 0.0:
         raise DroptowerError(
             f"the target {target.amplitude_deg[0]:g}-{target.amplitude_deg[1]:g} deg x {target.frequency_hz[0]:g}-"
@@ -310,5 +309,5 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
         limits.append(f"{r.case}, {r.drop_mass_kg:g} kg, {r.drop_height_m:g} m: " + "; ".join(r.warnings))
     pts = plane(pred["amplitude_deg"], pred["frequency_hz"])
     return Design(target=target, conditions=pred, candidates=cands,
-                  covered_fraction=float(np.mean(in_hull(pts, grid))), reachable_fraction=reachable,
+                  covered_fraction=covered_fraction(pts, target), reachable_fraction=reachable,
                   unreachable=_unreachable(target, all_pts, feasible, rig), limits_hit=limits, repeats=repeats)
