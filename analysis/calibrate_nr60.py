@@ -29,8 +29,9 @@ fast loop is re-fitted against the targets so corrected.
 Candidates: the same model fitted with different weights (and without the power-law branch)
 show the trade-off between the targets; each candidate's figures come from the reduced
 pipeline (30 drop tests -> logs -> extraction -> map -> servo sweeps on the virtual bench) and
-are written as a table (``nr60_candidates.csv``). The eligible candidate with the smallest summed
-relative excess over the targets (zero: all met) becomes the preset. Everything is written to
+are written as a table (``nr60_candidates.csv``). The eligible candidate that misses the fewest
+targets becomes the preset, ties broken by the smallest summed relative excess over the targets
+(a sum alone lets one far-missed target outweigh several others). Everything is written to
 the folder ``--out`` (default ``calibration_out``); only ``--write-preset`` writes the chosen
 coupling over the repository's preset (never the installed package) and the tables into
 analysis/results/. Reproducible: the fit starts from fixed values and is deterministic, the
@@ -75,23 +76,28 @@ DURATION_S = 0.075
 #: the reference coupling's targets (percent RMS, ratios)
 TARGETS = {"table4_stiffness_rms_pct": 5.0, "table4_damping_rms_pct": 12.0,
            "servo_inside_stiffness_rms_pct": 6.0, "servo_inside_damping_rms_pct": 7.0,
-           "loss_factor_ratio_1hz_30hz_min": 0.7, "third_harmonic_pct_max": 5.0, "real_time_factor_min": 100.0}
+           "loss_factor_ratio_1hz_30hz_min": 0.7, "storage_rise_pct_per_decade_min": 3.0,
+           "third_harmonic_pct_max": 5.0, "real_time_factor_min": 100.0}
 TARGETS_COLUMNS = ["table4_stiffness_rms_pct", "table4_damping_rms_pct", "servo_inside_stiffness_rms_pct",
-                   "servo_inside_damping_rms_pct", "loss_factor_ratio_1hz_30hz", "third_harmonic_pct", "real_time_factor"]  # printed
+                   "servo_inside_damping_rms_pct", "loss_factor_ratio_1hz_30hz", "storage_rise_pct_per_decade",
+                   "third_harmonic_pct", "real_time_factor"]  # printed
 POWER_LAW_MIN_HZ, POWER_LAW_MAX_HZ = 0.3, 3000.0   # the matrix branch spread over the test band and above
 POWER_LAW_TERMS_PER_DECADE = 1.5                     # loss ripple 0.2 % (PowerLaw), 7 terms: speed
 POWER_LAW_REFERENCE_HZ = 30.0
 NETWORK_RECOVERY_S, NETWORK_CENTRE_S = 10.0, 5.0     # settings of the filler network (not fitted)
+#: K' of filled rubber rises a few to tens of % per decade (1.5 deg, 1-30 Hz): the objective's
+#: penalty starts below this, a little above the target of 3 %
+RISE_PENALTY_BELOW = 3.5
 
 #: name, lower bound, upper bound, start (SI, torsional); the fit works on log10 of each
 PARAMETERS = [
-    ("spring_stiffness", 1e3, 3e4, 7000.0),              # N*m/rad, equilibrium
-    ("network_stiffness", 1e3, 1e5, 17000.0),            # N*m/rad, the intact filler network
+    ("spring_stiffness", 1e3, 3e4, 5500.0),              # N*m/rad, equilibrium
+    ("network_stiffness", 1e3, 1e5, 23000.0),            # N*m/rad, the intact filler network
     ("network_critical_angle", 1e-4, 0.2, 4e-3),         # rad, median yield angle of its sliders
-    ("network_exponent", 0.2, 2.0, 0.5),                 # -
-    ("network_breakdown_angle", 1e-3, 1.0, 0.1),         # rad, halves the intact network
-    ("matrix_storage_stiffness", 10.0, 2e4, 900.0),      # N*m/rad at 30 Hz
-    ("matrix_loss_factor", 0.02, 1.0, 0.15),             # -
+    ("network_exponent", 0.2, 2.0, 0.35),                # -
+    ("network_breakdown_angle", 1e-3, 1.0, 0.04),        # rad, halves the intact network
+    ("matrix_storage_stiffness", 10.0, 2e4, 600.0),      # N*m/rad at 30 Hz
+    ("matrix_loss_factor", 0.02, 2.0, 0.9),              # -
 ]
 NAMES = [p[0] for p in PARAMETERS]
 #: The rule that fixes the directions the objective does not determine: a weak pull of every
@@ -128,8 +134,9 @@ def build(values: dict[str, float], matrix: bool = True) -> Coupling:
         "name": "rapp2022_nr60",
         "description": "Natural-rubber disc coupling, Shore A 60 (Rapp et al. 2022): equilibrium spring + filler network "
                        "(Iwan friction network whose structure breaks down with the strain and recovers in time: "
-                       "Payne effect, rate-independent loss) + power-law matrix branch spread over the test band, "
-                       "calibrated by analysis/calibrate_nr60.py on Table 4 and drop tower vs servo bench jointly",
+                       "Payne effect, rate-independent loss) + power-law matrix branch spread over the test band "
+                       "(K' and the loss rising with frequency), calibrated by analysis/calibrate_nr60.py on Table 4 "
+                       "with the drop tower vs servo bench weighted lightly",
         "source": "Rapp et al. 2022, Table 4; Iwan (1966) / Masing friction network with Kraus (1984) "
                   "shapes; power-law (fractional) viscoelasticity as a Prony series",
         "element": [{k: (float(x) if isinstance(x, (int, float, np.floating)) else x) for k, x in e.items()}
@@ -211,6 +218,7 @@ def data_residuals(log_values: np.ndarray, weights: Weights, table: pd.DataFrame
             parts.append((own["damping_ratio"] / servo["servo_damping_ratio"] - 1) / weights.servo_damping)
     rubber = rubber_figures(coupling)
     parts.append(np.array([max(0.0, 0.75 - rubber["loss_factor_ratio"]) / 0.02,
+                           max(0.0, RISE_PENALTY_BELOW - rubber["storage_rise_pct_per_decade"]) / 0.1,
                            max(0.0, rubber["third_harmonic_pct"] - 4.5) / 0.5]))
     return np.concatenate([np.asarray(p, float) for p in parts])
 
@@ -287,7 +295,9 @@ def pipeline_figures(coupling: Coupling, table: pd.DataFrame, folder: Path) -> d
             "servo_inside_loss_factor_rms_pct": inside["loss_factor_rms_deviation_pct"],
             "servo_inside_points": inside["n_points"],
             "decay_vs_servo_stiffness_rms_pct": rms(dc), "decay_vs_servo_damping_rms_pct": rms(dd),
-            "loss_factor_ratio_1hz_30hz": rubber["loss_factor_ratio"], "third_harmonic_pct": rubber["third_harmonic_pct"],
+            "loss_factor_ratio_1hz_30hz": rubber["loss_factor_ratio"],
+            "storage_rise_pct_per_decade": rubber["storage_rise_pct_per_decade"],
+            "third_harmonic_pct": rubber["third_harmonic_pct"],
             "real_time_factor": real_time_factor(coupling)}
 
 
@@ -321,6 +331,7 @@ CANDIDATES = [
     Candidate("table4_only", Weights(servo_stiffness=None, servo_damping=None)),
     Candidate("joint", Weights()),
     Candidate("joint_servo_heavy", Weights(servo_stiffness=0.02, servo_damping=0.02)),
+    Candidate("joint_table4_heavy", Weights(servo_stiffness=0.03, servo_damping=0.15)),
     # shown for the trade-off only: without the matrix branch the model has no frequency
     # dependence at all, so it is not eligible as the preset
     Candidate("joint_without_matrix", Weights(matrix=False), eligible=False),
@@ -435,7 +446,7 @@ def main() -> None:
                      **{f"param_{k}": v for k, v in cand.values.items()}, "wall_s": time.perf_counter() - t0})
         flat_rows += [{"candidate": cand.name, **f} for f in cand.flat]
         print("    " + ", ".join(f"{k} {v:.3g}" for k, v in cand.figures.items()), flush=True)
-    trade = pd.DataFrame(rows).sort_values(["eligible", "target_excess", "targets_missed"], ascending=[False, True, True],
+    trade = pd.DataFrame(rows).sort_values(["eligible", "targets_missed", "target_excess"], ascending=[False, True, True],
                                            kind="stable")
     best = next(c for c in chosen if c.name == trade.iloc[0]["candidate"])
     preset = build(best.values, best.weights.matrix)

@@ -239,6 +239,7 @@ def study_targets(stored: dict[str, Any]) -> Block:
         ("map vs servo inside the hull, damping ratio rms %",
          "map vs servo inside the tested hull, damping ratio RMS (η: {eta} %, r: {r} %)", ".1f", " %"),
         ("loss factor 1 Hz / 30 Hz at 1.5 deg", "loss factor at 1 Hz / at 30 Hz (1.5°)", ".2f", ""),
+        ("K' rise per decade, 1-30 Hz at 1.5 deg, %", "K' rise per decade, 1-30 Hz (1.5°)", ".1f", " %"),
         ("third harmonic at 1.5 deg, 30 Hz, % of fundamental", "third harmonic at 1.5°, 30 Hz, % of the fundamental",
          ".1f", " %"),
     ]

@@ -259,6 +259,7 @@ TARGETS = [
     (("servo_validation", "inside", "stiffness_rms_deviation_pct"), 6.0, "max", "map vs servo inside the hull, stiffness rms %"),
     (("servo_validation", "inside", "damping_rms_deviation_pct"), 7.0, "max", "map vs servo inside the hull, damping ratio rms %"),
     (("coupling_figures", "loss_factor_ratio"), 0.7, "min", "loss factor 1 Hz / 30 Hz at 1.5 deg"),
+    (("coupling_figures", "storage_rise_pct_per_decade"), 3.0, "min", "K' rise per decade, 1-30 Hz at 1.5 deg, %"),
     (("coupling_figures", "third_harmonic_pct"), 5.0, "max", "third harmonic at 1.5 deg, 30 Hz, % of fundamental"),
     (("coupling_figures", "real_time_factor"), 100.0, "min", "real-time factor, 1 s at 38.4 kHz, single instance"),
 ]

@@ -46,7 +46,9 @@ def calibration():
 def test_shipped_preset_is_the_stored_best_candidate(calibration):
     table = pd.read_csv(CANDIDATES)
     best = table.iloc[0]
-    assert best["eligible"] and best["target_excess"] == table.loc[table["eligible"], "target_excess"].min()
+    eligible = table[table["eligible"]]
+    fewest = eligible[eligible["targets_missed"] == eligible["targets_missed"].min()]
+    assert best["eligible"] and best["target_excess"] == fewest["target_excess"].min()
     values = {name: best[f"param_{name}"] for name in calibration.NAMES}
     matrix = best["candidate"] != "joint_without_matrix"
     shipped = dt.load_coupling("rapp2022_nr60")
@@ -55,10 +57,12 @@ def test_shipped_preset_is_the_stored_best_candidate(calibration):
 
 
 def test_the_preset_is_rubber_like():
-    """Loss factor at 1 Hz >= 0.7x that at 30 Hz and a third harmonic <= 5 % of the
-    fundamental (1.5 deg, 30 Hz): elliptic loops, weak frequency dependence."""
+    """Loss factor at 1 Hz >= 0.7x that at 30 Hz, K' rising >= 3 % per decade and a third
+    harmonic <= 5 % of the fundamental (1.5 deg, 30 Hz): elliptic loops, a weak frequency
+    dependence as filled rubber's."""
     figures = rubber_figures(dt.load_coupling("rapp2022_nr60"))
     assert figures["loss_factor_ratio"] >= 0.7
+    assert figures["storage_rise_pct_per_decade"] >= 3.0  # K' rises a few % per decade (1-30 Hz)
     assert figures["third_harmonic_pct"] <= 5.0
     assert 0.1 < figures["loss_factor"] < 0.35  # Table 4's d of 0.5-2 is eta 0.1-0.25 (docs/theory.md#damping-measures)
 
@@ -66,12 +70,13 @@ def test_the_preset_is_rubber_like():
 def test_decays_against_the_bench_at_their_own_points(calibration):
     """The fast loop's 30 decays (3 cases x Table 2's heights) against the steady state at each
     decay's amplitude and frequency: the stiffness within 3 % RMS. The damping ratio the
-    drop tower reads is higher than the bench's at every point: the filler network's loss is
-    friction (Masing loops, rate-independent), and the first cycle of a decay spans amplitudes
-    about a factor 2 apart, which an exponential one-cycle fit converts into a larger decay rate
-    than the steady loop at the window's middle amplitude (d = (e^(4 pi r) - 1)/2 doubles the
-    difference in r): measured 43 % RMS on the shipped preset (the map-free check of the stored
-    study: 46 %)."""
+    drop tower reads is higher than the bench's at every point (docs/theory.md#first-cycle): the
+    filler network's friction loss grows with the amplitude, which a first cycle spanning
+    amplitudes about a factor 2 apart turns into a larger decay rate than the steady loop at the
+    window's middle amplitude, and the matrix branch's relaxation slower than the oscillation
+    adds a creep mode that the fit reads as decay (d = (e^(4 pi r) - 1)/2 doubles the difference
+    in r): measured 48 % RMS on the shipped preset through the pipeline
+    (analysis/results/nr60_candidates.csv)."""
     coupling = dt.load_coupling("rapp2022_nr60")
     points = calibration.predict(coupling)
     servo = calibration.servo_at(coupling, points)

@@ -122,12 +122,12 @@ def test_stiffness_level_against_table4(near_deg, within_deg):
 
 def test_damping_level_against_table4():
     """Rough level over all 30 rows: the geometric mean of the bench's d_model / d_table lies
-    between 0.4 and 2. The drop-tower-equivalent d of a sine evaluation approximates the
-    free-decay value (docs/theory.md#damping-measures); for the filler network's friction loss the decays read 30-60 %
-    more d than the bench at their own points, and the joint calibration leaves the decays ~1/3
-    below Table 4 (analysis/README.md), so the bench's level is ~0.45x Table 4's."""
+    between 0.5 and 2. The drop-tower-equivalent d of a sine evaluation approximates the
+    free-decay value (docs/theory.md#damping-measures); the reference coupling reproduces Table
+    4's decays, and the drop tower reads more d than the bench at its own points
+    (docs/theory.md#first-cycle), so the bench's level is ~0.65x Table 4's."""
     table = _table4()
     coupling = load_coupling("rapp2022_nr60")
     d = np.array([_evaluate(coupling, a, f)[1] for a, f in zip(table.amplitude_deg, table.frequency_hz)])
     bias = np.exp(np.mean(np.log(d / table.damping_ratio.to_numpy())))
-    assert 0.4 < bias < 2.0
+    assert 0.5 < bias < 2.0

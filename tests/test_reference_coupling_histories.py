@@ -49,19 +49,20 @@ def test_small_tone_on_a_large_one(coupling):
 
 
 def test_frequency_dependence_of_filled_rubber(coupling):
-    """At 1 deg: K' rises with frequency over 1-60 Hz (the calibrated preset: 0.6 % per decade,
-    below filled rubber's few %: the joint objective leaves the matrix branch little loss, and
-    its rise per decade is tied to its loss, Kramers-Kronig; analysis/README.md gives the
-    trade-off), the loss factor stays nearly flat (within 30 % over the band), and both change
-    smoothly down to 0.01 Hz."""
+    """At 1 deg: K' rises with frequency over 1-60 Hz by a few to tens of % per decade (the
+    matrix branch, a power law spread over 0.3 Hz-3 kHz), the loss factor stays weakly frequency
+    dependent (at 1 Hz at least 0.7x that at ~30 Hz, the reference coupling's criterion; it rises
+    towards 60 Hz as Table 4's damping does: at 1 deg its loss factor is ~20 % higher at 44 Hz
+    than at 23 Hz), and both change smoothly down to 0.01 Hz."""
     freqs = np.geomspace(0.01, 60.0, 16)  # a quarter decade apart
     ss = steady_state(coupling, np.full(freqs.size, np.radians(1.0)), freqs, cycles=2, run_in_cycles=2,
                       simulation_rate_hz=2000.0)
     k, eta = ss.storage_stiffness_nm_per_rad, ss.loss_factor
     band = freqs >= 0.99
     per_decade = (k[band][-1] / k[band][0]) ** (1 / np.log10(60.0)) - 1
-    assert np.all(np.diff(k[band]) > 0) and per_decade <= 0.4
-    assert eta[band].max() / eta[band].min() <= 1.3
+    assert np.all(np.diff(k[band]) > 0) and 0.02 <= per_decade <= 0.4
+    near_30 = np.argmin(np.abs(freqs - 30.0))
+    assert eta[band][0] >= 0.7 * eta[near_30]
     d1 = np.diff(np.log(k))  # smooth: no step between neighbours a quarter decade apart
     assert np.max(np.abs(np.diff(d1))) <= 0.5 * np.max(np.abs(d1))
 

@@ -76,10 +76,15 @@ def rubber_figures(coupling: Coupling, amplitude_rad: float = np.radians(1.5), f
                    low_frequency_hz: float = 1.0) -> dict[str, float]:
     """How rubber-like a coupling's steady state is (the reference coupling's criteria, at 1.5 deg by default):
     ``loss_factor_ratio`` eta(low_frequency_hz) / eta(frequency_hz) (filled rubber: weakly
-    frequency dependent, >= 0.7 from 1 to 30 Hz) and ``third_harmonic_pct``, the torque's third
-    harmonic in percent of its fundamental at (amplitude, frequency_hz) (elliptic loops: small)."""
+    frequency dependent, >= 0.7 from 1 to 30 Hz), ``storage_rise_pct_per_decade``, the mean rise
+    of K' per decade from low_frequency_hz to frequency_hz (filled rubber: a few to tens of %),
+    and ``third_harmonic_pct``, the torque's third harmonic in percent of its fundamental at
+    (amplitude, frequency_hz) (elliptic loops: small)."""
     at = steady_state(coupling, [amplitude_rad], [frequency_hz], harmonics=3)
     low = steady_state(coupling, [amplitude_rad], [low_frequency_hz])
+    decades = np.log10(frequency_hz / low_frequency_hz)
+    rise = (at.storage_stiffness_nm_per_rad[0] / low.storage_stiffness_nm_per_rad[0]) ** (1 / decades) - 1
     return {"loss_factor_ratio": float(low.loss_factor[0] / at.loss_factor[0]),
+            "storage_rise_pct_per_decade": float(100 * rise),
             "third_harmonic_pct": float(100 * at.harmonic_ratio[0, 3]),
             "loss_factor": float(at.loss_factor[0])}
