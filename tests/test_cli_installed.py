@@ -81,7 +81,6 @@ def test_run_servo():
     assert len(rows) == 1 and rows[0]["storage_stiffness_nm_per_deg"] > 0
 
 
-@pytest.mark.slow
 def test_run_simulate_channels_extract(folder):
     log = folder / "t.csv"
     s = json.loads(_ok("simulate", "--coupling", str(folder / "linear.toml"), "--inertia-kgm2", "0.359",
@@ -117,7 +116,6 @@ def test_run_plan_campaign_map_validate(folder):
     assert len(doc["points"]) == 2
 
 
-@pytest.mark.slow
 def test_run_identify_and_compare_models(folder):
     # a sine on the linear coupling: T = k phi + c dphi/dt, sampled at 2048 Hz
     t = np.arange(4096) / 2048.0
