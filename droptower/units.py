@@ -81,6 +81,8 @@ def si_factor(unit: str, kind: str) -> float:
     if not text:
         raise ValueError(f"no unit given (expected a {kind} unit such as {SI_UNITS[kind]})")
     _refuse_ambiguous(unit, text)
+    if text == SI_UNITS[kind]:
+        return 1.0  # already SI (what droptower writes): pint's registry takes a second to build
     import pint
 
     ureg = _registry()

@@ -90,6 +90,24 @@ def test_step_per_sample_equals_simulate():
     assert np.allclose(sum(v[0] for v in per_element.values()), reference.stored_energy_j[:, -1], rtol=1e-12)
 
 
+def test_every_way_of_stepping_reaches_one_compiled_step():
+    """A scalar angle (on one instance a read-only broadcast view), a read-only array, a plain
+    array, a trial and a batch reach the step kernel with one argument type: numba compiles the
+    kernel (every element kind inlined, seconds) once per process, not once per caller."""
+    from droptower.rheology import kernels as K
+
+    coupling, dt = _variant(1.0), 1 / 38400
+    state = coupling.new_state(1)
+    readonly = np.array([0.001])
+    readonly.flags.writeable = False
+    for angle in (0.001, np.float64(0.002), readonly, np.array([0.003])):
+        coupling.step(state, angle, dt)
+    coupling.trial(state, 0.004, dt)
+    stacked = Coupling.stack([_variant(s) for s in (1.0, 0.7)])
+    stacked.step(stacked.new_state(2), 0.001, dt)
+    assert len(K.step_batch.signatures) == 1, K.step_batch.signatures
+
+
 def test_simulate_continues_from_a_state():
     """simulate(first half) then simulate(second half, state) equals simulate(all)."""
     coupling = _variant(1.0)

@@ -9,10 +9,7 @@ import click
 
 from droptower.cli.options import note, quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
-from droptower.design import Target, design_campaign
-from droptower.design.outputs import coverage_description, run_sheet, write_doe
 from droptower.errors import DroptowerError
-from droptower.io.tables import check_table_path, write_table
 
 #: Columns printed as the table (all are in --json).
 TABLE_COLUMNS = ["case", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats", "amplitude_deg",
@@ -95,6 +92,11 @@ def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | Non
       droptower campaign --doe plan.toml --out runs/designed
       droptower design --for-identification template --max-tests 12 --out ident.toml
     """
+    # imported here, not at the top: the design predicts drops on the rig (numba, pymunk, scipy),
+    # which `droptower design --help` and `droptower planner` (importing _preloads) do not need
+    from droptower.design import Target, design_campaign
+    from droptower.design.outputs import coverage_description, run_sheet, write_doe
+    from droptower.io.tables import check_table_path, write_table
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_rig
 
@@ -162,6 +164,8 @@ def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | Non
 def _identification(rig, coupling, target, model: str, n_tests: int, out: str, sheet: str | None, seed: int,
                     as_json: bool) -> None:
     from droptower.design.identification import design_for_identification
+    from droptower.design.outputs import run_sheet, write_doe
+    from droptower.io.tables import write_table
 
     result = design_for_identification(rig, coupling, target, model, n_tests)
     c = result.conditions

@@ -24,6 +24,7 @@ then its exponent (if it has one): the paper's form gets exactly the paper's k1�
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -42,6 +43,13 @@ KINDS: dict[str, tuple[str, str | None, str]] = {
 }
 UNIT_TEXT = {"nm_per_deg": "N*m/deg", "nm_per_deg2": "N*m/deg^2", "per_deg": "1/deg", "per_hz": "1/Hz",
              "nm_per_deg_per_sqrt_hz": "N*m/(deg*sqrt(Hz))", "nm_per_deg_per_hz": "N*m/(deg*Hz)", "s_per_deg": "s/deg"}
+
+
+def _points(a: ArrayLike, f: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitudes and frequencies as float arrays of one shape (broadcast only if they differ:
+    the fits evaluate an equation tens of thousands of times on the same points)."""
+    a, f = np.asarray(a, float), np.asarray(f, float)
+    return (a, f) if a.shape == f.shape else np.broadcast_arrays(a, f)
 
 
 def _variable(kind: str, a: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -68,15 +76,16 @@ class Equation:
         if unknown or not self.terms:
             raise ValueError(f"unknown or no term kinds {unknown} (known: {', '.join(KINDS)})")
 
-    @property
+    # the layout is asked for at every evaluation of a fit (tens of thousands of times): computed once
+    @cached_property
     def linear(self) -> tuple[int, ...]:
         return tuple(self._layout()[0])
 
-    @property
+    @cached_property
     def exponents(self) -> tuple[int, ...]:
         return tuple(self._layout()[1])
 
-    @property
+    @cached_property
     def size(self) -> int:
         return len(self.terms) + sum(KINDS[t][1] is not None for t in self.terms)
 
@@ -100,18 +109,18 @@ class Equation:
 
     def basis(self, exponents: ArrayLike, a: ArrayLike, f: ArrayLike) -> np.ndarray:
         """Columns for fixed exponents: (N, terms), so that value = basis @ factors."""
-        a, f = np.broadcast_arrays(np.asarray(a, float), np.asarray(f, float))
+        a, f = _points(a, f)
         e = iter(np.asarray(exponents, float))
-        cols = []
-        for t in self.terms:
+        cols = np.empty((*a.shape, len(self.terms)))
+        for j, t in enumerate(self.terms):
             x = _variable(t, a, f)
             if t == "sqrt_frequency":
-                cols.append(np.sqrt(x))
+                cols[..., j] = np.sqrt(x)
             elif KINDS[t][1] is not None:
-                cols.append(10.0 ** (-next(e) * x))
+                cols[..., j] = 10.0 ** (-next(e) * x)
             else:
-                cols.append(x)
-        return np.stack(cols, axis=-1)
+                cols[..., j] = x
+        return cols
 
     def value(self, params: ArrayLike, a: ArrayLike, f: ArrayLike) -> np.ndarray:
         p = np.asarray(params, float)
@@ -120,16 +129,16 @@ class Equation:
     def jacobian(self, params: ArrayLike, a: ArrayLike, f: ArrayLike) -> np.ndarray:
         """∂value/∂params at each point: (N, size)."""
         p = np.asarray(params, float)
-        a, f = np.broadcast_arrays(np.asarray(a, float), np.asarray(f, float))
+        a, f = _points(a, f)
         columns = self.basis(p[list(self.exponents)], a, f)
-        out, i = [], 0
+        out, i = np.empty((*a.shape, self.size)), 0
         for j, t in enumerate(self.terms):
-            out.append(columns[..., j])
+            out[..., i] = columns[..., j]
             i += 1
             if KINDS[t][1] is not None:  # d/de of k·10^(−e·x)
-                out.append(-p[i - 1] * LN10 * _variable(t, a, f) * columns[..., j])
+                out[..., i] = -p[i - 1] * LN10 * _variable(t, a, f) * columns[..., j]
                 i += 1
-        return np.stack(out, axis=-1)
+        return out
 
     def text(self, names: list[str]) -> str:
         """The equation with the given parameter names, e.g. ``k1*10^(-k2*a) + k3*sqrt(f)``."""

@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares, nnls
-from scipy.stats import f as f_dist
+# the F distribution's quantile from scipy.special (what scipy.stats.f.ppf computes): importing
+# scipy.stats costs every `droptower map` about a second
+from scipy.special import fdtri
 
 from droptower.maps.forms import Equation
 
@@ -109,7 +111,7 @@ def not_unique_coefficients(solutions: list[Solution], std: np.ndarray, n: int) 
     region SSR ≤ SSR_best·(1 + p/(n−p)·F(p, n−p; 0.95)) (Draper & Smith, nonlinear regression)."""
     best = solutions[0]
     p = best.params.size
-    limit = best.ssr * (1.0 + p / (n - p) * f_dist.ppf(0.95, p, n - p))
+    limit = best.ssr * (1.0 + p / (n - p) * fdtri(p, n - p, 0.95))
     flagged = np.zeros(p, dtype=bool)
     for s in solutions[1:]:
         if s.ssr <= limit:

@@ -165,8 +165,10 @@ class Coupling:
             _check_dt(dt_s)
         x1 = angle_rad
         if not (type(x1) is np.ndarray and x1.dtype == np.float64 and x1.shape == (state.batch,)
-                and x1.flags.c_contiguous):  # the hot path (once per time step) skips the conversion
-            x1 = np.ascontiguousarray(np.broadcast_to(np.asarray(angle_rad, np.float64), (state.batch,)))
+                and x1.flags.c_contiguous and x1.flags.writeable):  # the hot path (once per time step)
+            # a copy, not a view: a broadcast scalar (batch 1) is a read-only contiguous view, and a
+            # read-only argument is another signature numba compiles the whole step kernel for
+            x1 = np.broadcast_to(np.asarray(angle_rad, np.float64), (state.batch,)).copy()
         K.step_batch(self.codes, self.p_off, self.s_off, self.params, state.values, state.angle_rad,
                      x1, float(dt_s), state.torque_nm)
         state.angle_rad[...] = x1

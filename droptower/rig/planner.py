@@ -63,13 +63,16 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
     lever = LeverDecay(coupling, twist.state.copy(), inertia_kgm2, rate0_rad_per_s, dt_s, SYMPLECTIC_EULER, screw)
     a_parts, t_parts = [np.zeros((screw.size, 1))], [screw[:, None].copy()]
     n_max = int(math.ceil(MAX_DECAY_S / dt_s))
+    period = np.full(screw.size, np.nan)
     while True:
         a_chunk, t_chunk = lever.advance(CHUNK_STEPS)
         a_parts.append(a_chunk)
         t_parts.append(t_chunk)
         angle = np.concatenate(a_parts, axis=1)
         time = np.arange(angle.shape[1]) * dt_s
-        period = first_period(time, angle)
+        # a first period found stays what it is as the record grows: look only where none is yet
+        todo = np.isnan(period)
+        period[todo] = first_period(time, angle[todo])
         done = np.all(np.isfinite(period)) and time[-1] >= max(min_duration_s, periods * float(np.max(period)))
         if done or angle.shape[1] > n_max:
             break
@@ -141,9 +144,13 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     twist = pretwist(coupling, preload, rig.simulation.preload_ramp_s, rig.simulation.preload_hold_s)
     rig.check_time_step(coupling, J, twist.angle_rad, iv.impact_m_per_s)  # the decay is stepped like the scene
     decay = free_decay(coupling, J, iv.rate_after_rad_per_s, twist, rig.dt_s, periods=VIEW_PERIODS)
-    t, a = decay.time_s, decay.angle_rad
     period = decay.period_s
-    horizon = np.where(np.isfinite(period), period, t[-1])
+    horizon = np.where(np.isfinite(period), period, decay.time_s[-1])
+    # what follows reads each decay up to its horizon (and the sample after it, where a second
+    # impact's crossing is interpolated): the decay runs on to VIEW_PERIODS of the longest period
+    # for the extractor's view, so the rest is cut off here rather than masked everywhere
+    n = min(int(np.searchsorted(decay.time_s, np.max(horizon), side="right")) + 1, decay.time_s.size)
+    t, a, torque = decay.time_s[:n], decay.angle_rad[:, :n], decay.torque_nm[:, :n]
     in_period = t[None, :] <= horizon[:, None]
 
     # peaks of the first cycle
@@ -153,9 +160,10 @@ def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_
     p1, p2 = a[rows, first], a[rows, second]
     t1 = t[first]
     # what the extractor will report: its fit over the first cycle (eq. 13-18)
-    seen = np.array([extractor_view(t, a[i], period[i], duration_s) for i in range(len(cond))]).reshape(len(cond), 3)
+    seen = np.array([extractor_view(decay.time_s, decay.angle_rad[i], period[i], duration_s)
+                     for i in range(len(cond))]).reshape(len(cond), 3)
     delta, omega = seen[:, 1], seen[:, 2]
-    peak_torque = np.max(np.where(in_period, np.abs(decay.torque_nm), 0.0), axis=1)
+    peak_torque = np.max(np.where(in_period, np.abs(torque), 0.0), axis=1)
 
     # second impact: drop mass in free flight against the lever tip, within the first period
     x1 = drop_mass_path(iv.drop_mass_after_m_per_s[:, None], t[None, :], g)
