@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from droptower.rheology.numba_cache import cache_available
+from droptower.rheology.numba_cache import cache_available, parallel_twin, prefer_fork_safe_threads
 
 # kernel codes
 LINEAR_SPRING = 0
@@ -43,6 +43,7 @@ MAXWELL_BANK = 10
 N_HEADER = 3  # stored, dissipated, torque
 
 CACHE = cache_available()  # False where no cache folder is writable: compiled at every start instead
+prefer_fork_safe_threads()
 JIT = dict(cache=CACHE, nogil=True, fastmath=False, error_model="numpy")
 
 
@@ -931,4 +932,4 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
 # there) and a parallel history runner that spreads a large batch over the cores.
 step_batch = njit(**JIT)(_step_batch)
 run_history = njit(**JIT)(_run_history)
-run_history_parallel = njit(parallel=True, **JIT)(_run_history)
+run_history_parallel = njit(parallel=True, **JIT)(parallel_twin(_run_history))  # its own cache entry

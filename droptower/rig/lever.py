@@ -27,6 +27,7 @@ from numba import njit, prange
 from droptower.rheology import Coupling, CouplingState
 from droptower.rheology import kernels as K
 from droptower.rheology.coupling import PARALLEL_BATCH
+from droptower.rheology.numba_cache import parallel_twin
 
 SYMPLECTIC_EULER = 0
 VERLET = 1
@@ -68,7 +69,7 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
 # serial for small batches (a plan's few conditions: cheaper to compile, and a thread pool costs
 # more than it gives there), parallel for large ones (the candidates of an identification)
 _decay_steps_serial = njit(**K.JIT)(_decay_steps)
-_decay_steps_parallel = njit(parallel=True, **K.JIT)(_decay_steps)
+_decay_steps_parallel = njit(parallel=True, **K.JIT)(parallel_twin(_decay_steps))  # its own cache entry
 
 
 class LeverDecay:
