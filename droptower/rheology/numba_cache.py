@@ -65,8 +65,8 @@ def parallel_twin(func: Callable) -> Callable:
     ``parallel=True`` beside a serial build of ``func``.
 
     numba's cache files are named after the function's qualified name and first line and do
-    not tell a parallel build from a serial one of the same function (numba issue #6845):
-    whichever was compiled first was loaded for both, so the parallel build ran serially (or a
+    not tell a parallel build from a serial one of the same function (its cache key leaves the
+    ``parallel`` flag out): whichever was compiled first was loaded for both, so the parallel build ran serially (or a
     serial caller ran the parallel one). The twin has its own name, hence its own cache entry.
     """
     import types
