@@ -38,7 +38,7 @@ from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, clip_to_bounds, fit_rows
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
@@ -286,6 +286,7 @@ class DropIdentification:
             "search": self.search})
 
 
+@one_blas_thread
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
                    settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,

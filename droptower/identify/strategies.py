@@ -16,7 +16,7 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.stages import Setup, result_of, setup
-from droptower.identify.fit import Identification, Parameter, least_squares_fit, simulate
+from droptower.identify.fit import Identification, Parameter, least_squares_fit, one_blas_thread, simulate
 from droptower.identify.noise import NoiseFloor, servo_noise
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
@@ -32,6 +32,7 @@ CANDIDATES_PER_PARAMETER = 16
 MIN_CANDIDATES = 64
 
 
+@one_blas_thread
 def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | None = None,
              bounds: dict[str, tuple[float, float]] | None = None, options: dict[str, Any] | None = None,
              holdout: list[Segment] | None = None, previous: dict[str, Identification] | None = None,
