@@ -99,7 +99,8 @@ def result_text(ident: Identification) -> str:
         lines.append(f"coupling: {ident.coupling_note}")
     if "global_search" in ident.extra:
         g = ident.extra["global_search"]
-        lines.append(f"global search: {g['candidates']} candidates over the bounds, least squares from the best "
+        lines.append(f"global search{' of ' + g['through'] + ', then this model from it' if 'through' in g else ''}: "
+                     f"{g['candidates']} candidates over the bounds, least squares from the best "
                      f"{g['local_fits']}" + (f" (the staged fit: nRMSE {100 * ident.extra['staged_fit']['nrmse']:.3f} %)"
                                              if "staged_fit" in ident.extra else ""))
     if ident.verdict:
