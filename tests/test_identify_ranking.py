@@ -183,3 +183,22 @@ def test_data_of_each_family_rank_that_family_first(kind):
         table = ranking_table(fits, data)
         assert table["model"].iloc[0] == kind, table.to_string()
         assert fits[kind].verdict.verdict == GOOD
+
+
+@pytest.mark.slow
+def test_zerodim20_starts_from_zerodim6_with_its_global_search():
+    """zerodim6-type data (the first zerodim6 draw above) whose staged six-parameter fit ends in
+    a local minimum: zerodim20 starts from zerodim6 identified as the command line does (its
+    global search included), so its 20-parameter fit starts in the right basin, converges and
+    is a good fit; no global search over its own 20 parameters follows."""
+    from random_couplings import random_truth
+
+    from droptower.identify import identify
+    from droptower.rheology import parse_coupling
+
+    data = _servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
+    result = identify("zerodim20", data)
+    start = result.extra["start"]
+    assert start["family"] == "zerodim6" and start["global_search"] and start["staged_fit"]["verdict"] == POOR
+    assert result.converged and result.verdict.verdict == GOOD and "global_search" not in result.extra
+    assert result.fit.nrmse <= start["nrmse"] * (1 + 1e-9)  # it contains the six-parameter model

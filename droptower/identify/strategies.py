@@ -77,7 +77,12 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     noise = servo_noise(segments)
     result.verdict = servo_verdict(result, noise, s.family.parameters)
     # a start that the contained family's global search gave already: searching through it again repeats it
-    searched_start = bool(inner) and "global_search" in (previous or {}).get(inner, result).extra
+    searched_start = False
+    if inner and inner in (previous or {}):
+        first = previous[inner]
+        searched_start = "global_search" in first.extra
+        result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
+                                 **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {})}
     if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed)
         searched.verdict = servo_verdict(searched, noise, s.family.parameters)
@@ -119,8 +124,9 @@ def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0
         return np.array([np.concatenate([(t - seg.torque_nm)[m] for t, seg, m in zip(per, segments, masks)])
                          for per in per_row])
 
-    def local(x: np.ndarray):
-        return least_squares_fit(fam, segments, x, free=free, stage="global search: joint", max_nfev=s.max_nfev)
+    def local(x: np.ndarray, tol: float):
+        return least_squares_fit(fam, segments, x, free=free, stage="global search: joint", max_nfev=s.max_nfev,
+                                 tol=tol)
 
     n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
     best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
