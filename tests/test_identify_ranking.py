@@ -148,37 +148,20 @@ def test_verdict_against_the_noise_floor_and_bounds():
 COMPETITOR = {"zerodim6": "masing", "pfeffer": "zerodim6", "masing": "zerodim6", "elastoslide": "masing"}
 
 
-def _servo_records(truth, seed):
-    """The zero-dimensional model paper's test types in short (about 9 s at 2048 Hz) with 0.5 % white noise."""
-    from droptower.servo import histories as H
-
-    fs, d = 2048.0, np.radians
-    hs = {"ramps": H.ramps(d(3.0), d(4.0), fs),
-          "frequency_sweep": H.frequency_sweep([5.0, 10.0, 15.0, 20.0, 25.0], d(1.0), fs, run_in_cycles=2, cycles=2),
-          "amplitude_sweep": H.amplitude_sweep(d(np.array([0.3, 1.0, 2.0, 3.0])), 15.0, fs, run_in_cycles=2,
-                                               cycles=2),
-          "random": H.random_profile(d(1.0), (0.5, 25.0), 5.0, fs, seed=11)}
-    rng = np.random.default_rng(seed)
-    torques = {k: truth.respond(h.angle_rad, h.dt_s) for k, h in hs.items()}
-    sigma = 0.005 * max(np.abs(t).max() for t in torques.values())
-    return [make_segment(h.time_s, h.angle_rad, torques[k] + rng.normal(0, sigma, torques[k].size), name=k)
-            for k, h in hs.items()]
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(COMPETITOR))
 def test_data_of_each_family_rank_that_family_first(kind):
     """Two random parameter sets of each family (seeded, from the benchmark's wide ranges):
     the true family ranks first against its strongest competitor (each identified as the
     command line does: the staged strategy, the global search where that fit is poor)."""
-    from random_couplings import random_truth
+    from random_couplings import random_truth, servo_records
 
     from droptower.identify import identify
     from droptower.rheology import parse_coupling
 
     for i in range(2):
         truth = parse_coupling(random_truth(kind, np.random.default_rng(500 + i)))
-        data = _servo_records(truth, i)
+        data = servo_records(truth, i)
         fits = {k: identify(k, data) for k in (kind, COMPETITOR[kind])}
         table = ranking_table(fits, data)
         assert table["model"].iloc[0] == kind, table.to_string()
@@ -191,12 +174,12 @@ def test_zerodim20_starts_from_zerodim6_with_its_global_search():
     a local minimum: zerodim20 starts from zerodim6 identified as the command line does (its
     global search included), so its 20-parameter fit starts in the right basin, converges and
     is a good fit; no global search over its own 20 parameters follows."""
-    from random_couplings import random_truth
+    from random_couplings import random_truth, servo_records
 
     from droptower.identify import identify
     from droptower.rheology import parse_coupling
 
-    data = _servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
+    data = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
     result = identify("zerodim20", data)
     start = result.extra["start"]
     assert start["family"] == "zerodim6" and start["global_search"] and start["staged_fit"]["verdict"] == POOR

@@ -486,7 +486,9 @@ class Identification:
 
     @property
     def evaluations(self) -> int:
-        return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0))
+        # the start another family's identification gave, where it ran for this one (zerodim20's zerodim6)
+        start = int(self.extra.get("start", {}).get("evaluations", 0))
+        return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0)) + start
 
     @property
     def nfev(self) -> int:

@@ -67,7 +67,8 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     if search not in SEARCH_MODES:
         raise DroptowerError(f"search must be one of {', '.join(SEARCH_MODES)}, got {search!r}")
     inner = SEARCH_THROUGH.get(kind)
-    if inner and not (previous or {}).get(inner) and not s.given.all():
+    start_here = bool(inner) and not (previous or {}).get(inner) and not s.given.all()
+    if start_here:
         # the start: the contained family identified as the command line does, its global
         # search included where its staged fit is poor (a poor start would only make the
         # larger model's local fit crawl until its evaluation limit)
@@ -82,7 +83,8 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
         first = previous[inner]
         searched_start = "global_search" in first.extra
         result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
-                                 **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {})}
+                                 **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {}),
+                                 **({"evaluations": first.evaluations} if start_here else {})}
     if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed)
         searched.verdict = servo_verdict(searched, noise, s.family.parameters)
