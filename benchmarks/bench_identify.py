@@ -35,7 +35,7 @@ The 20-parameter model on stepped sines (``--zerodim20`` runs only this):
    draw ``random_truth("zerodim6", default_rng(1))``), one record per amplitude 0.3 / 1 / 2 deg
    and frequency 2 / 8 / 20 Hz, and on the short test-type records of the ranking test's first
    zerodim6 draw (``random_truth("zerodim6", default_rng(500))``, ``servo_records(truth, 0)``),
-   whose staged six-parameter fit ends in a local minimum: the time per fit as
+   whose branch stages end far from the joint optimum: the time per fit as
    ``compare-models`` runs it (starting from the six-parameter fit on the same records) and
    alone (``identify --model zerodim20``: the six-parameter model identified first), wall and
    CPU, evaluations, verdict (target <= 60 s on the CI machine, ~1.4x slower: <= 40 s here);
@@ -192,7 +192,8 @@ def table2() -> dict[str, float]:
 
 def zerodim20_data() -> dict[str, list]:
     """Item 8's data sets: stepped-sine bench records of a random zerodim6-type coupling, and
-    the ranking test's first zerodim6 draw, whose staged six-parameter fit ends in a local minimum."""
+    the ranking test's first zerodim6 draw, whose branch stages end far from the joint optimum
+    (from there the joint fits of zerodim6 and zerodim20 crawled to their evaluation limits)."""
     from droptower.servo.bench import run_records
 
     truth = parse_coupling(random_truth("zerodim6", np.random.default_rng(1)))
@@ -203,7 +204,7 @@ def zerodim20_data() -> dict[str, list]:
                             name=f"{np.degrees(r.amplitude_rad):.3g} deg {r.frequency_hz:g} Hz") for r in recs]
     poor_start = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
     return {"stepped sines (9 bench records, 0.3/1/2 deg x 2/8/20 Hz)": stepped,
-            "test types, staged zerodim6 start poor (ranking test's draw)": poor_start}
+            "test types whose zerodim6 branch stages end far off (ranking test's draw)": poor_start}
 
 
 def zerodim20_fits() -> dict[str, dict[str, float]]:
