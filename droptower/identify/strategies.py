@@ -72,19 +72,14 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
         # the start: the contained family identified as the command line does, its global
         # search included where its staged fit is poor (a poor start would only make the
         # larger model's local fit crawl until its evaluation limit)
-        common = {k: v for k, v in s.family.options.items() if k in COMMON_OPTIONS}
-        previous = {**(previous or {}), inner: identify(inner, segments, options=common, search=search, seed=seed)}
+        previous = {**(previous or {}), inner: identify(inner, segments, options=_common_options(s.family),
+                                                        search=search, seed=seed)}
     result = STRATEGIES[kind](s, segments, start, previous=previous)
     noise = servo_noise(segments)
     result.verdict = servo_verdict(result, noise, s.family.parameters)
+    first = (previous or {}).get(inner) if inner else None
     # a start that the contained family's global search gave already: searching through it again repeats it
-    searched_start = False
-    if inner and inner in (previous or {}):
-        first = previous[inner]
-        searched_start = "global_search" in first.extra
-        result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
-                                 **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {}),
-                                 **({"evaluations": first.evaluations} if start_here else {})}
+    searched_start = first is not None and "global_search" in first.extra
     if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed)
         searched.verdict = servo_verdict(searched, noise, s.family.parameters)
@@ -93,6 +88,10 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
             result = searched
         else:
             result.extra["global_search"] = searched.extra["global_search"]
+    if first is not None:
+        result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
+                                 **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {}),
+                                 **({"evaluations": first.evaluations} if start_here else {})}
     if holdout:
         result.evaluate_holdout(holdout)
     result.time_s = time.perf_counter() - start
@@ -142,9 +141,8 @@ def search_through(s: Setup, segments: list[Segment], start: float, seed: int = 
     the contained family's global search, then the family's own strategy from that result
     (the user's initial values, bounds and options kept)."""
     fam = s.family
-    common = {k: v for k, v in fam.options.items() if k in COMMON_OPTIONS}
-    inner = global_search(setup(family_class(SEARCH_THROUGH[fam.kind]), segments, options=common), segments, start,
-                          seed)
+    inner = global_search(setup(family_class(SEARCH_THROUGH[fam.kind]), segments, options=_common_options(fam)),
+                          segments, start, seed)
     init = {n: v for n, v, given in zip(fam.names, s.x0, s.given) if given}
     bounds = {p.name: (p.lower, p.upper) for p, user in zip(fam.parameters, s.bounded) if user}
     fresh = setup(type(fam), segments, init, bounds, fam.options)  # the strategy narrows bounds around its start
@@ -152,6 +150,11 @@ def search_through(s: Setup, segments: list[Segment], start: float, seed: int = 
     result.extra["global_search"] = {**inner.extra["global_search"], "through": inner.family}
     result.extra["search_evaluations"] = inner.evaluations
     return result
+
+
+def _common_options(family) -> dict[str, Any]:
+    """The options of ``family`` every family takes (for the family it contains)."""
+    return {k: v for k, v in family.options.items() if k in COMMON_OPTIONS}
 
 
 def _admissible(fam, row: np.ndarray) -> bool:
