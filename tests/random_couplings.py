@@ -1,6 +1,7 @@
-"""Couplings of the identification's families drawn at random (shared by the tests and
-``benchmarks/bench_identify.py``), and short servo records of them: wide ranges that keep the drop tower's first-cycle
-frequencies at 15-80 Hz for the rig's inertias (0.156-0.523 kg*m^2) with a few cycles of decay."""
+"""Couplings of the identification's families drawn at random, and short servo records of
+them (shared by the tests and ``benchmarks/bench_identify.py``): wide ranges that keep the drop
+tower's first-cycle frequencies at 15-80 Hz for the rig's inertias (0.156-0.523 kg*m^2) with a
+few cycles of decay."""
 from __future__ import annotations
 
 import numpy as np
