@@ -28,6 +28,19 @@ Identification from drop tests (``--drops`` runs only these, ``--servo`` only th
    --template rapp2022_nr60`` (target <= 5 min on two cores);
 6. baseline measured in the same run: the rig simulating the same tests (pymunk, one batch).
 
+The 20-parameter model on stepped sines (``--zerodim20`` runs only this):
+
+8. ``zerodim20`` on the virtual bench's stepped-sine records (simulated on its fine step,
+   sampled at 2048 Hz, 0.5 % white noise) of a random zerodim6-type coupling (the benchmark's
+   draw ``random_truth("zerodim6", default_rng(1))``), one record per amplitude 0.3 / 1 / 2 deg
+   and frequency 2 / 8 / 20 Hz, and on the short test-type records of the ranking test's first
+   zerodim6 draw (``random_truth("zerodim6", default_rng(500))``, ``servo_records(truth, 0)``),
+   whose branch stages end far from the joint optimum: the time per fit as
+   ``compare-models`` runs it (starting from the six-parameter fit on the same records) and
+   alone (``identify --model zerodim20``: the six-parameter model identified first), wall and
+   CPU, evaluations, verdict (target <= 60 s on the CI machine, ~1.4x slower: <= 40 s here);
+   baseline measured in the same run: the six-parameter fit (``zerodim6``) on the same records.
+
 Randomised acceptance (``--random [--n N] [--families a,b]``; N = 30 per family by default):
 
 7. per family (zerodim6, elastoslide, masing, pfeffer, and the reference coupling
@@ -177,10 +190,59 @@ def table2() -> dict[str, float]:
             "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"]}
 
 
+def zerodim20_data() -> dict[str, list]:
+    """Item 8's data sets: stepped-sine bench records of a random zerodim6-type coupling, and
+    the ranking test's first zerodim6 draw, whose branch stages end far from the joint optimum
+    (from there the joint fits of zerodim6 and zerodim20 crawled to their evaluation limits)."""
+    from droptower.servo.bench import run_records
+
+    truth = parse_coupling(random_truth("zerodim6", np.random.default_rng(1)))
+    recs = run_records(truth, D([0.3, 1.0, 2.0]), [2.0, 8.0, 20.0])
+    rng = np.random.default_rng(0)
+    sigma = 0.005 * max(np.abs(r.torque_nm).max() for r in recs)
+    stepped = [make_segment(r.time_s, r.angle_rad, r.torque_nm + rng.normal(0, sigma, r.torque_nm.size),
+                            name=f"{np.degrees(r.amplitude_rad):.3g} deg {r.frequency_hz:g} Hz") for r in recs]
+    poor_start = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
+    return {"stepped sines (9 bench records, 0.3/1/2 deg x 2/8/20 Hz)": stepped,
+            "test types whose zerodim6 branch stages end far off (ranking test's draw)": poor_start}
+
+
+def zerodim20_fits() -> dict[str, dict[str, float]]:
+    """Item 8: zerodim20 as compare-models runs it and alone, against the zerodim6 fit."""
+    sets = zerodim20_data()
+    identify("zerodim20", next(iter(sets.values()))[-1:], search="never")  # compile/load the kernels first
+    figures = {}
+    for label, data in sets.items():
+        def timed(kind, **kw):
+            w0, c0 = time.perf_counter(), time.process_time()
+            result = identify(kind, data, **kw)
+            wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+            search = result.extra.get("global_search")
+            print(f"  {kind}{' (alone)' if kind == 'zerodim20' and not kw else ''}: {wall:.1f} s wall / {cpu:.1f} s "
+                  f"CPU, {result.evaluations} evaluations, converged {result.converged}, {result.verdict.verdict} "
+                  f"(fit nRMSE {100 * result.fit.nrmse:.3f} %, {result.verdict.error_over_noise:.2f} x the noise)"
+                  + (f", global search: {search['candidates']} candidates, {search['local_fits']} local fits"
+                     if search else ""))
+            return result, wall, cpu
+
+        print(f"zerodim20 on {label}: {sum(s.n for s in data) / FS:.1f} s at {FS:g} Hz")
+        six, wall6, cpu6 = timed("zerodim6")
+        rich, wall20, cpu20 = timed("zerodim20", previous={"zerodim6": six})
+        alone, wall_alone, cpu_alone = timed("zerodim20")
+        print(f"  time per zerodim20 fit {wall20:.1f} s (compare-models) / {wall_alone:.1f} s (alone); baseline: the "
+              f"zerodim6 fit {wall6:.1f} s -> ratio {wall20 / wall6:.1f} / {wall_alone / wall6:.1f}; target <= 40 s "
+              f"here (60 s on CI): {'met' if max(wall20, wall_alone) <= 40 else 'MISSED'}")
+        figures[label] = {"zerodim20_wall_s": wall20, "zerodim20_cpu_s": cpu20, "zerodim20_alone_wall_s": wall_alone,
+                          "zerodim20_alone_cpu_s": cpu_alone, "zerodim20_evaluations": rich.evaluations,
+                          "zerodim20_alone_evaluations": alone.evaluations, "zerodim6_wall_s": wall6,
+                          "zerodim6_cpu_s": cpu6}
+    return figures
+
+
 # ---------------------------------------------------------------------------- randomised acceptance
 RANDOM_FAMILIES = ("zerodim6", "elastoslide", "masing", "pfeffer", "template")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from random_couplings import REFERENCE, random_truth  # noqa: E402  (shared with the tests)
+from random_couplings import REFERENCE, random_truth, servo_records  # noqa: E402  (shared with the tests)
 def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True, first: int = 0) -> None:
     import tempfile
 
@@ -261,12 +323,16 @@ def main() -> None:
     parser.add_argument("--drops", action="store_true", help="only the drop-test identification")
     parser.add_argument("--servo", action="store_true", help="only the servo-record identification")
     parser.add_argument("--random", action="store_true", help="only the randomised acceptance (items 7)")
+    parser.add_argument("--zerodim20", action="store_true", help="only zerodim20 on stepped sines (item 8)")
     parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
     parser.add_argument("--families", default=",".join(RANDOM_FAMILIES), help="families of --random")
     parser.add_argument("--first", type=int, default=0, help="index of the first random coupling (--random)")
     json_option(parser)
     args = parser.parse_args()
     figures = {}
+    if args.zerodim20:
+        write_figures(args.json, "bench_identify", {"zerodim20": zerodim20_fits()})
+        return
     if args.random:
         random_acceptance(args.n, [f.strip() for f in args.families.split(",") if f.strip()],
                           servo=not args.drops, drops_=not args.servo, first=args.first)
@@ -316,6 +382,8 @@ def main() -> None:
 
     figures["servo"] = {"seconds_of_data": seconds, "zerodim6_wall_s": wall6, "zerodim6_evaluations": r6.evaluations,
                         "elastoslide_wall_s": wall_es, "elastoslide_evaluations": r_es.evaluations}
+    if not args.quick:
+        figures["zerodim20"] = zerodim20_fits()
     write_figures(args.json, "bench_identify", figures)
     if not args.quick:
         print(f"targets: zerodim6 {wall6:.2f} s <= 10 s: {'met' if wall6 <= 10 else 'MISSED'}; "

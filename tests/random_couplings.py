@@ -1,6 +1,7 @@
-"""Couplings of the identification's families drawn at random (shared by the tests and
-``benchmarks/bench_identify.py``): wide ranges that keep the drop tower's first-cycle
-frequencies at 15-80 Hz for the rig's inertias (0.156-0.523 kg*m^2) with a few cycles of decay."""
+"""Couplings of the identification's families drawn at random, and short servo records of
+them (shared by the tests and ``benchmarks/bench_identify.py``): wide ranges that keep the drop
+tower's first-cycle frequencies at 15-80 Hz for the rig's inertias (0.156-0.523 kg*m^2) with a
+few cycles of decay."""
 from __future__ import annotations
 
 import numpy as np
@@ -76,3 +77,23 @@ def _draw(kind: str, rng) -> dict:
         c = fam.coupling(factors)
         return {"name": "random_template", "element": [e.model_dump(exclude_none=True) for e in c.elements]}
     raise ValueError(kind)
+
+
+def servo_records(truth, seed: int) -> list:
+    """The zero-dimensional model paper's test types in short (slow ramps, a frequency and an
+    amplitude sweep, a band-limited random profile: about 9 s at 2048 Hz) driving ``truth``,
+    with 0.5 % white noise (seeded) on the torque."""
+    from droptower.identify.data import make_segment
+    from droptower.servo import histories as H
+
+    fs, d = 2048.0, np.radians
+    hs = {"ramps": H.ramps(d(3.0), d(4.0), fs),
+          "frequency_sweep": H.frequency_sweep([5.0, 10.0, 15.0, 20.0, 25.0], d(1.0), fs, run_in_cycles=2, cycles=2),
+          "amplitude_sweep": H.amplitude_sweep(d(np.array([0.3, 1.0, 2.0, 3.0])), 15.0, fs, run_in_cycles=2,
+                                               cycles=2),
+          "random": H.random_profile(d(1.0), (0.5, 25.0), 5.0, fs, seed=11)}
+    rng = np.random.default_rng(seed)
+    torques = {k: truth.respond(h.angle_rad, h.dt_s) for k, h in hs.items()}
+    sigma = 0.005 * max(np.abs(t).max() for t in torques.values())
+    return [make_segment(h.time_s, h.angle_rad, torques[k] + rng.normal(0, sigma, torques[k].size), name=k)
+            for k, h in hs.items()]

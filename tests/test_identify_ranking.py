@@ -148,38 +148,46 @@ def test_verdict_against_the_noise_floor_and_bounds():
 COMPETITOR = {"zerodim6": "masing", "pfeffer": "zerodim6", "masing": "zerodim6", "elastoslide": "masing"}
 
 
-def _servo_records(truth, seed):
-    """The zero-dimensional model paper's test types in short (about 9 s at 2048 Hz) with 0.5 % white noise."""
-    from droptower.servo import histories as H
-
-    fs, d = 2048.0, np.radians
-    hs = {"ramps": H.ramps(d(3.0), d(4.0), fs),
-          "frequency_sweep": H.frequency_sweep([5.0, 10.0, 15.0, 20.0, 25.0], d(1.0), fs, run_in_cycles=2, cycles=2),
-          "amplitude_sweep": H.amplitude_sweep(d(np.array([0.3, 1.0, 2.0, 3.0])), 15.0, fs, run_in_cycles=2,
-                                               cycles=2),
-          "random": H.random_profile(d(1.0), (0.5, 25.0), 5.0, fs, seed=11)}
-    rng = np.random.default_rng(seed)
-    torques = {k: truth.respond(h.angle_rad, h.dt_s) for k, h in hs.items()}
-    sigma = 0.005 * max(np.abs(t).max() for t in torques.values())
-    return [make_segment(h.time_s, h.angle_rad, torques[k] + rng.normal(0, sigma, torques[k].size), name=k)
-            for k, h in hs.items()]
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(COMPETITOR))
 def test_data_of_each_family_rank_that_family_first(kind):
     """Two random parameter sets of each family (seeded, from the benchmark's wide ranges):
     the true family ranks first against its strongest competitor (each identified as the
     command line does: the staged strategy, the global search where that fit is poor)."""
-    from random_couplings import random_truth
+    from random_couplings import random_truth, servo_records
 
     from droptower.identify import identify
     from droptower.rheology import parse_coupling
 
     for i in range(2):
         truth = parse_coupling(random_truth(kind, np.random.default_rng(500 + i)))
-        data = _servo_records(truth, i)
+        data = servo_records(truth, i)
         fits = {k: identify(k, data) for k in (kind, COMPETITOR[kind])}
         table = ranking_table(fits, data)
         assert table["model"].iloc[0] == kind, table.to_string()
         assert fits[kind].verdict.verdict == GOOD
+
+
+@pytest.mark.slow
+def test_a_poor_staged_start_gives_way_to_the_first_guess_and_zerodim20_follows_zerodim6():
+    """zerodim6-type data (the first zerodim6 draw above) whose branch stages end far from the
+    joint optimum (the slow ramps excite the fast branch too): the joint fit starts from the
+    first guess instead (their costs on all data compared in one call), converges and is a good
+    fit without a global search (from the staged values it used to crawl to its evaluation
+    limit and end poor). zerodim20 starts from zerodim6 identified so, counts those
+    evaluations, and its global search runs through zerodim6's (not over its 20 parameters)."""
+    from random_couplings import random_truth, servo_records
+
+    from droptower.identify import identify
+    from droptower.rheology import parse_coupling
+
+    data = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
+    six = identify("zerodim6", data)
+    assert six.extra["joint_start"] == "first guess" and six.converged and six.verdict.verdict == GOOD
+    assert "global_search" not in six.extra
+    rich = identify("zerodim20", data)
+    assert rich.extra["start"]["family"] == "zerodim6" and rich.extra["start"]["nrmse"] == pytest.approx(six.fit.nrmse)
+    assert rich.evaluations > rich.extra["start"]["evaluations"] == six.evaluations
+    assert rich.converged and rich.verdict.verdict == GOOD and rich.fit.nrmse <= six.fit.nrmse * (1 + 1e-9)
+    searched = identify("zerodim20", data[1:3], search="always")  # the two sweeps: a short search
+    assert searched.extra["global_search"]["through"] == "zerodim6" and searched.converged

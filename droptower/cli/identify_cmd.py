@@ -128,7 +128,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     hold-out data, the residual's lag-1 correlation and the effort. A fit that does not
     converge is reported and nothing is written (exit code 2). Where the staged fit is poor,
     a global search (Latin-hypercube candidates over the whole bounds, least squares from the
-    best three) follows and the better fit is kept.
+    best three) follows and the better fit is kept; zerodim20 starts from zerodim6 identified
+    first, and its global search is zerodim6's followed by its 20-parameter fit.
 
     The verdict: the fit's RMS error against the data's noise floor (estimated without a
     model: the residual of a local polynomial smoothing of the torque; for drop tests the angle's

@@ -38,7 +38,7 @@ from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, clip_to_bounds, fit_rows
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
@@ -286,6 +286,7 @@ class DropIdentification:
             "search": self.search})
 
 
+@one_blas_thread
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
                    settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
@@ -338,7 +339,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         angle_rss_rad2=rss, angle_samples=n_samples)
 
 
-def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int) -> Any:
+def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int, tol: float = TOL) -> Any:
     """The elastoslide's odd exponent p: walk over ``p_candidates`` from the fitted one while the
     cost falls (as the servo strategy does). Moving to p', v_r moves so that the slip-rate law
     (v / v_r)^(1/p) keeps its value at the campaign's typical rate."""
@@ -363,7 +364,7 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_n
                 x[jv] = v_typ * (x[jv] / v_typ) ** (p_new / p_old)
                 x[jp] = p_new
                 fits[p_new] = fit_rows(family.parameters, clip_to_bounds(family.parameters, x), objective,
-                                       free=sol.free, max_nfev=max_nfev, tol=TOL)
+                                       free=sol.free, max_nfev=max_nfev, tol=tol)
             if cost(fits[p_new]) >= cost(here):
                 break
             here = fits[p_new]
@@ -384,11 +385,11 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     n_free = int(free.sum())
     choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
 
-    def local(start: np.ndarray) -> Any:
+    def local(start: np.ndarray, tol: float) -> Any:
         objective = problem.with_prior(start, free)
-        sol = fit_rows(params, start, objective, free=free, max_nfev=settings.max_nfev, tol=TOL)
-        if choices:
-            sol = walk_p(problem, family, sol, objective, settings.max_nfev)
+        sol = fit_rows(params, start, objective, free=free, max_nfev=settings.max_nfev, tol=tol)
+        if choices and tol > TOL:  # p is walked while the starts compete; the winner's refinement keeps it
+            sol = walk_p(problem, family, sol, objective, settings.max_nfev, tol)
         return sol
 
     n = max(MIN_STARTS, STARTS_PER_PARAMETER * n_free) * (ESCALATION if escalate else 1)
@@ -400,7 +401,7 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     else:
         search = problem
     best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n,
-                               keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate,
+                               keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate, tol=TOL,
                                choices=choices, local=local, near=n // 4)
     problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, {**summary, "search_tests": len(search.decays)}

@@ -18,6 +18,7 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
@@ -26,6 +27,14 @@ from droptower.rheology import Coupling
 
 #: Histories up to this factor longer than the shortest of a call share it (padding waste).
 PAD_FACTOR = 1.5
+
+#: The linear algebra of a fit on ONE thread (a decorator). The cores belong to the core's
+#: batched simulations; a fit's matrices are tall and narrow (residuals x parameters, e.g.
+#: 50 000 x 20), which threads hardly speed up, while a BLAS thread pool whose threads wait for
+#: a busy core stalls every call: the SVD that each trust-region step takes of such a Jacobian
+#: took 0.03 s on one thread and 0.4 s on two with both cores busy (measured on the
+#: project's 2-core machine), more than the simulations of the step.
+one_blas_thread = threadpool_limits.wrap(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True)
@@ -242,6 +251,7 @@ def at_bounds(parameters: list[Parameter], values: np.ndarray, rel: float = 1e-6
     return out
 
 
+@one_blas_thread
 def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray, *, free: np.ndarray | None = None,
                       stage: str = "joint", max_nfev: int | None = None, tol: float = 1e-7,
                       per_segment: np.ndarray | None = None) -> FitResult:
@@ -369,6 +379,7 @@ class RowsFit:
 NON_IDENTIFIABLE = 1e-4
 
 
+@one_blas_thread
 def fit_rows(parameters: list[Parameter], initial: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
              free: np.ndarray | None = None, max_nfev: int | None = None, tol: float = 1e-7) -> RowsFit:
     """Bounded trust-region-reflective least squares on ``residuals``.
@@ -475,7 +486,9 @@ class Identification:
 
     @property
     def evaluations(self) -> int:
-        return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0))
+        # the start another family's identification gave, where it ran for this one (zerodim20's zerodim6)
+        start = int(self.extra.get("start", {}).get("evaluations", 0))
+        return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0)) + start
 
     @property
     def nfev(self) -> int:

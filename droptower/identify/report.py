@@ -97,9 +97,15 @@ def result_text(ident: Identification) -> str:
                      f"{'converged' if s.converged else 'not converged: ' + s.message}")
     if ident.coupling_note:
         lines.append(f"coupling: {ident.coupling_note}")
+    if "start" in ident.extra:
+        st = ident.extra["start"]
+        lines.append(f"start: the {st['family']} fit (nRMSE {100 * st['nrmse']:.3f} %"
+                     + (", its global search included" if st["global_search"] else "")
+                     + (f", {st['evaluations']} evaluations, counted above" if "evaluations" in st else "") + ")")
     if "global_search" in ident.extra:
         g = ident.extra["global_search"]
-        lines.append(f"global search: {g['candidates']} candidates over the bounds, least squares from the best "
+        lines.append(f"global search{' of ' + g['through'] + ', then this model from it' if 'through' in g else ''}: "
+                     f"{g['candidates']} candidates over the bounds, least squares from the best "
                      f"{g['local_fits']}" + (f" (the staged fit: nRMSE {100 * ident.extra['staged_fit']['nrmse']:.3f} %)"
                                              if "staged_fit" in ident.extra else ""))
     if ident.verdict:

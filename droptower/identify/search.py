@@ -24,6 +24,10 @@ from droptower.identify.fit import Parameter, clip_to_bounds, fit_rows
 
 #: Candidates evaluated per batch (one call of the residual function each).
 BATCH = 64
+#: Relative tolerance of the local fits from the best candidates: they only decide which basin
+#: wins; the winner is then refined to the caller's tolerance (the losers' tails, where a fit
+#: creeps to its last digits, cost most of a local fit and decide nothing).
+SCREEN_TOL = 1e-4
 #: Half-width of the neighbourhood of the first guess sampled beside the whole box (optimised
 #: variables: e^1.5 ~ 4.5 around a logarithmic parameter).
 NEAR = 1.5
@@ -131,11 +135,12 @@ def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray,
 def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
                free: np.ndarray, n_candidates: int, keep: int = 3, seed: int = 0, max_nfev: int | None = None,
                tol: float = 1e-7, choices: dict[int, list[float]] | None = None, near: int = 0,
-               local: Callable[[np.ndarray], Any] | None = None,
+               local: Callable[[np.ndarray, float], Any] | None = None,
                cost_of: Callable[[Any], float] = lambda f: float(f.residual @ f.residual)) -> tuple[Any, dict]:
     """Latin-hypercube search over the bounds, then least squares from the ``keep`` best
-    distinct candidates (``local(start)``, default :func:`fit_rows` on ``residuals``); the
-    fit of lowest cost (``cost_of(fit)``) wins. With ``near`` candidates around ``x0`` (a
+    distinct candidates (``local(start, tol)``, default :func:`fit_rows` on ``residuals``) to
+    the tolerance :data:`SCREEN_TOL`; the fit of lowest cost (``cost_of(fit)``) wins and is
+    refined from where it ended to ``tol``. With ``near`` candidates around ``x0`` (a
     data-driven first guess), the best of those is always one of the starts: a guess whose
     basin the box's samples miss is still refined. Returns the fit and a summary (candidates,
     their best cost, the local fits' costs)."""
@@ -145,10 +150,12 @@ def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[
     home = rows[[int(np.argmin(cost[:m]))]] if near else rows[:0]
     starts = best_starts(parameters, np.concatenate([home, rows]), np.concatenate([[-np.inf] * len(home), cost]), keep)
     if local is None:
-        def local(start: np.ndarray) -> Any:
+        def local(start: np.ndarray, tol: float) -> Any:
             return fit_rows(parameters, start, residuals, free=free, max_nfev=max_nfev, tol=tol)
-    fits = [local(s) for s in starts]
+    fits = [local(s, max(tol, SCREEN_TOL)) for s in starts]
     local_costs = [cost_of(f) for f in fits]
     best = fits[int(np.argmin(local_costs))]
+    if tol < SCREEN_TOL:
+        best = local(best.values, tol)
     return best, {"candidates": int(n_candidates), "best_candidate_cost": float(np.min(cost)),
                   "local_fits": len(fits), "local_costs": local_costs}

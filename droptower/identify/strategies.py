@@ -15,8 +15,9 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
+from droptower.identify.families.base import COMMON_OPTIONS
 from droptower.identify.families.stages import Setup, result_of, setup
-from droptower.identify.fit import Identification, Parameter, least_squares_fit, simulate
+from droptower.identify.fit import Identification, Parameter, least_squares_fit, one_blas_thread, simulate
 from droptower.identify.noise import NoiseFloor, servo_noise
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
@@ -30,8 +31,16 @@ SEARCHABLE = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "temp
 #: Candidates of the servo global search per free parameter, at least MIN_CANDIDATES.
 CANDIDATES_PER_PARAMETER = 16
 MIN_CANDIDATES = 64
+#: Families whose global search is that of a family they contain exactly, followed by their
+#: own strategy from its result: the six-parameter model holds the 20-parameter model's
+#: structure (its relaxation times, the branch's level and slope), which a search decides; a
+#: Latin hypercube over 20 parameters would spend its candidates on table shapes, which the
+#: local fit refines from a good six-parameter start anyway (and each of its local fits costs
+#: 20 columns per Jacobian).
+SEARCH_THROUGH = {"zerodim20": "zerodim6"}
 
 
+@one_blas_thread
 def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | None = None,
              bounds: dict[str, tuple[float, float]] | None = None, options: dict[str, Any] | None = None,
              holdout: list[Segment] | None = None, previous: dict[str, Identification] | None = None,
@@ -40,7 +49,8 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
 
     init, bounds, options: from ``--params INIT.toml`` (parameter name -> initial value;
     name -> [lower, upper]; family options); holdout: data for the hold-out RMSE;
-    previous: results of other families on the same data (zerodim20 starts from zerodim6's).
+    previous: results of other families on the same data (zerodim20 starts from zerodim6's,
+    identified here where not given).
     Translational records (``Segment.units``) may name parameters and options for their units
     (``k1_n_per_m``, ``amplitude_mm``) or the torsional way.
     search: ``"auto"`` runs the global search (:func:`global_search`) when the family's
@@ -56,10 +66,21 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     s = setup(family_class(kind), segments, init, bounds, options, file)
     if search not in SEARCH_MODES:
         raise DroptowerError(f"search must be one of {', '.join(SEARCH_MODES)}, got {search!r}")
+    inner = SEARCH_THROUGH.get(kind)
+    start_here = bool(inner) and not (previous or {}).get(inner) and not s.given.all()
+    if start_here:
+        # the start: the contained family identified as the command line does, its global
+        # search included where its staged fit is poor (a poor start would only make the
+        # larger model's local fit crawl until its evaluation limit)
+        previous = {**(previous or {}), inner: identify(inner, segments, options=_common_options(s.family),
+                                                        search=search, seed=seed)}
     result = STRATEGIES[kind](s, segments, start, previous=previous)
     noise = servo_noise(segments)
     result.verdict = servo_verdict(result, noise, s.family.parameters)
-    if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE):
+    first = (previous or {}).get(inner) if inner else None
+    # a start that the contained family's global search gave already: searching through it again repeats it
+    searched_start = first is not None and "global_search" in first.extra
+    if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed)
         searched.verdict = servo_verdict(searched, noise, s.family.parameters)
         searched.extra["staged_fit"] = {"nrmse": result.fit.nrmse, "verdict": result.verdict.verdict}
@@ -67,6 +88,10 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
             result = searched
         else:
             result.extra["global_search"] = searched.extra["global_search"]
+    if first is not None:
+        result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
+                                 **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {}),
+                                 **({"evaluations": first.evaluations} if start_here else {})}
     if holdout:
         result.evaluate_holdout(holdout)
     result.time_s = time.perf_counter() - start
@@ -83,8 +108,11 @@ def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Pa
 
 def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0) -> Identification:
     """Latin-hypercube candidates over the whole bounds (every batch in one core call), then the
-    joint least squares from the best three distinct ones (:func:`~droptower.identify.search.global_fit`)."""
+    joint least squares from the best three distinct ones (:func:`~droptower.identify.search.global_fit`);
+    for the families of :data:`SEARCH_THROUGH`, :func:`search_through`."""
     fam = s.family
+    if fam.kind in SEARCH_THROUGH:
+        return search_through(s, segments, start, seed)
     free = ~s.given
     masks = [seg.compared for seg in segments]
 
@@ -97,14 +125,36 @@ def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0
         return np.array([np.concatenate([(t - seg.torque_nm)[m] for t, seg, m in zip(per, segments, masks)])
                          for per in per_row])
 
-    def local(x: np.ndarray):
-        return least_squares_fit(fam, segments, x, free=free, stage="global search: joint", max_nfev=s.max_nfev)
+    def local(x: np.ndarray, tol: float):
+        return least_squares_fit(fam, segments, x, free=free, stage="global search: joint", max_nfev=s.max_nfev,
+                                 tol=tol)
 
     n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
     best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
                                cost_of=lambda f: f.metrics.rmse_nm, near=n // 4)
     return result_of(s, segments, best.values.copy(), [best], start,
                      extra={"global_search": summary, "search_evaluations": n})
+
+
+def search_through(s: Setup, segments: list[Segment], start: float, seed: int = 0) -> Identification:
+    """The global search of a family that contains another exactly (:data:`SEARCH_THROUGH`):
+    the contained family's global search, then the family's own strategy from that result
+    (the user's initial values, bounds and options kept)."""
+    fam = s.family
+    inner = global_search(setup(family_class(SEARCH_THROUGH[fam.kind]), segments, options=_common_options(fam)),
+                          segments, start, seed)
+    init = {n: v for n, v, given in zip(fam.names, s.x0, s.given) if given}
+    bounds = {p.name: (p.lower, p.upper) for p, user in zip(fam.parameters, s.bounded) if user}
+    fresh = setup(type(fam), segments, init, bounds, fam.options)  # the strategy narrows bounds around its start
+    result = STRATEGIES[fam.kind](fresh, segments, start, previous={inner.family: inner})
+    result.extra["global_search"] = {**inner.extra["global_search"], "through": inner.family}
+    result.extra["search_evaluations"] = inner.evaluations
+    return result
+
+
+def _common_options(family) -> dict[str, Any]:
+    """The options of ``family`` every family takes (for the family it contains)."""
+    return {k: v for k, v in family.options.items() if k in COMMON_OPTIONS}
 
 
 def _admissible(fam, row: np.ndarray) -> bool:
