@@ -208,19 +208,24 @@ def test_killed_campaign_resumes_to_the_same_results(inputs, reference, tmp_path
 @pytest.mark.slow
 def test_ctrl_c_says_what_is_kept_and_how_to_resume(inputs, tmp_path):
     """SIGINT (Ctrl-C) once the first test is finished: exit 130, the count of finished tests
-    is the count of records on disk, and the resume runs exactly the rest."""
-    out = tmp_path / "interrupted"
-    cmd = [sys.executable, "-m", "droptower.cli.main", "campaign", "--coupling", str(inputs["coupling"]),
-           "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "3",
-           "--workers", "1"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while not list((out / "records").glob("*.json")) and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    done = len(list((out / "records").glob("*.json")))
-    assert 1 <= done < 8, "the interrupt came too late"
+    is the count of records on disk, and the resume runs exactly the rest. (On a loaded
+    machine the campaign can finish all 8 tests before the signal arrives: then it is sent
+    again to a fresh campaign, at most three times.)"""
+    for attempt in range(3):
+        out = tmp_path / f"interrupted{attempt}"
+        cmd = [sys.executable, "-m", "droptower.cli.main", "campaign", "--coupling", str(inputs["coupling"]),
+               "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "3",
+               "--workers", "1"]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 60
+        while not list((out / "records").glob("*.json")) and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        done = len(list((out / "records").glob("*.json")))
+        if done < 8:
+            break
+    assert 1 <= done < 8, "the interrupt came too late three times"
     assert proc.returncode == 130 and "Traceback" not in err
     assert f"interrupted; {done} test(s) of the campaign are finished and kept" in err and "--resume" in err
     run = run_campaign(out, resume=True, workers=1, progress=False)  # inputs from the manifest
