@@ -52,15 +52,20 @@ def test_spring_dashpot_decay_equals_the_bench():
     assert float(stiffness(J, omega, delta)) == pytest.approx(bench["storage_stiffness_nm_per_rad"].iloc[0], rel=1e-3)
 
 
-def test_linear_maxwell_decay_is_the_complex_eigenvalue():
-    k, k_m, tau = 11000.0, 3000.0, 1e-3   # relaxation mode at 1/tau = 1000 1/s: gone within the first cycle
+def spring_and_maxwell(k, k_m, tau):
+    """(coupling, the oscillating root s of J s^2 + K*(s) = 0 by Newton's method) of a spring k
+    parallel to a Maxwell branch k_m with relaxation time tau: K*(s) = k + k_m tau s / (1 + tau s)."""
     coupling = parse_coupling({"element": [{"kind": "spring", "stiffness": k},
                                            {"kind": "maxwell", "stiffness": k_m, "damping": k_m * tau}]})
     s = 1j * math.sqrt((k + k_m) / J)
-    for _ in range(50):  # Newton on J s^2 + K*(s) = 0
-        f = J * s * s + k + k_m * tau * s / (1 + tau * s)
-        df = 2 * J * s + k_m * tau / (1 + tau * s) ** 2
-        s -= f / df
+    for _ in range(50):
+        s -= (J * s * s + k + k_m * tau * s / (1 + tau * s)) / (2 * J * s + k_m * tau / (1 + tau * s) ** 2)
+    return coupling, s
+
+
+def test_linear_maxwell_decay_is_the_complex_eigenvalue():
+    # relaxation mode at 1/tau = 1000 1/s: gone within the first cycle
+    coupling, s = spring_and_maxwell(11000.0, 3000.0, 1e-3)
     _, delta, omega = first_cycle(coupling)
     assert omega == pytest.approx(s.imag, rel=1e-3)
     assert delta == pytest.approx(-s.real, rel=5e-3)
@@ -99,12 +104,7 @@ def test_a_relaxation_slower_than_the_oscillation_biases_the_one_cycle_fit(relax
     branch relaxing above the oscillation is read exactly (test above): the drop tower's d is a
     like-for-like measure of the bench's only where the coupling has no relaxation slower than
     its own oscillation."""
-    k, k_m, tau = 9000.0, 3000.0, 1 / (2 * math.pi * relaxation_hz)
-    coupling = parse_coupling({"element": [{"kind": "spring", "stiffness": k},
-                                           {"kind": "maxwell", "stiffness": k_m, "damping": k_m * tau}]})
-    s = 1j * math.sqrt((k + k_m) / J)
-    for _ in range(50):  # Newton on J s^2 + K*(s) = 0
-        s -= (J * s * s + k + k_m * tau * s / (1 + tau * s)) / (2 * J * s + k_m * tau / (1 + tau * s) ** 2)
+    coupling, s = spring_and_maxwell(9000.0, 3000.0, 1 / (2 * math.pi * relaxation_hz))
     amp, delta, omega = first_cycle(coupling)
     bench = run_grid(coupling, [amp], [omega / (2 * math.pi)])["drop_tower_equivalent_damping_ratio"].iloc[0]
     eigen = float(damping_ratio(-s.real, s.imag))
