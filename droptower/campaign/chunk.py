@@ -88,7 +88,8 @@ def run_chunk(task: ChunkTask) -> ChunkOutcome:
         for row, todo in zip(task.plan, task.todo):
             if todo:
                 test_id = int(row["test_id"])
-                write_json(layout.record(test_id), _record(row, None, "failed", None, f"simulation: {exc.message}", []))
+                write_json(layout.record(test_id), _record(row, None, "failed", None, f"simulation: {exc.message}", []),
+                           indent=None)
                 out.status[test_id] = {"status": "failed", "error": f"simulation: {exc.message}", "log_file": None}
         out.simulate_cpu_s = time.thread_time() - t0
         out.peak_rss_mb = peak_rss_mb()
@@ -103,7 +104,7 @@ def run_chunk(task: ChunkTask) -> ChunkOutcome:
         test_id = int(row["test_id"])
         log_file = layout.log_file(test_id, task.log_format)
         t1 = time.thread_time()
-        result.write_log(layout.root / log_file)
+        result.write_log(layout.root / log_file, compact=task.log_format == "parquet")  # CSV: full text
         t2 = time.thread_time()
         try:
             _, extracted = extract_file(layout.root / log_file, settings)
@@ -111,7 +112,7 @@ def run_chunk(task: ChunkTask) -> ChunkOutcome:
         except DroptowerError as exc:  # the log is named by log_file: the message leaves out the folder's path
             reason = ": ".join(part for part in (exc.where, exc.problem) if part)
             record = _record(row, log_file, "failed", None, reason, result.warnings)
-        write_json(layout.record(test_id), record)
+        write_json(layout.record(test_id), record, indent=None)
         out.status[test_id] = {"status": record["status"], "error": record["error"], "log_file": log_file}
         out.write_cpu_s += t2 - t1
         out.extract_cpu_s += time.thread_time() - t2

@@ -1,7 +1,9 @@
 """Run a campaign: plan -> fixed chunks -> (simulate, log, extract) per chunk -> results table.
 
 Resumable and loss-free: the folder's records say which tests are finished; only chunks with
-unfinished tests run; the manifest is rewritten (atomically) after every chunk; the results
+unfinished tests run; the manifest is rewritten (atomically) at most every
+:data:`MANIFEST_EVERY_S` seconds while chunks finish and once at the end (its per-test status
+may lag behind the records, never the other way round: the records decide); the results
 table is assembled from the records at the end of every run. Deterministic: chunks are fixed
 by the plan (not by the number of workers), every test's noise comes from its own seed, so one
 worker, two workers, a Dask cluster and an interrupted-then-resumed run write the same results.
@@ -24,6 +26,10 @@ from droptower.campaign.results import assemble, write_results
 from droptower.campaign.spec import PLAN_COLUMNS, CampaignSpec, prepare
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 from droptower.errors import DroptowerError, WriteError
+
+#: Seconds between two rewrites of the manifest during a run: it lists every test, so rewriting
+#: it after each chunk would cost O(tests) per chunk, O(tests^2) per campaign.
+MANIFEST_EVERY_S = 5.0
 
 
 @dataclass
@@ -68,7 +74,7 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     scheduler address instead; resume: continue the campaign in ``out`` (same rig, coupling,
     plan and settings, else a one-line error and nothing touched); duration_s: record length
     after the impact (None: twice the longest predicted period, see :func:`prepare`);
-    chunk_size: tests per batched simulation (None: 25); log_format: ``parquet`` (None) or
+    chunk_size: tests per batched simulation (None: :data:`~droptower.campaign.spec.CHUNK_SIZE`); log_format: ``parquet`` (None) or
     ``csv``; window: the extractor's fit window (None: ``first-cycle``). With ``resume``, a
     setting left None is the folder's. progress: a tqdm bar on stderr; max_chunks: stop after
     this many chunks (an interrupted campaign, for tests and trial runs).
@@ -133,6 +139,7 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
             bar = tqdm(total=len(spec.tests), initial=len(status), unit="test", desc="campaign", file=sys.stderr,
                        disable=None if progress else True)
             stopped = False
+            written = time.monotonic()
             try:
                 for task, outcome in executor.run(run_chunk, tasks):
                     if isinstance(outcome, ChunkOutcome):
@@ -150,7 +157,9 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
                         ids = [r["test_id"] for r in task.plan]
                         run.errors.append(f"chunk {task.index} (tests {ids[0]}-{ids[-1]}): internal error "
                                           f"({type(outcome).__name__}: {outcome})")  # listed once, at the end
-                    write_manifest(layout, spec, status, created)
+                    if time.monotonic() - written >= MANIFEST_EVERY_S:
+                        write_manifest(layout, spec, status, created)
+                        written = time.monotonic()
             finally:
                 bar.close()
                 try:

@@ -36,7 +36,7 @@ from droptower.errors import DroptowerError, check_positive
 @click.option("--log-format", type=click.Choice(["parquet", "csv"]), default=None,
               help="Log file format [default: parquet; with --resume: the folder's].")
 @click.option("--chunk-size", type=int, default=None,
-              help="Tests per batched simulation, part of the campaign's identity [default: 25; with --resume: "
+              help="Tests per batched simulation, part of the campaign's identity [default: 75; with --resume: "
                    "the folder's].")
 def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, workers: int | None, scheduler: str | None,
              scheduler_timeout_s: float, resume: bool, duration_s: float | None, log_format: str | None,

@@ -174,10 +174,11 @@ class DropResult:
             "contacts": len(self.contacts), "double_impact": self.double_impact,
         }
 
-    def write_log(self, path: str | Path) -> Path:
-        """Write the sampled test as a droptower log (``.csv`` or ``.parquet``)."""
+    def write_log(self, path: str | Path, compact: bool = False) -> Path:
+        """Write the sampled test as a droptower log (``.csv`` or ``.parquet``; ``compact``: float32
+        channels, compressed, see :func:`droptower.io.droptower_log.write_log`)."""
         ch = self.channels()
-        return write_log(path, ch.time_s, ch.columns(), self.metadata())
+        return write_log(path, ch.time_s, ch.columns(), self.metadata(), compact=compact)
 
 
 # -------------------------------------------------------------------- running
