@@ -6,19 +6,28 @@ finish (in any order), and is a context manager. Local cores use
 share the cores); one worker runs in this process. A Dask cluster is an optional extra
 (``pip install droptower[distributed]``), imported only when asked for; its scheduler is
 probed first, so an address that does not answer is a one-line error after ``timeout_s``.
+
+Pools and clusters get the chunks in a bounded window (:data:`WINDOW_PER_WORKER` per worker):
+a new chunk is submitted as one finishes, so a campaign of 45 000 tests holds a few dozen
+tasks and outcomes in memory at any time, not 600 of each, and the scheduler's queue stays
+short. A Dask worker that dies takes its running chunks with it; the scheduler gives them to
+another worker (a chunk is idempotent: it rewrites only files that are the same bit for bit).
 """
 from __future__ import annotations
 
 import asyncio
+import itertools
 import os
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Any
 
 from droptower.errors import DroptowerError
 
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 10.0
+#: Chunks submitted ahead per worker: enough to keep every worker busy while the next is sent.
+WINDOW_PER_WORKER = 4
 
 Result = tuple[Any, Any]  # (task, outcome or the exception it raised)
 
@@ -72,10 +81,18 @@ class LocalPool:
         self.pool.shutdown(wait=True, cancel_futures=exc_type is not None)
 
     def run(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Result]:
-        futures = {self.pool.submit(fn, task): task for task in tasks}
-        for future in as_completed(futures):
-            exc = future.exception()
-            yield futures[future], exc if exc is not None else future.result()
+        pending = iter(tasks)
+        futures: dict[Any, Any] = {}
+        while True:
+            for task in itertools.islice(pending, WINDOW_PER_WORKER * self.workers - len(futures)):
+                futures[self.pool.submit(fn, task)] = task
+            if not futures:
+                return
+            done, _ = wait(futures, return_when=FIRST_COMPLETED)
+            for future in done:
+                task = futures.pop(future)
+                exc = future.exception()
+                yield task, exc if exc is not None else future.result()
 
 
 async def _identity(address: str, timeout_s: float) -> dict[str, Any]:
@@ -121,14 +138,23 @@ class DaskCluster:
     def run(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Result]:
         from distributed import as_completed as dask_completed
 
-        futures = {}
-        for task in tasks:
-            futures[self.client.submit(fn, task, pure=False)] = task
+        pending = iter(tasks)
+        workers = max(1, len(self.client.scheduler_info(n_workers=-1).get("workers", {})))
+        futures = {self.client.submit(fn, task, pure=False): task
+                   for task in itertools.islice(pending, WINDOW_PER_WORKER * workers)}
         try:
             with self.client.as_current():  # not the process's default client: say which one
-                for future in dask_completed(list(futures)):
+                finishing = dask_completed(list(futures))
+                for future in finishing:
+                    task = futures.pop(future)
                     exc = future.exception()
-                    yield futures[future], exc if exc is not None else future.result()
+                    outcome = exc if exc is not None else future.result()
+                    future.release()
+                    for more in itertools.islice(pending, 1):  # one in, one out: the window stays full
+                        new = self.client.submit(fn, more, pure=False)
+                        futures[new] = more
+                        finishing.add(new)
+                    yield task, outcome
         finally:
             self.client.cancel([f for f in futures if not f.done()])
 

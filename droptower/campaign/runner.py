@@ -139,7 +139,7 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
             bar = tqdm(total=len(spec.tests), initial=len(status), unit="test", desc="campaign", file=sys.stderr,
                        disable=None if progress else True)
             stopped = False
-            written = time.monotonic()
+            next_manifest = time.monotonic() + MANIFEST_EVERY_S
             try:
                 for task, outcome in executor.run(run_chunk, tasks):
                     if isinstance(outcome, ChunkOutcome):
@@ -157,9 +157,12 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
                         ids = [r["test_id"] for r in task.plan]
                         run.errors.append(f"chunk {task.index} (tests {ids[0]}-{ids[-1]}): internal error "
                                           f"({type(outcome).__name__}: {outcome})")  # listed once, at the end
-                    if time.monotonic() - written >= MANIFEST_EVERY_S:
+                    if time.monotonic() >= next_manifest:
+                        t_manifest = time.monotonic()
                         write_manifest(layout, spec, status, created)
-                        written = time.monotonic()
+                        # a large plan's manifest takes long to write: keep it a small share of the run
+                        next_manifest = time.monotonic() + max(MANIFEST_EVERY_S,
+                                                               20.0 * (time.monotonic() - t_manifest))
             finally:
                 bar.close()
                 try:

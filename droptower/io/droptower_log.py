@@ -273,11 +273,13 @@ def parquet_metadata(path: Path) -> dict[str, Any] | None:
 def _read_parquet(path: Path) -> Record:
     import pyarrow.parquet as pq
 
-    block = parquet_metadata(path)
-    if block is None or block.get("format") != "droptower-log":
-        raise DroptowerError("not a droptower log (no 'droptower' schema metadata)")
-    if block.get("version") != 1:
-        raise DroptowerError(f"unsupported droptower-log version {block.get('version')!r}")
-    table = pq.read_table(path, use_threads=ARROW_THREADS)
+    with pq.ParquetFile(path) as parquet:  # footer, metadata and columns from one open (read_table: ~3x the CPU)
+        meta = parquet.schema_arrow.metadata or {}
+        block = json.loads(meta[PARQUET_KEY]) if PARQUET_KEY in meta else None
+        if not isinstance(block, dict) or block.get("format") != "droptower-log":
+            raise DroptowerError("not a droptower log (no 'droptower' schema metadata)")
+        if block.get("version") != 1:
+            raise DroptowerError(f"unsupported droptower-log version {block.get('version')!r}")
+        table = parquet.read(use_threads=ARROW_THREADS)
     columns = {name: table.column(name).to_numpy().astype(np.float64, copy=False) for name in table.column_names}
     return _record(path, columns, dict(block.get("metadata", {})), "droptower-log parquet")

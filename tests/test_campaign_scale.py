@@ -1,0 +1,127 @@
+"""Campaigns at scale on a local Dask cluster (2 worker processes), at a small size: a worker
+killed mid-run loses no test, and a killed client resumes to the same results; the submission
+window keeps the number of chunks in flight bounded; the estimate before a run."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from droptower.campaign import run_campaign
+from droptower.campaign.executors import WINDOW_PER_WORKER, LocalPool
+
+distributed = pytest.importorskip("distributed")
+
+LINEAR = 'name = "linear"\n[[element]]\nkind = "spring"\nstiffness = 14000.0\n' \
+         '[[element]]\nkind = "dashpot"\ndamping = 8.0\n'
+# 16 tests in 8 chunks of 2: enough chunks in flight on both workers when one is killed
+PLAN = """name = "sixteen"
+base_seed = 280
+repeats = 4
+heights_m = [0.2, 1.0]
+preloads_nm = [0.0, 500.0]
+[[group]]
+name = "case 2"
+inertia_kgm2 = 0.359
+drop_mass_kg = 2.0
+"""
+SETTINGS = dict(duration_s=0.07, chunk_size=2, progress=False)
+N_TESTS = 16
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("inputs")
+    files = {"coupling": root / "linear.toml", "doe": root / "sixteen.toml"}
+    files["coupling"].write_text(LINEAR)
+    files["doe"].write_text(PLAN)
+    return files
+
+
+@pytest.fixture(scope="module")
+def reference(inputs, tmp_path_factory):
+    return run_campaign(tmp_path_factory.mktemp("reference") / "c", coupling=inputs["coupling"], doe=inputs["doe"],
+                        workers=1, **SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        yield c
+
+
+def _records(out: Path) -> int:
+    return len(list((out / "records").glob("*.json"))) if (out / "records").is_dir() else 0
+
+
+@pytest.mark.slow
+def test_worker_killed_mid_run_loses_no_test(inputs, reference, cluster, tmp_path):
+    out = tmp_path / "killed_worker"
+    result: dict = {}
+
+    def campaign() -> None:
+        try:
+            result["run"] = run_campaign(out, coupling=inputs["coupling"], doe=inputs["doe"],
+                                         scheduler=cluster.scheduler_address, **SETTINGS)
+        except BaseException as exc:  # reported by the assertion below
+            result["error"] = exc
+
+    with distributed.Client(cluster.scheduler_address, set_as_default=False) as client:
+        pids = client.run(os.getpid)
+        thread = threading.Thread(target=campaign)
+        thread.start()
+        killed = None
+        deadline = time.monotonic() + 120
+        while killed is None and thread.is_alive() and time.monotonic() < deadline:
+            busy = [w for w, keys in client.processing().items() if keys]
+            if busy and _records(out) >= 1:
+                killed = pids[busy[0]]
+                os.kill(killed, signal.SIGKILL)  # its chunks go to the other worker (or its restart)
+            time.sleep(0.02)
+        thread.join(timeout=300)
+    assert killed is not None, "the campaign finished before a worker could be killed"
+    assert "error" not in result, result.get("error")
+    run = result["run"]
+    assert _records(out) == N_TESTS and run.pending == 0 and not run.errors
+    pd.testing.assert_frame_equal(run.results, reference.results, check_exact=True)
+
+
+@pytest.mark.slow
+def test_killed_client_resumes_on_the_cluster_to_the_same_results(inputs, reference, cluster, tmp_path):
+    out = tmp_path / "killed_client"
+    cmd = [sys.executable, "-m", "droptower.cli.main", "campaign", "--coupling", str(inputs["coupling"]),
+           "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "2",
+           "--scheduler", cluster.scheduler_address]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while _records(out) < 1 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    done = _records(out)
+    assert 1 <= done < N_TESTS, "the kill came too late to interrupt the campaign"
+    time.sleep(1.0)  # chunks the dead client left on the cluster are dropped with its futures
+    run = run_campaign(out, coupling=inputs["coupling"], doe=inputs["doe"], resume=True,
+                       scheduler=cluster.scheduler_address, **SETTINGS)
+    assert run.pending == 0 and _records(out) == N_TESTS
+    pd.testing.assert_frame_equal(run.results, reference.results, check_exact=True)
+
+
+def test_local_pool_keeps_a_bounded_window_of_chunks_in_flight():
+    """The pool never holds more than WINDOW_PER_WORKER chunks per worker: with 2 workers, 100
+    tasks, the pending ones at any yield are at most 8 (all tasks are run, each once)."""
+    seen = []
+    with LocalPool(2) as pool:
+        for task, outcome in pool.run(abs, range(-100, 0)):
+            seen.append((task, outcome))
+            assert len(pool.pool._pending_work_items) <= WINDOW_PER_WORKER * 2
+    assert sorted(t for t, _ in seen) == list(range(-100, 0)) and all(o == -t for t, o in seen)
