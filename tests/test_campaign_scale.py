@@ -125,3 +125,32 @@ def test_local_pool_keeps_a_bounded_window_of_chunks_in_flight():
             seen.append((task, outcome))
             assert len(pool.pool._pending_work_items) <= WINDOW_PER_WORKER * 2
     assert sorted(t for t, _ in seen) == list(range(-100, 0)) and all(o == -t for t, o in seen)
+
+
+def _bytes(folder: Path) -> int:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+
+def test_estimate_before_running_is_close_to_what_the_campaign_writes(inputs, reference, tmp_path, capsys):
+    """The disk estimate (the first chunk's files, scaled) within 10 % of the finished campaign's
+    logs and records; after an interrupted run it counts only the tests still to run; the
+    folder is not written."""
+    from droptower.campaign import estimate_campaign
+    from droptower.cli.main import main
+
+    figures = estimate_campaign(tmp_path / "new", coupling=inputs["coupling"], doe=inputs["doe"], workers=2,
+                                duration_s=0.07, chunk_size=2)
+    written = _bytes(reference.root / "logs") + _bytes(reference.root / "records")
+    per_test = (figures.log_bytes_per_test + figures.record_bytes_per_test) * N_TESTS
+    assert abs(per_test - written) <= 0.1 * written, (per_test, written)
+    assert figures.to_run == N_TESTS and figures.sample_tests == 2 and figures.cpu_per_test_s > 0
+    assert figures.wall_s == pytest.approx(N_TESTS * figures.cpu_per_test_s / min(2, figures.cores))
+    assert not (tmp_path / "new").exists()
+
+    out = tmp_path / "part"
+    run_campaign(out, coupling=inputs["coupling"], doe=inputs["doe"], workers=1, max_chunks=3, **SETTINGS)
+    before = _bytes(out)
+    assert main(["campaign", "--out", str(out), "--resume", "--estimate", "--workers", "1"]) in (0, None)
+    text = capsys.readouterr().out
+    assert f"{N_TESTS - 6} of {N_TESTS} tests to run" in text and "MB" in text and "ms CPU per test" in text
+    assert _bytes(out) == before

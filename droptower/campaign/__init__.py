@@ -5,9 +5,10 @@ one data path real logs take (``droptower campaign``; Rapp et al. 2022, Table 2,
 folder with one log and one result record per test, a manifest and the results table
 (:mod:`.folder` describes the layout). Modules: :mod:`.spec` (inputs, settings, identity),
 :mod:`.chunk` (what a worker does with one chunk), :mod:`.executors` (this process, local
-cores, a Dask cluster), :mod:`.results` (the table), :mod:`.runner` (the orchestration).
+cores, a Dask cluster), :mod:`.results` (the table), :mod:`.runner` (the orchestration),
+:mod:`.estimate` (time and disk before a run: ``estimate_campaign``).
 """
-from droptower.campaign.runner import CampaignRun, run_campaign
+from droptower.campaign.runner import CampaignRun, estimate_campaign, run_campaign
 from droptower.campaign.spec import CampaignSpec, prepare
 
-__all__ = ["CampaignRun", "CampaignSpec", "prepare", "run_campaign"]
+__all__ = ["CampaignRun", "CampaignSpec", "estimate_campaign", "prepare", "run_campaign"]

@@ -15,10 +15,12 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
 from droptower.campaign.chunk import ChunkOutcome, ChunkTask, peak_rss_mb, run_chunk
+from droptower.campaign.estimate import Estimate, estimate
 from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
 from droptower.campaign.folder import (Layout, finished, folder_lock, layout_for, open_folder, saved_inputs,
                                        saved_settings, write_manifest)
@@ -82,15 +84,8 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     t_start = time.perf_counter()
     if workers is not None and workers < 1:
         raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
-    given = {"duration_s": duration_s, "chunk_size": chunk_size, "log_format": log_format, "window": window}
-    saved = saved_settings(Path(out)) if resume else {}
-    inputs = {"rig": rig, "coupling": coupling, "doe": doe}
-    if resume and None in inputs.values():
-        inputs = {k: v for k, v in inputs.items() if v is not None} | {
-            k: v for k, v in saved_inputs(Path(out)).items() if inputs[k] is None}
-    defaults = {"rig": DEFAULT_RIG, "coupling": DEFAULT_COUPLING, "doe": DEFAULT_DOE}
-    spec = prepare(**{k: inputs.get(k) or v for k, v in defaults.items()},
-                   **{k: saved.get(k) if v is None else v for k, v in given.items()})
+    spec = _spec(out, rig, coupling, doe, resume, {"duration_s": duration_s, "chunk_size": chunk_size,
+                                                   "log_format": log_format, "window": window})
     layout = layout_for(out, spec)
     # a Dask scheduler is asked first: if it does not answer, the folder is not touched
     cluster = make_executor(workers, scheduler, scheduler_timeout_s) if scheduler is not None else None
@@ -103,6 +98,41 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _spec(out: str | Path, rig: str | Path | None, coupling: str | Path | None, doe: str | Path | None, resume: bool,
+          given: dict[str, Any]) -> CampaignSpec:
+    """The campaign's spec: the given inputs and settings, with ``resume`` the folder's where not given."""
+    saved = saved_settings(Path(out)) if resume else {}
+    inputs = {"rig": rig, "coupling": coupling, "doe": doe}
+    if resume and None in inputs.values():
+        inputs = {k: v for k, v in inputs.items() if v is not None} | {
+            k: v for k, v in saved_inputs(Path(out)).items() if inputs[k] is None}
+    defaults = {"rig": DEFAULT_RIG, "coupling": DEFAULT_COUPLING, "doe": DEFAULT_DOE}
+    return prepare(**{k: inputs.get(k) or v for k, v in defaults.items()},
+                   **{k: saved.get(k) if v is None else v for k, v in given.items()})
+
+
+def estimate_campaign(out: str | Path, rig: str | Path | None = None, coupling: str | Path | None = None,
+                      doe: str | Path | None = None, *, workers: int | None = None, scheduler: str | None = None,
+                      resume: bool = False, duration_s: float | None = None, chunk_size: int | None = None,
+                      log_format: str | None = None, window: str | None = None,
+                      scheduler_timeout_s: float = SCHEDULER_TIMEOUT_S) -> Estimate:
+    """Time and disk the campaign :func:`run_campaign` would run with the same arguments
+    (:mod:`.estimate`); ``out`` is only read (with ``resume``: its settings and finished tests)."""
+    if workers is not None and workers < 1:
+        raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
+    spec = _spec(out, rig, coupling, doe, resume, {"duration_s": duration_s, "chunk_size": chunk_size,
+                                                   "log_format": log_format, "window": window})
+    to_run = len(spec.tests) - (len(finished(layout_for(out, spec), spec)) if resume else 0)
+    cores = local_cores()
+    if scheduler is not None:
+        cluster = make_executor(workers, scheduler, scheduler_timeout_s)  # both given: a one-line error
+        try:  # a cluster's workers may sit on other machines: each its own core
+            workers = cores = max(1, len(cluster.client.scheduler_info(n_workers=-1).get("workers", {})))
+        finally:
+            cluster.close()
+    return estimate(spec, cores if workers is None else workers, cores, to_run)
 
 
 def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, cluster: DaskCluster | None,

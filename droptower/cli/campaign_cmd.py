@@ -38,9 +38,12 @@ from droptower.errors import DroptowerError, check_positive
 @click.option("--chunk-size", type=int, default=None,
               help="Tests per batched simulation, part of the campaign's identity [default: 75; with --resume: "
                    "the folder's].")
+@click.option("--estimate", is_flag=True,
+              help="Only estimate the campaign's time and disk (runs its first chunk in a temporary folder); "
+                   "--out is not written.")
 def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, workers: int | None, scheduler: str | None,
              scheduler_timeout_s: float, resume: bool, duration_s: float | None, log_format: str | None,
-             chunk_size: int | None) -> None:
+             chunk_size: int | None, estimate: bool) -> None:
     """Simulate every test of a plan on the virtual drop tower, write its log and extract it
     from the log on disk with the code that evaluates real logs (as `droptower extract`).
 
@@ -60,6 +63,7 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
       droptower campaign --out runs/table2
       droptower campaign --coupling my.toml --doe my_plan.toml --out runs/mine --workers 2
       droptower campaign --out runs/mine --resume
+      droptower campaign --out runs/big --doe big_plan.toml --estimate
     """
     from droptower.campaign import run_campaign
     from droptower.campaign.folder import check_folder, has_campaign
@@ -69,6 +73,14 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
         check_folder(out)  # a non-empty folder is named as such
         raise DroptowerError("holds no campaign to resume (no manifest.json); leave out --resume to start one",
                              file=out)
+    if estimate:
+        from droptower.campaign import estimate_campaign
+
+        figures = estimate_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
+                                    duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
+                                    scheduler_timeout_s=scheduler_timeout_s)
+        click.echo("\n".join(figures.lines()))
+        return
     try:
         run = run_campaign(out, rig, coupling, doe, workers=workers, scheduler=scheduler, resume=resume,
                            duration_s=duration_s, chunk_size=chunk_size, log_format=log_format,
