@@ -11,9 +11,11 @@ import html
 import math
 import sys
 from pathlib import Path
+from urllib.parse import quote
 
 import numpy as np
 import pandas as pd
+import plotly.io as pio
 
 from droptower.errors import DroptowerError, make_folder
 from droptower.io.droptower_log import atomic_write
@@ -32,6 +34,11 @@ TEST_COLUMNS = {
 }
 #: Significant digits of the numbers in the per-test table (sorting uses the rounded numbers).
 DIGITS = 4
+#: Up to this many tests the decay figures are inside the page; beyond, in side files
+#: (:data:`FITS_PER_FILE` tests each) loaded when a test is chosen: 4 500 tests inline made an
+#: 88 MB page that took minutes to open.
+INLINE_MAX_TESTS = 500
+FITS_PER_FILE = 100
 
 
 def default_out(source: str | Path) -> Path:
@@ -42,12 +49,13 @@ def default_out(source: str | Path) -> Path:
 
 def write_report(source: str | Path, out: str | Path | None = None, form: str = "paper",
                  channels: dict[str, str] | None = None, extra_sections: list[tuple[str, str]] | None = None,
-                 title: str | None = None, progress: bool = False) -> Path:
+                 title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS) -> Path:
     """Write the report of ``source`` (campaign folder or results table) to ``out``.
 
     form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
     for reading real logs (as ``extract --channel``); extra_sections: (heading, HTML) pairs
-    appended (the study's); returns the path written."""
+    appended (the study's); inline_max_tests: more tests than this put their decay figures in
+    side files in ``<out stem>_files/`` beside the page; returns the path of the page."""
     run = load_run(source)
     out = Path(out) if out is not None else default_out(source)
     table = run.table
@@ -63,13 +71,38 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
 
     fits = _decay_figures(run, channels or {}, progress)
     problems = _problems(run, usable_mask, excluded_reason, fits)
+    fit_files = None
+    if len(fits) > inline_max_tests:
+        fits, fit_files = _write_fit_files(fits, out)
     map_figure = figures.map_figure(usable, [n for n, ok in zip(run.test, usable_mask) if ok], fit) if fit else None
     text = page(title or f"droptower report: {run.name}", run.facts + _counts(run, usable_mask, fit), problems,
                 map_section(fit, map_error, map_figure), tests_table(_tests(run, usable_mask, excluded_reason, fit)),
-                fits, extra_sections or [])
+                fits, extra_sections or [], fit_files)
     make_folder(out.parent)
     atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     return out
+
+
+def _write_fit_files(fits: dict[str, object], out: Path) -> tuple[dict[str, object], dict[str, str]]:
+    """The decay figures in side files of :data:`FITS_PER_FILE` tests, ``<out stem>_files/fits_NNNN.js``
+    (a script calling ``droptowerFits({...})``: a page opened from disk may load scripts, not
+    read JSON files). Returns what stays in the page (the tests without a figure, with the
+    reason) and, per test with a figure, the side file's URL relative to the page."""
+    folder = out.parent / f"{out.stem}_files"
+    make_folder(folder)
+    for stale in folder.glob("fits_*.js"):  # of an earlier report with more tests
+        stale.unlink()
+    inline = {name: fig for name, fig in fits.items() if isinstance(fig, str)}
+    drawn = [name for name, fig in fits.items() if not isinstance(fig, str)]
+    files = {}
+    for k in range(0, len(drawn), FITS_PER_FILE):
+        names = drawn[k:k + FITS_PER_FILE]
+        path = folder / f"fits_{k // FITS_PER_FILE:04d}.js"
+        text = f"droptowerFits({pio.to_json({n: fits[n] for n in names}, validate=False)});\n"
+        atomic_write(path, lambda tmp, text=text: Path(tmp).write_text(text, encoding="utf-8"))
+        url = f"{quote(folder.name)}/{path.name}"
+        files.update(dict.fromkeys(names, url))
+    return inline, files
 
 
 def _shown_source(source: str | Path) -> str:

@@ -5,6 +5,8 @@ Figures are plotly figure dicts; the page embeds plotly.js once and draws them.
 """
 from __future__ import annotations
 
+import functools
+import json
 from typing import Any
 
 import numpy as np
@@ -62,39 +64,66 @@ def _cycle():
         yield from COLORS
 
 
+#: Points of each drawn fit curve (smooth: a damped cosine over about one period).
+FIT_POINTS = 60
+
+
+@functools.lru_cache(maxsize=2)
+def _decay_layout(panels: int) -> str:
+    """The layout of a decay figure with ``panels`` stacked panels sharing the time axis, as
+    plotly's make_subplots lays it out (JSON text; built once, it costs ~10 ms)."""
+    fig = make_subplots(rows=panels, cols=1, shared_xaxes=True, vertical_spacing=0.08)
+    fig.update_layout(height=240 * panels + 80, margin={"l": 60, "r": 20, "t": 50, "b": 50},
+                      legend={"orientation": "h", "y": 1.08, "x": 1, "xanchor": "right"})
+    layout = fig.to_plotly_json()["layout"]
+    layout.pop("template", None)
+    return json.dumps(layout)
+
+
 def decay_figure(signals: DropSignals, result: ExtractionResult, title: str) -> dict[str, Any]:
     """Angle (deg) and torque (N·m) minus their pre-trigger offsets over the time since the
     impact (ms), with the fits: solid inside the fit window (shaded), dashed beyond it.
-    Returns the figure as a dict without its template (the page adds the shared one)."""
+    Returns the figure as a dict without its template (the page adds the shared one).
+
+    Built as plain data on a cached layout (no plotly objects per test: a report of thousands
+    of tests draws each in well under a millisecond); the measured trace, on its regular
+    sample grid, is given by its first time and step (``x0``, ``dx``), not a time array."""
     t = signals.time_s - result.impact_time_s
     end = result.window_end_s
     show = np.flatnonzero((t >= -0.1 * end) & (t <= 2.0 * end))
-    show = show[:: max(1, int(np.ceil(show.size / MAX_POINTS)))]
-    inside = np.linspace(result.window_start_s, end, 150)
-    beyond = np.linspace(end, 2.0 * end, 150)
+    step = max(1, int(np.ceil(show.size / MAX_POINTS)))
+    show = show[::step]
+    inside = np.linspace(result.window_start_s, end, FIT_POINTS)
+    beyond = np.linspace(end, 2.0 * end, FIT_POINTS)
     panels = [("angle [deg]", (signals.angle_rad - result.angle_offset_rad) / DEG, result.angle_fit, 1.0 / DEG)]
     if signals.torque_nm is not None and result.torque_fit is not None:
         panels.append(("torque [N·m]", signals.torque_nm - result.torque_offset_nm, result.torque_fit, 1.0))
-    fig = make_subplots(rows=len(panels), cols=1, shared_xaxes=True, vertical_spacing=0.08)
+    layout = json.loads(_decay_layout(len(panels)))
+    regular = show.size > 1 and np.allclose(np.diff(t[show]), t[show[1]] - t[show[0]], rtol=1e-6, atol=1e-12)
+    data, shapes = [], []
     for row, (label, measured, fit, scale) in enumerate(panels, start=1):
         first = row == 1
-        fig.add_trace(go.Scatter(x=_f4(t[show] * 1e3), y=_f4(measured[show]), mode="lines", name="measured",
-                                 line={"color": "#888", "width": 1}, showlegend=first, legendgroup="m"), row=row, col=1)
-        fig.add_trace(go.Scatter(x=_f4(inside * 1e3), y=_f4(fit(inside) * scale), mode="lines", name="fit (window)",
-                                 line={"color": "#d62728", "width": 2}, showlegend=first, legendgroup="f"), row=row, col=1)
-        fig.add_trace(go.Scatter(x=_f4(beyond * 1e3), y=_f4(fit(beyond) * scale), mode="lines",
-                                 name="fit, extrapolated", line={"color": "#d62728", "width": 1, "dash": "dash"},
-                                 showlegend=first, legendgroup="e"), row=row, col=1)
-        fig.add_vrect(x0=result.window_start_s * 1e3, x1=end * 1e3, fillcolor="#1f77b4", opacity=0.08,
-                      line_width=0, row=row, col=1)
-        fig.update_yaxes(title_text=label, row=row, col=1)
-    fig.update_xaxes(title_text="time since impact [ms]", row=len(panels), col=1)
-    fig.update_layout(title={"text": title, "font": {"size": 13}}, height=240 * len(panels) + 80,
-                      margin={"l": 60, "r": 20, "t": 50, "b": 50}, legend={"orientation": "h", "y": 1.08, "x": 1,
-                                                                           "xanchor": "right"})
-    out = fig.to_plotly_json()
-    out["layout"].pop("template", None)
-    return out
+        axes = {"xaxis": "x" if first else f"x{row}", "yaxis": "y" if first else f"y{row}"}
+        x = ({"x0": float(t[show[0]] * 1e3), "dx": float((t[show[1]] - t[show[0]]) * 1e3)} if regular
+             else {"x": _f4(t[show] * 1e3)})
+        data += [
+            {"type": "scatter", **x, "y": _f4(measured[show]), "mode": "lines", "name": "measured",
+             "line": {"color": "#888", "width": 1}, "showlegend": first, "legendgroup": "m", **axes},
+            {"type": "scatter", "x": _f4(inside * 1e3), "y": _f4(fit(inside) * scale), "mode": "lines",
+             "name": "fit (window)", "line": {"color": "#d62728", "width": 2}, "showlegend": first,
+             "legendgroup": "f", **axes},
+            {"type": "scatter", "x": _f4(beyond * 1e3), "y": _f4(fit(beyond) * scale), "mode": "lines",
+             "name": "fit, extrapolated", "line": {"color": "#d62728", "width": 1, "dash": "dash"},
+             "showlegend": first, "legendgroup": "e", **axes},
+        ]
+        shapes.append({"type": "rect", "x0": result.window_start_s * 1e3, "x1": end * 1e3, "y0": 0, "y1": 1,
+                       "xref": axes["xaxis"], "yref": f"{axes['yaxis']} domain", "fillcolor": "#1f77b4",
+                       "opacity": 0.08, "line": {"width": 0}})
+        layout["yaxis" if first else f"yaxis{row}"]["title"] = {"text": label}
+    layout[f"xaxis{len(panels)}" if len(panels) > 1 else "xaxis"]["title"] = {"text": "time since impact [ms]"}
+    layout["title"] = {"text": title, "font": {"size": 13}}
+    layout["shapes"] = shapes
+    return {"data": data, "layout": layout}
 
 
 def _f4(x: np.ndarray) -> np.ndarray:

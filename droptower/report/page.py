@@ -3,6 +3,9 @@ DataTables bundle) embedded once, every figure's data inline, no server, no netw
 absolute paths. Sections: summary, failures and flags (with their reasons), the map
 (coefficients, fit and cross-validated errors, figure), the sortable per-test table, and the
 decay fit of the test chosen in the table (its name links there), then any extra sections.
+A report of many tests keeps the decay figures in side files beside the page
+(``report_files/fits_0000.js``, 100 tests each), loaded when a test is chosen: the page stays
+small enough to open at once, and it still needs no server or network.
 
 The only JavaScript written here is the glue that draws the chosen test's stored figure.
 """
@@ -43,13 +46,29 @@ img{max-width:100%}
 
 GLUE = """
 const FITS = JSON.parse(document.getElementById("decay-data").textContent);
+const FILES = JSON.parse(document.getElementById("decay-files").textContent);
 const TEMPLATE = JSON.parse(document.getElementById("plotly-template").textContent);
+const LOADING = {};
+function droptowerFits(more) { Object.assign(FITS, more); }  // what a side file of figures calls
 function showFit(scroll) {
   let name = decodeURIComponent(location.hash.replace(/^#fit-/, ""));
-  if (!(name in FITS)) { name = Object.keys(FITS)[0]; scroll = false; }
+  if (!(name in FITS) && !(name in FILES)) { name = Object.keys(FITS).concat(Object.keys(FILES))[0]; scroll = false; }
   if (name === undefined) return;
-  const fig = FITS[name];
   document.getElementById("decay-title").textContent = name;
+  if (!(name in FITS)) {  // its figure is in a side file: load that once, then draw
+    const src = FILES[name];
+    document.getElementById("decay-message").textContent = "loading " + src;
+    if (!LOADING[src]) {
+      LOADING[src] = true;
+      const script = document.createElement("script");
+      script.src = src;
+      script.onload = () => showFit(scroll);
+      script.onerror = () => { document.getElementById("decay-message").textContent = "No plot: cannot read " + src; };
+      document.head.appendChild(script);
+    }
+    return;
+  }
+  const fig = FITS[name];
   document.getElementById("decay-message").textContent = typeof fig === "string" ? "No plot: " + fig : "";
   if (typeof fig === "string") {
     Plotly.purge("decay");
@@ -137,10 +156,13 @@ def tests_table(table: pd.DataFrame) -> str:
 
 
 def page(title: str, facts: list[tuple[str, str]], problems: str, map_html: str, tests_html: str,
-         fits: dict[str, Any], extra_sections: list[tuple[str, str]]) -> str:
-    """The whole HTML document."""
+         fits: dict[str, Any], extra_sections: list[tuple[str, str]], fit_files: dict[str, str] | None = None) -> str:
+    """The whole HTML document. fits: test name -> its decay figure (or why it has none), drawn
+    from the page; fit_files: test name -> the side file (a relative URL) holding its figure,
+    loaded when the test is chosen (a report of thousands of tests)."""
     template = pio.templates[TEMPLATE].to_plotly_json()
     fits_json = pio.to_json(fits, validate=False).replace("</", "<\\/")
+    files_json = json.dumps(fit_files or {}).replace("</", "<\\/")
     sections = [("summary", "Summary", facts_table(facts)), ("problems", "Failures and flags", problems),
                 ("map", "Characteristic map", map_html), ("tests", "Tests", tests_html),
                 ("fits", "Decay fit", "<p id='decay-note'>Measured angle and torque with the fitted decay "
@@ -158,5 +180,6 @@ def page(title: str, facts: list[tuple[str, str]], problems: str, map_html: str,
         f"{generate_init_offline_itables_html(dt_bundle)}</head><body>"
         f"<h1>{html.escape(title)}</h1><nav>{nav}</nav>{body}"
         f"<script type='application/json' id='decay-data'>{fits_json}</script>"
+        f"<script type='application/json' id='decay-files'>{files_json}</script>"
         f"<script type='application/json' id='plotly-template'>{json.dumps(template)}</script>"
         f"<script>{GLUE}</script></body></html>\n")
