@@ -16,22 +16,15 @@ import pytest
 
 from droptower.campaign import run_campaign
 from droptower.campaign.executors import WINDOW_PER_WORKER, LocalPool
+from test_campaign import LINEAR
+from test_campaign import PLAN as SMALL_PLAN
 
 distributed = pytest.importorskip("distributed")
 
-LINEAR = 'name = "linear"\n[[element]]\nkind = "spring"\nstiffness = 14000.0\n' \
-         '[[element]]\nkind = "dashpot"\ndamping = 8.0\n'
-# 16 tests in 8 chunks of 2: enough chunks in flight on both workers when one is killed
-PLAN = """name = "sixteen"
-base_seed = 280
-repeats = 4
-heights_m = [0.2, 1.0]
-preloads_nm = [0.0, 500.0]
-[[group]]
-name = "case 2"
-inertia_kgm2 = 0.359
-drop_mass_kg = 2.0
-"""
+# the plan of test_campaign with 4 repeats: 16 tests in 8 chunks of 2, enough chunks in flight on
+# both workers when one is killed
+PLAN = SMALL_PLAN.replace("repeats = 2", "repeats = 4", 1).replace("base_seed = 100", "base_seed = 280", 1)
+assert PLAN != SMALL_PLAN and "repeats = 4" in PLAN
 SETTINGS = dict(duration_s=0.07, chunk_size=2, progress=False)
 N_TESTS = 16
 

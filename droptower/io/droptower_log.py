@@ -23,7 +23,7 @@ metadata under the key ``droptower``: ``{"format": "droptower-log", "version": 1
 writes) keeps ``time_s`` in float64 and stores the other channels as float32, compressed with
 zstd after Parquet's byte-stream split: about 50 kB instead of 180 kB for a 0.1 s record at
 38.4 kHz. float32 keeps about 7 significant digits, far below the noise of any of the rig's
-sensors (docs/log_format.md); readers get float64 either way.
+sensors (docs/campaigns_at_scale.md#compact-logs); readers get float64 either way.
 
 Column names carry their unit as a suffix (see :data:`SUFFIX_UNITS`): ``time_s`` (s),
 ``angle_rad`` (rad), ``torque_nm`` (N*m), ``impact_force_n`` (N), ``laser_distance_m`` (m),
