@@ -124,6 +124,7 @@ def _bytes(folder: Path) -> int:
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
 
 
+@pytest.mark.slow
 def test_estimate_before_running_is_close_to_what_the_campaign_writes(inputs, reference, tmp_path, capsys):
     """The disk estimate (the first chunk's files, scaled) within 10 % of the finished campaign's
     logs and records; after an interrupted run it counts only the tests still to run; the
@@ -147,3 +148,22 @@ def test_estimate_before_running_is_close_to_what_the_campaign_writes(inputs, re
     text = capsys.readouterr().out
     assert f"{N_TESTS - 6} of {N_TESTS} tests to run" in text and "MB" in text and "ms CPU per test" in text
     assert _bytes(out) == before
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_results_assembled_in_batches_equal_those_assembled_at_once(reference, seed):
+    """Random cuts of the records into batches (some holding only failed tests, without any
+    extracted value) give the table that all records at once give, column for column."""
+    import json
+
+    import numpy as np
+
+    from droptower.campaign.results import assemble, assemble_batches
+
+    records = [json.loads(p.read_text()) for p in sorted((reference.root / "records").glob("*.json"))]
+    rng = np.random.default_rng(seed)
+    for k in rng.choice(len(records), size=4, replace=False):  # failed simulations: no result, no log
+        records[k] = {**records[k], "status": "failed", "result": None, "log_file": None, "error": "simulation: x"}
+    cuts = np.sort(rng.choice(np.arange(1, len(records)), size=rng.integers(1, 6), replace=False))
+    batches = [list(part) for part in np.split(np.array(records, dtype=object), cuts)]
+    pd.testing.assert_frame_equal(assemble_batches(batches), assemble(records), check_exact=True)

@@ -11,7 +11,7 @@ extracted values.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 import pandas as pd
@@ -50,6 +50,31 @@ def assemble(records: list[dict[str, Any]]) -> pd.DataFrame:
             table[name] = table[name].fillna("").astype(str)
         else:
             table[name] = pd.to_numeric(table[name].astype(object).where(table[name].notna(), np.nan))
+    return table
+
+
+def assemble_batches(batches: Iterable[list[dict[str, Any]]]) -> pd.DataFrame:
+    """:func:`assemble` of the records of many batches (each in test order, the batches too), one
+    batch at a time: memory for the table, not for every record at once. Columns and types as
+    :func:`assemble` of all records gives them."""
+    parts = [assemble(batch) for batch in batches if batch]
+    if len(parts) <= 1:
+        return parts[0] if parts else assemble([])
+    table = pd.concat(parts, ignore_index=True)
+    table = table[[c for c in table.columns if c not in TAIL_COLUMNS] + list(TAIL_COLUMNS)]
+    for name in table.columns:
+        if len({str(p[name].dtype) if name in p.columns else "absent" for p in parts}) == 1:
+            continue
+        # the batches typed it differently (all None in one, text in another; absent where no
+        # test has a result): type it from all its values, as assemble does
+        if name == "double_impact":
+            table[name] = table[name].astype("boolean")
+        elif name in TEXT_OUTPUTS:
+            table[name] = table[name].fillna("").astype(str)
+        else:
+            table[name] = pd.Series(table[name].tolist(), index=table.index)
+            if name not in PLAN_COLUMNS and name not in TAIL_COLUMNS:
+                table[name] = pd.to_numeric(table[name].astype(object).where(table[name].notna(), np.nan))
     return table
 
 

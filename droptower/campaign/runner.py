@@ -22,9 +22,9 @@ import pandas as pd
 from droptower.campaign.chunk import ChunkOutcome, ChunkTask, peak_rss_mb, run_chunk
 from droptower.campaign.estimate import Estimate, estimate
 from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
-from droptower.campaign.folder import (Layout, finished, folder_lock, layout_for, open_folder, saved_inputs,
-                                       saved_settings, write_manifest)
-from droptower.campaign.results import assemble, write_results
+from droptower.campaign.folder import (Layout, finished, finished_batches, folder_lock, layout_for, open_folder,
+                                       saved_inputs, saved_settings, write_manifest)
+from droptower.campaign.results import assemble_batches, write_results
 from droptower.campaign.spec import PLAN_COLUMNS, CampaignSpec, prepare
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 from droptower.errors import DroptowerError, WriteError
@@ -141,8 +141,8 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
 
     old, warnings = open_folder(layout, spec, resume)
     created = old.get("created") if old else None
-    records = finished(layout, spec)
-    status = {i: {k: r.get(k) for k in ("status", "error", "log_file")} for i, r in records.items()}
+    status = {r["test_id"]: {k: r.get(k) for k in ("status", "error", "log_file")}
+              for batch in finished_batches(layout, spec) for r in batch}
     write_manifest(layout, spec, status, created)
 
     plan = spec.tests[list(PLAN_COLUMNS)].to_dict(orient="records")
@@ -201,11 +201,11 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
                     if not stopped:  # else the error in flight says it already
                         raise
 
-    records = finished(layout, spec)
-    run.results = assemble(list(records.values()))
+    run.results = assemble_batches(finished_batches(layout, spec))
     write_results(run.results, layout.results_parquet, layout.results_csv)
-    run.failed = [(i, r.get("error") or "") for i, r in sorted(records.items()) if r["status"] == "failed"]
-    run.pending = len(spec.tests) - len(records)
+    failed = run.results[run.results["status"] == "failed"]
+    run.failed = [(int(i), str(e or "")) for i, e in zip(failed["test_id"], failed["error"])]
+    run.pending = len(spec.tests) - len(run.results)
     run.peak_rss_main_mb = peak_rss_mb()
     run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, peak_rss_mb(resource.RUSAGE_CHILDREN))
     run.wall_s = time.perf_counter() - t_start
