@@ -56,7 +56,8 @@ def open_in_chromium(page: Path) -> tuple[float, float, int]:
     from selenium.webdriver.support.ui import WebDriverWait
 
     options = webdriver.ChromeOptions()
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1280,1000"):
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1280,1000"):
         options.add_argument(arg)
     chrome = webdriver.Chrome(service=Service(sh.which("chromedriver")), options=options)
     try:

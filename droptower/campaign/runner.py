@@ -76,10 +76,11 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     scheduler address instead; resume: continue the campaign in ``out`` (same rig, coupling,
     plan and settings, else a one-line error and nothing touched); duration_s: record length
     after the impact (None: twice the longest predicted period, see :func:`prepare`);
-    chunk_size: tests per batched simulation (None: :data:`~droptower.campaign.spec.CHUNK_SIZE`); log_format: ``parquet`` (None) or
-    ``csv``; window: the extractor's fit window (None: ``first-cycle``). With ``resume``, a
-    setting left None is the folder's. progress: a tqdm bar on stderr; max_chunks: stop after
-    this many chunks (an interrupted campaign, for tests and trial runs).
+    chunk_size: tests per batched simulation (None: :data:`~droptower.campaign.spec.CHUNK_SIZE`);
+    log_format: ``parquet`` (None; compact logs) or ``csv``; window: the extractor's fit window
+    (None: ``first-cycle``). With ``resume``, a setting left None is the folder's. progress: a
+    tqdm bar on stderr; max_chunks: stop after this many chunks (an interrupted campaign, for
+    tests and trial runs).
     """
     t_start = time.perf_counter()
     if workers is not None and workers < 1:
