@@ -31,6 +31,7 @@ def _files(text: str) -> dict[str, str]:
     return json.loads(match.group(1).replace("<\\/", "</"))
 
 
+@pytest.mark.slow
 def test_figures_go_to_side_files_and_every_test_stays_reachable(campaign: Path, split: Path) -> None:  # noqa: F811
     text = split.read_text()
     files = _files(text)
@@ -46,6 +47,10 @@ def test_figures_go_to_side_files_and_every_test_stays_reachable(campaign: Path,
         assert body.startswith("droptowerFits(") and body.rstrip().endswith(");")
         figures |= json.loads(body.strip()[len("droptowerFits("):-2])
     assert sorted(figures) == sorted(files)
+    # typed arrays (base64 float32), thinned traces: ~6.5 kB per test keeps 4 500 tests within 40 MB
+    per_test = sum(p.stat().st_size for p in side.glob("fits_*.js")) / len(files)
+    assert per_test <= 7500, per_test
+    assert figures["test_00007"]["data"][0]["y"]["dtype"] == "f4"
     assert {t["name"] for t in figures["test_00007"]["data"]} == {"measured", "fit (window)", "fit, extrapolated"}
     for heading in ("Summary", "Failures and flags", "Characteristic map", "Tests", "Decay fit"):
         assert f"<h2>{heading}</h2>" in text
