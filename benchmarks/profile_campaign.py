@@ -12,6 +12,7 @@ import argparse
 import cProfile
 import io
 import pstats
+import sysconfig
 import tempfile
 import time
 from pathlib import Path
@@ -46,8 +47,9 @@ def main() -> None:
     stats = pstats.Stats(profile, stream=text)
     stats.sort_stats("tottime").print_stats(args.top)
     stats.sort_stats("cumulative").print_stats(args.top)
-    root = str(Path(__file__).resolve().parents[1])
-    print("\n".join(line.rstrip() for line in text.getvalue().replace(root + "/", "").splitlines()
+    listing = text.getvalue().replace(str(Path(__file__).resolve().parents[1]) + "/", "")
+    listing = listing.replace(sysconfig.get_paths()["stdlib"] + "/", "<stdlib>/")  # no machine paths
+    print("\n".join(line.rstrip() for line in listing.splitlines()
                     if line.strip() and not line.lstrip().startswith(("Ordered", "List reduced"))))
 
 
