@@ -13,6 +13,9 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from hypothesis import given, seed, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from droptower.campaign import run_campaign
 from droptower.campaign.executors import WINDOW_PER_WORKER, LocalPool
@@ -167,3 +170,38 @@ def test_results_assembled_in_batches_equal_those_assembled_at_once(reference, s
     cuts = np.sort(rng.choice(np.arange(1, len(records)), size=rng.integers(1, 6), replace=False))
     batches = [list(part) for part in np.split(np.array(records, dtype=object), cuts)]
     pd.testing.assert_frame_equal(assemble_batches(batches), assemble(records), check_exact=True)
+
+
+# ---- compact logs ------------------------------------------------------------------------------
+
+
+@seed(28)
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(2, 300), scale=st.sampled_from([1e-6, 1e-2, 1.0, 1e4, 2e5]), data=st.data())
+def test_compact_log_reads_back_as_float32_values_in_every_reader(tmp_path_factory, n, scale, data):
+    """A compact log (float32 channels, float64 time, zstd) reads back, in droptower's reader and
+    in pandas/pyarrow, as exactly the float32-rounded channels and the exact time; metadata kept."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from droptower.io.droptower_log import read_log, write_log
+
+    time_s = np.arange(n) / 38400.0 - 0.005
+    values = data.draw(arrays(np.float64, n, elements=st.floats(-1.0, 1.0, allow_nan=False))) * scale
+    channels = {"angle_rad": values, "torque_nm": -values}
+    path = tmp_path_factory.mktemp("compact") / "t.parquet"
+    write_log(path, time_s, channels, {"seed": 7, "note": "x"}, compact=True)
+    record = read_log(path)
+    assert record.metadata == {"seed": 7, "note": "x"}
+    np.testing.assert_array_equal(record.channels["time_s"].values, time_s)
+    for name, v in channels.items():
+        got = record.channels[name].values
+        assert got.dtype == np.float64
+        np.testing.assert_array_equal(got, v.astype(np.float32).astype(np.float64))
+        # float32 rounding, nothing more (below float32's smallest normal number a value may flush to
+        # zero: 1e-38 of any sensor's unit is no measurement)
+        np.testing.assert_allclose(got, v, rtol=2 ** -24, atol=float(np.finfo(np.float32).tiny))
+    frame = pd.read_parquet(path)
+    assert list(frame.columns) == ["time_s", "angle_rad", "torque_nm"] and str(frame["angle_rad"].dtype) == "float32"
+    np.testing.assert_array_equal(frame["torque_nm"].to_numpy(), (-values).astype(np.float32))
+    assert pq.ParquetFile(path).metadata.row_group(0).column(1).compression == "ZSTD"
