@@ -2,9 +2,10 @@
 
 A chunk is a fixed run of consecutive tests of the plan, simulated by one batched
 :func:`droptower.rig.simulate.simulate` call (one pymunk space). Each test's log is then
-written in the project's log format, read back from disk and evaluated by the same code that
-evaluates real logs (:func:`droptower.extract.files.extract_file`, as ``droptower extract``),
-and its result record written. The worker writes the files itself, so the main process ships
+written in the project's log format (compact Parquet: float32 channels, zstd; or CSV), read
+back from disk and evaluated by the same code that evaluates real logs
+(:func:`droptower.extract.files.extract_file`, as ``droptower extract``), and its result record
+written (one line of JSON). The worker writes the files itself, so the main process ships
 no signals; with a Dask cluster the folder must be reachable by the workers under the same
 path (a shared file system).
 
