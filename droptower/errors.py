@@ -118,3 +118,24 @@ def make_folder(path: str | Path) -> Path:
         reason = os.strerror(exc.errno) if exc.errno else str(exc)
         raise WriteError(f"cannot create the folder ({reason})", file=path) from None
     return path
+
+
+def finite_values(values, name: str, *, file: str | Path | None = None):
+    """``values`` as a float array if every sample is finite, else ``<file>: <name>: sample <i> is
+    NaN|inf (<n> of <N> non-finite; ...)``. droptower fills no gaps anywhere (the log readers'
+    policy): a record with a gap is cut or interpolated by the user, never silently thinned.
+    A value that is no number at all is refused as such."""
+    import numpy as np
+
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise DroptowerError(f"expected numbers, got {type(values).__name__}", file=file, where=name) from None
+    bad = ~np.isfinite(array)
+    if bad.any():
+        first = np.unravel_index(int(np.argmax(bad)), array.shape)
+        index = int(first[0]) if array.ndim == 1 else tuple(int(i) for i in first)
+        kind = "NaN" if np.isnan(array[first]) else "infinite"
+        raise DroptowerError(f"sample {index} is {kind} ({int(bad.sum())} of {array.size} non-finite; droptower fills "
+                             "no gaps: cut the record or fill the gap first)", file=file, where=name)
+    return array

@@ -35,6 +35,15 @@ class Settings(LogSettings):
     pre_trigger_s: float = PRE_TRIGGER_S
     min_drop_spacing_s: float = MIN_DROP_SPACING_S
 
+    def __post_init__(self):
+        for name, least in (("sample_rate_hz", "> 0"), ("pre_trigger_s", ">= 0"), ("min_drop_spacing_s", "> 0")):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
+                                          and (value > 0 or (least == ">= 0" and value == 0))):
+                raise DroptowerError(f"must be a finite number {least}, got {value!r}", where=f"Settings.{name}")
+        if not isinstance(self.window, Window):
+            raise DroptowerError(f"expected a Window, got {type(self.window).__name__}", where="Settings.window")
+
 
 @dataclass
 class Drop:
