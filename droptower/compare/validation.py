@@ -29,7 +29,7 @@ from droptower.maps import MapFit
 
 COLUMNS = ("sweep", "amplitude_deg", "frequency_hz", "in_range", "in_rectangle", "servo_stiffness_nm_per_deg",
            "map_stiffness_nm_per_deg", "stiffness_deviation_pct", "servo_damping_ratio", "map_damping_ratio",
-           "damping_deviation_pct", "servo_loss_factor", "map_loss_factor", "loss_factor_deviation_pct",
+           "damping_deviation_pct", "servo_lehr_damping", "map_lehr_damping", "servo_loss_factor", "map_loss_factor", "loss_factor_deviation_pct",
            "servo_decay_ratio", "map_decay_ratio", "decay_ratio_deviation_pct", "servo_relative_damping_psi",
            "map_relative_damping_psi", "servo_dynamic_stiffness_nm_per_deg")
 REGIONS = ("inside", "rectangle", "outside", "all")
@@ -91,6 +91,7 @@ def validate_map(fit: MapFit, points: ServoPoints) -> Validation:
         map_loss_factor=eta_map, loss_factor_deviation_pct=100 * (eta_map / servo["servo_loss_factor"] - 1),
         servo_decay_ratio=r_servo, map_decay_ratio=r_map, decay_ratio_deviation_pct=100 * (r_map / r_servo - 1),
         map_relative_damping_psi=psi_map,
+        servo_lehr_damping=sdof.lehr_damping(r_servo, 1.0), map_lehr_damping=sdof.lehr_damping(r_map, 1.0),
     )[list(COLUMNS)]
     distinct = table.drop_duplicates(["amplitude_deg", "frequency_hz"])  # a point on two sweeps counts once
     summary: dict[str, Any] = {}
