@@ -50,3 +50,14 @@ def test_condition_summary_carries_all_three():
     assert np.allclose(summary["lehr_damping_mean"], [lehr[:2].mean(), lehr[2]])
     assert np.allclose(summary["loss_factor_mean"], [eta[:2].mean(), eta[2]])
     assert np.allclose(summary["damping_ratio_mean"], [1.3, 0.5])
+
+
+def test_map_gives_all_three():
+    from droptower.data import read_table4
+    from droptower.maps import fit_map
+
+    fit = fit_map(read_table4())
+    a, f = np.array([0.5, 1.0, 2.0]), np.array([25.0, 35.0, 45.0])
+    lehr, eta = sdof.damping_measures(fit.damping_ratio(a, f))
+    assert np.allclose(fit.lehr_damping(a, f), lehr) and np.allclose(fit.loss_factor(a, f), eta)
+    assert "d = E_diss/E_el (Rapp et al. 2022)" in fit.summary()
