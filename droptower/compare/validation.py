@@ -26,6 +26,7 @@ import pandas as pd
 from droptower.compare.servo_points import ServoPoints
 from droptower import sdof
 from droptower.maps import MapFit
+from droptower.errors import expects
 
 COLUMNS = ("sweep", "amplitude_deg", "frequency_hz", "in_range", "in_rectangle", "servo_stiffness_nm_per_deg",
            "map_stiffness_nm_per_deg", "stiffness_deviation_pct", "servo_damping_ratio", "map_damping_ratio",
@@ -73,6 +74,7 @@ def map_damping_measures(damping_ratio: np.ndarray) -> tuple[np.ndarray, np.ndar
     return sdof.loss_factor(r, 1.0), sdof.relative_damping(r, 1.0)
 
 
+@expects(fit="droptower.maps.mapfit.MapFit", points="droptower.compare.servo_points.ServoPoints")
 def validate_map(fit: MapFit, points: ServoPoints) -> Validation:
     """Predict every servo point from the map and compare (module docstring)."""
     servo = points.table
@@ -115,6 +117,7 @@ def region_rows(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
             "outside": table[~table["in_range"]], "all": table}
 
 
+@expects(validation="droptower.compare.validation.Validation")
 def format_summary(validation: Validation) -> str:
     """The summary as text: definitions, then RMS / max deviations per region."""
     s = validation.summary

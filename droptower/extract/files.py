@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
 from droptower.extract.result import ExtractionResult
@@ -120,6 +120,7 @@ def _same(a: Any, b: Any) -> bool:
         return a == b
 
 
+@expects(signals="droptower.io.signals.DropSignals", result="droptower.extract.result.ExtractionResult")
 def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult, drop_index: int = 1) -> dict[str, Any]:
     """One table row: ``file``, ``drop_index`` (the drop's number in its log, from 1),
     ``t_impact_s`` (its impact on the log's clock), the log's metadata (nested values as JSON

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError, finite_values
+from droptower.errors import DroptowerError, expects, finite_values
 from droptower.limits import MAX_COUPLING_STATE
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ElementSpec, KernelElement
@@ -78,6 +78,7 @@ class Coupling:
     by the whole batch.
     """
 
+    @expects(elements=["droptower.rheology.elements.ElementSpec"])
     def __init__(self, elements: list[ElementSpec], *, name: str = "", description: str = "",
                  source: str = "", units: str = "torsional", path: Path | None = None,
                  params: np.ndarray | None = None):

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.signal import savgol_filter
 
-from droptower.errors import DroptowerError, finite_values
+from droptower.errors import DroptowerError, expects, finite_values
 from droptower.sdof import drop_tower_equivalent_damping_ratio
 
 #: Savitzky-Golay polynomial order; the filter needs a window of at least order + 2 samples.
@@ -256,6 +256,7 @@ def evaluate_cycles(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.nda
         sample_rate_hz=fs, loop_angle_rad=xs[-m - 1:], loop_torque_nm=ys[-m - 1:])
 
 
+@expects(history="droptower.servo.histories.History")
 def evaluate_history(history, torque_nm: np.ndarray, *, smooth: bool = True) -> list[CycleEvaluation]:
     """Evaluate every ``evaluation`` segment of a :class:`~droptower.servo.histories.History`
     (one per step of a sweep) against the torque the coupling answered with."""
