@@ -118,3 +118,67 @@ def make_folder(path: str | Path) -> Path:
         reason = os.strerror(exc.errno) if exc.errno else str(exc)
         raise WriteError(f"cannot create the folder ({reason})", file=path) from None
     return path
+
+
+def finite_values(values, name: str, *, file: str | Path | None = None):
+    """``values`` as a float array if every sample is finite, else ``<file>: <name>: sample <i> is
+    NaN|inf (<n> of <N> non-finite; ...)``. droptower fills no gaps anywhere (the log readers'
+    policy): a record with a gap is cut or interpolated by the user, never silently thinned.
+    A value that is no number at all is refused as such."""
+    import numpy as np
+
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise DroptowerError(f"expected numbers, got {type(values).__name__}", file=file, where=name) from None
+    bad = ~np.isfinite(array)
+    if bad.any():
+        first = np.unravel_index(int(np.argmax(bad)), array.shape)
+        index = int(first[0]) if array.ndim == 1 else tuple(int(i) for i in first)
+        kind = "NaN" if np.isnan(array[first]) else "infinite"
+        raise DroptowerError(f"sample {index} is {kind} ({int(bad.sum())} of {array.size} non-finite; droptower fills "
+                             "no gaps: cut the record or fill the gap first)", file=file, where=name)
+    return array
+
+
+def expects(**kinds: "str | type | list"):
+    """Decorator: refuse a wrong-typed argument with one TypeError naming the function, the
+    argument, what it expects and what it got, before it fails somewhere inside as an
+    AttributeError. ``kinds``: argument name -> a class, a dotted class path (resolved at the first
+    call, so no import cycle), or ``[kind]`` for a list or tuple of such."""
+    import functools
+    import importlib
+    import inspect
+
+    def resolve(kind):
+        if isinstance(kind, str):
+            module, _, name = kind.rpartition(".")
+            return getattr(importlib.import_module(module), name)
+        return kind
+
+    def wrap(func):
+        signature = inspect.signature(func)
+
+        @functools.wraps(func)
+        def checked(*args, **kwargs):
+            try:
+                bound = signature.bind(*args, **kwargs)
+            except TypeError as exc:
+                raise TypeError(f"{func.__qualname__}: {exc}") from None
+            for name, kind in kinds.items():
+                if name not in bound.arguments:
+                    continue
+                value, many = bound.arguments[name], isinstance(kind, list)
+                cls = resolve(kind[0] if many else kind)
+                if many:
+                    ok = isinstance(value, (list, tuple)) and all(isinstance(v, cls) for v in value)
+                    wanted = f"a list of {cls.__name__}"
+                else:
+                    ok, wanted = isinstance(value, cls), f"a {cls.__name__}"
+                if not ok:
+                    raise TypeError(f"{func.__qualname__}: {name} must be {wanted}, got {type(value).__name__}")
+            return func(*args, **kwargs)
+
+        return checked
+
+    return wrap

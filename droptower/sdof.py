@@ -12,6 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+#: the axis label and header of Rapp's damping ratio (not Lehr's D)
+DAMPING_LABEL = "d = E_diss/E_el (Rapp et al. 2022) [-]"
+
 
 def stiffness(inertia: ArrayLike, omega: ArrayLike, delta: ArrayLike) -> np.ndarray:
     """Dynamic stiffness c_dyn,M1 = J·(ω² + δ²) in N·m/rad (Rapp et al. 2022, eq. 15, decoded in docs/theory.md#extraction).
@@ -56,6 +59,25 @@ def loss_factor(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
     """
     r = np.asarray(delta, float) / np.asarray(omega, float)
     return 2.0 * r / (1.0 + r**2)
+
+
+def lehr_damping(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:
+    """Lehr's damping D (ζ, the "damping ratio" of a drivetrain engineer) of the decay with δ and ω:
+    D = r/√(1 + r²), r = δ/ω (docs/theory.md#damping-measures).
+
+    For J φ'' + d φ' + c φ = 0: δ = Dω₀ and ω = ω₀√(1 − D²) with ω₀² = c/J, hence r = D/√(1 − D²).
+    Not Rapp's d = E_diss/E_el of :func:`damping_ratio`: at r = 0.1, D = 0.0995 but d = 1.26.
+    """
+    r = np.asarray(delta, float) / np.asarray(omega, float)
+    return r / np.sqrt(1.0 + r**2)
+
+
+def damping_measures(damping_ratio_: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(Lehr's D, loss factor η) of the linear Kelvin–Voigt decay whose Rapp d = E_diss/E_el is
+    given (docs/theory.md#damping-measures): r from :func:`decay_ratio`, then :func:`lehr_damping`
+    and :func:`loss_factor` (δ = r, ω = 1)."""
+    r = decay_ratio(damping_ratio_)
+    return lehr_damping(r, 1.0), loss_factor(r, 1.0)
 
 
 def relative_damping(delta: ArrayLike, omega: ArrayLike) -> np.ndarray:

@@ -18,6 +18,20 @@ from droptower.errors import DroptowerError
 #: kind -> the SI unit values are converted to.
 SI_UNITS: dict[str, str] = {"time": "s", "angle": "rad", "torque": "N*m", "force": "N", "length": "m"}
 
+#: a unit token of a field name (``torque_nm``, ``damping_nms_per_rad``) -> how the unit is printed
+#: in a message or a report: one spelling per unit, so a torque never reads "nm" (nanometres)
+PRINTED_UNITS: dict[str, str] = {"nm": "N*m", "nms": "N*m*s", "n": "N", "ns": "N*s", "rad": "rad", "m": "m",
+                                 "deg": "deg", "mm": "mm", "s": "s", "hz": "Hz", "kg": "kg", "kgm2": "kg*m^2"}
+
+
+def printed_unit(token: str) -> str:
+    """How the field-name unit token ``token`` (``nm``, ``rad``, ``n_per_m``) is printed: N*m, rad,
+    N/m; a token not in :data:`PRINTED_UNITS` is printed with ``_per_`` as ``/``, ``_`` as ``*``."""
+    num, _, den = token.partition("_per_")
+    parts = [PRINTED_UNITS.get(t, t) for t in num.split("_")]
+    out = "*".join(parts)
+    return f"{out}/{printed_unit(den)}" if den else out
+
 # Spellings pint does not read as meant: "Nm" would parse as a (nonsensical) unit, not N*m;
 # German lab software writes "Grad" for degrees (pint would read a gigaradian).
 _ALIASES = [

@@ -14,7 +14,7 @@ from droptower.errors import DroptowerError, WriteError, check_positive, make_fo
 
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
-           "damping_ratio", "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
+           "damping_ratio", "lehr_damping", "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
 
 
 def _summary(rows: list[dict[str, Any]]) -> str:
@@ -87,7 +87,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     """Extract stiffness and damping from drop-test logs PATH... (any number, any format).
 
     Per test: impact and pre-trigger baseline (offsets, preload), least-squares fit of
-    φ̂·e^(−δt)·cos(ωt − Φ) over the window, c_dyn,M1 = J(ω² + δ²), d_ratio = ½(e^(4πδ/ω) − 1),
+    φ̂·e^(−δt)·cos(ωt − Φ) over the window, c_dyn,M1 = J(ω² + δ²), damping_ratio = Rapp's d = E_diss/E_el = ½(e^(4πδ/ω) − 1) beside Lehr's D (lehr_damping),
     φ̂_ref, f (Rapp et al. 2022, eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
     loss factor η and relative damping ψ (docs/theory.md#damping-measures); standard uncertainties (*_std), the fit
     error and flags (double_impact, clipping, too_few_samples_per_period, short_window,

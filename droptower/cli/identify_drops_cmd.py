@@ -150,7 +150,7 @@ def servo_prediction_figure(table: Any) -> Any:
         ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.14))  # below: off the curves
     ax_k.set_ylabel("stiffness (N*m/deg)")
     ax_k.set_title("stiffness: model K', map c", fontsize=10)
-    ax_d.set_ylabel("damping ratio d")
+    ax_d.set_ylabel("d = E_diss/E_el (Rapp et al. 2022)")
     ax_d.set_title("drop-tower damping ratio (model: the d of its loss factor)", fontsize=10)
     fig.suptitle("fitted model on the servo bench (solid) vs the drop tower's map (dashed)")
     return fig

@@ -48,7 +48,7 @@ def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
                 ax.plot(grid, np.where(inside, values, np.nan), "-", color=color)
                 ax.plot(grid, np.where(inside, np.nan, values), "--", color=color)
         ax_c.set(xlabel=x_label, ylabel="stiffness [N·m/deg]")
-        ax_d.set(xlabel=x_label, ylabel="damping ratio d [-]")
+        ax_d.set(xlabel=x_label, ylabel="d = E_diss/E_el (Rapp et al. 2022) [-]")
         ax_c.set_title(f"({'ac'[row]}) stiffness, {sweep} sweeps")
         ax_d.set_title(f"({'bd'[row]}) damping ratio, {sweep} sweeps")
         for ax in (ax_c, ax_d):

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.compare.validation import deviation_stats
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 from droptower.maps import MapFit, select_tests
 
@@ -81,6 +81,7 @@ def _log_interp(x: float, xs: np.ndarray, ys: np.ndarray) -> tuple[float, bool]:
     return float(ys[i[0]] + slope * (lx - lxs[i[0]])), True
 
 
+@expects(reference="pandas.DataFrame")
 def compare_reference(reference: pd.DataFrame, fit: MapFit | None = None, results: pd.DataFrame | None = None,
                       preload_nm: float | None = None) -> tuple[pd.DataFrame, dict[str, Any]]:
     """The comparison table (one row per reference row) and its summary (module docstring);
@@ -124,8 +125,11 @@ def compare_reference(reference: pd.DataFrame, fit: MapFit | None = None, result
     return table, summary
 
 
+@expects(summary="builtins.dict")
 def format_comparison(summary: dict[str, Any], name: str = "Table 4") -> str:
     """RMS and maximum deviations from the measured map, per source, with the acceptance."""
+    if "n_rows" not in summary:
+        raise ValueError("format_comparison: expected the summary compare_reference returns (no 'n_rows')")
     lines = [f"comparison with {name} ({summary['n_rows']} rows; deviation = virtual / measured - 1, %; "
              f"acceptance: rms <= {ACCEPT_STIFFNESS_RMS_PCT:g} % stiffness, <= {ACCEPT_DAMPING_RMS_PCT:g} % damping)"]
     labels = {"campaign": "campaign tests at each row's case and amplitude",

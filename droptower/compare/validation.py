@@ -26,10 +26,11 @@ import pandas as pd
 from droptower.compare.servo_points import ServoPoints
 from droptower import sdof
 from droptower.maps import MapFit
+from droptower.errors import expects
 
 COLUMNS = ("sweep", "amplitude_deg", "frequency_hz", "in_range", "in_rectangle", "servo_stiffness_nm_per_deg",
            "map_stiffness_nm_per_deg", "stiffness_deviation_pct", "servo_damping_ratio", "map_damping_ratio",
-           "damping_deviation_pct", "servo_loss_factor", "map_loss_factor", "loss_factor_deviation_pct",
+           "damping_deviation_pct", "servo_lehr_damping", "map_lehr_damping", "servo_loss_factor", "map_loss_factor", "loss_factor_deviation_pct",
            "servo_decay_ratio", "map_decay_ratio", "decay_ratio_deviation_pct", "servo_relative_damping_psi",
            "map_relative_damping_psi", "servo_dynamic_stiffness_nm_per_deg")
 REGIONS = ("inside", "rectangle", "outside", "all")
@@ -73,6 +74,7 @@ def map_damping_measures(damping_ratio: np.ndarray) -> tuple[np.ndarray, np.ndar
     return sdof.loss_factor(r, 1.0), sdof.relative_damping(r, 1.0)
 
 
+@expects(fit="droptower.maps.mapfit.MapFit", points="droptower.compare.servo_points.ServoPoints")
 def validate_map(fit: MapFit, points: ServoPoints) -> Validation:
     """Predict every servo point from the map and compare (module docstring)."""
     servo = points.table
@@ -91,6 +93,7 @@ def validate_map(fit: MapFit, points: ServoPoints) -> Validation:
         map_loss_factor=eta_map, loss_factor_deviation_pct=100 * (eta_map / servo["servo_loss_factor"] - 1),
         servo_decay_ratio=r_servo, map_decay_ratio=r_map, decay_ratio_deviation_pct=100 * (r_map / r_servo - 1),
         map_relative_damping_psi=psi_map,
+        servo_lehr_damping=sdof.lehr_damping(r_servo, 1.0), map_lehr_damping=sdof.lehr_damping(r_map, 1.0),
     )[list(COLUMNS)]
     distinct = table.drop_duplicates(["amplitude_deg", "frequency_hz"])  # a point on two sweeps counts once
     summary: dict[str, Any] = {}
@@ -114,6 +117,7 @@ def region_rows(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
             "outside": table[~table["in_range"]], "all": table}
 
 
+@expects(validation="droptower.compare.validation.Validation")
 def format_summary(validation: Validation) -> str:
     """The summary as text: definitions, then RMS / max deviations per region."""
     s = validation.summary

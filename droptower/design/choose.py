@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.design.coverage import Target, covered_fraction, in_hull, plane
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.planner import plan, record_length_s
@@ -88,6 +88,7 @@ def lever_name(rig: RigConfig, inertia_kgm2: float) -> str:
     return f"lever {order.index(inertia_kgm2) + 1} ({inertia_kgm2:g} kg*m^2)"
 
 
+@expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling")
 def predict_candidates(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, ...],
                        n_heights: int = CANDIDATE_HEIGHTS) -> pd.DataFrame:
     """Every lever x mass x log-spaced height, predicted at every preload in one batch.
@@ -261,6 +262,7 @@ def _unreachable(target: Target, all_pts: np.ndarray, feasible: pd.DataFrame, ri
     return out
 
 
+@expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling", target="droptower.design.coverage.Target")
 def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repeats: int = 3,
                     max_tests: int | None = None, candidates: pd.DataFrame | None = None) -> Design:
     """Design the conditions that cover ``target`` on ``rig`` with ``coupling``.

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 
 #: Grid points per axis over the target region (coverage is the fraction of them covered).
 GRID_POINTS = 21
@@ -78,6 +78,7 @@ def in_hull(points: np.ndarray, queries: np.ndarray, rel_tol: float = 1e-9) -> n
         return d <= rel_tol
 
 
+@expects(target="droptower.design.coverage.Target")
 def covered_fraction(points: np.ndarray, target: Target, n: int = GRID_POINTS) -> float:
     """Fraction of the target's grid that lies in the hull of ``points`` (log10 deg, Hz)."""
     return float(np.mean(in_hull(points, target.grid(n))))

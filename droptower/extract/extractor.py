@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from droptower.errors import DroptowerError, not_in_range
+from droptower.errors import DroptowerError, finite_values, not_in_range
 from droptower import sdof
 from droptower.decayfit import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
 from droptower.extract.impact import find_impact
@@ -30,21 +30,18 @@ MIN_FIT_SAMPLES = 8             # fewer samples in the window cannot support the
 
 def _check(signals: DropSignals) -> None:
     """Signals built directly (not via :func:`droptower.io.mapping.map_channels`) get the same checks."""
-    time = np.asarray(signals.time_s)
+    time = finite_values(signals.time_s, "time_s")
     for name in ("angle_rad", "torque_nm", "impact_force_n"):
         values = getattr(signals, name)
         if values is None:
             continue
+        values = finite_values(values, name)  # a gap is refused by name and sample, never filled
         if values.shape != time.shape:
             raise DroptowerError(f"{values.size} samples, time has {time.size}", where=name)
-        bad = ~np.isfinite(values)
-        if bad.any():
-            raise DroptowerError(f"{int(bad.sum())} NaN/missing values (a gap), first at sample {int(np.argmax(bad))}",
-                                 where=name)
         if np.ptp(values) == 0.0:
             raise DroptowerError(f"constant signal ({float(values[0])!r} throughout)", where=name)
-    if time.size < 2 or not np.isfinite(time).all():
-        raise DroptowerError("time: fewer than 2 samples or NaN")
+    if time.size < 2:
+        raise DroptowerError(f"{time.size} sample(s), at least 2 needed", where="time_s")
     step = np.diff(time)
     if not (step > 0).all():
         i = int(np.argmax(step <= 0))
@@ -134,8 +131,9 @@ def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_le
     ``lever_length_m``), used only for the lever's rate after the impact (L·∫F dt / J, else the
     impact law) and the impact energy; window: ``first-cycle``,
     ``N-cycles`` or seconds. Raises :class:`DroptowerError` (naming the source file) for input
-    that cannot give a result.
+    that cannot give a result; :class:`TypeError` for anything but signals.
     """
+    signals = _as_signals(signals, inertia_kgm2)
     try:
         inertia = metadata_value(signals, inertia_kgm2, "inertia_kgm2")
         if inertia is None:
@@ -145,6 +143,20 @@ def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_le
         return _extract(signals, inertia, lever, Window.parse(window))
     except DroptowerError as exc:
         raise exc.with_file(signals.source) if signals.source is not None else exc from None
+
+
+def _as_signals(signals: object, inertia_kgm2: float | None) -> DropSignals:
+    """``signals``, or a simulated drop's sensor channels (``DropResult.channels()``) as signals."""
+    if isinstance(signals, DropSignals):
+        return signals
+    if all(hasattr(signals, a) for a in ("time_s", "angle_rad", "torque_nm", "impact_force_n", "laser_distance_m")):
+        if inertia_kgm2 is None:  # the rig's channels carry no metadata: name the call that has it
+            raise DroptowerError("a simulated drop's channels carry no metadata (no rotating inertia): pass "
+                                 "DropResult.signals() instead, or give inertia_kgm2")
+        return DropSignals(*(np.asarray(getattr(signals, a), dtype=float)
+                             for a in ("time_s", "angle_rad", "torque_nm", "impact_force_n")))
+    raise TypeError(f"extract expects DropSignals (droptower.io.map_channels(read_any(path)), DropResult.signals()), "
+                    f"got {type(signals).__name__}")
 
 
 def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None, window: Window) -> ExtractionResult:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
 from droptower.extract.result import ExtractionResult
@@ -34,6 +34,15 @@ class Settings(LogSettings):
     drop_conditions: dict[int, dict[str, float]] = field(default_factory=dict)
     pre_trigger_s: float = PRE_TRIGGER_S
     min_drop_spacing_s: float = MIN_DROP_SPACING_S
+
+    def __post_init__(self):
+        for name, least in (("sample_rate_hz", "> 0"), ("pre_trigger_s", ">= 0"), ("min_drop_spacing_s", "> 0")):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
+                                          and (value > 0 or (least == ">= 0" and value == 0))):
+                raise DroptowerError(f"must be a finite number {least}, got {value!r}", where=f"Settings.{name}")
+        if not isinstance(self.window, Window):
+            raise DroptowerError(f"expected a Window, got {type(self.window).__name__}", where="Settings.window")
 
 
 @dataclass
@@ -111,6 +120,7 @@ def _same(a: Any, b: Any) -> bool:
         return a == b
 
 
+@expects(signals="droptower.io.signals.DropSignals", result="droptower.extract.result.ExtractionResult")
 def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult, drop_index: int = 1) -> dict[str, Any]:
     """One table row: ``file``, ``drop_index`` (the drop's number in its log, from 1),
     ``t_impact_s`` (its impact on the log's clock), the log's metadata (nested values as JSON

@@ -80,6 +80,7 @@ def _title(signals: DropSignals, result: ExtractionResult) -> str:
     values = (f"f = {pm(result.frequency_hz, 'frequency_hz', digits=4)} Hz, "
               f"φ̂_ref = {pm(result.amplitude_ref_rad, 'amplitude_ref_rad', 1 / DEG)} deg, "
               f"c = {pm(result.stiffness_nm_per_rad, 'stiffness_nm_per_rad', DEG, 4)} N*m/deg, "
-              f"d = {pm(result.damping_ratio, 'damping_ratio')}")
+              f"d = E_diss/E_el (Rapp et al. 2022) = {pm(result.damping_ratio, 'damping_ratio')}, "
+              f"D = {result.lehr_damping:.3g}")
     flags = f"  [{', '.join(result.flags)}]" if result.flags else ""
     return f"{', '.join(test)}\n{values}{flags}"

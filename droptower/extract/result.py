@@ -20,7 +20,8 @@ OUTPUTS: dict[str, tuple[str, float]] = {
     "phase_rad": ("phase_rad", 1.0),
     "stiffness_nm_per_rad": ("stiffness_nm_per_rad", 1.0),
     "stiffness_nm_per_deg": ("stiffness_nm_per_rad", DEG),
-    "damping_ratio": ("damping_ratio", 1.0),
+    "damping_ratio": ("damping_ratio", 1.0),  # Rapp's d = E_diss/E_el, not Lehr's D (docs/theory.md#damping-measures)
+    "lehr_damping": ("lehr_damping", 1.0),
     "stiffness_torque_nm_per_rad": ("stiffness_torque_nm_per_rad", 1.0),
     "stiffness_torque_nm_per_deg": ("stiffness_torque_nm_per_rad", DEG),
     "stiffness_m2_m1_deviation_pct": ("stiffness_deviation", 100.0),
@@ -57,7 +58,8 @@ class ExtractionResult:
 
     Decay fit: amplitude_rad φ̂ (at the impact), delta_per_s δ, omega_rad_per_s ω, phase_rad Φ;
     frequency_hz f = ω/2π; amplitude_ref_rad φ̂_ref (eq. 18, middle of the window);
-    stiffness_nm_per_rad c_dyn,M1 = J(ω² + δ²) (eq. 15); damping_ratio ½(e^(4πδ/ω) − 1) (eq. 16);
+    stiffness_nm_per_rad c_dyn,M1 = J(ω² + δ²) (eq. 15); damping_ratio Rapp's d = E_diss/E_el = ½(e^(4πδ/ω) − 1) (eq. 16;
+    not Lehr's D: that is the property ``lehr_damping``);
     stiffness_torque_nm_per_rad c_dyn,M2 = T(φ_max)/φ_max (eq. 17), stiffness_deviation M2/M1 − 1;
     loss_factor η and relative_damping_psi ψ: servo-comparable (docs/theory.md#damping-measures), the values a
     servo bench would measure on the linear Kelvin–Voigt coupling with this decay.
@@ -110,6 +112,13 @@ class ExtractionResult:
     std: dict[str, float] = field(default_factory=dict)
     angle_fit: DecayFit | None = field(default=None, repr=False)
     torque_fit: TorqueFit | None = field(default=None, repr=False)
+
+    @property
+    def lehr_damping(self) -> float:
+        """Lehr's D (ζ) of the fitted decay, r/√(1 + r²) with r = δ/ω (docs/theory.md#damping-measures)."""
+        from droptower.sdof import lehr_damping
+
+        return float(lehr_damping(self.delta_per_s, self.omega_rad_per_s))
 
     def as_dict(self) -> dict[str, Any]:
         """Flat dict for tables and JSON: unit-suffixed names, ``<name>_std`` uncertainties,

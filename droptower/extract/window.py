@@ -6,6 +6,7 @@ from less (Rapp et al. 2022, section "Theory of Impact Investigation").
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -23,6 +24,12 @@ class Window:
     cycles: float | None = 1.0
     seconds: float | None = None
 
+    def __post_init__(self):
+        for name in ("cycles", "seconds"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise DroptowerError(f"window {name}: must be a finite number > 0, got {value!r}")
+
     @classmethod
     def parse(cls, text: "str | Window") -> "Window":
         """``first-cycle`` | ``N-cycles`` | ``SECONDS`` -> Window; anything else is a DroptowerError."""
@@ -37,9 +44,8 @@ class Window:
         except ValueError:
             raise DroptowerError(f"window {text!r}: expected first-cycle, N-cycles (e.g. 2-cycles) or a length "
                                  "in seconds (e.g. 0.05)") from None
-        value = window.cycles if window.cycles is not None else window.seconds
-        if not value > 0:
-            raise DroptowerError(f"window {text!r}: must be > 0")
+        except DroptowerError:
+            raise DroptowerError(f"window {text!r}: must be a finite number > 0") from None
         return window
 
     def length_s(self, period_s: float) -> float:

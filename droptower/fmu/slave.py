@@ -20,6 +20,13 @@ import math
 from pathlib import Path
 
 import numpy as np
+
+# Load scipy's BLAS/LAPACK (and with it scipy's bundled libgfortran) now, when pythonfmu
+# instantiates the model, not on the first kernel call: there numba imports
+# scipy.linalg.cython_blas lazily (numba.np.arraymath), from inside the FMI call, and a host that
+# had not loaded scipy.linalg itself then aborted at exit in libgfortran's exit handler
+# (glibc "corrupted double-linked list", exit 134). docs/fmu.md has the reproduction.
+import scipy.linalg  # noqa: F401  (imported for its side effect)
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 COUPLING_FILE = "coupling.json"

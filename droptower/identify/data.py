@@ -20,7 +20,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, finite_values
 from droptower.identify.cycles import turning_points
 from droptower.io.fields import UNITS
 from droptower.io.timebase import regular_time
@@ -96,15 +96,12 @@ def make_segment(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.ndarra
     seconds from 0 rad; ``skip_s`` seconds at its start are not compared (transients).
     Raises :class:`DroptowerError` naming ``file`` on bad input.
     """
-    t = np.asarray(time_s, dtype=float)
-    x = np.asarray(angle_rad, dtype=float)
-    y = np.asarray(torque_nm, dtype=float)
+    names = ("time_s", "angle_rad", "torque_nm") if units != "translational" else ("time_s", "displacement_m", "force_n")
+    t, x, y = (finite_values(v, n, file=file) for v, n in zip((time_s, angle_rad, torque_nm), names))
     if not (t.shape == x.shape == y.shape) or x.ndim != 1:
         raise DroptowerError(f"time, angle and torque differ in length ({t.size}, {x.size}, {y.size})", file=file)
     if x.size < MIN_SAMPLES:
         raise DroptowerError(f"record too short: {x.size} samples, at least {MIN_SAMPLES} needed", file=file)
-    if not (np.isfinite(x).all() and np.isfinite(t).all()):
-        raise DroptowerError("the angle or the time holds NaN values", file=file)
     if units not in UNITS:
         raise DroptowerError(f"units must be one of {', '.join(UNITS)}, got {units!r}", file=file)
     steps = np.diff(t)

@@ -24,7 +24,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, missing_file
 from droptower.decayfit import start_frequency_and_decay
 from droptower.extract.extractor import metadata_value
 from droptower.extract.impact import find_impact
@@ -151,9 +151,14 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
 
 def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[list[DropDecay], list[dict[str, str]]]:
     """The free decays of drop-test logs and campaign folders (their ``logs/``), and the
-    excluded ones as {file, reason}. Every problem of one log excludes that log only."""
+    excluded ones as {file, reason}. Every problem of one log excludes that log only; a path that
+    names nothing is an error naming it (a mistyped argument, not a bad log)."""
+    if isinstance(paths, (str, Path)):  # one path, not its characters
+        paths = [paths]
     files: list[Path] = []
     for p in map(Path, paths):
+        if not p.exists():
+            raise missing_file(p)
         if p.is_dir():
             logs = p / "logs" if (p / "logs").is_dir() else p
             found = sorted(f for f in logs.iterdir() if f.suffix in (".parquet", ".csv") and f.is_file())

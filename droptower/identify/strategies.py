@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.base import COMMON_OPTIONS
@@ -41,6 +41,7 @@ SEARCH_THROUGH = {"zerodim20": "zerodim6"}
 
 
 @one_blas_thread
+@expects(kind="builtins.str", segments=["droptower.identify.data.Segment"])
 def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | None = None,
              bounds: dict[str, tuple[float, float]] | None = None, options: dict[str, Any] | None = None,
              holdout: list[Segment] | None = None, previous: dict[str, Identification] | None = None,

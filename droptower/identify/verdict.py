@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from droptower.identify.fit import Parameter
+from droptower.units import printed_unit
 
 #: A fit error above this multiple of the noise allowance is a poor fit.
 NOISE_RATIO = 2.0
@@ -53,7 +54,7 @@ class Verdict:
 
     def text(self) -> str:
         head = (f"verdict: {self.verdict} (fit error {self.error_over_noise:.2f} x the noise allowance "
-                f"{self.allowance:.3g} {self.unit.replace('_', '*')}; limit {NOISE_RATIO:g})")
+                f"{self.allowance:.3g} {printed_unit(self.unit)}; limit {NOISE_RATIO:g})")
         return head + "".join(f"\n  - {r}" for r in self.reasons)
 
 

@@ -42,7 +42,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from droptower.errors import DroptowerError, WriteError, make_folder, unreadable_file
+from droptower.errors import DroptowerError, WriteError, expects, make_folder, unreadable_file
 from droptower.io.channels import Channel, Record
 
 MAGIC = "# droptower-log 1"
@@ -129,6 +129,7 @@ def save_figure(fig: Any, path: str | Path, dpi: int) -> Path:
     return path
 
 
+@expects(channels="builtins.dict", metadata="builtins.dict")
 def write_log(path: str | Path, time_s: np.ndarray, channels: dict[str, np.ndarray], metadata: dict[str, Any],
               compact: bool = False) -> Path:
     """Write one test as a droptower log (``.csv`` or ``.parquet``); returns the path.

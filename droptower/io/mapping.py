@@ -25,7 +25,7 @@ from typing import Iterable
 
 import numpy as np
 
-from droptower.errors import DroptowerError, not_in_range
+from droptower.errors import DroptowerError, expects, not_in_range
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import unit_from_name
 from droptower.io.signals import DropSignals, ServoSignals
@@ -63,6 +63,7 @@ COMMON_NAMES = {
 _UNIT_IN_NAME = re.compile(r"\s*[\[(][^\])]*[\])]\s*$")
 
 
+@expects(options=["builtins.str"])
 def parse_channel_options(options: Iterable[str], roles_known: tuple[str, ...] = ROLES) -> dict[str, str]:
     """``["angle=Winkel:deg", "time=t"]`` -> ``{"angle": "Winkel:deg", "time": "t"}``.
 
@@ -257,6 +258,7 @@ def _sensor_radius(record: Record, given: float | None, default: float | None, f
     return value
 
 
+@expects(record="droptower.io.channels.Record")
 def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
                  sample_rate_hz: float | None = None, default_sensor_radius_m: float | None = None,
                  radius_flags: str = "--sensor-radius-m or --rig",
@@ -392,6 +394,7 @@ def find_servo_roles(record: Record, roles: dict[str, str] | None = None,
     return units, specs
 
 
+@expects(record="droptower.io.channels.Record")
 def map_servo_channels(record: Record, roles: dict[str, str] | None = None, *,
                        sample_rate_hz: float | None = None) -> ServoSignals:
     """A servo record's imposed motion and measured load in SI on one uniform time base.

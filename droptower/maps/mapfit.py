@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pydantic import create_model
 
+from droptower import sdof
 from droptower.errors import DroptowerError, WriteError, readable_file, unreadable_file
 from droptower.maps.forms import PAPER, UNIT_TEXT, Equation, MapForm
 from droptower.maps.results import ExcludedTest
@@ -166,6 +167,16 @@ class MapFit:
         """Damping ratio d = E_diss/E_el (-, Rapp et al. 2022, eq. 16): stiffness over c/d (eq. 19 / eq. 20)."""
         return self.stiffness_nm_per_deg(amplitude_deg, frequency_hz) / self.form.ratio.value(
             self.ratio_params, amplitude_deg, frequency_hz)
+
+    def lehr_damping(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """Lehr's D (ζ, -) of the map's decay at (amplitude, frequency): from :meth:`damping_ratio`
+        through r = δ/ω (docs/theory.md#damping-measures)."""
+        return sdof.damping_measures(self.damping_ratio(amplitude_deg, frequency_hz))[0]
+
+    def loss_factor(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """Loss factor η (-) of the linear Kelvin–Voigt coupling with the map's decay at (amplitude,
+        frequency) (docs/theory.md#damping-measures)."""
+        return sdof.damping_measures(self.damping_ratio(amplitude_deg, frequency_hz))[1]
 
     def in_range(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
         """True where (amplitude, frequency) lies inside the measured range: the convex hull of
@@ -296,7 +307,7 @@ class MapFit:
             f"max {s.stiffness_max_error_pct:.2f} % (condition number {s.stiffness_condition_number:.3g})",
             f"{'eq. 20  c/d(a)' if paper else 'c/d(a, f)'} = {form.ratio.text(form.ratio_names)}  [N*m/deg]",
             *self._coefficient_lines(form.ratio_names),
-            f"  damping ratio error: rms {s.damping_ratio_rms_error_pct:.2f} %{_cv_text(s.damping_ratio_cv_rms_error_pct)}, "
+            f"  damping ratio d = E_diss/E_el (Rapp et al. 2022) error: rms {s.damping_ratio_rms_error_pct:.2f} %{_cv_text(s.damping_ratio_cv_rms_error_pct)}, "
             f"max {s.damping_ratio_max_error_pct:.2f} % (condition number {s.damping_condition_number:.3g})",
         ]
         if self.cross_validation:

@@ -118,7 +118,7 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
         grid = np.geomspace(r.amplitude_deg_min, r.amplitude_deg_max, 60)
         for f, color in zip(np.linspace(r.frequency_hz_min, r.frequency_hz_max, 3), ["C1", "C2", "C3"]):
             ax.plot(grid, fit.damping_ratio(grid, f), "-", color=color, label=f"map at {f:.3g} Hz")
-    ax.set(xlabel="angular amplitude [deg]", ylabel="damping ratio [-]",
+    ax.set(xlabel="angular amplitude [deg]", ylabel="d = E_diss/E_el (Rapp et al. 2022) [-]",
            title=f"{_label(fit, 'eq. 19 / eq. 20')}: rms {fit.stats.damping_ratio_rms_error_pct:.1f} %, "
                  f"max {fit.stats.damping_ratio_max_error_pct:.1f} %")
     ax.grid(True, alpha=0.3)

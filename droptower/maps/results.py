@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.data import TABLE4_NAME, table4_path
-from droptower.errors import DroptowerError, missing_file, no_file_or_preset
+from droptower.errors import DroptowerError, expects, missing_file, no_file_or_preset
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: Columns the map is fitted from (the extractor's output names).
@@ -78,6 +78,7 @@ def flag_list(value: Any) -> list[str]:
     return [str(f) for f in value]
 
 
+@expects(table="pandas.DataFrame")
 def select_tests(table: pd.DataFrame, source: str | Path | None = None) -> tuple[pd.DataFrame, list[ExcludedTest]]:
     """Split a results table into the usable tests and the excluded ones with the reason.
 

@@ -3,7 +3,8 @@
 ``condition_summary(results)`` collapses the repeats: one row per (case, inertia, drop mass,
 drop height, preload) with ``n_tests`` (extracted tests without an unusable flag) and the mean
 and sample standard deviation (``*_std_over_repeats``, ddof = 1; NaN for a single test) of
-amplitude, frequency, stiffness and damping ratio. ``plot_preload_effect`` draws Rapp et al. 2022,
+amplitude, frequency, stiffness and the damping: Rapp's d = E_diss/E_el (``damping_ratio``) beside
+Lehr's D (``lehr_damping``) and the loss factor η (``loss_factor``) of the same decay. ``plot_preload_effect`` draws Rapp et al. 2022,
 Fig. 11: stiffness and damping ratio over amplitude, one series per case and preload with
 ± std bars, so a preload that does not change the coupling shows as coinciding series.
 """
@@ -15,16 +16,20 @@ import numpy as np
 import pandas as pd
 
 from droptower.io.droptower_log import save_figure
+from droptower.sdof import DAMPING_LABEL, damping_measures
 from droptower.maps.results import select_tests
 
 CONDITION = ("case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm")
-QUANTITIES = ("amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
+QUANTITIES = ("amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ratio", "lehr_damping", "loss_factor")
 FIG11 = "fig11_preload_effect.png"
 
 
 def condition_summary(results: pd.DataFrame) -> pd.DataFrame:
     """One row per test condition (columns in the module docstring), in plan order."""
     usable, _ = select_tests(results)
+    # D and eta beside Rapp's d, from d itself (docs/theory.md#damping-measures): older tables lack them
+    lehr, eta = damping_measures(usable["damping_ratio"].to_numpy(float))
+    usable = usable.assign(lehr_damping=lehr, loss_factor=eta)
     keys = [c for c in CONDITION if c in results.columns]
     groups = usable.groupby(keys, sort=False, dropna=False)[list(QUANTITIES)]
     mean, std = groups.mean(), groups.std(ddof=1)
@@ -58,7 +63,7 @@ def plot_preload_effect(summary: pd.DataFrame, path: str | Path, title: str) -> 
     markers = "osD^v<>p*h"
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for ax, quantity, label in ((axes[0], "stiffness_nm_per_deg", "stiffness [N*m/deg]"),
-                                (axes[1], "damping_ratio", "damping ratio [-]")):
+                                (axes[1], "damping_ratio", DAMPING_LABEL)):
         for i, case in enumerate(cases):
             for j, preload in enumerate(preloads):
                 rows = summary[(summary["case"] == case) & (summary["preload_nm"] == preload)]

@@ -21,7 +21,7 @@ import pandas as pd
 
 from droptower.design import choose
 from droptower.design.coverage import GRID_POINTS
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.planner import MIN_SAMPLES_PER_PERIOD, plan
@@ -87,6 +87,7 @@ def _grid(rig: RigConfig, coupling: Coupling, curves: list[tuple[float, float, f
     return heights, pred
 
 
+@expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling")
 def planner_data(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, ...],
                  n_heights: int = GRID_HEIGHTS) -> dict[str, Any]:
     """The page's data: the rig, the grid of predictions, the design's candidates and settings.

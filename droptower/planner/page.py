@@ -17,6 +17,7 @@ from droptower.report.figures import TEMPLATE
 from droptower.report.page import STYLE
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
+from droptower.errors import expects
 
 PLANNER_STYLE = """
 body{max-width:1400px}
@@ -82,6 +83,7 @@ placeholder="none"></div>
         f"<script>{script}</script></body></html>\n")
 
 
+@expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling")
 def write_planner(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, ...], out: str | Path) -> Path:
     """Predict the grid for ``rig`` and ``coupling`` at ``preloads_nm`` (N*m) and write the page to ``out``."""
     text = page_html(planner_data(rig, coupling, preloads_nm))

@@ -40,7 +40,7 @@ def map_figure(tests: pd.DataFrame, names: list[str], fit: MapFit) -> go.Figure:
     """Stiffness and damping ratio over amplitude: the usable tests (hover: test, values) and
     the map along each inertia group's realised (amplitude, frequency) path (log amplitude axis)."""
     fig = make_subplots(rows=1, cols=2, horizontal_spacing=0.1,
-                        subplot_titles=("stiffness [N·m/deg]", "damping ratio [-]"))
+                        subplot_titles=("stiffness [N·m/deg]", "d = E_diss/E_el (Rapp et al. 2022) [-]"))
     tests = tests.assign(_name=names)
     for (label, rows), color in zip(_groups(tests), _cycle()):
         a = rows["amplitude_deg"].to_numpy(float)

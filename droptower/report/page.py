@@ -116,7 +116,7 @@ def map_section(fit: MapFit | None, error: str | None, figure: Any | None) -> st
         return f"<p class='bad'>No map: {html.escape(error or 'no usable tests')}</p>"
     s = fit.stats
     errors = pd.DataFrame({
-        "quantity": ["stiffness", "damping ratio"],
+        "quantity": ["stiffness", "d = E_diss/E_el (Rapp et al. 2022)"],
         "RMS error of the fit [%]": [s.stiffness_rms_error_pct, s.damping_ratio_rms_error_pct],
         "cross-validated RMS error [%]": [s.stiffness_cv_rms_error_pct, s.damping_ratio_cv_rms_error_pct],
         "max error of the fit [%]": [s.stiffness_max_error_pct, s.damping_ratio_max_error_pct],

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects, finite_values
 from droptower.limits import MAX_COUPLING_STATE
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ElementSpec, KernelElement
@@ -78,6 +78,7 @@ class Coupling:
     by the whole batch.
     """
 
+    @expects(elements=["droptower.rheology.elements.ElementSpec"])
     def __init__(self, elements: list[ElementSpec], *, name: str = "", description: str = "",
                  source: str = "", units: str = "torsional", path: Path | None = None,
                  params: np.ndarray | None = None):
@@ -184,9 +185,7 @@ class Coupling:
         ``record_energy`` the energy histories of the response are empty.
         """
         _check_dt(dt_s)
-        x = np.asarray(angle_rad, dtype=np.float64)
-        if not np.all(np.isfinite(x)):
-            raise DroptowerError("the angle history holds NaN or infinite values")
+        x = finite_values(angle_rad, "angle_rad")  # the angle history
         single = x.ndim == 1
         x2 = np.ascontiguousarray(np.atleast_2d(x))
         if x2.ndim != 2:

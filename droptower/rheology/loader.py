@@ -19,7 +19,7 @@ import tomli_w
 from pydantic import Field
 
 from droptower.configs import read_toml, resolve
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.limits import MAX_ELEMENTS
 from droptower.rheology.coupling import Coupling
 from droptower.rheology.elements import ELEMENT_KINDS, ElementUnion
@@ -39,6 +39,7 @@ def _name_element(list_name: str, index: int, item: Any) -> str:
     return f"{list_name} {index + 1} ({kind})" if kind else f"{list_name} {index + 1}"
 
 
+@expects(data="builtins.dict")
 def parse_coupling(data: dict[str, Any], file: str | Path | None = None) -> Coupling:
     """Build a coupling from the parsed contents of a coupling file."""
     elements = data.get("element")
@@ -64,6 +65,7 @@ def load_coupling(path: str | Path) -> Coupling:
     return parse_coupling(read_toml(path), path)
 
 
+@expects(coupling="droptower.rheology.coupling.Coupling")
 def coupling_to_toml(coupling: Coupling) -> str:
     """TOML text of a coupling (its first parameter set), readable by :func:`load_coupling`."""
     data = {"name": coupling.name, "description": coupling.description, "source": coupling.source,

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.decayfit import fit_decay, start_frequency_and_decay
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
@@ -123,6 +123,7 @@ def extractor_view(time_s: np.ndarray, angle_rad: np.ndarray, period_s: float,
     return float(reference_amplitude(amp, delta, end)), float(delta), float(omega)
 
 
+@expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling", conditions="pandas.DataFrame")
 def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_s: float = 0.25) -> pd.DataFrame:
     """One row per condition (columns of :meth:`DOE.conditions`): predictions and warnings.
 

@@ -19,9 +19,10 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.limits import STEP_LIMIT, memory_limit_bytes, require_memory, require_steps
 from droptower.io.droptower_log import write_log
+from droptower.io.signals import DropSignals
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact import ImpactVelocities, first_period, impact_velocities, lever_tip_path
@@ -174,6 +175,12 @@ class DropResult:
             "contacts": len(self.contacts), "double_impact": self.double_impact,
         }
 
+    def signals(self) -> DropSignals:
+        """The sampled test with its metadata, as :func:`droptower.extract.extract` takes it (what
+        reading the log :meth:`write_log` writes gives, without the file)."""
+        ch = self.channels()
+        return DropSignals(ch.time_s, ch.angle_rad, ch.torque_nm, ch.impact_force_n, metadata=self.metadata())
+
     def write_log(self, path: str | Path, compact: bool = False) -> Path:
         """Write the sampled test as a droptower log (``.csv`` or ``.parquet``; ``compact``: float32
         channels, compressed, see :func:`droptower.io.droptower_log.write_log`)."""
@@ -220,6 +227,7 @@ def check_size(rig: RigConfig, coupling: Coupling, batch: int, duration_s: float
     require_steps(steps, what, f"record at most {longest:.3g} s after the impact{fewer}", where=where)
 
 
+@expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling")
 def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.DataFrame,
              duration_s: float = 0.25, workers: int = 1) -> list[DropResult]:
     """Simulate drop tests, all in one batch (or split over ``workers`` processes); results in order.

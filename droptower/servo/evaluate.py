@@ -38,7 +38,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.signal import savgol_filter
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects, finite_values
 from droptower.sdof import drop_tower_equivalent_damping_ratio
 
 #: Savitzky-Golay polynomial order; the filter needs a window of at least order + 2 samples.
@@ -188,13 +188,10 @@ def evaluate_cycles(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.nda
     each must be an integer multiple of ``frequency_hz`` (the common frequency of a
     dual-frequency test). ``smooth``: apply the one-eighth-cycle Savitzky-Golay filter.
     """
-    time_s = np.asarray(time_s, float)
-    angle = np.asarray(angle_rad, float)
-    torque = np.asarray(torque_nm, float)
+    time_s, angle, torque = (finite_values(v, n) for v, n in ((time_s, "time_s"), (angle_rad, "angle_rad"),
+                                                              (torque_nm, "torque_nm")))
     if not (angle.shape == torque.shape == time_s.shape):
         raise DroptowerError(f"time, angle and torque differ in length ({time_s.size}, {angle.size}, {torque.size})")
-    if not (np.all(np.isfinite(angle)) and np.all(np.isfinite(torque))):
-        raise DroptowerError("angle or torque holds NaN or infinite values")
     if not (math.isfinite(frequency_hz) and frequency_hz > 0) or cycles < 1:
         raise DroptowerError(f"need a positive frequency and at least one cycle (got {frequency_hz} Hz, {cycles})")
     fs = _sample_rate(time_s)
@@ -259,6 +256,7 @@ def evaluate_cycles(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.nda
         sample_rate_hz=fs, loop_angle_rad=xs[-m - 1:], loop_torque_nm=ys[-m - 1:])
 
 
+@expects(history="droptower.servo.histories.History")
 def evaluate_history(history, torque_nm: np.ndarray, *, smooth: bool = True) -> list[CycleEvaluation]:
     """Evaluate every ``evaluation`` segment of a :class:`~droptower.servo.histories.History`
     (one per step of a sweep) against the torque the coupling answered with."""
