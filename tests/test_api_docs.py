@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
+import re
 import sys
 from pathlib import Path
 
@@ -88,3 +89,25 @@ def test_no_name_of_the_namespace_is_shadowed_by_a_subpackage():
     in the curated namespace would silently turn into the module."""
     modules = {m.name for m in pkgutil.iter_modules(droptower.__path__)}
     assert not modules & set(droptower.__all__)
+
+
+#: the curated names whose docstrings are in numpydoc sections so far (the others still describe
+#: their parameters in prose); each must name every parameter of its signature
+NUMPYDOC = ("load_rig", "load_doe", "simulate", "plan", "read_log", "read_results", "fit_map")
+
+
+def _numpydoc_sections(doc: str) -> dict[str, str]:
+    parts = re.split(r"^(\w[\w ]*)\n-{3,}\n", doc, flags=re.M)
+    return {parts[i].strip(): parts[i + 1] for i in range(1, len(parts) - 1, 2)}
+
+
+@pytest.mark.parametrize("name", [n for n in droptower.__all__ if callable(getattr(droptower, n))])
+def test_numpydoc_sections_name_every_parameter(name):
+    obj = getattr(droptower, name)
+    sections = _numpydoc_sections(inspect.getdoc(obj) or "")
+    if name in NUMPYDOC:
+        assert {"Parameters", "Returns"} <= set(sections), f"{name}: no numpydoc Parameters / Returns section"
+    if "Parameters" in sections:
+        documented = set(re.findall(r"^(\w+) ?:", sections["Parameters"], re.M))
+        wanted = {p for p in inspect.signature(obj).parameters if p not in ("self", "args", "kwargs")}
+        assert documented == wanted, f"{name}: documented {sorted(documented)}, signature {sorted(wanted)}"

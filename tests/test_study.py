@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 
 from droptower.data import table4_path
+from pictures import assert_drawn
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = table4_path()
@@ -98,7 +99,9 @@ def test_reduced_study_writes_the_report(reduced):
     images = re.findall(r"<img src='([^']+)'", index)
     assert {"fig10_parameter_variation.png", "fig12_stiffness_map.png", "fig13_damping_map.png",
             "fig14_servo_validation.png", "table4_comparison.png"} <= set(images)
-    for name in images + re.findall(r"<a href='([^']+\.(?:csv|json))'>", index):
+    for name in images:
+        assert_drawn(out / name)
+    for name in re.findall(r"<a href='([^']+\.(?:csv|json))'>", index):
         assert (out / name).stat().st_size > 0, name
     for name in images:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -75,7 +75,7 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     """
     t_start = time.perf_counter()
     if workers is not None and workers < 1:
-        raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
+        raise DroptowerError(f"must be at least 1, got {workers}", where="workers")
     given = {"duration_s": duration_s, "chunk_size": chunk_size, "log_format": log_format, "window": window}
     saved = saved_settings(Path(out)) if resume else {}
     inputs = {"rig": rig, "coupling": coupling, "doe": doe}
@@ -92,7 +92,7 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
         with folder_lock(layout.root):
             return _run(spec, layout, resume, workers, cluster, progress, max_chunks, t_start)
     except WriteError as exc:
-        raise WriteError(f"{exc.problem}; the finished tests are kept: make room, then continue with --resume",
+        raise WriteError(f"{exc.problem}; the finished tests are kept: make room, then continue with `resume`",
                          file=exc.file) from None
     finally:
         if cluster is not None:
