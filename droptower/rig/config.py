@@ -88,6 +88,8 @@ class ForceSensor(StrictModel):
 
 
 class Sensors(StrictModel):
+    """The rig's data acquisition: sample rate (Hz), pre-trigger time (s) and its three sensors."""
+
     sample_rate_hz: PositiveFloat = 38400.0
     pre_trigger_s: PositiveFloat = 0.005
     laser: Laser
