@@ -1,6 +1,8 @@
-"""The README's figures from one place: the stored full study (``analysis/results/summary.json``)
-and the benchmarks' figures (``benchmarks/results/*.json``), rendered into the blocks that
-``README.md`` and ``analysis/README.md`` mark with ``<!-- figures:NAME -->`` ... ``<!-- /figures -->``.
+"""The documentation's measured figures from one place: the stored full study
+(``analysis/results/summary.json``) and the benchmarks' figures (``benchmarks/results/*.json``),
+rendered into the blocks that the documentation pages (``docs/guide/map.md``,
+``docs/guide/identification.md``, ``docs/benchmarks.md``, ``docs/study.md``) and
+``analysis/README.md`` mark with ``<!-- figures:NAME -->`` ... ``<!-- /figures -->``.
 
     python analysis/readme_figures.py                # re-run the full study and every benchmark,
                                                      # store their results, rewrite the blocks
@@ -8,9 +10,9 @@ and the benchmarks' figures (``benchmarks/results/*.json``), rendered into the b
     python analysis/readme_figures.py --skip-benchmarks | --skip-study
 
 ``tests/test_readme_figures.py`` renders every block from the stored results and fails when a
-README disagrees with it: figures of the study and accuracies exactly as printed; times, rates
-and effort counts within :data:`MACHINE_NOISE` or :data:`CPU_NOISE` (stated in the README next to
-them), so a re-run benchmark on the same machine class needs no README change.
+page disagrees with it: figures of the study and accuracies exactly as printed; times, rates
+and effort counts within :data:`MACHINE_NOISE` or :data:`CPU_NOISE` (stated in the page next to
+them), so a re-run benchmark on the same machine class needs no page change.
 """
 from __future__ import annotations
 
@@ -92,14 +94,14 @@ NUMBER = r"(-?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?)"
 
 
 def disagreements(written: str, block: Block) -> list[str]:
-    """Where ``written`` (a README's block) disagrees with ``block`` rendered from the stored results:
+    """Where ``written`` (a page's block) disagrees with ``block`` rendered from the stored results:
     [] when the words are the same, every computed figure reads the same and every measured one lies
     within its noise (:data:`MACHINE_NOISE`, :data:`CPU_NOISE`)."""
     pattern = "".join(NUMBER if isinstance(p, Figure) else re.escape(p) for p in block)
     match = re.fullmatch(r"\n*" + pattern + r"\n*", written)  # the blank lines around a block do not count
     if match is None:
         diff = difflib.unified_diff(written.strip("\n").splitlines(), text(block).strip("\n").splitlines(),
-                                    "README", "rendered from the stored results", lineterm="", n=0)
+                                    "written", "rendered from the stored results", lineterm="", n=0)
         return ["the words differ:\n" + "\n".join(diff)]
     problems = []
     figures = [p for p in block if isinstance(p, Figure)]
@@ -313,20 +315,20 @@ def study_results(stored: dict[str, Any]) -> Block:
 
 #: every block: name -> (file relative to the repository, renderer)
 BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
-    "map_auto": ("README.md", map_auto),
-    "identify_drops": ("README.md", identify_drops),
-    "bench_table": ("README.md", bench_table),
-    "study_targets": ("README.md", study_targets),
+    "map_auto": ("docs/guide/map.md", map_auto),
+    "identify_drops": ("docs/guide/identification.md", identify_drops),
+    "bench_table": ("docs/benchmarks.md", bench_table),
+    "study_targets": ("docs/study.md", study_targets),
     "study_results": ("analysis/README.md", study_results),
 }
 
 
 def marked(content: str, name: str) -> tuple[int, int]:
-    """Start and end offsets of block ``name``'s content in a README (between its markers)."""
+    """Start and end offsets of block ``name``'s content in a page (between its markers)."""
     start, end = START.format(name), END
     first = content.find(start)
     if first < 0 or content.find(start, first + 1) >= 0:
-        raise ValueError(f"the README must mark block {name!r} exactly once ({start} ... {end})")
+        raise ValueError(f"the page must mark block {name!r} exactly once ({start} ... {end})")
     lo = first + len(start)
     hi = content.find(end, lo)
     if hi < 0:
@@ -382,7 +384,7 @@ def rerun_benchmarks() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--render-only", action="store_true", help="only rewrite the README blocks from the stored results")
+    ap.add_argument("--render-only", action="store_true", help="only rewrite the marked blocks from the stored results")
     ap.add_argument("--skip-study", action="store_true", help="do not re-run the full study")
     ap.add_argument("--skip-benchmarks", action="store_true", help="do not re-run the benchmarks")
     args = ap.parse_args(argv)
@@ -393,10 +395,10 @@ def main(argv: list[str] | None = None) -> int:
             rerun_benchmarks()
     except subprocess.CalledProcessError as exc:
         print(f"readme_figures: error: {' '.join(str(c) for c in exc.cmd)} failed (exit code {exc.returncode}); "
-              "the README was not rewritten", file=sys.stderr)
+              "no page was rewritten", file=sys.stderr)
         return 2
     changed = rewrite_readmes(load_stored())
-    print(f"README blocks rewritten from the stored results: {', '.join(changed) or 'none changed'}")
+    print(f"figure blocks rewritten from the stored results: {', '.join(changed) or 'none changed'}")
     return 0
 
 

@@ -4,26 +4,93 @@ Data flows one way: config -> model (:mod:`droptower.rheology`) -> simulation
 (:mod:`droptower.rig`, :mod:`droptower.servo`) -> log (:mod:`droptower.io`) -> extraction
 (:mod:`droptower.extract`) -> map (:mod:`droptower.maps`) -> comparison. SI units inside.
 
-The core is imported on first use (numba is slow to import), so commands that only read logs
-start fast.
+The names a user needs first are here, one import away (``import droptower as dt``;
+``dt.load_coupling("rapp2022_nr60")``); every other public name lives in its package's
+``__all__``. They are imported on first use (numba is slow to import), so commands that only
+read logs start fast.
 """
 from __future__ import annotations
 
+import importlib
 from typing import TYPE_CHECKING, Any
 
 from droptower.errors import DroptowerError
 
 if TYPE_CHECKING:
+    from droptower.campaign import CampaignRun, run_campaign
+    from droptower.compare import run_sweeps, validate_map
+    from droptower.design import design_campaign
+    from droptower.extract import Settings as ExtractSettings
+    from droptower.extract import extract_file
+    from droptower.fmu import build_fmu
+    from droptower.identify import make_segment, segments_from_files
+    from droptower.identify.dropfit import identify_drops
+    from droptower.identify.droplogs import read_decays
+    from droptower.io import read_log
+    from droptower.maps import MapFit, fit_map, read_results
     from droptower.rheology import Coupling, CouplingState, load_coupling
+    from droptower.rig import DropTest, load_doe, load_rig, plan, simulate
+    from droptower.servo import run_grid, run_records
 
+#: the package version (the one in ``pyproject.toml``)
 __version__ = "0.1.0"
-__all__ = ["Coupling", "CouplingState", "DroptowerError", "load_coupling", "__version__"]
 
-_LAZY = {"Coupling", "CouplingState", "load_coupling"}
+#: the curated namespace: name -> (module, name there), imported on first use. The functions
+#: ``extract`` and ``identify`` share their names with subpackages (``droptower.extract``,
+#: ``droptower.identify``), which importing either binds here, so they are reached as
+#: ``from droptower.identify import identify``.
+_LAZY: dict[str, tuple[str, str]] = {
+    # couplings
+    "Coupling": ("droptower.rheology", "Coupling"),
+    "CouplingState": ("droptower.rheology", "CouplingState"),
+    "load_coupling": ("droptower.rheology", "load_coupling"),
+    # the drop tower
+    "load_rig": ("droptower.rig", "load_rig"),
+    "load_doe": ("droptower.rig", "load_doe"),
+    "DropTest": ("droptower.rig", "DropTest"),
+    "simulate": ("droptower.rig", "simulate"),
+    "plan": ("droptower.rig", "plan"),
+    # logs and extraction
+    "read_log": ("droptower.io", "read_log"),
+    "extract_file": ("droptower.extract", "extract_file"),
+    "ExtractSettings": ("droptower.extract", "Settings"),
+    # campaigns, maps, validation, design
+    "run_campaign": ("droptower.campaign", "run_campaign"),
+    "CampaignRun": ("droptower.campaign", "CampaignRun"),
+    "read_results": ("droptower.maps", "read_results"),
+    "fit_map": ("droptower.maps", "fit_map"),
+    "MapFit": ("droptower.maps", "MapFit"),
+    "run_sweeps": ("droptower.compare", "run_sweeps"),
+    "validate_map": ("droptower.compare", "validate_map"),
+    "design_campaign": ("droptower.design", "design_campaign"),
+    # the servo bench
+    "run_grid": ("droptower.servo", "run_grid"),
+    "run_records": ("droptower.servo", "run_records"),
+    # identification and export
+    "make_segment": ("droptower.identify", "make_segment"),
+    "segments_from_files": ("droptower.identify", "segments_from_files"),
+    "read_decays": ("droptower.identify.droplogs", "read_decays"),
+    "identify_drops": ("droptower.identify.dropfit", "identify_drops"),
+    "build_fmu": ("droptower.fmu", "build_fmu"),
+}
+
+__all__ = ["DroptowerError", "__version__", "Coupling", "CouplingState", "load_coupling", "load_rig",
+          "load_doe", "DropTest", "simulate", "plan", "read_log", "extract_file", "ExtractSettings",
+          "run_campaign", "CampaignRun", "read_results", "fit_map", "MapFit", "run_sweeps", "validate_map",
+          "design_campaign", "run_grid", "run_records", "make_segment", "segments_from_files", "read_decays",
+          "identify_drops", "build_fmu"]
 
 
 def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        from droptower import rheology
-        return getattr(rheology, name)
-    raise AttributeError(f"module 'droptower' has no attribute {name!r}")
+    """Import a name of the curated namespace on first use (PEP 562)."""
+    try:
+        module, attribute = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'droptower' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attribute)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

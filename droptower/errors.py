@@ -5,6 +5,11 @@ Every problem with input (a config, a log, a command-line value) is raised as
 prints it without a traceback and exits with code 2. Batch commands catch it per file,
 go on with the other files and list the failures at the end.
 
+Messages speak Python: a value the user can give is named by its Python parameter or config
+key in backticks (``give `inertia_kgm2` or `rig```, a channel role as
+``roles={'angle': 'NAME[:UNIT]'}``), and ``where`` is the bare parameter name (``workers``).
+The command line reports the same error with its own flags (:mod:`droptower.cli.flags`).
+
 The situations every command meets (a missing or unreadable file, a value that must be
 positive, an unknown preset, an output folder that cannot be made) are worded once, here, so
 all commands say them alike.

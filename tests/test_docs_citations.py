@@ -13,10 +13,10 @@ ROOT = Path(__file__).resolve().parents[1]
 THEORY = ROOT / "docs" / "theory.md"
 #: where comments, docstrings, tests and user-facing texts live (generated results excluded)
 SOURCES = [p for pattern in ("droptower/**/*.py", "tests/**/*.py", "benchmarks/**/*.py", "analysis/*.py", "README.md",
-                             "droptower/**/*.md", "tests/**/*.md", "analysis/*.md", "benchmarks/*.md",
+                             "docs/**/*.md", "droptower/**/*.md", "tests/**/*.md", "analysis/*.md", "benchmarks/*.md",
                              "rig_configs/**/*.md", "rig_configs/**/*.toml")
            for p in sorted(ROOT.glob(pattern))]
-#: README's table of the papers keeps the preset prefixes' numbers between these markers
+#: the sources page's table of the papers keeps the preset prefixes' numbers between these markers
 KEEP = re.compile(r"<!-- cite_rewrite: off -->.*?<!-- cite_rewrite: on -->", re.S)
 CITED = re.compile(r"docs/theory\.md((?:#[a-z0-9-]+)(?:, #[a-z0-9-]+)*)")
 FORBIDDEN = {
@@ -35,7 +35,7 @@ def _texts():
 
 def test_sources_are_found():
     names = {str(p.relative_to(ROOT)) for p in SOURCES}
-    assert {"README.md", "droptower/sdof.py", "tests/test_extract.py"} <= names
+    assert {"README.md", "docs/guide/map.md", "droptower/sdof.py", "tests/test_extract.py"} <= names
     assert THEORY.is_file() and (ROOT / "docs" / "references.md").is_file()
 
 

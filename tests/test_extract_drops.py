@@ -180,7 +180,7 @@ def test_drop_selection_parsing():
     assert parse_drop_selection("1,3-5") == {1, 3, 4, 5}
     assert parse_drop_selection(" 2 ") == {2}
     for bad in ("0", "3-1", "a", "1,,2", ""):
-        with pytest.raises(DroptowerError, match="--drops"):
+        with pytest.raises(DroptowerError, match="`drops="):
             parse_drop_selection(bad)
 
 

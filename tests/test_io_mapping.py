@@ -80,7 +80,7 @@ def test_common_names_units_and_overrides():
     time, angle = _signals()
     record = _record({"Zeit": ("ms", 1e3 * time), "Winkel": ("deg", np.degrees(angle)),
                       "Drehmoment": ("kN*m", 0.9 * angle), "Kraft": ("", np.exp(-time))})
-    with pytest.raises(DroptowerError, match=r"drop_07\.csv: channel 'Kraft' has no unit; give it as --channel impact_force=Kraft:UNIT"):
+    with pytest.raises(DroptowerError, match=r"drop_07\.csv: channel 'Kraft' has no unit; give it as `roles=\{'impact_force': 'Kraft:UNIT'\}`"):
         map_channels(record, sensor_radius_m=None)
     signals = map_channels(record, {"impact_force": "Kraft:kN"}, sensor_radius_m=None)
     np.testing.assert_allclose(signals.time_s, time, rtol=1e-15)
@@ -98,7 +98,7 @@ def test_distance_in_mm_needs_radius():
     signals = map_channels(record, sensor_radius_m=0.08)
     np.testing.assert_allclose(signals.angle_rad, angle, rtol=1e-13, atol=1e-18)
     with pytest.raises(DroptowerError, match=r"drop_07\.csv: a laser distance channel needs the laser spot radius "
-                                             r"\(m\): the log carries no 'laser_radius_m'; give --sensor-radius-m or --rig"):
+                                             r"\(m\): the log carries no 'laser_radius_m'; give `sensor_radius_m` or `rig`"):
         map_channels(record, sensor_radius_m=None)
     with pytest.raises(DroptowerError, match=r"give --rig$"):  # a command names its own flags
         map_channels(record, sensor_radius_m=None, radius_flags="--rig")
@@ -126,7 +126,7 @@ def test_time_from_sample_rate():
     signals = map_channels(record, sensor_radius_m=None, sample_rate_hz=2048.0)
     assert signals.sample_rate_hz == pytest.approx(2048.0) and signals.time_s[0] == 0.0
     with pytest.raises(DroptowerError, match=r"drop_07\.csv: no time channel and no sample rate; give "
-                                             r"--channel time=NAME\[:UNIT\] or --sample-rate-hz"):
+                                             r"`roles=\{'time': 'NAME\[:UNIT\]'\}` or `sample_rate_hz`"):
         map_channels(record, sensor_radius_m=None)
     own_rate = _record({"angle": ("rad", angle)}, sample_rate_hz=1000.0)
     assert map_channels(own_rate, sensor_radius_m=None).time_s[1] == 1e-3
@@ -160,7 +160,7 @@ def test_resampling_by_integer_factor():
 
 @pytest.mark.parametrize("case, message", [
     ("missing", r"no channel 'Winkel' for role angle \(the file has: 'time', 'torque', 'force'\)"),
-    ("no_angle", r"no angle channel found; name it with --channel angle=NAME"),
+    ("no_angle", r"no angle channel found; name it with `roles=\{'angle': 'NAME"),
     ("nan", r"channel 'torque': 1 NaN/missing values \(a gap\), first at sample 7"),
     ("backwards", r"time of channel 'time': time is non-monotonic \(goes backwards\) at sample 11"),
     ("duplicate", r"time of channel 'time': time is duplicated at sample 11"),
@@ -262,7 +262,7 @@ def test_servo_roles_kind_and_their_errors():
     assert map_servo_channels(both, {"displacement": "displacement"}).units == "translational"
     with pytest.raises(DroptowerError, match=r"not a mix \(angle, force\)"):
         map_servo_channels(both, {"angle": "angle", "force": "displacement"})
-    with pytest.raises(DroptowerError, match=r"unit 'mm' is not an angle unit .*--channel displacement=displacement:mm"):
+    with pytest.raises(DroptowerError, match=r"unit 'mm' is not an angle unit .*`roles=\{'displacement': 'displacement:mm'\}`"):
         map_servo_channels(both, {"angle": "displacement"})
     with pytest.raises(DroptowerError, match=r"unknown role 'impact_force'"):
         parse_channel_options(["impact_force=F"], ("time", "angle", "torque", "displacement", "force"))

@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 
 from droptower.maps.summary import condition_summary, plot_preload_effect, preload_effect_pct
+from pictures import assert_drawn
 
 
 def results() -> pd.DataFrame:
@@ -41,4 +42,4 @@ def test_single_repeat_has_no_std_and_fig11_is_drawn(tmp_path: Path) -> None:
     summary = condition_summary(table[table["repeat"] == 1])
     assert (summary["n_tests"] == 1).all() and summary["stiffness_nm_per_deg_std_over_repeats"].isna().all()
     path = plot_preload_effect(condition_summary(table), tmp_path / "fig11.png", "test plan")
-    assert path.stat().st_size > 20_000
+    assert_drawn(path, panels=2)  # stiffness and damping ratio

@@ -24,6 +24,7 @@ from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.planner import plan
 from test_report import _chrome  # Debian's chromium via selenium, or a skip naming what is missing
+from droptower.cli.flags import cli_text
 
 PRELOADS = (0.0, 500.0)
 #: A small target (one lever's band): a campaign of a few drops.
@@ -168,7 +169,7 @@ def test_page_chooses_what_design_chooses(chrome, shipped) -> None:
                                        candidates=cands)
             expected = doe_document(designed.conditions, "plan", coverage_description(designed))
         except DroptowerError as exc:  # a budget too small, a target beyond the rig: the page says so as design
-            assert doc == exc.problem
+            assert doc == cli_text(exc.problem)  # the page speaks the command's words
             errors += 1
             continue
         strip = re.compile(r"\d+ % of the target covered")

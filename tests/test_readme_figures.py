@@ -1,5 +1,5 @@
-"""The README's figures come from one place: every block marked ``<!-- figures:NAME -->`` in
-README.md and analysis/README.md is what analysis/readme_figures.py renders from the stored full
+"""The documentation's measured figures come from one place: every block marked
+``<!-- figures:NAME -->`` in the documentation pages and analysis/README.md is what analysis/readme_figures.py renders from the stored full
 study (analysis/results/) and the stored benchmark figures (benchmarks/results/, committed).
 Nothing is timed here: the benchmarks ran when the results were stored."""
 from __future__ import annotations
@@ -41,6 +41,8 @@ def test_readme_block_is_the_stored_results(name, stored):
 
 
 def test_every_marked_block_is_known():
+    pages = {str(p.relative_to(ROOT)) for p in [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]}
+    assert not {p for p in pages if "<!-- figures:" in (ROOT / p).read_text()} - {p for p, _ in figures.BLOCKS.values()}
     for path in {p for p, _ in figures.BLOCKS.values()}:
         names = re.findall(r"<!-- figures:(\w+) -->", (ROOT / path).read_text())
         assert sorted(names) == sorted(n for n, (p, _) in figures.BLOCKS.items() if p == path), path

@@ -8,6 +8,7 @@ import tomli_w
 from droptower.cli.main import main
 from droptower.configs import preset_dir, read_toml
 from droptower.io.droptower_log import read_log
+from pictures import assert_drawn
 
 LINEAR = {"name": "linear14k", "element": [{"kind": "spring", "stiffness": 14000.0},
                                            {"kind": "dashpot", "damping": 15.55}]}
@@ -41,7 +42,7 @@ def test_simulate_json_log_and_plot(tmp_path, capsys, coupling):
     assert s["contacts"] >= 1 and s["double_impact"] is False and s["energy_balance_error_fraction"] < 0.01
     record = read_log(log)
     assert record.metadata["seed"] == 3 and record.metadata["preload_nm"] == 500.0
-    assert png.stat().st_size > 10_000
+    assert_drawn(png)
 
 
 def test_simulate_table_on_the_shipped_presets(capsys):
@@ -112,7 +113,7 @@ def test_plan_table_csv_json_plot(tmp_path, capsys, coupling):
     assert "4 condition(s) double-impact" in out
     table = pd.read_csv(csv)
     assert len(table) == 8 and table["double_impact"].tolist() == [False] * 4 + [True] * 4
-    assert png.stat().st_size > 10_000
+    assert_drawn(png)
     code, out, err = run(capsys, "plan", "--coupling", coupling, "--doe", str(doe), "--json")
     rows = json.loads(out)
     assert len(rows) == 8 and all("first_period_frequency_hz" in r and "warnings" in r for r in rows)

@@ -3,7 +3,7 @@ path (campaign -> logs -> extraction -> map -> servo validation -> map-free chec
 cannot rot, and it recomputes the stored full study's headline figures within tolerances that
 say why they differ; the stored full study must come from the current presets and code (its
 hashes), and is held to the targets it meets and to its stored level on the ones it misses (the
-trade-off, analysis/README.md). README.md renders its figures from it (tests/test_readme_figures.py)."""
+trade-off, analysis/README.md). The documentation renders its figures from it (tests/test_readme_figures.py)."""
 from __future__ import annotations
 
 import contextlib
@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 
 from droptower.data import table4_path
+from pictures import assert_drawn
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = table4_path()
@@ -98,7 +99,9 @@ def test_reduced_study_writes_the_report(reduced):
     images = re.findall(r"<img src='([^']+)'", index)
     assert {"fig10_parameter_variation.png", "fig12_stiffness_map.png", "fig13_damping_map.png",
             "fig14_servo_validation.png", "table4_comparison.png"} <= set(images)
-    for name in images + re.findall(r"<a href='([^']+\.(?:csv|json))'>", index):
+    for name in images:
+        assert_drawn(out / name)
+    for name in re.findall(r"<a href='([^']+\.(?:csv|json))'>", index):
         assert (out / name).stat().st_size > 0, name
     for name in images:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -164,7 +167,7 @@ def test_stored_full_study_is_current():
     current = provenance.provenance(summary["rig"], summary["coupling"], summary["plan"])
     stale = provenance.stale_reasons(stored, current)
     assert not stale, (f"the stored study in analysis/results/ is stale ({'; '.join(stale[:8])}"
-                       f"{f'; and {len(stale) - 8} more' if len(stale) > 8 else ''}): regenerate it (and the README's "
+                       f"{f'; and {len(stale) - 8} more' if len(stale) > 8 else ''}): regenerate it (and the documentation's "
                        f"figures) with {provenance.REGENERATE}")
     assert stored["source_sha256"] == current["source_sha256"]
 
@@ -231,7 +234,7 @@ def _at(summary: dict, path: tuple[str, ...]) -> float:
 @pytest.mark.slow
 def test_reduced_study_recomputes_the_stored_figures(reduced):
     """The reduced study, computed here, stands for the stored full study's figures (which the
-    README renders): each within its tolerance, for the reason given with it."""
+    documentation renders): each within its tolerance, for the reason given with it."""
     out, _ = reduced
     small = json.loads((out / "summary.json").read_text())
     full = json.loads(STORED_SUMMARY.read_text())

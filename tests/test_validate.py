@@ -17,6 +17,7 @@ from droptower.compare import (compare_reference, read_servo_results, run_sweeps
 from droptower.compare.servo_points import AMPLITUDE_SWEEPS, FREQUENCY_SWEEPS
 from droptower.maps import MapFit
 from droptower.maps.mapfit import FitStats, MapRange
+from pictures import assert_drawn
 
 K_NM_PER_RAD, C_NMS_PER_RAD = 12000.0, 5.0      # Kelvin-Voigt: K' = k, eta = c omega / k <= 0.26
 KV = f'name = "kv"\n[[element]]\nkind = "spring"\nstiffness = {K_NM_PER_RAD}\n' \
@@ -104,7 +105,7 @@ def test_cli_writes_table_figure_and_summary(kv_file, tmp_path, capsys):
     assert "drop-tower-equivalent d" in text
     for name in ("validation.csv", "validation_summary.json", "servo_results.csv"):
         assert (out / name).stat().st_size > 0
-    assert (out / "fig14_servo_validation.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert_drawn(out / "fig14_servo_validation.png")
     table = pd.read_csv(out / "validation.csv")
     assert {"sweep", "in_range", "in_rectangle", "stiffness_deviation_pct", "damping_deviation_pct",
             "loss_factor_deviation_pct", "decay_ratio_deviation_pct", "servo_relative_damping_psi",

@@ -114,15 +114,15 @@ class DaskCluster:
             from distributed import Client
         except ImportError:
             raise DroptowerError("needs the optional Dask extra: pip install 'droptower[distributed]'",
-                                 where="--scheduler") from None
+                                 where="scheduler") from None
         try:
             reply = asyncio.run(asyncio.wait_for(_identity(address, timeout_s), timeout_s + 1.0))
         except Exception as exc:  # refused, timed out, malformed address, or not speaking Dask's protocol
             reason = "no answer" if isinstance(exc, (OSError, asyncio.TimeoutError)) else type(exc).__name__
             raise DroptowerError(f"the Dask scheduler at {address} does not answer within {timeout_s:g} s "
-                                 f"({reason}: {' '.join(str(exc).split())[:120]})", where="--scheduler") from None
+                                 f"({reason}: {' '.join(str(exc).split())[:120]})", where="scheduler") from None
         if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
-            raise DroptowerError(f"{address} answers, but is not a Dask scheduler", where="--scheduler")
+            raise DroptowerError(f"{address} answers, but is not a Dask scheduler", where="scheduler")
         self.client = Client(address, timeout=timeout_s, set_as_default=False)
         self.description = f"Dask scheduler {address} ({reply.get('n_workers', '?')} workers)"
 
@@ -165,9 +165,9 @@ def make_executor(workers: int | None = None, scheduler: str | None = None,
     ``scheduler`` (an address such as ``tcp://host:8786``), a Dask cluster."""
     if scheduler is not None:
         if workers is not None:
-            raise DroptowerError("give --workers (local cores) or --scheduler (a Dask cluster), not both")
+            raise DroptowerError("give `workers` (local cores) or `scheduler` (a Dask cluster), not both")
         return DaskCluster(scheduler, timeout_s)
     workers = local_cores() if workers is None else workers
     if workers < 1:
-        raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
+        raise DroptowerError(f"must be at least 1, got {workers}", where="workers")
     return InProcess() if workers == 1 else LocalPool(workers)

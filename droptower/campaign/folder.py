@@ -221,7 +221,7 @@ def folder_lock(root: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             raise DroptowerError("another droptower campaign is running in this folder (it holds "
-                                 f"{LOCK_NAME}); wait for it to end, or choose another --out folder",
+                                 f"{LOCK_NAME}); wait for it to end, or choose another `out` folder",
                                  file=root) from None
         yield
     finally:
@@ -242,11 +242,11 @@ def open_folder(layout: Layout, spec: CampaignSpec, resume: bool) -> tuple[dict[
         done = count_finished(layout)
         if not resume:
             raise DroptowerError(f"holds a campaign already ({done} of {len(old.get('tests', []))} tests finished); "
-                                 "add --resume to continue it, or choose another --out folder", file=root)
+                                 "add `resume` to continue it, or choose another `out` folder", file=root)
         differ = _differences(old, spec)
         if differ:
             raise DroptowerError(f"holds a different campaign (its {', '.join(differ)} differ from the given ones); "
-                                 "nothing was changed: choose another --out folder", file=root)
+                                 "nothing was changed: choose another `out` folder", file=root)
         for stray in [*root.glob(".*.tmp"), *layout.records.glob(".*.tmp"), *layout.logs.glob(".*.tmp")]:
             stray.unlink(missing_ok=True)  # a temporary file of a write that was killed before its rename
         warnings = [f"{root}: campaign started with {name} {was}, continuing with {now}"

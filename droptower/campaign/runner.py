@@ -84,7 +84,7 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
     """
     t_start = time.perf_counter()
     if workers is not None and workers < 1:
-        raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
+        raise DroptowerError(f"must be at least 1, got {workers}", where="workers")
     spec = _spec(out, rig, coupling, doe, resume, {"duration_s": duration_s, "chunk_size": chunk_size,
                                                    "log_format": log_format, "window": window})
     layout = layout_for(out, spec)
@@ -94,7 +94,7 @@ def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str |
         with folder_lock(layout.root):
             return _run(spec, layout, resume, workers, cluster, progress, max_chunks, t_start)
     except WriteError as exc:
-        raise WriteError(f"{exc.problem}; the finished tests are kept: make room, then continue with --resume",
+        raise WriteError(f"{exc.problem}; the finished tests are kept: make room, then continue with `resume`",
                          file=exc.file) from None
     finally:
         if cluster is not None:
@@ -122,7 +122,7 @@ def estimate_campaign(out: str | Path, rig: str | Path | None = None, coupling: 
     """Time and disk the campaign :func:`run_campaign` would run with the same arguments
     (:mod:`.estimate`); ``out`` is only read (with ``resume``: its settings and finished tests)."""
     if workers is not None and workers < 1:
-        raise DroptowerError(f"must be at least 1, got {workers}", where="--workers")
+        raise DroptowerError(f"must be at least 1, got {workers}", where="workers")
     spec = _spec(out, rig, coupling, doe, resume, {"duration_s": duration_s, "chunk_size": chunk_size,
                                                    "log_format": log_format, "window": window})
     to_run = len(spec.tests) - (len(finished(layout_for(out, spec), spec)) if resume else 0)

@@ -134,7 +134,7 @@ def prepare(rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLI
     tests = plan.tests()
     if duration_s is None:
         duration_s = _record_length(rig_cfg, model, plan, fit_window)
-    check_size(rig_cfg, model, min(int(chunk_size), len(tests)), float(duration_s), where="--duration-s")
+    check_size(rig_cfg, model, min(int(chunk_size), len(tests)), float(duration_s), where="duration_s")
     inputs = {kind: {"file": str(path), "content": read_toml(path)} for kind, path in paths.items()}
     return CampaignSpec(rig=rig_cfg, coupling=model, doe=plan, tests=tests, duration_s=float(duration_s),
                         chunk_size=int(chunk_size), log_format=log_format, window=str(fit_window),

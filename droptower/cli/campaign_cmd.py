@@ -9,6 +9,7 @@ from droptower.cli import options
 from droptower.cli.options import quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
 from droptower.errors import DroptowerError, check_positive
+from droptower.cli.flags import cli_text
 
 
 @click.command()
@@ -117,9 +118,9 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     if run.failed:
         click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
         for test_id, error in run.failed:
-            click.echo(f"  test {test_id}: {error}", err=True)
+            click.echo(f"  test {test_id}: {cli_text(error)}", err=True)
     for line in run.errors:
-        click.echo(f"droptower: error: {line}", err=True)
+        click.echo(f"droptower: error: {cli_text(line)}", err=True)
     if run.pending:
         click.echo(f"droptower: {run.pending} test(s) not finished; run again with --resume to continue", err=True)
     if run.failed or run.errors or run.pending:

@@ -17,6 +17,7 @@ from droptower.io.mapping import KINDS, ROLES, SERVO_KINDS, SERVO_ROLES, check_u
 from droptower.io.readers import read_any
 from droptower.io.timebase import regular_time
 from droptower.units import to_si
+from droptower.cli.flags import cli_text
 
 
 def describe(channel: Channel, role: str | None = None, base_s: np.ndarray | None = None,
@@ -70,7 +71,7 @@ def time_base(record: Record, roles: dict[str, str]) -> tuple[np.ndarray | None,
             try:
                 return to_si(channel.values, unit, "time", file=record.path, channel=name), f"channel '{name}'"
             except DroptowerError as exc:
-                return None, f"channel '{name}', unreadable ({exc.problem})"
+                return None, f"channel '{name}', unreadable ({cli_text(exc.problem)})"
     if any(c.time() is not None for c in record.channels.values()):
         return None, "each channel's own sample rate"
     return None, "none (give --sample-rate-hz to extract)"
@@ -168,7 +169,7 @@ def _drops_line(record: Record, roles: dict[str, str]) -> str:
         signals = map_channels(record, roles, sensor_radius_m=1.0)
         spans = find_drops(signals)
     except DroptowerError as exc:
-        return f"drops: none located ({exc.problem})"
+        return f"drops: none located ({cli_text(exc.problem)})"
     times = ", ".join(f"{signals.time_s[s.onset]:.4g}" for s in spans[:20]) + (", ..." if len(spans) > 20 else "")
     cut = [str(s.index) for s in spans if s.cut]
     return f"drops: {len(spans)} (impacts at t = {times} s)" + (

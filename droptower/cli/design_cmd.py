@@ -10,6 +10,7 @@ import click
 from droptower.cli.options import note, quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 from droptower.errors import DroptowerError
+from droptower.cli.flags import cli_text
 
 #: Columns printed as the table (all are in --json).
 TABLE_COLUMNS = ["case", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats", "amplitude_deg",
@@ -146,7 +147,7 @@ def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | Non
             "tests": result.n_tests, "conditions": _records(result.conditions),
             "target_covered_fraction": result.covered_fraction, "reachable_fraction": result.reachable_fraction,
             "unreachable": result.unreachable, "double_impacts_predicted": result.double_impacts_predicted,
-            "limits_hit": result.limits_hit, "repeats": result.repeats, "plan_file": str(plan_file),
+            "limits_hit": [cli_text(line) for line in result.limits_hit], "repeats": result.repeats, "plan_file": str(plan_file),
             "sheet_file": sheet}, indent=1, default=_json_default))
         return
     click.echo(f"{result.n_conditions} conditions x {result.repeats} repeats = {result.n_tests} drops on rig "
@@ -156,7 +157,7 @@ def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | Non
     for line in result.unreachable:
         click.echo(f"unreachable: {line}")
     for line in result.limits_hit:
-        click.echo(f"limit: {line}")
+        click.echo(f"limit: {cli_text(line)}")
     click.echo(f"{result.double_impacts_predicted} double impact(s) predicted")
     _written(plan=plan_file, sheet=sheet, plot=plot_path)
 

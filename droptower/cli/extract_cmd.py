@@ -11,6 +11,7 @@ import click
 
 from droptower.cli.options import progress_disabled, quiet_option, renamed_option, wrote
 from droptower.errors import DroptowerError, WriteError, check_positive, make_folder
+from droptower.cli.flags import cli_message
 
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
@@ -158,7 +159,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
                     tqdm.write(f"droptower: note: {path}: {text}", file=sys.stderr)
                 if drop.error is not None:
                     failed.add(path)
-                    failures.append(drop.error.message)
+                    failures.append(cli_message(drop.error))
                     tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
                     continue
                 if plot_dir is not None:
@@ -171,7 +172,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
             raise
         except DroptowerError as exc:
             failed.add(path)
-            failures.append(exc.with_file(path).message)
+            failures.append(cli_message(exc.with_file(path)))
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
         except Exception as exc:  # a bug must not stop a 450-file batch; name it and go on
             failed.add(path)

@@ -26,6 +26,7 @@ from pydantic import Field
 from droptower.cli.options import note, progress, progress_disabled, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive, make_folder
 from droptower.validation import StrictModel, validate
+from droptower.cli.flags import cli_message
 
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
@@ -294,7 +295,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
             try:
                 r = run(kind, segments, holdout=held, previous=results)
             except DroptowerError as exc:  # compare-models takes no options: the data do not suit the family
-                skipped.append(f"{kind}: {exc.message}")
+                skipped.append(f"{kind}: {cli_message(exc)}")
                 tqdm.write(f"droptower: skipped {skipped[-1]}", file=sys.stderr)
                 continue
             r.time_s = time.perf_counter() - start
@@ -366,7 +367,7 @@ def compare_drops(data: tuple[str, ...], kinds: list[str], channels: tuple[str, 
         try:
             results[kind] = identify_drops(kind, decays, excluded=excluded, settings=settings, options=opts)
         except DroptowerError as exc:
-            failures.append(f"{kind}: {exc.message}")
+            failures.append(f"{kind}: {cli_message(exc)}")
             continue
         if not results[kind].converged:
             failures.append(f"{kind}: the fit did not converge")

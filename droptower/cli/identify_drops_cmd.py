@@ -14,6 +14,7 @@ import numpy as np
 
 from droptower.cli.options import note, progress, wrote
 from droptower.errors import DroptowerError, make_folder
+from droptower.cli.flags import cli_text
 
 
 #: excluded tests named on stderr without --verbose (the rest are counted)
@@ -61,7 +62,7 @@ def drop_report_text(result: Any, verbose: bool = False) -> str:
         lines.append(f"  {r['file']}: J {r['inertia_kgm2']:.4g} kg*m^2, {r['amplitude_deg']:.3g} deg, "
                      f"{r['frequency_hz']:.3g} Hz: {100 * r['angle_nrmse']:.3f}{held}")
     for e in result.tests_excluded:
-        lines.append(f"  excluded {e['file']}: {e['reason']}")
+        lines.append(f"  excluded {e['file']}: {cli_text(e['reason'])}")
     return "\n".join(lines)
 
 
@@ -94,7 +95,7 @@ def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any)
     try:
         fitted = fit_map(pd.DataFrame(rows), source="the drop tests")
     except DroptowerError as exc:
-        return table, f"no drop-tower map: {exc.problem}"
+        return table, f"no drop-tower map: {cli_text(exc.problem)}"
     a, f = table["amplitude_deg"].to_numpy(), table["frequency_hz"].to_numpy()
     table["map_stiffness_nm_per_deg"] = fitted.stiffness_nm_per_deg(a, f)
     table["map_damping_ratio"] = fitted.damping_ratio(a, f)
@@ -206,7 +207,7 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
                         defaults=defaults, cycles=cycles, rate=rate)
     decays, excluded = read_decays(data, read)
     for e in excluded if verbose else excluded[:EXCLUDED_SHOWN]:
-        click.echo(f"droptower: excluded {e['file']}: {e['reason']}", err=True)
+        click.echo(f"droptower: excluded {e['file']}: {cli_text(e['reason'])}", err=True)
     if len(excluded) > EXCLUDED_SHOWN and not verbose:
         click.echo(f"droptower: excluded {len(excluded) - EXCLUDED_SHOWN} more test(s) (--verbose names them)", err=True)
     return decays, excluded, settings, options, read

@@ -15,6 +15,7 @@ import click
 
 from droptower.cli import options
 from droptower.errors import DroptowerError
+from droptower.cli.flags import cli_message
 
 #: name -> (module, attribute, one-line help). Data flows top to bottom.
 COMMANDS: dict[str, tuple[str, str, str]] = {
@@ -83,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         # without standalone mode, click returns the code of a command's Exit(code)
         code = cli.main(args=args, prog_name="droptower", standalone_mode=False)
     except DroptowerError as exc:
-        click.echo(f"droptower: error: {exc.message}", err=True)
+        click.echo(f"droptower: error: {cli_message(exc)}", err=True)
         return 2
     except click.exceptions.Abort:
         click.echo("droptower: aborted", err=True)

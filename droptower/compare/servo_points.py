@@ -102,7 +102,8 @@ def run_sweeps(coupling, reduced: bool = False, sample_rate_hz: float = 2048.0) 
     model = coupling if isinstance(coupling, Coupling) else load_coupling(coupling)
     if model.units == "translational":
         raise DroptowerError(f"{model.name} is a translational coupling: the sweeps are the torsional drop tower's "
-                             "(amplitudes in deg); run it with droptower servo --amplitude-mm instead")
+                             "(amplitudes in deg); run it on the servo bench in its own units instead (droptower.servo.run_grid, "
+                             "amplitudes in m)")
     points = sweep_points(reduced)
     runs = []
     for frequency, rows in points.groupby("frequency_hz"):

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pandas as pd
 
+__all__ = ["TABLE4_NAME", "read_table4", "table4_path"]
+
 #: Name under which ``droptower map`` (and :func:`droptower.maps.read_results`) accepts Table 4.
 TABLE4_NAME = "rapp2022_table4"
 

@@ -283,7 +283,7 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
             f"{target.frequency_hz[1]:g} Hz lies outside what rig {rig.name} reaches with coupling {coupling.name}: "
             f"{feasible['amplitude_deg'].min():.3g}-{feasible['amplitude_deg'].max():.3g} deg at "
             f"{feasible['frequency_hz'].min():.3g}-{feasible['frequency_hz'].max():.3g} Hz",
-            where="--amplitude-deg/--frequency-hz")
+            where="amplitude_deg/frequency_hz")
     limits: list[str] = []
     n_pre = len(target.preloads_nm)
     step = LEVEL_STEP_DECADES
@@ -294,14 +294,14 @@ def design_campaign(rig: RigConfig, coupling: Coupling, target: Target, *, repea
             break
         if repeats > 1:
             new = max(1, max_tests // n_cond)
-            limits.append(f"--max-tests {max_tests}: {new} repeat(s) per condition instead of {repeats}")
+            limits.append(f"`max_tests={max_tests}`: {new} repeat(s) per condition instead of {repeats}")
             repeats = new
             continue
         if step >= 1.0:
             raise DroptowerError(f"{n_cond} conditions (the fewest that span the target, each at {n_pre} preload(s)) "
-                                 f"exceed --max-tests {max_tests}", where="--max-tests")
+                                 f"exceed `max_tests={max_tests}`", where="max_tests")
         step *= 1.25
-        limits.append(f"--max-tests {max_tests}: amplitude levels {step:.2g} decades apart")
+        limits.append(f"`max_tests={max_tests}`: amplitude levels {step:.2g} decades apart")
     rows = [(lever_name(rig, j), j, m, h, p, repeats) for j, m, h in sorted(set(drops)) for p in target.preloads_nm]
     cond = pd.DataFrame(rows, columns=[*CONDITION_KEYS, "repeats"])
     # predicted as the campaign will record and extract them (its record length for this plan)

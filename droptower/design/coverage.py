@@ -30,13 +30,13 @@ class Target:
     preloads_nm: tuple[float, ...] = (0.0,)
 
     def __post_init__(self) -> None:
-        for name, (lo, hi), flag in (("amplitude", self.amplitude_deg, "--amplitude-deg"),
-                                     ("frequency", self.frequency_hz, "--frequency-hz")):
+        for name, (lo, hi), flag in (("amplitude", self.amplitude_deg, "amplitude_deg"),
+                                     ("frequency", self.frequency_hz, "frequency_hz")):
             if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
                 raise DroptowerError(f"the {name} range must be two positive numbers LOW:HIGH with LOW <= HIGH, "
                                      f"got {lo:g}:{hi:g}", where=flag)
         if not self.preloads_nm or not all(math.isfinite(p) and p >= 0 for p in self.preloads_nm):
-            raise DroptowerError("preloads must be non-negative numbers (N*m)", where="--preloads-nm")
+            raise DroptowerError("preloads must be non-negative numbers (N*m)", where="preloads_nm")
 
     def grid(self, n: int = GRID_POINTS) -> np.ndarray:
         """(n*n, 2) points over the region in the plane (log10 amplitude_deg, frequency_hz)."""

@@ -142,7 +142,7 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
     pool = feasible[feasible["amplitude_deg"].between(a0, a1) & feasible["frequency_hz"].between(f0, f1)]
     if len(pool) < 2:
         raise DroptowerError(f"fewer than two possible drops of rig {rig.name} lie in the target "
-                             f"{a0:g}-{a1:g} deg x {f0:g}-{f1:g} Hz", where="--for-identification")
+                             f"{a0:g}-{a1:g} deg x {f0:g}-{f1:g} Hz", where="for_identification")
     pool = pool.reset_index(drop=True)
     if reference is not None:
         from droptower.rig.planner import plan

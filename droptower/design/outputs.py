@@ -37,6 +37,8 @@ def doe_document(conditions: pd.DataFrame, name: str, description: str, base_see
 
 
 def coverage_description(design: Design) -> str:
+    """The plan file's description of a design: its target (deg x Hz), conditions, tests and the
+    share of the target the realised tests cover."""
     t = design.target
     return (f"designed by droptower design for {t.amplitude_deg[0]:g}-{t.amplitude_deg[1]:g} deg x "
             f"{t.frequency_hz[0]:g}-{t.frequency_hz[1]:g} Hz: {design.n_conditions} conditions, "

@@ -197,10 +197,10 @@ def parse_drop_selection(text: str) -> set[int]:
     for part in str(text).split(","):
         match = _RANGE.match(part)
         if not match:
-            raise DroptowerError(f"--drops {text!r}: expected drop numbers and ranges such as 1,3-5")
+            raise DroptowerError(f"`drops={text!r}`: expected drop numbers and ranges such as 1,3-5")
         first, last = int(match.group(1)), int(match.group(2) or match.group(1))
         if first < 1 or last < first:
-            raise DroptowerError(f"--drops {text!r}: drops are numbered from 1, ranges go upwards ({part.strip()})")
+            raise DroptowerError(f"`drops={text!r}`: drops are numbered from 1, ranges go upwards ({part.strip()})")
         chosen.update(range(first, last + 1))
     return chosen
 

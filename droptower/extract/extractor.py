@@ -137,8 +137,8 @@ def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_le
     try:
         inertia = metadata_value(signals, inertia_kgm2, "inertia_kgm2")
         if inertia is None:
-            raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give --inertia-kgm2 "
-                                 "(the lever fixture's J; --rig gives it only for a rig with a single fixture)")
+            raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2` "
+                                 "(the lever fixture's J; `rig` gives it only for a rig with a single fixture)")
         lever = metadata_value(signals, lever_length_m, "lever_length_m")
         return _extract(signals, inertia, lever, Window.parse(window))
     except DroptowerError as exc:

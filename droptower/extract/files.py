@@ -73,7 +73,7 @@ def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
         spans = [DropSpan(1, 0, signals.time_s.size, 0, None)]
     missing = sorted(set(settings.drops or ()) - {s.index for s in spans})
     if missing:
-        raise DroptowerError(f"--drops names drop(s) {', '.join(map(str, missing))}, the record holds "
+        raise DroptowerError(f"`drops` names drop(s) {', '.join(map(str, missing))}, the record holds "
                              f"{len(spans)} drop(s)", file=Path(path))
     drops = []
     for span in spans:

@@ -147,7 +147,7 @@ def segments_from_files(paths: Iterable[str | Path], roles: dict[str, str] | Non
         signals = map_servo_channels(record, roles)
         if signals.load_si is None:
             role = SERVO_KINDS[signals.units][1]
-            raise DroptowerError(f"no {role} channel found; name it with --channel {role}=NAME[:UNIT] "
+            raise DroptowerError(f"no {role} channel found; name it with `roles={{'{role}': 'NAME[:UNIT]'}}` "
                                  f"(the file has: {', '.join(repr(n) for n in record.channels)})", file=path)
         if out and signals.units != out[0].units:
             raise DroptowerError(f"a {signals.units} record among {out[0].units} ones ({out[0].name}): "

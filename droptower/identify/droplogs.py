@@ -99,12 +99,12 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
     """The free decay of one test's :class:`~droptower.io.signals.DropSignals`."""
     inertia = metadata_value(signals, settings.inertia_kgm2, "inertia_kgm2") or settings.defaults.get("inertia_kgm2")
     if inertia is None:
-        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give --inertia-kgm2 or --rig")
+        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2` or `rig`")
     lever = metadata_value(signals, settings.lever_length_m, "lever_length_m") or settings.defaults.get("lever_length_m")
     force = signals.impact_force_n if settings.rate != "slope" else None
     if settings.rate == "impulse" and (signals.impact_force_n is None or lever is None):
-        raise DroptowerError("rate from the impulse needs an impact-force channel (--channel impact_force=NAME[:UNIT]) "
-                             "and the lever length (--lever-length-m or --rig)")
+        raise DroptowerError("rate from the impulse needs an impact-force channel (`roles={'impact_force': 'NAME[:UNIT]'}`) "
+                             "and the lever length (`lever_length_m` or `rig`)")
     t_all, angle = np.asarray(signals.time_s, float), np.asarray(signals.angle_rad, float)
     impact = find_impact(t_all, angle, force)
     pre = slice(0, impact.baseline_end)
@@ -170,7 +170,7 @@ def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[li
     decays, excluded = [], []
     for f in files:
         try:
-            signals = settings.read_signals(f, radius_flags="--rig", sample_rate_flag=None)
+            signals = settings.read_signals(f, radius_flags="`rig`", sample_rate_flag=None)
             decays.append(decay_from_signals(signals, settings, f.name))
         except DroptowerError as exc:
             excluded.append({"file": str(f), "reason": ": ".join(p for p in (exc.where, exc.problem) if p)})

@@ -205,7 +205,21 @@ def _record(path: Path, columns: dict[str, np.ndarray], metadata: dict[str, Any]
 def read_log(path: str | Path) -> Record:
     """Read a droptower log (``.csv`` or ``.parquet``) into a :class:`Record`.
 
-    Every channel shares the ``time_s`` column as its time base; units come from the names.
+    Parameters
+    ----------
+    path : str or Path
+        A log as :func:`write_log` (and ``droptower simulate --out``, ``campaign``) writes it.
+
+    Returns
+    -------
+    Record
+        Its channels, each on the ``time_s`` column as time base, with the unit its name ends
+        in (``angle_rad``, ``torque_nm``), and the log's metadata (``inertia_kgm2``, ...).
+
+    Raises
+    ------
+    DroptowerError
+        One line naming the file, for a missing, unreadable or malformed log.
     """
     path = Path(path)
     try:

@@ -25,10 +25,11 @@ class LogSettings:
     sensor_radius_m: float | None = None
 
     def read_signals(self, path: str | Path, *, sample_rate_hz: float | None = None,
-                     reader_options: dict[str, Any] | None = None, radius_flags: str = "--sensor-radius-m or --rig",
-                     sample_rate_flag: str | None = "--sample-rate-hz") -> DropSignals:
+                     reader_options: dict[str, Any] | None = None, radius_flags: str = "`sensor_radius_m` or `rig`",
+                     sample_rate_flag: str | None = "`sample_rate_hz`") -> DropSignals:
         """Read one log (any format) and map its channels; problems are DroptowerErrors naming the
-        file (and ``radius_flags`` / ``sample_rate_flag``, the command's flags that give what is missing)."""
+        file (and ``radius_flags`` / ``sample_rate_flag``: the parameters that give what is missing, which a
+        command reports as its flags)."""
         record = read_any(path, **(reader_options or {}))
         return map_channels(record, self.roles, sensor_radius_m=self.sensor_radius_m, sample_rate_hz=sample_rate_hz,
                             default_sensor_radius_m=self.defaults.get("sensor_radius_m"), radius_flags=radius_flags,

@@ -76,11 +76,11 @@ def parse_channel_options(options: Iterable[str], roles_known: tuple[str, ...] =
         role, sep, spec = option.partition("=")
         role = role.strip()
         if not sep or not spec.strip():
-            raise DroptowerError(f"--channel {option!r}: expected ROLE=NAME[:UNIT]")
+            raise DroptowerError(f"channel option {option!r}: expected ROLE=NAME[:UNIT]")
         if role not in roles_known:
-            raise DroptowerError(f"--channel {option!r}: unknown role '{role}' (roles: {', '.join(roles_known)})")
+            raise DroptowerError(f"channel option {option!r}: unknown role '{role}' (roles: {', '.join(roles_known)})")
         if role in roles:
-            raise DroptowerError(f"--channel: role '{role}' given twice")
+            raise DroptowerError(f"channel options: role '{role}' given twice")
         roles[role] = spec.strip()
     return roles
 
@@ -105,7 +105,7 @@ def _find_default(record: Record, role: str) -> str | None:
     if len(matches) > 1:
         raise DroptowerError(
             f"several channels could be the {role} channel ({', '.join(repr(m) for m in matches)}); "
-            f"choose one with --channel {role}=NAME", file=record.path)
+            f"choose one with `roles={{'{role}': 'NAME'}}`", file=record.path)
     return matches[0] if matches else None
 
 
@@ -122,7 +122,7 @@ def _resolve(record: Record, role: str, spec: str) -> tuple[Channel, str]:
     if unit is None:
         unit = channel.unit or unit_from_name(name)
         if not unit:
-            raise DroptowerError(f"channel '{name}' has no unit; give it as --channel {role}={name}:UNIT",
+            raise DroptowerError(f"channel '{name}' has no unit; give it as `roles={{'{role}': '{name}:UNIT'}}`",
                                  file=record.path)
     return channel, unit
 
@@ -261,8 +261,8 @@ def _sensor_radius(record: Record, given: float | None, default: float | None, f
 @expects(record="droptower.io.channels.Record")
 def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_radius_m: float | None,
                  sample_rate_hz: float | None = None, default_sensor_radius_m: float | None = None,
-                 radius_flags: str = "--sensor-radius-m or --rig",
-                 sample_rate_flag: str | None = "--sample-rate-hz") -> DropSignals:
+                 radius_flags: str = "`sensor_radius_m` or `rig`",
+                 sample_rate_flag: str | None = "`sample_rate_hz`") -> DropSignals:
     """Pick the channels for each role from ``record`` and return SI :class:`DropSignals`.
 
     roles: role -> ``NAME`` or ``NAME:UNIT``; roles not given are found by name; ``-`` leaves a
@@ -270,14 +270,15 @@ def map_channels(record: Record, roles: dict[str, str] | None = None, *, sensor_
     sensor_radius_m: radius of the laser spot on the flange (m), needed for ``distance``; if
         None, the log's metadata ``laser_radius_m``, else ``default_sensor_radius_m`` (a rig's).
     sample_rate_hz: builds the time base when the file has no time channel and no rate.
-    radius_flags, sample_rate_flag: the command's flags that give these, named in the errors.
+    radius_flags, sample_rate_flag: the parameters that give these, named in the errors (a command
+        reports them as its flags).
     """
     specs = find_roles(record, roles)
     explicit = {role for role, spec in (roles or {}).items() if spec.strip() not in ("-", "none")}
     angle_role = "angle" if "angle" in specs else "distance"
     if angle_role not in specs:
         raise DroptowerError(
-            "no angle channel found; name it with --channel angle=NAME[:UNIT] or --channel distance=NAME[:UNIT] "
+            "no angle channel found; name it with `roles={'angle': 'NAME[:UNIT]'}` or `roles={'distance': 'NAME[:UNIT]'}` "
             f"(the file has: {', '.join(repr(n) for n in record.channels) or 'none'})", file=record.path)
 
     signals: dict[str, np.ndarray] = {}
@@ -338,7 +339,7 @@ def _time_base(record: Record, specs: dict[str, str], explicit: set[str], refere
         time, time_name = np.asarray(own_time, dtype=np.float64), reference.name
     else:
         also = f" or {sample_rate_flag}" if sample_rate_flag else ""
-        raise DroptowerError(f"no time channel and no sample rate; give --channel time=NAME[:UNIT]{also}",
+        raise DroptowerError(f"no time channel and no sample rate; give `roles={{'time': 'NAME[:UNIT]'}}`{also}",
                              file=record.path)
     _check_time(record, time_name, time)
     time, note = regular_time(time, file=record.path, where=f"time of channel '{time_name}'")
@@ -381,7 +382,7 @@ def find_servo_roles(record: Record, roles: dict[str, str] | None = None,
         found = {units: name for units, name in found.items() if name is not None}
         if len(found) > 1:
             text = (f"both an angle channel '{found['torsional']}' and a displacement channel "
-                    f"'{found['translational']}'; choose one with --channel angle=NAME or --channel displacement=NAME")
+                    f"'{found['translational']}'; choose one with `roles={{'angle': 'NAME'}}` or `roles={{'displacement': 'NAME'}}`")
             if problems is None:
                 raise DroptowerError(text, file=record.path)
             problems.append(text)
@@ -407,8 +408,8 @@ def map_servo_channels(record: Record, roles: dict[str, str] | None = None, *,
     units, specs = find_servo_roles(record, roles)
     motion_role, load_role = SERVO_KINDS[units]
     if motion_role not in specs:
-        raise DroptowerError("no angle channel found (nor a displacement channel); name it with --channel angle=NAME[:UNIT] or "
-                             f"--channel displacement=NAME[:UNIT] (the file has: "
+        raise DroptowerError("no angle channel found (nor a displacement channel); name it with `roles={'angle': 'NAME[:UNIT]'}` or "
+                             f"`roles={{'displacement': 'NAME[:UNIT]'}}` (the file has: "
                              f"{', '.join(repr(n) for n in record.channels) or 'none'})", file=record.path)
     explicit = {role for role, spec in (roles or {}).items() if spec.strip() not in ("-", "none")}
     values: dict[str, np.ndarray] = {}
@@ -440,8 +441,8 @@ def _servo_si(record: Record, role: str, channel: Channel, unit: str) -> np.ndar
             to_si(channel.values[:1], unit, KINDS[other])
         except DroptowerError:
             raise exc from None
-        raise DroptowerError(f"{exc.problem}; a {KINDS[other]} unit: give it as --channel {other}="
-                             f"{channel.name}:{unit} (a {'translational' if other in ('displacement', 'force') else 'torsional'} record)",
+        raise DroptowerError(f"{exc.problem}; a {KINDS[other]} unit: give it as `roles={{'{other}': "
+                             f"'{channel.name}:{unit}'}}` (a {'translational' if other in ('displacement', 'force') else 'torsional'} record)",
                              file=record.path, where=exc.where) from None
     _check_values(record, channel, values)
     if np.ptp(values) == 0.0:

@@ -52,7 +52,7 @@ def wanted_unit(name: str) -> str:
     return next((unit for suffix, unit in SUFFIX_UNITS if name.endswith(suffix)), "")
 
 
-def parse_column_options(options: Iterable[str], option: str = "--column") -> dict[str, str]:
+def parse_column_options(options: Iterable[str], option: str = "columns") -> dict[str, str]:
     """``["amplitude_deg=Amp:deg"]`` -> ``{"amplitude_deg": "Amp:deg"}``; a missing ``=`` or a
     name given twice is a one-line error naming ``option``."""
     out: dict[str, str] = {}

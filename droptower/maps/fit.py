@@ -42,15 +42,33 @@ LEVEL_RTOL = 0.01
 
 def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None,
             form: str | MapForm = "paper") -> MapFit:
-    """Fit eq. 19 and eq. 20 (``form="paper"``), another form (a name of :data:`droptower.maps.forms.FORMS` or a
-    :class:`~droptower.maps.forms.MapForm`),
-    or the terms chosen by cross-validation (``"auto"``, :mod:`droptower.maps.select`) to a
-    results table (DataFrame, or a CSV/Parquet path); every form is cross-validated.
+    """Fit the characteristic map (Rapp et al. 2022, eq. 19-20, or another form) to drop tests.
 
-    Columns: ``amplitude_deg``, ``frequency_hz``, ``stiffness_nm_per_deg``, ``damping_ratio``
-    (optional ``flags``, ``file``, ``drop_height_m``). Flagged, incomplete or non-positive tests are excluded and
-    listed in the result. Too few tests or a degenerate design (fewer than 3 distinct
-    amplitudes or frequencies) is a one-line :class:`DroptowerError` naming ``source``.
+    Parameters
+    ----------
+    results : DataFrame, str or Path
+        The results table (or a path :func:`read_results` reads): ``amplitude_deg``,
+        ``frequency_hz``, ``stiffness_nm_per_deg`` (N·m/deg), ``damping_ratio`` (optional
+        ``flags``, ``file``, ``drop_height_m``). Flagged, incomplete or non-positive tests are
+        excluded and listed in the result.
+    source : str or Path, optional
+        What the errors and the summary call the table (default: the path given).
+    form : str or MapForm, default "paper"
+        ``"paper"`` (eq. 19 and eq. 20), another form (a name of
+        :data:`droptower.maps.forms.FORMS` or a :class:`~droptower.maps.forms.MapForm`), or
+        ``"auto"``: the terms chosen by cross-validation (:mod:`droptower.maps.select`).
+
+    Returns
+    -------
+    MapFit
+        The coefficients with their uncertainties, the fit's and the cross-validated errors;
+        ``stiffness_nm_per_deg(a, f)`` and ``damping_ratio(a, f)`` predict (degrees, Hz).
+
+    Raises
+    ------
+    DroptowerError
+        Too few tests or a degenerate design (fewer than 3 distinct amplitudes or frequencies),
+        naming ``source``.
     """
     if isinstance(form, str) and form != "auto" and form not in FORMS:
         raise DroptowerError(f"unknown map form {form!r} (use {', '.join([*FORMS, 'auto'])})", file=source)

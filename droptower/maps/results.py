@@ -37,9 +37,26 @@ class ExcludedTest:
 
 
 def read_results(path: str | Path) -> pd.DataFrame:
-    """Load a results table (``.csv`` or ``.parquet``, a campaign folder holding
-    ``results.parquet``, or ``rapp2022_table4``: the paper's Table 4 shipped with the package);
-    unreadable files and missing columns are a one-line :class:`DroptowerError` naming the file."""
+    """Load a results table: one row per evaluated drop test.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.csv`` or ``.parquet`` table (``droptower extract --out``), a campaign folder
+        holding ``results.parquet``, or ``"rapp2022_table4"``: the paper's Table 4, shipped
+        with the package.
+
+    Returns
+    -------
+    DataFrame
+        The table, with at least ``amplitude_deg``, ``frequency_hz``, ``stiffness_nm_per_deg``
+        (N·m/deg) and ``damping_ratio``.
+
+    Raises
+    ------
+    DroptowerError
+        One line naming the file, for an unreadable file or a missing column.
+    """
     path = Path(path)
     if str(path) == TABLE4_NAME and not path.exists():
         path = table4_path()  # the paper's Table 4, shipped with the package

@@ -29,6 +29,8 @@ SINGULAR_RTOL = 1e-10
 
 
 def exponent_grid(x: np.ndarray) -> np.ndarray:
+    """Start values of a decay exponent for the multi-start search: from 0.05 / max(x) (nearly
+    flat over the data) to 5 / min(x) (decayed within the smallest value), geometric."""
     return np.geomspace(0.05 / x.max(), 5.0 / x.min(), GRID_POINTS)
 
 
@@ -99,6 +101,8 @@ class Fitted:
 
 def assess(solutions: list[Solution], residuals: Callable[[np.ndarray], np.ndarray],
             jacobian: Callable[[np.ndarray], np.ndarray]) -> Fitted:
+    """The best of the multi-start ``solutions`` (sorted, best first) with its residuals,
+    standard uncertainties, condition number and the coefficients another solution places elsewhere."""
     best = solutions[0]
     errors = residuals(best.params)
     std, condition = standard_uncertainties(jacobian(best.params), errors)

@@ -50,7 +50,7 @@ def check_preloads(rig: RigConfig, preloads_nm: tuple[float, ...]) -> None:
     for p in preloads_nm:
         if not lo <= p <= hi:
             raise DroptowerError(f"preload {p:g} N*m is outside the range {lo:g}-{hi:g} N*m of rig {rig.name}",
-                                 where="--preloads-nm")
+                                 where="preloads_nm")
 
 
 def _grid(rig: RigConfig, coupling: Coupling, curves: list[tuple[float, float, float]],

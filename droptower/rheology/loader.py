@@ -27,6 +27,8 @@ from droptower.validation import StrictModel, validate
 
 
 class CouplingFile(StrictModel):
+    """A coupling TOML file as validated: name, description, source, units and its elements."""
+
     name: str = ""
     description: str = ""
     source: str = ""

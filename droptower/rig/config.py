@@ -88,6 +88,8 @@ class ForceSensor(StrictModel):
 
 
 class Sensors(StrictModel):
+    """The rig's data acquisition: sample rate (Hz), pre-trigger time (s) and its three sensors."""
+
     sample_rate_hz: PositiveFloat = 38400.0
     pre_trigger_s: PositiveFloat = 0.005
     laser: Laser
@@ -217,7 +219,24 @@ class RigConfig(StrictModel):
 
 
 def load_rig(path_or_name: str | Path) -> RigConfig:
-    """Load a rig TOML file, or a shipped preset by name (``"rapp2022"``)."""
+    """Load a rig TOML file, or a shipped preset by name.
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A rig TOML file, or the name of a shipped preset (``"rapp2022"``).
+
+    Returns
+    -------
+    RigConfig
+        The validated rig: levers and masses (SI), drop-height and preload ranges, sensors,
+        simulation settings.
+
+    Raises
+    ------
+    DroptowerError
+        One line naming the file and the field, for a missing file or an invalid value.
+    """
     path = resolve(path_or_name, "rigs")
     data = read_toml(path)
     rig = validate(RigConfig, data, path)
@@ -316,7 +335,25 @@ def _name_group(list_name: str, index: int, item: Any) -> str:
 
 
 def load_doe(path_or_name: str | Path) -> DOE:
-    """Load a test-plan TOML file, or a shipped preset by name (``"rapp2022_table2"``)."""
+    """Load a test-plan (DOE) TOML file, or a shipped preset by name.
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A test-plan TOML file, or the name of a shipped preset (``"rapp2022_table2"``).
+
+    Returns
+    -------
+    DOE
+        The plan: lever groups (inertia in kg·m², drop mass in kg) × drop heights (m) × preloads
+        (N·m) × repeats; :meth:`DOE.tests` lists its tests.
+
+    Raises
+    ------
+    DroptowerError
+        One line naming the file, for a missing file, an invalid value or a plan of more than
+        :data:`~droptower.limits.MAX_PLAN_CONDITIONS` conditions.
+    """
     path = resolve(path_or_name, "doe")
     doe = validate(DOE, read_toml(path), path, _name_group)
     if doe.n_conditions > MAX_PLAN_CONDITIONS:  # before anything loops over them

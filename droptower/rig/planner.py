@@ -125,15 +125,28 @@ def extractor_view(time_s: np.ndarray, angle_rad: np.ndarray, period_s: float,
 
 @expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling", conditions="pandas.DataFrame")
 def plan(rig: RigConfig, coupling: Coupling, conditions: pd.DataFrame, duration_s: float = 0.25) -> pd.DataFrame:
-    """One row per condition (columns of :meth:`DOE.conditions`): predictions and warnings.
+    """Predict each test condition of a plan: amplitude, frequency, damping, double impacts.
 
-    Columns shared with ``simulate --json`` and ``extract`` name the same quantity there:
-    ``amplitude_deg`` is the first cycle's phi_ref (Rapp et al. 2022, eq. 18, extract's default
-    window), ``first_peak_deg`` the first peak, ``first_period_s`` and
-    ``first_period_frequency_hz`` the first period (as simulate), ``decay_coefficient_per_s``,
-    ``damping_ratio`` from the first cycle's two peaks, ``second_impact_after_s``.
+    Parameters
+    ----------
+    rig : RigConfig
+        The drop tower (:func:`load_rig`).
+    coupling : Coupling
+        The coupling under test.
+    conditions : DataFrame
+        One row per condition (the columns of :meth:`DOE.conditions`).
+    duration_s : float, default 0.25
+        The record length after the impact (s), for the check that it holds 3/4 of a period.
 
-    duration_s: the record length after the impact (for the 3/4-period check).
+    Returns
+    -------
+    DataFrame
+        One row per condition: predictions and warnings. Columns shared with ``simulate`` and
+        ``extract`` name the same quantity there: ``amplitude_deg`` is the first cycle's φ̂_ref
+        (Rapp et al. 2022, eq. 18, the extractor's default window), ``first_peak_deg`` the first
+        peak, ``first_period_s`` and ``first_period_frequency_hz`` the first period,
+        ``decay_coefficient_per_s``, ``damping_ratio`` from the first cycle's two peaks,
+        ``second_impact_after_s``.
     """
     cond = conditions.reset_index(drop=True)
     J = cond["inertia_kgm2"].to_numpy(float)

@@ -219,7 +219,7 @@ def check_size(rig: RigConfig, coupling: Coupling, batch: int, duration_s: float
     n_samples = (rig.sensors.pre_trigger_s + duration_s) * fs
     longest = max(0.0, memory_limit_bytes() / per_second - rig.sensors.pre_trigger_s)
     what = f"{batch} drop test(s) of {duration_s:g} s at {fs:g} Hz"
-    fewer = " or simulate fewer tests at once (a smaller --chunk-size)" if batch > 1 else ""
+    fewer = " or simulate fewer tests at once (a smaller `chunk_size`)" if batch > 1 else ""
     require_memory(batch * n_samples * (8.0 * ARRAYS_PER_SAMPLE) + 8.0 * batch * coupling.n_state, what,
                    f"record at most {longest:.3g} s after the impact{fewer}", where=where)
     steps = batch * n_samples * rig.simulation.steps_per_sample
@@ -230,9 +230,32 @@ def check_size(rig: RigConfig, coupling: Coupling, batch: int, duration_s: float
 @expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling")
 def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.DataFrame,
              duration_s: float = 0.25, workers: int = 1) -> list[DropResult]:
-    """Simulate drop tests, all in one batch (or split over ``workers`` processes); results in order.
+    """Simulate drop tests on the virtual drop tower, all in one batch; results in order.
 
-    duration_s: record length after the impact (the record starts ``pre_trigger_s`` before it).
+    Parameters
+    ----------
+    rig : RigConfig
+        The drop tower (:func:`load_rig`).
+    coupling : Coupling
+        The coupling under test (:func:`droptower.rheology.load_coupling`).
+    tests : sequence of DropTest, or DataFrame
+        The tests: inertia (kg·m²), drop mass (kg), drop height (m), preload (N·m), repeat and
+        seed each (a DataFrame with those columns, e.g. :meth:`DOE.tests`).
+    duration_s : float, default 0.25
+        Record length after the impact (s); the record starts the rig's ``pre_trigger_s`` before it.
+    workers : int, default 1
+        Processes to split the batch over.
+
+    Returns
+    -------
+    list of DropResult
+        One per test: the sampled signals (``write_log`` writes them as a log), the contacts and
+        the energy balance.
+
+    Raises
+    ------
+    DroptowerError
+        A test the rig cannot run (out of its ranges) or a record beyond the memory limit.
     """
     tests = as_tests(tests)
     if not (math.isfinite(duration_s) and duration_s > 0):

@@ -179,7 +179,7 @@ def _check_size(coupling: Coupling, batch: int, freqs: np.ndarray, preload_nm: f
     # torque and the evaluation's smoothed copies per instance; the coupling's state
     nbytes = 8.0 * (3 * n_fine + batch * (min(n_fine, CHUNK_SAMPLES) + 6 * n_lab + coupling.n_state))
     what = f"the servo run at {f:g} Hz ({n_cycles:g} cycles of {1 / f:.3g} s, {batch} amplitude(s))"
-    split = "raise the lowest --frequency-hz, lower --cycles or --sample-rate-hz, or run fewer amplitudes at once"
+    split = "raise the lowest `frequencies_hz`, lower `cycles` or `sample_rate_hz`, or run fewer amplitudes at once"
     require_memory(nbytes, what, split)
     iterations = 1 + (PRELOAD_ITERATIONS if preload_nm != 0.0 else 0)
     require_steps(batch * iterations * float(np.sum(n_cycles / freqs * np.maximum(simulation_rate_hz,

@@ -24,7 +24,9 @@ from droptower.identify.families.zerodim20 import ZeroDim20
 from droptower.identify.fit import Identification
 
 _MODULES = (zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay, template)
+#: every model family by its name (``zerodim6``, ``elastoslide``, ...): name -> family class
 FAMILIES: dict[str, type[Family]] = {m.FAMILY.kind: m.FAMILY for m in _MODULES}
+#: each family's staged identification strategy by the family's name
 STRATEGIES: dict[str, Callable[..., Identification]] = {m.FAMILY.kind: m.strategy for m in _MODULES}
 
 
