@@ -75,8 +75,13 @@ def test_decays_against_the_bench_at_their_own_points(calibration):
     amplitudes about a factor 2 apart turns into a larger decay rate than the steady loop at the
     window's middle amplitude, and the matrix branch's relaxation slower than the oscillation
     adds a creep mode that the fit reads as decay (d = (e^(4 pi r) - 1)/2 doubles the difference
-    in r): measured 48 % RMS on the shipped preset through the pipeline
-    (analysis/results/nr60_candidates.csv)."""
+    in r): measured 53 % RMS on the shipped preset (52.7 % through the pipeline,
+    analysis/results/nr60_candidates.csv). The bound was 50 % for the preset before the filler
+    network re-formed only while held: its loss factor at 1 Hz then had a share from the
+    network's 5 s relaxation (an artifact: docs/theory.md#filler-network), and the recalibrated
+    preset holds eta(1 Hz) / eta(30 Hz) >= 0.7 with more friction instead, the loss that grows
+    with the amplitude and so this bias (the candidates that keep it below 50 % miss the loss
+    ratio or Table 4's damping: analysis/README.md)."""
     coupling = dt.load_coupling("rapp2022_nr60")
     points = calibration.predict(coupling)
     servo = calibration.servo_at(coupling, points)
@@ -84,7 +89,7 @@ def test_decays_against_the_bench_at_their_own_points(calibration):
     dd = points["damping_ratio"] / servo["servo_damping_ratio"] - 1
     assert math.sqrt(np.mean(dc ** 2)) <= 0.03
     assert np.all(dd > 0)
-    assert math.sqrt(np.mean(dd ** 2)) <= 0.5
+    assert math.sqrt(np.mean(dd ** 2)) <= 0.55
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
@@ -94,13 +99,14 @@ def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
     rig = load_rig("rapp2022")
     coupling = dt.load_coupling("rapp2022_nr60")
     tests = pd.DataFrame([dict(inertia_kgm2=0.359, drop_mass_kg=2.0, drop_height_m=h, preload_nm=p, repeat=0, seed=1)
-                          for h in (0.2, 3.5) for p in (0.0, 1000.0)])
+                          for h in (0.2, 3.5) for p in (0.0, 500.0, 1000.0)])
     rows = []
     for i, result in enumerate(simulate(rig, coupling, tests, duration_s=0.12)):
         _, extracted = extract_file(result.write_log(tmp_path / f"t{i}.parquet"), Settings())
         rows.append((extracted.stiffness_nm_per_rad, extracted.damping_ratio))
-    values = np.array(rows).reshape(2, 2, 2)  # height, preload, quantity
-    np.testing.assert_allclose(values[:, 1, :], values[:, 0, :], rtol=0.01)
+    values = np.array(rows).reshape(2, 3, 2)  # height, preload, quantity
+    for loaded in (1, 2):
+        np.testing.assert_allclose(values[:, loaded, :], values[:, 0, :], rtol=0.01)
 
 
 @pytest.mark.slow

@@ -131,6 +131,32 @@ def test_breakdown_is_remembered_and_recovers_with_its_own_time():
         assert state.values[0, 3] == pytest.approx(damage0 * np.exp(-t_end / spec.recovery_time), rel=1e-9)
 
 
+def test_the_network_re_forms_only_while_held():
+    """The rest factor in closed form (docs/theory.md#filler-network): at a constant rate v the
+    centre's elongation is e_c(t) = v tau_c / r (1 - exp(-r t / tau_c)) and the damage falls as
+    exp(-r t / recovery_time), with r = 1 / (1 + v / rest_rate); at rest r = 1, and at a test's
+    rate the network holds its centre and its damage."""
+    rest_rate = 1e-5
+    coupling, spec = network(rest_rate=rest_rate, breakdown_angle=1.0)
+    state = coupling.new_state(1)
+    # break it down by 30 deg (0.52 rad); the ramps below reach 0.2 rad and break nothing more
+    coupling.simulate(np.radians(30.0) * np.sin(np.linspace(0, np.pi, 2001)[1:]), 1e-4, state)
+    damage0, centre0 = state.values[0, 3], state.values[0, 4]
+    assert damage0 > 0.3
+    for v in (0.0, 0.5 * rest_rate, 3 * rest_rate, 1e-2):
+        probe = coupling.new_state(1)
+        probe.values[...], probe.angle_rad[...], probe.torque_nm[...] = state.values, state.angle_rad, state.torque_nm
+        t = np.arange(1, 2001) * 0.01
+        coupling.simulate(probe.angle_rad[0] + v * t, 0.01, probe)
+        r = 1 / (1 + v / rest_rate)
+        decay = np.exp(-r * t[-1] / spec.centre_relaxation_time)
+        centre = centre0 * decay + v * spec.centre_relaxation_time / r * (1 - decay)
+        assert probe.values[0, 4] == pytest.approx(centre, rel=1e-9, abs=1e-15)
+        assert probe.values[0, 3] == pytest.approx(damage0 * np.exp(-r * t[-1] / spec.recovery_time), rel=1e-9)
+    # at a test's rate the network keeps its centre and its damage: 1e-2 rad/s is r = 1e-3
+    assert probe.values[0, 3] > 0.99 * damage0
+
+
 def test_a_small_tone_on_a_large_one_softens_within_the_single_tone_loss_range():
     """0.1 deg at 31.25 Hz on 1 deg at 2 Hz: the small tone's storage stiffness is below its own
     single-tone value and its loss factor within the element's single-tone range (0.05-3 deg)."""
@@ -150,8 +176,8 @@ def test_a_small_tone_on_a_large_one_softens_within_the_single_tone_loss_range()
 
 def test_no_hard_switches_in_ramp_duration_hold_length_or_frequency():
     """End torques after a ramp to 2 deg and a hold change smoothly with the ramp's duration and
-    the hold's length (second differences small against first ones), the storage stiffness
-    smoothly with the frequency down to 0.01 Hz."""
+    the hold's length (second differences small against first ones); the storage stiffness does
+    not change with the frequency down to 0.01 Hz."""
     coupling, _ = network()
     angle = np.radians(2.0)
     assert changes_smoothly([ramp_hold(coupling, angle, r, 1.0)[0] for r in (1.8, 1.9, 2.0, 2.1, 2.2)])
@@ -161,10 +187,12 @@ def test_no_hard_switches_in_ramp_duration_hold_length_or_frequency():
                       simulation_rate_hz=400.0)
     k = ss.storage_stiffness_nm_per_rad
     assert np.all(np.isfinite(k)) and np.all(k > 0)
-    # the network relaxes with the centre's time below ~0.1 Hz: smoothly, without a step between
-    # neighbours a quarter decade apart (no change much larger than the largest trend's)
-    d1 = np.diff(np.log(k))
-    assert np.max(np.abs(np.diff(d1))) <= 0.5 * np.max(np.abs(d1))
+    # the network re-forms only while held (docs/theory.md#filler-network): a slow sine does not
+    # relax it, so K' is the rate-independent one at every frequency. The rest factor lets it
+    # re-form near the turning points for a share v_rest / (omega A) of the cycle, 1e-3 at 0.01 Hz
+    # (a relaxation of e^(-100 s * 1e-3 / 5 s) = 2 % there, on the turning points' part of the
+    # loop): at most 0.5 % off the 1 Hz value (without the factor: -40 % at 0.01 Hz)
+    assert np.all(np.abs(k / k[-1] - 1) <= 0.005)
 
 
 # ------------------------------------------------------------------ energy, continuity, convergence
@@ -238,7 +266,12 @@ def test_torque_is_continuous_and_converges_with_the_step(seed):
         errors.append(np.max(np.abs(torque - reference[m - 1::m])) / rms)
     assert jumps[1] < 0.6 * jumps[0] and jumps[2] < 0.6 * jumps[1]
     # the slider update is exact for the angle linear between samples (the interpolation's error
-    # is second order); the breakdown, read at the samples, adds a first-order part (measured
-    # 2.1e-4, 1.9e-5 ... 4e-5, 1.0e-5 of the RMS torque at 9.6, 19.2, 38.4 kHz)
-    assert errors[1] < 0.6 * errors[0] and errors[2] < 0.6 * errors[1]
+    # is second order); the breakdown, read at the samples, adds the rest: g follows the largest
+    # |e_c| sampled so far, which undershoots the history's peak by ~ |e_c''| delta^2 / 2 with delta
+    # the time from the peak to the nearest sample, anywhere in [0, h/2] (the network does not
+    # re-form in motion, so no recovery evens it out between peaks). Per halving of the step the
+    # error thus falls by a factor that varies with where the peaks fall (measured 1.9e-4,
+    # 1.2e-5 ... 4.2e-5, 7.9e-6 ... 1.6e-5 of the RMS torque at 9.6, 19.2, 38.4 kHz); from the
+    # coarsest step it falls at least as fast as first order, and it is small
+    assert errors[1] < 0.6 * errors[0] and errors[2] < 0.6 ** 2 * errors[0]
     assert errors[2] < 1e-4

@@ -201,8 +201,11 @@ REDUCED_VS_FULL = [
     (("table4", "campaign", "stiffness_rms_deviation_pct"), 0.4,
      "each Table-4 row is interpolated (in log amplitude) between 5 drop heights instead of 10; repeats and "
      "preloads do not matter (the full study's per-preload figures agree within 0.05 points) [+0.13, +0.09; +0.10]"),
-    (("table4", "campaign", "damping_rms_deviation_pct"), 0.6,
-     "as the stiffness: interpolation between 5 instead of 10 drop heights [-0.21, -0.18; +0.36]"),
+    (("table4", "campaign", "damping_rms_deviation_pct"), 1.0,
+     "as the stiffness: interpolation between 5 instead of 10 drop heights, whose error follows the curvature "
+     "of the coupling's damping over the amplitude; the noise-free fast loop of analysis/calibrate_nr60.py "
+     "shows the same shift (+0.80 for the shipped preset, whose loss-factor ratio rests on the friction; "
+     "+0.44 for the preset before it) [-0.21, -0.18; +0.36; +0.81]"),
     (("table4", "map", "stiffness_rms_deviation_pct"), 0.3,
      "eq. 19 fitted to 15 tests instead of 450 (the fits' own RMS errors: 0.08 vs 0.10 %) [-0.01, +0.01; -0.05]"),
     (("table4", "map", "damping_rms_deviation_pct"), 2.0,

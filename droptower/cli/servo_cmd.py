@@ -37,6 +37,8 @@ def _float_list(option: str, text: str) -> list[float]:
 @click.option("--amplitude-mm", default=None,
               help="Translational coupling: amplitudes (mm), comma-separated [default: 0.1,0.5].")
 @click.option("--preload-n", default=None, type=float, help="Translational coupling: mean force (N) [default: 0].")
+@click.option("--preload-hold-s", default=60.0, show_default=True, type=float,
+              help="With a preload: how long the mean angle is held, after a quasi-static ramp, before the sine.")
 @click.option("--sample-rate-hz", default=2048.0, show_default=True, type=float,
               help="Acquisition rate of the evaluated record (the paper's bench: 2048 Hz).")
 @click.option("--simulation-rate-hz", default=38400.0, show_default=True, type=float,
@@ -50,7 +52,7 @@ def _float_list(option: str, text: str) -> list[float]:
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list of objects instead of a table.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write the hysteresis loops to this image.")
 def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: float, amplitude_mm: str | None,
-          preload_n: float | None, sample_rate_hz: float, simulation_rate_hz: float, cycles: int, run_in_cycles: int,
+          preload_n: float | None, preload_hold_s: float, sample_rate_hz: float, simulation_rate_hz: float, cycles: int, run_in_cycles: int,
           no_smoothing: bool, as_json: bool, plot_path: str | None) -> None:
     """Drive COUPLING (a coupling TOML file or a preset name) with sine tests on the virtual
     servo-hydraulic bench and evaluate each like a test lab: K', K'', |K*|, loss angle, loss
@@ -94,7 +96,7 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
         amps_si = [math.radians(a) for a in _float_list("--amplitude-deg", amplitude_deg)]
     result = run_bench(model, amps_si, freqs, preload_nm, sample_rate_hz, cycles,
                        run_in_cycles=run_in_cycles, ramp_cycles=min(2, run_in_cycles),
-                       simulation_rate_hz=simulation_rate_hz, smooth=not no_smoothing)
+                       simulation_rate_hz=simulation_rate_hz, smooth=not no_smoothing, preload_hold_s=preload_hold_s)
     table = translate_table(result.table, model.units)
     amplitude = field_name("amplitude_deg", model.units)
     for _, row in table.iterrows():

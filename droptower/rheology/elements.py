@@ -667,17 +667,19 @@ class FillerNetwork(ElementSpec):
     breakdown_angle)^(2m)) when the elongation about a slowly moving centre, e_c, grows, and
     recovers towards 1 with ``recovery_time``; the centre follows the angle, and the network's
     stress relaxes, with ``centre_relaxation_time`` (a held preload becomes the network's new
-    rest state).
+    rest state). The network re-forms only while held: those rates carry the factor
+    1 / (1 + |rate| / ``rest_rate``), so a slow sine does not relax it (docs/theory.md#filler-network).
     """
 
-    SETTINGS: ClassVar[frozenset[str]] = frozenset({"recovery_time", "centre_relaxation_time", "n"})
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"recovery_time", "centre_relaxation_time", "rest_rate", "n"})
     kind: Literal["filler_network"]
     stiffness: PositiveFloat                   # N*m/rad, the intact network's stiffness (all springs)
     critical_angle: PositiveFloat              # rad, median yield angle: half the springs slip beyond it
     exponent: PositiveFloat = 0.55             # -, m: the spread of the yield angles (Kraus: ~0.5-0.7)
     breakdown_angle: PositiveFloat             # rad, elongation about the centre that breaks half the network
     recovery_time: PositiveFloat = 10.0        # s, the broken network re-forms with it
-    centre_relaxation_time: PositiveFloat = 5.0  # s, the centre follows the mean angle with it
+    centre_relaxation_time: PositiveFloat = 5.0  # s, the centre follows a held angle with it
+    rest_rate: PositiveFloat = 2e-7            # rad/s, the network re-forms at 1/(1 + |rate|/rest_rate) of its rate held
     n: PositiveInt = 32                        # -, Jenkins elements resolving the yield distribution
 
     _n_limit = field_validator("n")(_at_most_max_n)
@@ -690,7 +692,7 @@ class FillerNetwork(ElementSpec):
     def compile(self):
         k, a = self.sliders()
         params = np.concatenate([[self.n, self.breakdown_angle, 2 * self.exponent, self.recovery_time,
-                                  self.centre_relaxation_time], k, a])
+                                  self.centre_relaxation_time, self.rest_rate], k, a])
         return [KernelElement(K.FILLER_NETWORK, params)]
 
     def intact_fraction(self, amplitude_rad: ArrayLike) -> np.ndarray:

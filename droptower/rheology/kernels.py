@@ -731,11 +731,12 @@ def maxwell_bank(p, po, s, so, x0, x1, h):
 
 
 # ---------------------------------------------------------------- filler network (Payne effect, any history)
-FN_HEADER_PARAMS = 5
-FN_N_INTERNAL = 8  # damage, e_c, h, two exponentials, the centre's ramp factor, g cap, its threshold
+FN_HEADER_PARAMS = 6
+FN_N_INTERNAL = 8  # damage, e_c, h, h / tau_c, tau_c / tau_r, 1 / (h rest_rate), g cap, its threshold
 #: the breakdown threshold is cached for an intact fraction this share of the damage above the
 #: current one (a power per renewal instead of one per step; the result is the same)
 FN_THRESHOLD_CAP = 0.01
+FN_THIRD = 1.0 / 3.0
 
 
 @njit(cache=CACHE, nogil=True, error_model="numpy", fastmath={"reassoc"})  # vectorised sums
@@ -780,6 +781,11 @@ def filler_network(p, po, s, so, x0, x1, h):
       stress relaxes about its rest state with the centre's time (the elongations e_i decay as
       exp(-t / centre_relaxation_time) besides their motion): a held twist, a preload, leaves no
       strained friction elements behind.
+    - **Re-formation only while held**: the centre's and the stress's relaxation and the recovery
+      run at the rates above times rest = 1 / (1 + |dx/dt| / ``rest_rate``) (filler contacts
+      re-form and age at rest and are renewed by sliding, as in the ageing law of rate-and-state
+      friction, Dieterich 1979): a held twist relaxes and recovers, a slow sine does not relax
+      the network (no loss peak at 1 / (2 pi centre_relaxation_time); docs/theory.md#filler-network).
 
     Energy (exact to round-off for the trapezoidal work ½ (T0 + T1) dx the core books): the
     Iwan springs store g Σ ½ k_i e_i², the sliders dissipate their mean force times their slip.
@@ -788,13 +794,13 @@ def filler_network(p, po, s, so, x0, x1, h):
     non-negative, else one step later. Recovery re-forms bonds unstrained: the elongations are
     scaled by g_old / g_new so the torque is kept while the stored energy falls. So the element is
     passive for any history and step, with no stability limit (the slider update is a return
-    mapping, the centre's relaxation exact for the step's constant rate).
+    mapping, the centre's relaxation and the recovery exact for the step's constant rate).
 
-    params: [n, breakdown_angle, 2 m, recovery_time, centre_relaxation_time, k_1..k_n, a_1..a_n]
-    (the intact network's spring stiffnesses and the yield angles).
-    internal (after the common header): [damage 1 - g, e_c, cached h, exp(-h/recovery_time),
-    exp(-h/centre_relaxation_time), centre_relaxation_time (1 - exp(-h/...)) / h, a cap of g and
-    the elongation below which nothing breaks while g <= cap, e_1..e_n].
+    params: [n, breakdown_angle, 2 m, recovery_time, centre_relaxation_time, rest_rate, k_1..k_n,
+    a_1..a_n] (the intact network's spring stiffnesses and the yield angles).
+    internal (after the common header): [damage 1 - g, e_c, cached h, h / centre_relaxation_time,
+    centre_relaxation_time / recovery_time, 1 / (h rest_rate), a cap of g and the elongation below which nothing
+    breaks while g <= cap, e_1..e_n].
 
     The sliders' return mapping is that of a Coulomb slider bank (:func:`kernels.slider_bank`),
     fused here with the recovery's rescaling and the sums in one vectorised pass.
@@ -802,20 +808,34 @@ def filler_network(p, po, s, so, x0, x1, h):
     n = int(p[po])
     breakdown_angle = p[po + 1]
     two_m = p[po + 2]
-    if s[so + 5] != h:  # exponentials only when the step changes
-        tau_c = p[po + 4]
+    if s[so + 5] != h:  # the step's share of the relaxation and recovery times, when it changes
         s[so + 5] = h
-        s[so + 6] = np.exp(-h / p[po + 3])
-        s[so + 7] = np.exp(-h / tau_c)
-        s[so + 8] = -tau_c * np.expm1(-h / tau_c) / h  # expm1: exact also for h << tau_c
+        s[so + 6] = h / p[po + 4]
+        s[so + 7] = p[po + 4] / p[po + 3]
+        s[so + 8] = 1.0 / (h * p[po + 5])
     dx = x1 - x0
+    # the network re-forms only while it is held (docs/theory.md#filler-network): at the step's
+    # rate |dx|/h its centre, its stress and its structure relax with the rates
+    # 1/centre_relaxation_time and 1/recovery_time times rest = 1 / (1 + |dx|/h / rest_rate);
+    # exact for the step's constant rate
+    rate = s[so + 6] / (1.0 + abs(dx) * s[so + 8])  # h rest / centre_relaxation_time
+    if rate < 1e-8:  # a moving network: the series to rate (error rate^2 / 2: round-off)
+        gain = 1.0 - 0.5 * rate
+        centre_decay = 1.0 - rate
+    elif rate < 1e-3:  # the Taylor series to rate^4 (error < 1e-17 + round-off)
+        gain = 1.0 - 0.5 * rate * (1.0 - rate * FN_THIRD * (1.0 - 0.25 * rate))
+        centre_decay = 1.0 - rate * gain
+    else:
+        centre_decay = np.exp(-rate)
+        gain = (1.0 - centre_decay) / rate
     damage0 = s[so + 3]
     g0 = 1.0 - damage0
-    centre_elongation = s[so + 4] * s[so + 7] + dx * s[so + 8]
+    centre_elongation = s[so + 4] * centre_decay + dx * gain
     # recovery towards the intact network, then breakdown by the elongation about the centre:
     # g = min(g_rec, g_eq(|e_c|)). g_eq(|e_c|) >= g_rec below the elongation where g_eq equals
     # g_rec; that elongation falls as g_rec rises, so the one of a cap above g_rec bounds it
-    g_rec = 1.0 - damage0 * s[so + 6]
+    recovery = rate * s[so + 7]  # h rest / recovery_time
+    g_rec = 1.0 - damage0 * ((1.0 - recovery * (1.0 - 0.5 * recovery)) if recovery < 1e-5 else np.exp(-recovery))
     if g_rec > s[so + 9]:
         cap = g_rec + FN_THRESHOLD_CAP * damage0
         s[so + 9] = cap
@@ -828,10 +848,9 @@ def filler_network(p, po, s, so, x0, x1, h):
     stored0 = s[so + 0]
     torque0 = s[so + 2]
     # the network's stress relaxes about its rest state like the centre (a held twist becomes
-    # unstrained): the elongations shrink by exp(-h/centre_relaxation_time) at the start of the
-    # step; the booked trapezoid adds (1 - relax) torque0 dx / 2 to the energy it releases, so
+    # unstrained): the elongations shrink by the centre's decay at the start of the step; the booked trapezoid adds (1 - relax) torque0 dx / 2 to the energy it releases, so
     # it is skipped in a step where that sum would be negative (a large step against the torque)
-    relax = s[so + 7]
+    relax = centre_decay
     if stored0 * (1.0 - relax * relax) + 0.5 * torque0 * (1.0 - relax) * dx < 0.0:
         relax = 1.0
     # recovery: re-formed bonds are unstrained, so the elongations shrink by g0 / g (the torque

@@ -235,9 +235,9 @@ MAXWELL_BANK = KernelKind(
     n_params=lambda v: 1 + 2 * int(v["n"]), n_internal=lambda v: 3 + 3 * int(v["n"]))
 FILLER_NETWORK = KernelKind(
     "filler_network", K.FILLER_NETWORK, K.filler_network,
-    params=("n", "breakdown_angle", "two_m", "recovery_time", "centre_relaxation_time"),
-    internal=("damage", "centre_elongation_rad", "cached_h", "cached_recovery_decay", "cached_centre_decay",
-              "cached_centre_gain", "cached_g_cap", "cached_threshold_rad"),  # then e_1..e_n
+    params=("n", "breakdown_angle", "two_m", "recovery_time", "centre_relaxation_time", "rest_rate"),
+    internal=("damage", "centre_elongation_rad", "cached_h", "cached_h_over_centre_time", "cached_centre_over_recovery_time",
+              "cached_inverse_rest_step", "cached_g_cap", "cached_threshold_rad"),  # then e_1..e_n
     # every spring of the intact network sticking (g <= 1); the element has no viscous part
     stiffness_bound=lambda v, p, motion: float(np.sum(p[K.FN_HEADER_PARAMS:K.FN_HEADER_PARAMS + int(v["n"])])),
     n_params=lambda v: K.FN_HEADER_PARAMS + 2 * int(v["n"]),

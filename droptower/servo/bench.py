@@ -17,7 +17,12 @@ small: a fast test is short), rounded up to a whole multiple of the sample rate.
 The preload is a torque: the mean angle is found by secant iterations on the mean torque of
 the evaluated cycles (the steady-state mean torque), each iteration one batched run. Without
 preload the test oscillates about the unloaded position (angle 0), as on a real bench; the
-mean torque it then carries is reported (``mean_torque_nm``).
+mean torque it then carries is reported (``mean_torque_nm``). As a lab sets a preload, the
+bench first turns the coupling quasi-statically to the mean angle (a smooth ramp over
+``preload_ramp_s``) and holds it for ``preload_hold_s`` before the sine starts: the coupling's
+rate-dependent parts relax and a filled rubber's network re-forms about the held twist (the
+drop tower's preload is set the same way, :mod:`droptower.rig.preload`; docs/theory.md#filler-network).
+The ramp and the hold run on coarse steps (exact at rest) and are not part of the record.
 
 :func:`run_records` gives the time records behind the table (at the acquisition rate) for
 users who want the raw signals.
@@ -48,6 +53,13 @@ AMPLITUDE_RANGE_RAD = (math.radians(1e-6), math.radians(90.0))
 MAX_PRELOAD_NM = 1e6
 #: Samples per simulate() call and batch row bound the memory of long, finely stepped runs.
 CHUNK_SAMPLES = 1 << 21
+#: The preload is set like the drop tower's (droptower.rig.preload): a quasi-static ramp to the
+#: mean angle, then a hold long against the slowest relaxation of the reference coupling (its
+#: filler network's structure recovers with 10 s: after 60 s within e^-6 = 0.25 % of settled).
+PRELOAD_RAMP_S = 2.0
+PRELOAD_HOLD_S = 60.0
+PRELOAD_RAMP_STEPS = 200
+PRELOAD_HOLD_STEPS = 600
 
 
 @dataclass(frozen=True)
@@ -65,7 +77,8 @@ class BenchRecord:
 
     amplitude_rad, frequency_hz, preload_nm: the commanded test; offset_rad: the mean angle
     found for the preload; time_s, angle_rad, torque_nm (N,): the whole test (offset ramp,
-    run-in, evaluated cycles, tail), as a bench's data acquisition records it.
+    run-in, evaluated cycles, tail), as a bench's data acquisition records it. With a preload
+    the offset segment is a rest at the mean angle, which the unrecorded ramp and hold set.
     """
 
     amplitude_rad: float
@@ -93,14 +106,28 @@ def _positive_list(values: Sequence[float], what: str, unit: str) -> np.ndarray:
     return arr
 
 
+def _set_preload(coupling: Coupling, offsets: np.ndarray, ramp_s: float, hold_s: float):
+    """A fresh state (B rows) after the quasi-static ramp to ``offsets`` (rad) and the hold there."""
+    state = coupling.new_state(offsets.size)
+    s = np.arange(1, PRELOAD_RAMP_STEPS + 1) / PRELOAD_RAMP_STEPS
+    smooth = s * s * (3.0 - 2.0 * s)  # smoothstep: the ramp starts and ends at rest
+    coupling.simulate(offsets[:, None] * smooth[None, :], ramp_s / PRELOAD_RAMP_STEPS, state, record_energy=False)
+    if hold_s > 0.0:
+        coupling.simulate(np.repeat(offsets[:, None], PRELOAD_HOLD_STEPS, axis=1), hold_s / PRELOAD_HOLD_STEPS, state,
+                          record_energy=False)
+    return state
+
+
 def _drive(coupling: Coupling, unit_sine: np.ndarray, unit_ramp: np.ndarray, amplitudes: np.ndarray,
-           offsets: np.ndarray, dt_s: float, substeps: int) -> np.ndarray:
+           offsets: np.ndarray, dt_s: float, substeps: int, preload: tuple[float, float] | None = None) -> np.ndarray:
     """Torque (B, N_lab) at every ``substeps``-th sample of the histories
-    offset_b * unit_ramp + amplitude_b * unit_sine (``sine`` is linear in both), in chunks."""
+    offset_b * unit_ramp + amplitude_b * unit_sine (``sine`` is linear in both), in chunks.
+    ``preload`` (ramp_s, hold_s): the offsets are set and held first (:func:`_set_preload`) and
+    ``unit_ramp`` must then be 1 throughout."""
     batch, n = amplitudes.size, unit_sine.size
     chunk = max(substeps, (CHUNK_SAMPLES // batch) // substeps * substeps)
     out = []
-    state = coupling.new_state(batch)
+    state = coupling.new_state(batch) if preload is None else _set_preload(coupling, offsets, *preload)
     for lo in range(0, n, chunk):
         hi = min(n, lo + chunk)
         angle = offsets[:, None] * unit_ramp[None, lo:hi] + amplitudes[:, None] * unit_sine[None, lo:hi]
@@ -111,18 +138,24 @@ def _drive(coupling: Coupling, unit_sine: np.ndarray, unit_ramp: np.ndarray, amp
 
 def _run_frequency(coupling: Coupling, frequency_hz: float, amplitudes: np.ndarray, preload_nm: float,
                    sample_rate_hz: float, substeps: int, cycles: int, run_in_cycles: int, ramp_cycles: int,
-                   smooth: bool) -> tuple[np.ndarray, list[CycleEvaluation], np.ndarray, np.ndarray, np.ndarray]:
+                   smooth: bool, preload_ramp_s: float = PRELOAD_RAMP_S, preload_hold_s: float = PRELOAD_HOLD_S
+                   ) -> tuple[np.ndarray, list[CycleEvaluation], np.ndarray, np.ndarray, np.ndarray]:
     """Offsets (rad), evaluations and records (time (N,), angle and torque (B, N) at the sample
-    rate) of the amplitudes at one frequency, preload reached."""
+    rate) of the amplitudes at one frequency, preload reached (set and held first)."""
     fine = sample_rate_hz * substeps
     kw = dict(run_in_cycles=run_in_cycles, cycles=cycles, ramp_cycles=ramp_cycles)
     unit_sine = histories.sine(frequency_hz, 1.0, fine, **kw)
-    unit_ramp = histories.sine(frequency_hz, 0.0, fine, offset_rad=1.0, **kw).angle_rad
+    # with a preload the mean angle is set and held before the sine (_set_preload): the history's
+    # offset segment is then a rest at the mean angle
+    preload = None if preload_nm == 0.0 else (preload_ramp_s, preload_hold_s)
+    unit_ramp = (histories.sine(frequency_hz, 0.0, fine, offset_rad=1.0, **kw).angle_rad if preload is None
+                 else np.ones(unit_sine.angle_rad.size))
     seg = unit_sine.evaluation_segments[0]
     time_lab = unit_sine.time_s[::substeps]
 
     def run(rows: np.ndarray, offsets: np.ndarray) -> tuple[list[CycleEvaluation], np.ndarray, np.ndarray]:
-        torque = _drive(coupling, unit_sine.angle_rad, unit_ramp, amplitudes[rows], offsets, 1.0 / fine, substeps)
+        torque = _drive(coupling, unit_sine.angle_rad, unit_ramp, amplitudes[rows], offsets, 1.0 / fine, substeps,
+                        preload)
         angle = offsets[:, None] * unit_ramp[None, ::substeps] + amplitudes[rows, None] * unit_sine.angle_rad[None, ::substeps]
         return [evaluate_cycles(time_lab, angle[i], torque[i], frequency_hz, seg.start_s, seg.cycles, smooth=smooth)
                 for i in range(rows.size)], angle, torque
@@ -189,7 +222,8 @@ def _check_size(coupling: Coupling, batch: int, freqs: np.ndarray, preload_nm: f
 
 def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
           preload_nm: float, sample_rate_hz: float, cycles: int, run_in_cycles: int, ramp_cycles: int,
-          simulation_rate_hz: float, smooth: bool) -> Iterator[tuple[BenchRecord, CycleEvaluation, float]]:
+          simulation_rate_hz: float, smooth: bool, preload_hold_s: float = PRELOAD_HOLD_S
+          ) -> Iterator[tuple[BenchRecord, CycleEvaluation, float]]:
     """Check the grid, then run it frequency by frequency: per grid point its record, its
     evaluation and the fine simulation rate (Hz) it ran with."""
     c = _as_coupling(coupling)
@@ -204,6 +238,8 @@ def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], freq
         raise DroptowerError(f"preload must be finite, got {preload_nm}")
     if abs(preload_nm) > MAX_PRELOAD_NM:
         raise DroptowerError(f"preload {preload_nm:g} N*m is beyond +-{MAX_PRELOAD_NM:g} N*m")
+    if not (math.isfinite(preload_hold_s) and preload_hold_s >= 0.0):
+        raise DroptowerError(f"the preload's hold must be a finite, non-negative time, got {preload_hold_s} s")
     if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0 and math.isfinite(simulation_rate_hz)
             and simulation_rate_hz > 0):
         raise DroptowerError("sample rate and simulation rate must be positive")
@@ -221,7 +257,7 @@ def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], freq
         substeps = max(1, math.ceil(fine / sample_rate_hz - 1e-9))
         offsets, evals, time_s, angle, torque = _run_frequency(
             c, float(f), amps, float(preload_nm), float(sample_rate_hz), substeps, int(cycles), int(run_in_cycles),
-            int(ramp_cycles), smooth)
+            int(ramp_cycles), smooth, PRELOAD_RAMP_S, float(preload_hold_s))
         for i, (a, off, ev) in enumerate(zip(amps, offsets, evals)):
             record = BenchRecord(amplitude_rad=float(a), frequency_hz=float(f), preload_nm=float(preload_nm),
                                  offset_rad=float(off), time_s=time_s, angle_rad=angle[i], torque_nm=torque[i])
@@ -230,11 +266,13 @@ def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], freq
 
 def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
               preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *, run_in_cycles: int = 5,
-              ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True) -> BenchResult:
+              ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True,
+              preload_hold_s: float = PRELOAD_HOLD_S) -> BenchResult:
     """Run the grid amplitudes x frequencies on the bench; see :func:`run_grid`."""
     rows, evaluations = [], []
     for record, ev, simulation_rate in _grid(coupling, amplitudes_rad, frequencies_hz, preload_nm, sample_rate_hz,
-                                             cycles, run_in_cycles, ramp_cycles, simulation_rate_hz, smooth):
+                                             cycles, run_in_cycles, ramp_cycles, simulation_rate_hz, smooth,
+                                             preload_hold_s):
         a, off = record.amplitude_rad, record.offset_rad
         # 12 digits: an amplitude given as 1.5 deg reads back as 1.5, not 1.5000000000000002
         rec = {"amplitude_rad": a, "amplitude_deg": float(f"{math.degrees(a):.12g}"),
@@ -251,24 +289,28 @@ def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], 
 
 def run_records(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
                 preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *,
-                run_in_cycles: int = 5, ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0
-                ) -> list[BenchRecord]:
+                run_in_cycles: int = 5, ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0,
+                preload_hold_s: float = PRELOAD_HOLD_S) -> list[BenchRecord]:
     """The time records of the grid amplitudes x frequencies (frequency-major, as the rows of
     :func:`run_grid`), sampled at ``sample_rate_hz``: the raw signals behind the table, for
     users who evaluate, identify or plot them themselves. Same arguments and the same runs
     (fine simulation step, preload found by iteration) as :func:`run_grid`.
     """
     return [record for record, _, _ in _grid(coupling, amplitudes_rad, frequencies_hz, preload_nm, sample_rate_hz,
-                                             cycles, run_in_cycles, ramp_cycles, simulation_rate_hz, smooth=True)]
+                                             cycles, run_in_cycles, ramp_cycles, simulation_rate_hz, smooth=True,
+                                             preload_hold_s=preload_hold_s)]
 
 
 def run_grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
              preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *, run_in_cycles: int = 5,
-             ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True) -> pd.DataFrame:
+             ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True,
+             preload_hold_s: float = PRELOAD_HOLD_S) -> pd.DataFrame:
     """Servo-bench results on the grid ``amplitudes_rad`` x ``frequencies_hz``, one row each.
 
     ``coupling``: a :class:`~droptower.Coupling`, a coupling file or a preset name.
-    ``preload_nm``: mean torque (N*m) about which every test oscillates.
+    ``preload_nm``: mean torque (N*m) about which every test oscillates; the mean angle is set
+    by a quasi-static ramp and held ``preload_hold_s`` (s) before the sine starts (as the drop
+    tower sets its preload).
     ``sample_rate_hz``: acquisition rate of the record that is evaluated (at least 20 samples
     per cycle at the highest frequency); ``simulation_rate_hz``: the fine step the coupling
     is driven with at least (raised to :data:`MIN_STEPS_PER_CYCLE` steps per cycle, rounded up
@@ -288,4 +330,4 @@ def run_grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], f
     """
     return run_bench(coupling, amplitudes_rad, frequencies_hz, preload_nm, sample_rate_hz, cycles,
                      run_in_cycles=run_in_cycles, ramp_cycles=ramp_cycles, simulation_rate_hz=simulation_rate_hz,
-                     smooth=smooth).table
+                     smooth=smooth, preload_hold_s=preload_hold_s).table
