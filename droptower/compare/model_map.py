@@ -57,6 +57,9 @@ SAMPLE_RATE_HZ = 2048.0
 QUANTITIES = ("storage_stiffness_nm_per_deg", "loss_stiffness_nm_per_deg", "loss_factor",
               "dynamic_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio", "lehr_damping")
 PAPER_ROUTE = "paper map, eq. 19/20"
+#: parameter sets x decays simulated per core call for the bands' Jacobian (memory: a decay holds
+#: ~10^4 steps of angle and torque)
+MAX_DECAYS_PER_CALL = 1500
 
 
 def route_name(family: str) -> str:
@@ -307,7 +310,7 @@ def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4)
     """(free mask, covariance of the optimised variables z) of a drop-test identification
     (:class:`~droptower.identify.dropfit.DropIdentification`), cluster-robust by test: the
     sandwich (J'J)⁺ (Σ_tests J_t' r_t r_t' J_t) (J'J)⁺ · G/(G − 1) on the fitting tests' residual
-    and its forward-difference Jacobian (one batched call of the core): the scatter between tests,
+    and its forward-difference Jacobian (batched calls of the core): the scatter between tests,
     whatever the correlation within a test. The identification's reported standard errors add the
     integration step's bias, which does not shrink with more tests and is not in the bands."""
     from droptower.identify.dropfit import DropProblem
@@ -326,7 +329,9 @@ def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4)
     rows = np.tile(np.asarray(ident.values, float), (idx.size + 1, 1))
     for j, i in enumerate(idx):
         rows[j + 1, i] = params[i].to_value(z0[j] + step)
-    res = problem.residuals(rows)
+    # parameter sets x tests per core call bounded (a 450-test campaign's decays are long)
+    per_call = max(1, MAX_DECAYS_PER_CALL // len(fitting))
+    res = np.concatenate([problem.residuals(rows[i:i + per_call]) for i in range(0, len(rows), per_call)])
     jac = ((res[1:] - res[0]) / step).T
     sol = RowsFit(params, np.asarray(ident.values, float), free, res[0], jac, [], 0, 0, True, "")
     return free, sol.covariance_z_clustered(problem.test_of_residual)
