@@ -37,25 +37,6 @@ ROUTES: dict[str, dict[str, str]] = {
     "zerodim6": {},
 }
 COUPLING = "rapp2022_nr60"
-QUICK_PLAN = """name = "rapp2022_table2_quick"
-description = "Table 2 of Rapp et al. 2022, one repeat, no preload"
-base_seed = 2022000
-repeats = 1
-heights_m = [0.05, 0.2, 0.4, 0.55, 0.7, 1.0, 1.4, 1.8, 3.5, 6.0]
-preloads_nm = [0.0]
-[[group]]
-name = "case 1"
-inertia_kgm2 = 0.1557
-drop_mass_kg = 1.0
-[[group]]
-name = "case 2"
-inertia_kgm2 = 0.359
-drop_mass_kg = 2.0
-[[group]]
-name = "case 3"
-inertia_kgm2 = 0.5233
-drop_mass_kg = 2.0
-"""
 
 
 def _row(summary: dict, region: str) -> dict[str, float]:
@@ -82,9 +63,14 @@ def main() -> None:
     figures: dict[str, object] = {"coupling": COUPLING, "plan": "quick" if args.quick else "table2", "routes": {}}
     with tempfile.TemporaryDirectory() as tmp:
         plan = None
-        if args.quick:
+        if args.quick:  # Table 2's cases and heights, one repeat, no preload
+            import tomli_w
+
+            from droptower.configs import read_toml, resolve
+
+            doe = read_toml(resolve("rapp2022_table2", "doe")) | {"repeats": 1, "preloads_nm": [0.0]}
             plan = Path(tmp) / "plan.toml"
-            plan.write_text(QUICK_PLAN)
+            plan.write_text(tomli_w.dumps(doe))
         t0 = time.perf_counter()
         run_campaign(f"{tmp}/campaign", None, COUPLING, plan, workers=2, progress=False)
         t_campaign = time.perf_counter() - t0

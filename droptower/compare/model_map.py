@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -40,8 +39,8 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 from droptower import sdof
-from droptower.errors import DroptowerError, WriteError, readable_file, unreadable_file
-from droptower.maps.mapfit import MapRange
+from droptower.errors import DroptowerError, readable_file
+from droptower.maps.mapfit import MapRange, read_json_object
 from droptower.rheology import Coupling
 
 FORMAT = "droptower-model-map"
@@ -208,15 +207,12 @@ class ModelMap:
                 "identification": _json_safe(self.identification), "source": self.source, "grid": grid}
 
     def to_json(self, path: str | Path | None = None) -> str:
+        """The map as JSON text; with ``path``, also written there (atomically)."""
+        from droptower.io.droptower_log import atomic_write
+
         text = json.dumps(self.to_dict(), indent=1) + "\n"
         if path is not None:
-            path = Path(path)
-            tmp = path.with_name(f".{path.name}.tmp")
-            try:
-                tmp.write_text(text)
-                os.replace(tmp, path)
-            except OSError as exc:
-                raise WriteError.from_os_error(exc, path) from None
+            atomic_write(path, lambda tmp: Path(tmp).write_text(text))
         return text
 
     @classmethod
@@ -247,14 +243,9 @@ class ModelMap:
 
     @classmethod
     def from_json(cls, path: str | Path) -> "ModelMap":
+        """Read ``model_map.json``; a missing, unreadable or malformed file is a one-line error."""
         path = readable_file(path)
-        try:
-            data = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise DroptowerError(f"not valid JSON ({exc})", file=path) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise unreadable_file(path, exc) from None
-        return cls.from_dict(data, path)
+        return cls.from_dict(read_json_object(path, "a model map file"), path)
 
     def summary(self) -> str:
         """A few lines: the route, the identification's verdict, the bands' method, the grid's span."""
