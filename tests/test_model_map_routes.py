@@ -62,6 +62,20 @@ def test_map_writes_both_routes_and_the_model_map_is_the_truth(routes):
 
 
 @pytest.mark.slow
+def test_a_poor_fit_writes_no_model_map_unless_asked(routes, capsys):
+    """A spring alone cannot decay: its identification is a poor fit, so its map is not written
+    (exit code 3, as identify), and --accept-poor writes it with the verdict in it."""
+    root = routes["root"]
+    (root / "spring.toml").write_text(coupling_to_toml(parse_coupling({"element": [{"kind": "spring", "stiffness": K}]})))
+    args = ["map", str(routes["campaign"]), "--model", "template", "--template", str(root / "spring.toml"),
+            "--model-out", str(root / "poor.json")]
+    assert main(args) == 3
+    assert "poor fit" in capsys.readouterr().err and not (root / "poor.json").exists()
+    assert main([*args, "--accept-poor"]) == 0
+    assert ModelMap.from_json(root / "poor.json").identification["verdict"] == "poor fit"
+
+
+@pytest.mark.slow
 def test_validate_compares_both_routes_inside_and_outside_the_hull(routes, capsys):
     out = routes["root"] / "validation"
     capsys.readouterr()

@@ -33,12 +33,14 @@ from droptower.errors import DroptowerError
 @click.option("--template", default=None, help="With --model template: the coupling whose structure is fitted.")
 @click.option("--model-coupling", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Also build the model-based map of this coupling file as it is (e.g. identify --out; no bands).")
+@click.option("--accept-poor", is_flag=True,
+              help="With --model: write the model-based map even if the identification is a poor fit (labelled so).")
 @click.option("--model-out", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Write the model-based map: model_map.json (what validate --model-map reads) or its grid "
                    "as .csv, .parquet or .xlsx.")
 def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, nested_cv: bool,
                 as_json: bool, model_kind: str | None, template: str | None, model_coupling: Path | None,
-                model_out: Path | None) -> None:
+                model_out: Path | None, accept_poor: bool) -> None:
     """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20),
     or another --form; the summary gives fit and cross-validated errors.
 
@@ -75,8 +77,13 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         coefficients = fit.coefficient_table()
         options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
     nested = _nested(table, results) if nested_cv else None
-    if as_json and nested is not None:
-        click.echo(json.dumps({**json.loads(fit.to_json()), "nested_cross_validation": nested}, indent=2))
+    model_map = None
+    if model_kind is not None or model_coupling is not None:
+        model_map = _model_map(results, fit, model_kind, template, model_coupling)
+    extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
+             **({"model_map": model_map.to_dict()} if model_map is not None else {})}
+    if as_json and extra:
+        click.echo(json.dumps({**json.loads(fit.to_json()), **extra}, indent=2))
     elif as_json:
         click.echo(fit.to_json(), nl=False)
     else:
@@ -85,11 +92,12 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
             click.echo(f"nested cross-validated (terms chosen without each fold's tests, {nested['inner_folds']} "
                        f"inner folds): stiffness {nested['stiffness_rms_error_pct']:.2f} %, damping ratio "
                        f"{nested['damping_ratio_rms_error_pct']:.2f} % (rms); chosen: {nested['chosen']}")
-    model_map = None
-    if model_kind is not None or model_coupling is not None:
-        model_map = _model_map(results, fit, model_kind, template, model_coupling)
+    poor = model_map is not None and model_map.identification.get("verdict") == "poor fit"
+    if model_map is not None:
         if not as_json:
             click.echo(model_map.summary())
+        if poor and not accept_poor:
+            model_out = None  # a map that cannot be trusted is written only when asked
         if model_out is not None and model_out.suffix.lower() == ".json":
             model_map.to_json(model_out)
             options.wrote(model_out, f"the {model_map.route}; validate --model-map reads it")
@@ -101,11 +109,17 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
         for line in notes:
             options.note(f"note: {line}")
-        if model_map is not None:
+        if model_map is not None and (accept_poor or not poor):
             from droptower.compare.model_map_plots import plot_model_map
 
             files += plot_model_map(model_map, plot_dir, select_tests(table, results)[0], fit)
         options.wrote(plot_dir, f"{', '.join(p.name for p in files)}")
+    if poor and not accept_poor:
+        from droptower.identify.verdict import EXIT_POOR_FIT
+
+        click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
+                   f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
+        raise click.exceptions.Exit(EXIT_POOR_FIT)
 
 
 def _model_map(results: Path, fit, kind: str | None, template: str | None, coupling_file: Path | None):
@@ -136,8 +150,8 @@ def _model_map(results: Path, fit, kind: str | None, template: str | None, coupl
                                  "no model-based map")
         mm = model_map_from_identification(ident, decays, settings, tested=fit.range, source=str(results))
         if ident.verdict is not None and ident.verdict.poor:
-            options.note(f"note: model {kind} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map is "
-                         "labelled so; do not trust it beyond the paper's")
+            options.note(f"note: model {kind} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
+                         "trusted beyond the paper's")
     mm.evaluate_grid()
     return mm
 
