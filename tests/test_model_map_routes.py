@@ -131,3 +131,21 @@ def test_two_routes_in_headless_chromium(report):
         assert severe == [], severe
     finally:
         chrome.quit()
+
+
+@pytest.mark.slow
+def test_model_map_of_a_coupling_or_an_identification_json(routes, capsys):
+    """--model-coupling: a coupling file as it is, or the one an identification's --json names; no bands."""
+    root = routes["root"]
+    (root / "ident.json").write_text(json.dumps({"model": "template", "coupling_file": str(routes["truth"])}))
+    assert main(["map", str(routes["campaign"]), "--model-coupling", str(root / "ident.json"),
+                 "--model-out", str(root / "given.csv")]) == 0
+    assert "bands: none" in capsys.readouterr().out
+    import pandas as pd
+
+    grid = pd.read_csv(root / "given.csv")
+    assert "storage_stiffness_nm_per_deg" in grid and "loss_factor_band_lo" not in grid
+    (root / "bad.json").write_text(json.dumps({"model": "masing"}))
+    assert main(["map", str(routes["campaign"]), "--model-coupling", str(root / "bad.json")]) == 2
+    err = capsys.readouterr().err
+    assert "bad.json: the identification wrote no coupling" in err and err.count("\n") == 1

@@ -32,7 +32,8 @@ from droptower.errors import DroptowerError
                    "95 % bands cluster-robust by test. RESULTS must then be a campaign folder.")
 @click.option("--template", default=None, help="With --model template: the coupling whose structure is fitted.")
 @click.option("--model-coupling", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="Also build the model-based map of this coupling file as it is (e.g. identify --out; no bands).")
+              help="Also build the model-based map of this coupling file as it is (identify --out), or of the coupling "
+                   "an identification's --json names (no bands: no covariance).")
 @click.option("--accept-poor", is_flag=True,
               help="With --model: write the model-based map even if the identification is a poor fit (labelled so).")
 @click.option("--model-out", type=click.Path(path_type=Path, dir_okay=False), default=None,
@@ -130,7 +131,16 @@ def _model_map(results: Path, fit, kind: str | None, template: str | None, coupl
     if coupling_file is not None:
         from droptower.rheology import load_coupling
 
-        mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, source=str(coupling_file))
+        family = None
+        if coupling_file.suffix.lower() == ".json":  # identify --from-drop-tests --json: the coupling it wrote
+            from droptower.maps.mapfit import read_json_object
+
+            doc = read_json_object(coupling_file, "an identification (identify --from-drop-tests --json)")
+            if not doc.get("coupling_file"):
+                raise DroptowerError("the identification wrote no coupling (run it with --out COUPLING.toml)",
+                                     file=coupling_file)
+            family, coupling_file = doc.get("model"), Path(doc["coupling_file"])
+        mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
     else:
         from droptower.campaign.folder import saved_inputs
         from droptower.cli.identify_cmd import InitFile
