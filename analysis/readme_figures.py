@@ -344,7 +344,10 @@ def routes_table(stored: dict[str, Any], outside: bool = True) -> Block:
     figures["campaign"] = timed(fig["campaign_s"], ".1f")
     plan = " (Table 2's cases and heights, one repeat, no preload: `--quick`)" if fig["plan"] == "quick" else " of Table 2"
     intro = (f"The {fig['tests']}-test campaign{plan}, {first} servo points inside the hull; measured {m['date']} on "
-             f"{m['cores']} shared cores (the campaign itself took {{campaign}} s in the same run).\n\n")
+             f"{m['cores']} shared cores at load average {{lo}}–{{hi}}, which stretches wall times (the campaign itself "
+             "took {campaign} s in the same run; compare the ratios).\n\n")
+    loads = (m["load_average_start"], m["load_average_end"])
+    figures.update(lo=timed(min(loads), ".1f"), hi=timed(max(loads), ".1f"))
     return fill(intro + head + "".join(rows), **figures)
 
 
