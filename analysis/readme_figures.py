@@ -37,7 +37,7 @@ STUDY_FILES = ("summary.json", "table4_comparison.csv")
 BENCH_RESULTS = ROOT / "benchmarks" / "results"
 #: stored benchmark figures: name -> the script that writes them with ``--json``
 BENCHMARKS = {"core": "bench_core.py", "rig": "bench_rig.py", "extract": "bench_extract.py",
-              "campaign": "bench_campaign.py", "identify": "bench_identify.py"}
+              "campaign": "bench_campaign.py", "identify": "bench_identify.py", "routes": "bench_routes.py"}
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
 #: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
 #: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
@@ -313,6 +313,46 @@ def study_results(stored: dict[str, Any]) -> Block:
     return fill("".join(rows), **figures)
 
 
+def routes_table(stored: dict[str, Any], outside: bool = True) -> Block:
+    """The route table (docs/routes.md): per route, RMS deviation from validate's servo points inside
+    the paper map's hull, the identification's verdict and wall time (ratio to the campaign)."""
+    r = stored["routes"]
+    fig, m = r["figures"], r["machine"]
+    first = next(iter(fig["routes"].values()))["inside"]["n_points"]
+    figures: dict[str, Figure] = {}
+    head = ("| route | K' RMS | loss factor RMS | d RMS |" + (" outside the hull: K' / loss factor RMS |" if outside else "")
+            + " verdict, wall time (× the campaign) |\n|---|---|---|---|" + ("---|" if outside else "") + "---|\n")
+    rows = []
+    for i, (name, row) in enumerate(fig["routes"].items()):
+        if not row["available"]:
+            rows.append(f"| {name} | not available in this version |  |  |" + ("  |" if outside else "") + "  |\n")
+            continue
+        inside, out = row["inside"], row["outside"]
+        for key, value in (("k", inside["stiffness_rms_pct"]), ("l", inside["loss_factor_rms_pct"]),
+                           ("d", inside["damping_ratio_rms_pct"]), ("ok", out["stiffness_rms_pct"]),
+                           ("ol", out["loss_factor_rms_pct"])):
+            figures[f"{key}{i}"] = exact(value, pct(value))
+        tail = "—"
+        if "wall_s" in row:
+            figures[f"w{i}"] = timed(row["wall_s"], ".0f")
+            figures[f"x{i}"] = timed(row["wall_over_campaign"], ".1f")
+            verdict = row["verdict"]
+            if verdict == "poor fit" and row.get("error_over_noise") is not None:
+                figures[f"n{i}"] = exact(row["error_over_noise"], ".0f")
+                verdict = f"poor fit ({{n{i}}}× the noise)"
+            tail = f"{verdict}, {{w{i}}} s ({{x{i}}}×)"
+        rows.append(f"| {name} | {{k{i}}} % | {{l{i}}} % | {{d{i}}} % |" + (f" {{ok{i}}} % / {{ol{i}}} % |" if outside else "")
+                    + f" {tail} |\n")
+    figures["campaign"] = timed(fig["campaign_s"], ".1f")
+    plan = " (Table 2's cases and heights, one repeat, no preload: `--quick`)" if fig["plan"] == "quick" else " of Table 2"
+    intro = (f"The {fig['tests']}-test campaign{plan}, {first} servo points inside the hull; measured {m['date']} on "
+             f"{m['cores']} shared cores at load average {{lo}}–{{hi}}, which stretches wall times (the campaign itself "
+             "took {campaign} s in the same run; compare the ratios).\n\n")
+    loads = (m["load_average_start"], m["load_average_end"])
+    figures.update(lo=timed(min(loads), ".1f"), hi=timed(max(loads), ".1f"))
+    return fill(intro + head + "".join(rows), **figures)
+
+
 #: every block: name -> (file relative to the repository, renderer)
 BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "map_auto": ("docs/guide/map.md", map_auto),
@@ -320,6 +360,8 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "bench_table": ("docs/benchmarks.md", bench_table),
     "study_targets": ("docs/study.md", study_targets),
     "study_results": ("analysis/README.md", study_results),
+    "routes": ("docs/routes.md", routes_table),
+    "routes_readme": ("README.md", lambda stored: routes_table(stored, outside=False)),
 }
 
 

@@ -26,8 +26,22 @@ from droptower.errors import DroptowerError
               help="With --form auto: also cross-validate the choice of terms (nested: each fold chooses without "
                    "its tests); the error to expect of auto's map on new tests. Costs ~30x the auto fit.")
 @click.option("--json", "as_json", is_flag=True, help="Print the map as JSON instead of the summary.")
+@click.option("--model", "model_kind", default=None, metavar="KIND",
+              help="Also build the model-based map (docs/routes.md): identify KIND (identify --from-drop-tests) "
+                   "from the campaign's logs and evaluate it on the servo bench over amplitude x frequency, with "
+                   "95 % bands cluster-robust by test. RESULTS must then be a campaign folder.")
+@click.option("--template", default=None, help="With --model template: the coupling whose structure is fitted.")
+@click.option("--model-coupling", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Also build the model-based map of this coupling file as it is (identify --out), or of the coupling "
+                   "an identification's --json names (no bands: no covariance).")
+@click.option("--accept-poor", is_flag=True,
+              help="With --model: write the model-based map even if the identification is a poor fit (labelled so).")
+@click.option("--model-out", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Write the model-based map: model_map.json (what validate --model-map reads) or its grid "
+                   "as .csv, .parquet or .xlsx.")
 def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, nested_cv: bool,
-                as_json: bool) -> None:
+                as_json: bool, model_kind: str | None, template: str | None, model_coupling: Path | None,
+                model_out: Path | None, accept_poor: bool) -> None:
     """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20),
     or another --form; the summary gives fit and cross-validated errors.
 
@@ -40,12 +54,19 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
       droptower map runs/table2 --out map.json --plot figs/
       droptower map results.csv --out coefficients.xlsx
       droptower map rapp2022_table4 --form auto --nested-cv
+      droptower map runs/table2 --out map.json --model template --template rapp2022_nr60 --model-out model_map.json
     """
     from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, read_results, select_tests
 
     if out is not None:
         check_table_path(out, "--out")
+    if model_out is not None:
+        check_table_path(model_out, "--model-out")
+    if model_kind is not None and model_coupling is not None:
+        raise DroptowerError("give --model (identify from the logs) or --model-coupling (a coupling as it is), not both")
+    if model_out is not None and model_kind is None and model_coupling is None:
+        raise DroptowerError("--model-out writes the model-based map: give --model KIND or --model-coupling FILE")
     if nested_cv and form != "auto":
         raise DroptowerError("--nested-cv cross-validates auto's choice of terms: use it with --form auto")
     table = read_results(results)
@@ -57,8 +78,13 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         coefficients = fit.coefficient_table()
         options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
     nested = _nested(table, results) if nested_cv else None
-    if as_json and nested is not None:
-        click.echo(json.dumps({**json.loads(fit.to_json()), "nested_cross_validation": nested}, indent=2))
+    model_map = None
+    if model_kind is not None or model_coupling is not None:
+        model_map = _model_map(results, fit, model_kind, template, model_coupling)
+    extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
+             **({"model_map": model_map.to_dict()} if model_map is not None else {})}
+    if as_json and extra:
+        click.echo(json.dumps({**json.loads(fit.to_json()), **extra}, indent=2))
     elif as_json:
         click.echo(fit.to_json(), nl=False)
     else:
@@ -67,13 +93,77 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
             click.echo(f"nested cross-validated (terms chosen without each fold's tests, {nested['inner_folds']} "
                        f"inner folds): stiffness {nested['stiffness_rms_error_pct']:.2f} %, damping ratio "
                        f"{nested['damping_ratio_rms_error_pct']:.2f} % (rms); chosen: {nested['chosen']}")
+    poor = model_map is not None and model_map.identification.get("verdict") == "poor fit"
+    if model_map is not None:
+        if not as_json:
+            click.echo(model_map.summary())
+        if poor and not accept_poor:
+            model_out = None  # a map that cannot be trusted is written only when asked
+        if model_out is not None and model_out.suffix.lower() == ".json":
+            model_map.to_json(model_out)
+            options.wrote(model_out, f"the {model_map.route}; validate --model-map reads it")
+        elif model_out is not None:
+            options.wrote(write_table(model_map.grid, model_out, "--model-out"), f"{model_map.route}, grid")
     if plot_dir is not None:
         from droptower.maps.plots import plot_all
 
         files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
         for line in notes:
             options.note(f"note: {line}")
+        if model_map is not None and (accept_poor or not poor):
+            from droptower.compare.model_map_plots import plot_model_map
+
+            files += plot_model_map(model_map, plot_dir, select_tests(table, results)[0], fit)
         options.wrote(plot_dir, f"{', '.join(p.name for p in files)}")
+    if poor and not accept_poor:
+        from droptower.identify.verdict import EXIT_POOR_FIT
+
+        click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
+                   f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
+        raise click.exceptions.Exit(EXIT_POOR_FIT)
+
+
+def _model_map(results: Path, fit, kind: str | None, template: str | None, coupling_file: Path | None):
+    """The model-based map beside ``fit`` (the paper's, whose measured range it shares): of a
+    coupling file as it is, or identified from the campaign's logs with bands."""
+    from droptower.compare.model_map import model_map_from_coupling, model_map_from_identification
+
+    if coupling_file is not None:
+        from droptower.rheology import load_coupling
+
+        family = None
+        if coupling_file.suffix.lower() == ".json":  # identify --from-drop-tests --json: the coupling it wrote
+            from droptower.maps.mapfit import read_json_object
+
+            doc = read_json_object(coupling_file, "an identification (identify --from-drop-tests --json)")
+            if not doc.get("coupling_file"):
+                raise DroptowerError("the identification wrote no coupling (run it with --out COUPLING.toml)",
+                                     file=coupling_file)
+            family, coupling_file = doc.get("model"), Path(doc["coupling_file"])
+        mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
+    else:
+        from droptower.campaign.folder import saved_inputs
+        from droptower.cli.identify_cmd import InitFile
+        from droptower.cli.identify_drops_cmd import prepare
+        from droptower.identify.dropfit import identify_drops
+
+        inputs = saved_inputs(results) if results.is_dir() else {}
+        if not (results / "logs").is_dir() or "rig" not in inputs:
+            raise DroptowerError("--model identifies from a campaign's logs: RESULTS must be a campaign folder",
+                                 file=results)
+        decays, excluded, settings, family_options, _ = prepare((str(results / "logs"),), kind, (), InitFile(),
+                                                                template, 0.0, str(inputs["rig"]), None, None)
+        options.progress(f"map: identifying {kind} from {len(decays)} drop test(s) for the model-based map ...")
+        ident = identify_drops(kind, decays, excluded=excluded, settings=settings, options=family_options)
+        if not ident.converged:
+            raise DroptowerError(f"model {kind}: the fit to the drop tests did not converge ({ident.message}); "
+                                 "no model-based map")
+        mm = model_map_from_identification(ident, decays, settings, tested=fit.range, source=str(results))
+        if ident.verdict is not None and ident.verdict.poor:
+            options.note(f"note: model {kind} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
+                         "trusted beyond the paper's")
+    mm.evaluate_grid()
+    return mm
 
 
 def _nested(table, source: Path) -> dict:

@@ -17,7 +17,11 @@ from droptower.cli import options
               help="The map form (as droptower map --form).")
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel mapping for reading real logs again (as droptower extract --channel).")
-def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, ...]) -> None:
+@click.option("--model-map", "model_map_path", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Also show the model-based map (model_map.json from `droptower map --model-out`) beside the "
+                   "paper's, both validated against the servo bench on the campaign's own coupling.")
+def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, ...],
+           model_map_path: Path | None) -> None:
     """Write one HTML report (opens offline, no server) of SOURCE: a `droptower campaign` folder,
     or a results table from `droptower extract --out` with its logs.
 
@@ -33,5 +37,19 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     from droptower.io.mapping import parse_channel_options
     from droptower.report import write_report
 
-    path = write_report(source, out, form=form, channels=parse_channel_options(channel_specs), progress=options.progress_disabled() is None)
+    extra = [_routes(source, model_map_path, form)] if model_map_path is not None else None
+    path = write_report(source, out, form=form, channels=parse_channel_options(channel_specs),
+                        extra_sections=extra, progress=options.progress_disabled() is None)
     options.wrote(path, f"HTML report, {path.stat().st_size / 1e6:.1f} MB")
+
+
+def _routes(source: Path, model_map_path: Path, form: str) -> tuple[str, str]:
+    """The two-routes section; the servo sweeps run on a campaign folder's own coupling."""
+    from droptower.campaign.folder import saved_inputs
+    from droptower.compare.model_map import ModelMap
+    from droptower.report.routes import routes_report_section
+
+    coupling = saved_inputs(source).get("coupling") if source.is_dir() else None
+    if coupling is None:
+        options.note("note: no campaign coupling to run the servo sweeps on: the routes are shown, not validated")
+    return routes_report_section(source, ModelMap.from_json(model_map_path), form, coupling)

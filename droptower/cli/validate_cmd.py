@@ -33,6 +33,9 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--results", type=click.Path(path_type=Path), default=None,
               help="With --reference: the campaign (folder or results table) whose tests are interpolated at "
                    "each reference row's case and amplitude.")
+@click.option("--model-map", "model_map_path", type=click.Path(path_type=Path), default=None,
+              help="Also validate the model-based map (model_map.json from `droptower map --model-out`): both "
+                   "routes against the same servo points, inside and outside the paper map's hull.")
 @click.option("--quick", is_flag=True, help="Fewer sweep steps (a quick check).")
 @click.option("--out", type=click.Path(path_type=Path), default=None,
               help="Write validation.csv, validation_summary.json, servo_results.csv and "
@@ -42,7 +45,8 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,
-             results: Path | None, quick: bool, out: Path | None, table_format: str, as_json: bool) -> None:
+             results: Path | None, model_map_path: Path | None, quick: bool, out: Path | None, table_format: str,
+             as_json: bool) -> None:
     """Predict the servo-hydraulic sweeps of docs/theory.md#servo from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
     10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
@@ -80,17 +84,38 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
               else run_sweeps(coupling, reduced=quick))
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
+    routes = None
+    if model_map_path is not None:
+        from droptower.compare.model_map import PAPER_ROUTE, ModelMap
+        from droptower.compare.validation import route_table, validate_routes
+
+        model_map = ModelMap.from_json(model_map_path)
+        routes = validate_routes({PAPER_ROUTE: fit, model_map.route: model_map}, points, hull=fit)
     if out is not None:
         for path in write_validation(out, validation, fit, points, comparison, table_suffix=f".{table_format}"):
             wrote(path, "validation")
+        if routes is not None:
+            from droptower.io.tables import write_table
+
+            wrote(write_table(route_table(routes), out / f"validation_routes.{table_format}", "--out"),
+                  "the two routes vs the servo points")
+            wrote(write_table(routes[model_map.route].table, out / f"validation_model_map.{table_format}", "--out"),
+                  f"the {model_map.route} at every servo point")
     if as_json:
         from droptower.campaign.folder import strict_json
 
         doc = {"summary": validation.summary, "points": validation.table.to_dict(orient="records")}
         if comparison is not None:
             doc["reference"] = {"summary": comparison[1], "rows": comparison[0].to_dict(orient="records")}
+        if routes is not None:
+            doc["routes"] = {name: {"summary": v.summary, "points": v.table.to_dict(orient="records")}
+                             for name, v in routes.items()}
         click.echo(json.dumps(strict_json(doc), indent=1))
         return
     click.echo(format_summary(validation))
+    if routes is not None:
+        from droptower.compare.validation import format_routes
+
+        click.echo(format_routes(routes))
     if comparison is not None:
         click.echo(format_comparison(comparison[1], reference.name))

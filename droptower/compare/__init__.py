@@ -6,7 +6,9 @@ docs/theory.md#servo, #damping-measures) and against a measured map such as Rapp
 - :mod:`.validation`: map vs servo points, deviations inside and outside the measured range,
   damping compared like with like (the drop tower's d_ratio);
 - :mod:`.fig14`: the four panels of Rapp et al. 2022, Fig. 14;
-- :mod:`.reference_map`: a campaign and its map vs a measured map (Table 4).
+- :mod:`.reference_map`: a campaign and its map vs a measured map (Table 4);
+- :mod:`.model_map`: the model-based map of an identified coupling beside the paper's (docs/routes.md),
+  :mod:`.model_map_plots` its figures; :func:`.validation.validate_routes` both routes vs the bench.
 
 Downstream of maps, servo and rheology; only the CLI and ``analysis/`` import it.
 """

@@ -139,3 +139,53 @@ def format_summary(validation: Validation) -> str:
                      f"{x['damping_max_deviation_pct']:>8.2f}{x.get('loss_factor_rms_deviation_pct', math.nan):>9.2f}"
                      f"{x.get('decay_ratio_rms_deviation_pct', math.nan):>8.2f}")
     return "\n".join(lines)
+
+
+#: the quantities a route table reports per region (RMS deviation from the servo points, %)
+ROUTE_QUANTITIES = ("stiffness", "loss_factor", "damping")
+
+
+def validate_routes(routes: dict[str, Any], points: ServoPoints, hull: Any | None = None) -> dict[str, Validation]:
+    """Each named route (a map: the paper's :class:`MapFit` or a model-based
+    :class:`~droptower.compare.model_map.ModelMap`) against the same servo points, by
+    :func:`validate_map`. ``hull``: the map whose measured range sets every route's regions
+    (default: each route's own), so that the routes are compared on the same points."""
+    out = {}
+    for name, route in routes.items():
+        v = validate_map(route, points)
+        if hull is not None and hull is not route:
+            table = v.table.assign(**{"in_range": hull.in_range(v.table["amplitude_deg"], v.table["frequency_hz"]),
+                                      "in_rectangle": hull.in_rectangle(v.table["amplitude_deg"], v.table["frequency_hz"])})
+            distinct = table.drop_duplicates(["amplitude_deg", "frequency_hz"])
+            summary = dict(v.summary)
+            for region, rows in region_rows(distinct).items():
+                summary[region] = deviation_stats(*(rows[f"{q}_deviation_pct"].to_numpy(float)
+                                                    for q in ("stiffness", "damping", "loss_factor", "decay_ratio")))
+            v = Validation(table, summary)
+        out[name] = v
+    return out
+
+
+def route_table(validations: dict[str, Validation]) -> pd.DataFrame:
+    """One row per route and region (inside / outside the hull, all): points and RMS / max
+    deviations (%) of stiffness (map c or model K' vs the servo's K'), loss factor and d."""
+    rows = []
+    for name, v in validations.items():
+        for region in ("inside", "outside", "all"):
+            s = v.summary[region]
+            rows.append({"route": name, "region": region, "n_points": s["n_points"],
+                         **{f"{q}_{k}_deviation_pct": s.get(f"{q}_{k}_deviation_pct", math.nan)
+                            for q in ROUTE_QUANTITIES for k in ("rms", "max")}})
+    return pd.DataFrame(rows)
+
+
+def format_routes(validations: dict[str, Validation]) -> str:
+    """The routes side by side as text: RMS deviation from the servo points per region."""
+    table = route_table(validations)
+    width = max(24, *(len(n) + 2 for n in validations))
+    lines = [f"{'route':<{width}}{'region':<9}{'points':>7}{'K rms':>8}{'eta rms':>9}{'d rms':>8}   (deviation from "
+             "the servo bench, %)"]
+    for r in table.itertuples():
+        lines.append(f"{r.route:<{width}}{r.region:<9}{r.n_points:>7}{r.stiffness_rms_deviation_pct:>8.2f}"
+                     f"{r.loss_factor_rms_deviation_pct:>9.2f}{r.damping_rms_deviation_pct:>8.2f}")
+    return "\n".join(lines)

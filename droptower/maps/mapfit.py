@@ -279,17 +279,7 @@ class MapFit:
     def from_json(cls, path: str | Path) -> "MapFit":
         """Read ``map.json``; a missing, unreadable or malformed file is a one-line error."""
         path = readable_file(path)
-        try:
-            data = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise DroptowerError(f"not valid JSON ({exc})", file=path) from None
-        except RecursionError:
-            raise DroptowerError("not a map file (nested too deeply)", file=path) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise unreadable_file(path, exc) from None
-        if not isinstance(data, dict):
-            raise DroptowerError("not a map file (expected a JSON object)", file=path)
-        return cls.from_dict(data, path)
+        return cls.from_dict(read_json_object(path, "a map file"), path)
 
     # ---- text summary ------------------------------------------------------------------
     def summary(self) -> str:
@@ -332,6 +322,22 @@ class MapFit:
             bound = "  (at bound)" if k in self.at_bounds else ""
             out.append(f"  {k:>3} = {self.coefficients[k]:.5g} ± {std_text} {UNIT_TEXT[u]}{bound}")
         return out
+
+
+def read_json_object(path: Path, what: str) -> dict[str, Any]:
+    """The JSON object in ``path`` (a readable file); anything else is a one-line error saying it
+    is not ``what``."""
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise DroptowerError(f"not valid JSON ({exc})", file=path) from None
+    except RecursionError:
+        raise DroptowerError(f"not {what} (nested too deeply)", file=path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise unreadable_file(path, exc) from None
+    if not isinstance(data, dict):
+        raise DroptowerError(f"not {what} (expected a JSON object)", file=path)
+    return data
 
 
 def _cv_text(value: float | None) -> str:

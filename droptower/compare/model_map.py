@@ -1,0 +1,362 @@
+"""The model-based characteristic map: an identified coupling evaluated on the virtual servo bench
+over amplitude x frequency, beside the paper's map (docs/routes.md, docs/theory.md#damping-measures).
+
+The paper's map (Rapp et al. 2022, eq. 19/20) is fitted to first-cycle readings of the decays and
+inherits their bias (docs/theory.md#first-cycle). The model-based route reads the same campaign
+through a coupling model re-simulating every decay (``identify --from-drop-tests``), then asks the
+model what a servo bench would measure. Per grid point (amplitude φ̂, frequency f):
+
+- ``storage_stiffness_nm_per_deg`` K', ``loss_stiffness_nm_per_deg`` K'', ``loss_factor``
+  η = K''/K' and ``dynamic_stiffness_nm_per_deg`` |K*|: the first harmonic of whole steady
+  cycles, evaluated exactly as the bench does (:mod:`droptower.servo.evaluate`: the same
+  history, acquisition rate and smoothing), so the model map and a bench run on the same
+  coupling agree to the bench's own repeatability;
+- ``drop_tower_equivalent_damping_ratio`` d = E_diss/E_el (Rapp et al. 2022, eq. 16) of the linear
+  Kelvin-Voigt coupling with this η (docs/theory.md#damping-measures): what validation compares with
+  the servo's d, like with like; it equals the d of the complex root of J s² + K*(s) = 0 for a
+  Kelvin-Voigt coupling, and comes within K*(s) vs K*(iω) of it for relaxation faster than the
+  oscillation;
+- ``lehr_damping`` D = δ/ω0 = r/√(1 + r²) of the same coupling, r = δ/ω.
+
+Confidence bands (``*_band_lo`` / ``*_band_hi``, 95 %) propagate the identification's parameter
+covariance, cluster-robust by test (:func:`drop_covariance`), to every quantity by the delta
+method. The covariance is stored as sigma-point parameter sets: the coupling's raw parameters at
+ẑ + ε·u_k for the principal directions u_k = √λ_k·v_k of the covariance of the optimised
+variables z, so var(q) = Σ_k ((q(P_k) − q(P_0))/ε)² needs no family at evaluation time, and all
+sets of all points run in one batched bench call per frequency. Why not a bootstrap over tests:
+docs/routes.md.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+from numpy.typing import ArrayLike
+
+from droptower import sdof
+from droptower.errors import DroptowerError, readable_file
+from droptower.maps.mapfit import MapRange, read_json_object
+from droptower.rheology import Coupling
+
+FORMAT = "droptower-model-map"
+FORMAT_VERSION = 1
+#: two-sided 95 % normal quantile of the bands
+Z95 = 1.959963984540054
+#: sigma-point step in units of a principal standard deviation: small enough that the quantities
+#: are linear over it, large enough that the bench's own repeatability (~1e-9) is far below it
+BAND_STEP = 0.1
+#: the bench's acquisition rate and history (docs/theory.md#servo; droptower.servo.bench defaults)
+SAMPLE_RATE_HZ = 2048.0
+#: the quantities per grid point (first harmonic), with their bands where the map has a covariance
+QUANTITIES = ("storage_stiffness_nm_per_deg", "loss_stiffness_nm_per_deg", "loss_factor",
+              "dynamic_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio", "lehr_damping")
+PAPER_ROUTE = "paper map, eq. 19/20"
+#: parameter sets x decays simulated per core call for the bands' Jacobian (memory: a decay holds
+#: ~10^4 steps of angle and torque)
+MAX_DECAYS_PER_CALL = 1500
+
+
+def route_name(family: str) -> str:
+    """The model-based route's name as every output shows it."""
+    return f"model-based map, {family}"
+
+
+def damping_measures(loss_factor: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(d, D): Rapp's drop-tower damping ratio d = E_diss/E_el (eq. 16) and Lehr's D = δ/ω0 of
+    the linear Kelvin-Voigt coupling with loss factor η (docs/theory.md#damping-measures)."""
+    r = sdof.decay_ratio_from_loss_factor(loss_factor)
+    return sdof.drop_tower_equivalent_damping_ratio(loss_factor), r / np.sqrt(1.0 + r * r)
+
+
+def _quantities(k: np.ndarray) -> dict[str, np.ndarray]:
+    """The QUANTITIES of complex first-harmonic stiffnesses K* (N*m/rad)."""
+    eta = k.imag / k.real
+    d, lehr = damping_measures(eta)
+    return {"storage_stiffness_nm_per_deg": np.radians(k.real), "loss_stiffness_nm_per_deg": np.radians(k.imag),
+            "loss_factor": eta, "dynamic_stiffness_nm_per_deg": np.radians(np.abs(k)),
+            "drop_tower_equivalent_damping_ratio": d, "lehr_damping": lehr}
+
+
+def bench_first_harmonics(elements: Coupling, params: np.ndarray, amplitude_deg: ArrayLike,
+                          frequency_hz: ArrayLike) -> np.ndarray:
+    """Complex first-harmonic stiffness K* (N*m/rad), shape (S, P), of every parameter set (rows
+    of ``params`` (S, n), raw parameters of ``elements``' kernels) at every point (P,), unloaded,
+    evaluated as the servo bench does. All sets and amplitudes of one frequency run as one batch."""
+    from droptower.servo import bench
+
+    a = np.atleast_1d(np.asarray(amplitude_deg, float))
+    f = np.broadcast_to(np.asarray(frequency_hz, float), a.shape)
+    if not (np.all(np.isfinite(a) & (a > 0)) and np.all(np.isfinite(f) & (f > 0))):
+        raise DroptowerError("model map: amplitudes and frequencies must be positive and finite")
+    params = np.atleast_2d(np.asarray(params, float))
+    n_sets = params.shape[0]
+    out = np.empty((n_sets, a.size), complex)
+    rate = max(SAMPLE_RATE_HZ, 40.0 * float(f.max()))  # at least 40 samples per cycle, as identify's servo grid
+    for freq in np.unique(f):
+        cols = np.flatnonzero(f == freq)
+        amps = np.radians(a[cols])
+        rows = Coupling(elements.elements, name=elements.name, params=np.repeat(params, cols.size, axis=0))
+        fine = max(38400.0, bench.MIN_STEPS_PER_CYCLE * freq)
+        substeps = max(1, math.ceil(fine / rate - 1e-9))
+        _, evals, *_ = bench._run_frequency(rows, float(freq), np.tile(amps, n_sets), 0.0, rate, substeps, 5, 5, 2,
+                                            True)
+        out[:, cols] = np.array([e.complex_stiffness_nm_per_rad for e in evals]).reshape(n_sets, cols.size)
+    return out
+
+
+@dataclass
+class ModelMap:
+    """A coupling's servo-equivalent characteristic map with confidence bands (module docstring).
+
+    coupling: the identified coupling (one parameter set); band_sets: (K, n) raw parameter sets
+    at ẑ + ε·u_k (None: no covariance, no bands); band_method: how the covariance was obtained;
+    range: the campaign's tested points (in_range: inside their hull); family: the model's name;
+    identification: the fit's verdict and errors, as reported; grid: the evaluated table on the
+    map's own grid (:meth:`evaluate`'s columns)."""
+
+    coupling: Coupling
+    family: str
+    range: MapRange
+    band_sets: np.ndarray | None = None
+    band_step: float = BAND_STEP
+    band_method: str | None = None
+    identification: dict[str, Any] = field(default_factory=dict)
+    source: str | None = None
+    grid: pd.DataFrame | None = None
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @property
+    def route(self) -> str:
+        return route_name(self.family)
+
+    @property
+    def has_bands(self) -> bool:
+        return self.band_sets is not None and len(self.band_sets) > 0
+
+    def evaluate(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> pd.DataFrame:
+        """One row per point: amplitude_deg, frequency_hz, the QUANTITIES and, with a covariance,
+        ``<q>_std`` and the 95 % band ``<q>_band_lo`` / ``<q>_band_hi``; ``in_range``."""
+        a, f = np.broadcast_arrays(np.asarray(amplitude_deg, float), np.asarray(frequency_hz, float))
+        a, f = a.ravel(), f.ravel()
+        key = (a.tobytes(), f.tobytes())
+        if self._cache.get("key") == key:
+            return self._cache["table"]
+        sets = self.coupling.params[:1] if not self.has_bands else np.vstack([self.coupling.params[:1], self.band_sets])
+        k = bench_first_harmonics(self.coupling, sets, a, f)
+        table = pd.DataFrame({"amplitude_deg": a, "frequency_hz": f})
+        nominal = _quantities(k[0])
+        spread = [_quantities(row) for row in k[1:]]
+        for q in QUANTITIES:
+            table[q] = nominal[q]
+            if self.has_bands:
+                std = np.sqrt(sum(((s[q] - nominal[q]) / self.band_step) ** 2 for s in spread))
+                table[f"{q}_std"] = std
+                table[f"{q}_band_lo"] = nominal[q] - Z95 * std
+                table[f"{q}_band_hi"] = nominal[q] + Z95 * std
+        table["in_range"] = self.in_range(a, f)
+        self._cache.update(key=key, table=table)
+        return table
+
+    # the interface validation reads a map through (as MapFit's)
+    def stiffness_nm_per_deg(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """The model's storage stiffness K' (N*m/deg), compared with the servo's K'."""
+        return self.evaluate(amplitude_deg, frequency_hz)["storage_stiffness_nm_per_deg"].to_numpy()
+
+    def damping_ratio(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        """The drop-tower-equivalent damping ratio d of the model's loss factor (-)."""
+        return self.evaluate(amplitude_deg, frequency_hz)["drop_tower_equivalent_damping_ratio"].to_numpy()
+
+    def in_range(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        return self.range.in_hull(amplitude_deg, frequency_hz)
+
+    def in_rectangle(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> np.ndarray:
+        return self.range.in_rectangle(amplitude_deg, frequency_hz)
+
+    def evaluate_grid(self, amplitudes_deg: Sequence[float] | None = None,
+                      frequencies_hz: Sequence[float] | None = None, n: tuple[int, int] = (8, 5)) -> pd.DataFrame:
+        """Evaluate the map on amplitudes x frequencies (default: ``n`` log-spaced values over the
+        tested rectangle) and keep it as :attr:`grid`."""
+        r = self.range
+        a = np.geomspace(r.amplitude_deg_min, r.amplitude_deg_max, n[0]) if amplitudes_deg is None else amplitudes_deg
+        f = np.geomspace(r.frequency_hz_min, r.frequency_hz_max, n[1]) if frequencies_hz is None else frequencies_hz
+        aa, ff = np.meshgrid(np.asarray(a, float), np.asarray(f, float), indexing="ij")
+        self.grid = self.evaluate(aa, ff)
+        return self.grid
+
+    # ---- model_map.json -------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON content: format, route, family, coupling (TOML text), raw parameters of the
+        nominal and the band sets, band method, range, identification and the evaluated grid."""
+        from droptower.rheology import coupling_to_toml
+
+        r = self.range
+        grid = None if self.grid is None else _json_safe(self.grid.to_dict(orient="list"))
+        return {"format": FORMAT, "format_version": FORMAT_VERSION, "route": self.route, "family": self.family,
+                "coupling_toml": coupling_to_toml(self.coupling),
+                "parameters_raw": self.coupling.params[0].tolist(),
+                "band_sets_raw": None if self.band_sets is None else np.asarray(self.band_sets).tolist(),
+                "band_step": self.band_step, "band_method": self.band_method, "band_level": 0.95,
+                "range": {"amplitude_deg_min": r.amplitude_deg_min, "amplitude_deg_max": r.amplitude_deg_max,
+                          "frequency_hz_min": r.frequency_hz_min, "frequency_hz_max": r.frequency_hz_max,
+                          "hull_amplitude_deg_frequency_hz": [list(v) for v in r.hull]},
+                "identification": _json_safe(self.identification), "source": self.source, "grid": grid}
+
+    def to_json(self, path: str | Path | None = None) -> str:
+        """The map as JSON text; with ``path``, also written there (atomically)."""
+        from droptower.io.droptower_log import atomic_write
+
+        text = json.dumps(self.to_dict(), indent=1) + "\n"
+        if path is not None:
+            atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+        return text
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], file: str | Path | None = None) -> "ModelMap":
+        import tomllib
+
+        from droptower.rheology import parse_coupling
+
+        if not isinstance(data, dict) or data.get("format") != FORMAT or data.get("format_version") != FORMAT_VERSION:
+            raise DroptowerError(f"not a {FORMAT} file of version {FORMAT_VERSION}", file=file)
+        try:
+            base = parse_coupling(tomllib.loads(data["coupling_toml"]), file)
+            params = np.asarray(data["parameters_raw"], float)[None, :]
+            coupling = Coupling(base.elements, name=base.name, description=base.description, params=params)
+            bands = data.get("band_sets_raw")
+            r = data["range"]
+            rng = MapRange(float(r["amplitude_deg_min"]), float(r["amplitude_deg_max"]), float(r["frequency_hz_min"]),
+                           float(r["frequency_hz_max"]),
+                           tuple((float(x), float(y)) for x, y in r.get("hull_amplitude_deg_frequency_hz", [])))
+            out = cls(coupling, str(data["family"]), rng, None if bands is None else np.asarray(bands, float),
+                      float(data.get("band_step", BAND_STEP)), data.get("band_method"),
+                      data.get("identification") or {}, data.get("source"))
+        except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
+            raise DroptowerError(f"malformed model map ({type(exc).__name__}: {exc})", file=file) from None
+        if data.get("grid"):
+            out.grid = pd.DataFrame(data["grid"])
+        return out
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> "ModelMap":
+        """Read ``model_map.json``; a missing, unreadable or malformed file is a one-line error."""
+        path = readable_file(path)
+        return cls.from_dict(read_json_object(path, "a model map file"), path)
+
+    def summary(self) -> str:
+        """A few lines: the route, the identification's verdict, the bands' method, the grid's span."""
+        ident = self.identification
+        lines = [f"{self.route}: coupling {self.coupling.name}"
+                 + (f", {ident['verdict']}" if ident.get("verdict") else "")
+                 + (f" (angle nRMSE {100 * ident['angle_nrmse']:.3g} %)" if ident.get("angle_nrmse") is not None else "")]
+        lines.append(f"bands: {self.band_method}" if self.has_bands else "bands: none (no parameter covariance given)")
+        if self.grid is not None:
+            g = self.grid
+            lines.append(f"grid: {g['amplitude_deg'].nunique()} amplitudes x {g['frequency_hz'].nunique()} frequencies; "
+                         f"K' {g['storage_stiffness_nm_per_deg'].min():.4g}-{g['storage_stiffness_nm_per_deg'].max():.4g} "
+                         f"N*m/deg, loss factor {g['loss_factor'].min():.3g}-{g['loss_factor'].max():.3g}, "
+                         f"d {g['drop_tower_equivalent_damping_ratio'].min():.3g}-"
+                         f"{g['drop_tower_equivalent_damping_ratio'].max():.3g}")
+        return "\n".join(lines)
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def sigma_point_sets(family: Any, values: np.ndarray, free: np.ndarray, cov_z: np.ndarray,
+                     step: float = BAND_STEP) -> np.ndarray:
+    """Raw parameter sets (K, n_raw) of ``family`` at ẑ + step·√λ_k·v_k for the eigenpairs
+    (λ_k, v_k) of ``cov_z`` (free parameters, optimised variables); λ_k ≤ 0 are dropped."""
+    params = family.parameters
+    idx = np.flatnonzero(free)
+    z0 = np.array([params[i].to_z(values[i]) for i in idx])
+    lam, vec = np.linalg.eigh(0.5 * (cov_z + cov_z.T))
+    rows = []
+    for lk, vk in zip(lam, vec.T):
+        if lk <= 1e-14 * max(lam.max(), 1e-300):
+            continue
+        z = z0 + step * math.sqrt(lk) * vk
+        v = np.array(values, float)
+        v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z)]
+        rows.append(family.coupling(v).params[0])
+    return np.array(rows).reshape(len(rows), -1)
+
+
+def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
+    """(free mask, covariance of the optimised variables z) of a drop-test identification
+    (:class:`~droptower.identify.dropfit.DropIdentification`), cluster-robust by test: the
+    sandwich (J'J)⁺ (Σ_tests J_t' r_t r_t' J_t) (J'J)⁺ · G/(G − 1) on the fitting tests' residual
+    and its forward-difference Jacobian (batched calls of the core): the scatter between tests,
+    whatever the correlation within a test. The identification's reported standard errors add the
+    integration step's bias, which does not shrink with more tests and is not in the bands."""
+    from droptower.identify.dropfit import DropProblem
+    from droptower.identify.fit import RowsFit
+
+    used = set(ident.tests_used)
+    fitting = [d for d in decays if d.name in used]
+    if len(fitting) < 2:
+        raise DroptowerError(f"model map bands: {len(fitting)} of the identification's fitting tests are among "
+                             "the given logs; give the logs it was fitted to")
+    problem = DropProblem(ident.family, fitting, settings)
+    params = ident.family.parameters
+    free = np.isfinite(np.asarray(ident.std_error, float))
+    idx = np.flatnonzero(free)
+    z0 = np.array([params[i].to_z(ident.values[i]) for i in idx])
+    rows = np.tile(np.asarray(ident.values, float), (idx.size + 1, 1))
+    for j, i in enumerate(idx):
+        rows[j + 1, i] = params[i].to_value(z0[j] + step)
+    # parameter sets x tests per core call bounded (a 450-test campaign's decays are long)
+    per_call = max(1, MAX_DECAYS_PER_CALL // len(fitting))
+    res = np.concatenate([problem.residuals(rows[i:i + per_call]) for i in range(0, len(rows), per_call)])
+    jac = ((res[1:] - res[0]) / step).T
+    sol = RowsFit(params, np.asarray(ident.values, float), free, res[0], jac, [], 0, 0, True, "")
+    return free, sol.covariance_z_clustered(problem.test_of_residual)
+
+
+CLUSTER_METHOD = ("95 %, delta method on the identification's parameter covariance, cluster-robust by test "
+                  "(sandwich over the fitting tests, G/(G-1))")
+
+
+def model_map_from_identification(ident: Any, decays: list, settings: Any, tested: MapRange | None = None,
+                                  bands: bool = True, source: str | None = None) -> ModelMap:
+    """The model map of a drop-test identification, with cluster-robust 95 % bands (``bands``),
+    over the tested range ``tested`` (default: the decays' first-cycle amplitudes and
+    frequencies). Evaluate it with :meth:`ModelMap.evaluate_grid`."""
+    coupling = ident.coupling()
+    if tested is None:
+        tested = MapRange.of_points([math.degrees(d.amplitude_rad) for d in decays], [d.frequency_hz for d in decays])
+    band_sets = None
+    if bands:
+        free, cov = drop_covariance(ident, decays, settings)
+        band_sets = sigma_point_sets(ident.family, np.asarray(ident.values, float), free, cov)
+    verdict = ident.verdict.as_dict() if ident.verdict is not None else {}
+    info = {"model": ident.model, "converged": ident.converged, "verdict": verdict.get("verdict"),
+            "angle_nrmse": ident.fit_error.get("angle_nrmse"), "tests_used": len(ident.tests_used),
+            "wall_s": ident.wall_s,
+            "parameters": {n: {"value": float(v), "std_error": float(s)} for n, v, s in
+                           zip(ident.family.names, ident.values, ident.std_error)}}
+    return ModelMap(coupling, ident.model, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
+                    source)
+
+
+def model_map_from_coupling(coupling: Coupling, tested: MapRange, family: str | None = None,
+                            source: str | None = None) -> ModelMap:
+    """The model map of a coupling given as it is (a coupling file): no covariance, no bands."""
+    if coupling.n_sets != 1:
+        raise DroptowerError(f"model map: the coupling has {coupling.n_sets} parameter sets; give one")
+    return ModelMap(coupling, family or coupling.name or "coupling", tested, source=source)
