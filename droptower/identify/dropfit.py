@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from droptower.errors import DroptowerError
+from droptower.identify.budget import check as check_budget
 from droptower.identify.data import DataScale
 from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
@@ -139,6 +140,7 @@ class DropProblem:
 
     def simulate(self, rows: np.ndarray, substeps: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Angle and torque (M, T, N) of each parameter set (rows (M, n)) on each test (T)."""
+        check_budget()  # a fit stops within one core call of its time budget (.budget)
         rows = np.atleast_2d(rows)
         m, t = rows.shape[0], len(self.decays)
         h = self.dt_s / int(substeps or self.settings.substeps)
