@@ -12,9 +12,14 @@ a forward-difference Jacobian) decay in ONE batched call of the core.
 The fit is a global search (:mod:`.search`: Latin-hypercube candidates over the whole bounds
 and around the first guess, in batched calls) followed by bounded trust-region-reflective
 least squares (:func:`~droptower.identify.fit.fit_rows`) from the best three distinct
-candidates, each with a weak prior toward its start that pins only the directions the data
+candidates (and the winner with its branches' roles swapped, where a family has such
+branches), each with a weak prior toward its start that pins only the directions the data
 do not determine (reported as non-identifiable combinations); the lowest cost wins. The
-verdict (:mod:`.verdict`) compares the angle error with the logs' pre-trigger noise.
+candidates and these competing fits run on at most :data:`SEARCH_TESTS` tests spread over the
+campaign (they only decide the basin), the winner is refined on all fitting tests: a large
+campaign costs one local fit on all its tests. The verdict (:mod:`.verdict`) compares the
+angle error with the logs' pre-trigger noise, the re-simulation's accuracy and the fitted
+model's integration error at the logs' step (docs/theory.md#verdict).
 Standard errors: the larger of s^2 (J'J)^-1 inflated for the residual's lag-1 correlation
 and the cluster-robust (sandwich) covariance with the tests as clusters (a test's systematic
 misfit counts once, not once per sample), plus, in quadrature, the parameters' shift when the decays are integrated on half the step (the
