@@ -138,6 +138,28 @@ def run(kind: str, truth, scale: float) -> tuple[float, object, list, float]:
 DROP_TRUTHS = json.loads((Path(__file__).resolve().parents[1] / "tests" / "data" / "unknown_couplings.json").read_text())
 
 
+#: The drop tests of every virtual campaign here: three levers (J kg*m^2, drop mass kg) x four heights (m).
+CASES = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+HEIGHTS = (0.1, 0.4, 1.0, 3.0)
+
+
+def campaign_decays(truth, folder: Path, prefix: str):
+    """The 12-test virtual campaign of coupling ``truth`` (rig ``rapp2022``, its sensor noise):
+    (decays, excluded, seconds the rig took)."""
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+
+    tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * i + k) for i, (j, m) in enumerate(CASES)
+             for k, h in enumerate(HEIGHTS)]
+    t0 = time.perf_counter()
+    results = rig_simulate(load_rig("rapp2022"), truth, tests, 0.25)
+    t_rig = time.perf_counter() - t0
+    paths = [r.write_log(folder / f"{prefix}_{i}.parquet") for i, r in enumerate(results)]
+    return (*read_decays(paths, ReadSettings()), t_rig)
+
+
 def drops() -> dict[str, dict[str, float]]:
     import tempfile
     from pathlib import Path
@@ -368,14 +390,7 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
 
     from droptower.identify import compare_models
     from droptower.identify.dropfit import identify_drops, servo_agreement
-    from droptower.identify.droplogs import ReadSettings, read_decays
-    from droptower.rig.config import load_rig
-    from droptower.rig.simulate import DropTest
-    from droptower.rig.simulate import simulate as rig_simulate
 
-    rig = load_rig("rapp2022")
-    cases = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
-    heights = (0.1, 0.4, 1.0, 3.0)
     figures = {}
     print(f"hard draws: {n} per family from #{first} (recovery: K' <= {100 * RECOVERY_LIMITS[0]:g} % and loss factor "
           f"<= {100 * RECOVERY_LIMITS[1]:g} % RMS, target >= 99 %; false alarm: 'poor fit' on a recovered fit, target "
@@ -389,13 +404,7 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
                 rng = np.random.default_rng(27_000 + 1000 * HARD_FAMILIES.index(kind) + i)
                 data = hard_truth(kind, rng)
                 truth = parse_coupling(data)
-                tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * a + b) for a, (j, m) in enumerate(cases)
-                         for b, h in enumerate(heights)]
-                t0 = time.perf_counter()
-                logs = rig_simulate(rig, truth, tests, 0.25)
-                rig_s = time.perf_counter() - t0
-                paths = [r.write_log(Path(tmp) / f"hard_{kind}_{i}_{k}.parquet") for k, r in enumerate(logs)]
-                decays, excluded = read_decays(paths, ReadSettings())
+                decays, excluded, rig_s = campaign_decays(truth, Path(tmp), f"hard_{kind}_{i}")
                 w0, c0 = time.perf_counter(), time.process_time()
                 result = identify_drops(kind, decays, excluded=excluded)
                 wall, cpu = time.perf_counter() - w0, time.process_time() - c0

@@ -78,18 +78,24 @@ def _hard(kind: str, rng) -> dict:
             {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
              "v_r": _log_uniform(rng, 0.05, 3.0), "p": int(rng.choice([3, 5, 7])), "n": 32}]}
     if kind == "masing":
-        n = 7
-        kp = k * rng.uniform(0.2, 0.5)
-        c1, c2 = k * rng.uniform(0.05, 0.25, 2)
-        t1 = _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))
-        t2 = t1 * _log_uniform(rng, 5.0, 100.0)
-        return {"name": "hard_masing", "element": [
-            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
-            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.001, 0.03) / n,
-             "alpha": rng.uniform(2.0, 8.0)},
-            {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
-            {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
+        return _masing(rng, k, "hard_masing", (0.001, 0.03), (2.0, 8.0))
     raise ValueError(kind)
+
+
+def _masing(rng, k: float, name: str, yield_range: tuple[float, float], alpha_range: tuple[float, float]) -> dict:
+    """A masing-type coupling of total stiffness ~``k``: yield limits ``yield_range`` of the Prandtl
+    stiffness (per element) and spread exponent alpha in ``alpha_range``."""
+    n = 7
+    kp = k * rng.uniform(0.2, 0.5)
+    c1, c2 = k * rng.uniform(0.05, 0.25, 2)
+    t1 = _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))
+    t2 = t1 * _log_uniform(rng, 5.0, 100.0)
+    return {"name": name, "element": [
+        {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
+        {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, *yield_range) / n,
+         "alpha": rng.uniform(*alpha_range)},
+        {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
+        {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
 
 
 def truth_vector(kind: str, data: dict) -> np.ndarray:
@@ -128,17 +134,7 @@ def _draw(kind: str, rng) -> dict:
             {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
              "v_r": _log_uniform(rng, 0.05, 1.0), "p": int(rng.choice([3, 5, 7, 9])), "n": 32}]}
     if kind == "masing":
-        n = 7
-        kp = k * rng.uniform(0.2, 0.5)
-        c1, c2 = k * rng.uniform(0.05, 0.25, 2)
-        t1 = tau()
-        t2 = t1 * _log_uniform(rng, 5.0, 100.0)
-        return {"name": "random_masing", "element": [
-            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
-            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n,
-             "alpha": rng.uniform(0.5, 3.0)},
-            {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
-            {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
+        return _masing(rng, k, "random_masing", (0.002, 0.01), (0.5, 3.0))
     if kind == "pfeffer":
         alpha = _log_uniform(rng, 0.1, 1.0)
         return {"name": "random_pfeffer", "element": [

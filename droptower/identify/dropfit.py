@@ -325,9 +325,10 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
         # the error is many times the noise: search again, wider (more candidates, more local
         # fits, other draws), and keep the better fit
-        wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True)
-        wider = problem.without_prior(wider)
-        if float(wider.residual @ wider.residual) < float(sol.residual @ sol.residual):
+        wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True, incumbent=sol.values)
+        if wider is not None:
+            wider = problem.without_prior(wider)
+        if wider is not None and float(wider.residual @ wider.residual) < float(sol.residual @ sol.residual):
             sol, search = wider, more
             fine = problem.simulate(sol.values[None], 2 * settings.substeps)
         search = {**search, "escalated": True}
@@ -385,7 +386,8 @@ def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_n
 
 
 def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.ndarray,
-                settings: DropFitSettings, choose_p: bool, escalate: bool = False) -> tuple[Any, dict[str, Any]]:
+                settings: DropFitSettings, choose_p: bool, escalate: bool = False,
+                incumbent: np.ndarray | None = None) -> tuple[Any, dict[str, Any]]:
     """Global search over the bounds (:func:`~droptower.identify.search.global_fit`: the first
     guess, a quarter of the candidates around it and the rest a Latin hypercube over the whole
     bounds in the optimised variables, the elastoslide's p over its candidates, all in
@@ -393,7 +395,9 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     least squares on all fitting tests with a weak prior toward each of the best few distinct
     candidates (and the odd p walked); the lowest cost wins. ``escalate``: the second, wider
     search after a poor fit (:data:`ESCALATION` times the candidates, other draws, two more
-    local fits)."""
+    local fits). ``incumbent``: a fit already made; the winner of the competing fits is refined
+    on all tests only when it beats the incumbent on the search's tests (else the fit returned
+    is None): a family that cannot represent the coupling does not pay a second refinement."""
     params = family.parameters
     n_free = int(free.sum())
     choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
@@ -418,10 +422,18 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     # the competing local fits (and the p walk, the role-swapped fit) on the search's tests: they
     # only decide which basin wins, which a dozen tests spread over the inertias and amplitudes
     # decide as well as hundreds; the winner is refined on all fitting tests
+    refine = local_on(problem)
+    if incumbent is not None:
+        beat = float(np.sum(search.residuals(incumbent[None])[0] ** 2))
+
+        def refine(start: np.ndarray, tol: float, on_all: Any = refine) -> Any:
+            if not float(np.sum(search.residuals(start[None])[0] ** 2)) < beat:
+                return None
+            return on_all(start, tol)
+
     best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n,
                                keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate, tol=TOL,
-                               choices=choices, local=local_on(search), near=n // 4,
-                               refine=local_on(problem) if search is not problem else None)
+                               choices=choices, local=local_on(search), near=n // 4, refine=refine)
     problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, {**summary, "search_tests": len(search.decays)}
 
