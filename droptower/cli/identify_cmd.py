@@ -132,7 +132,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
     The verdict: the fit's RMS error against the data's noise floor (estimated without a
     model: the residual of a local polynomial smoothing of the torque; for drop tests the angle's
-    pre-trigger noise plus the re-simulation's accuracy). An error above 2 times it, or a
+    pre-trigger noise plus the re-simulation's accuracy), with the fitted model's own
+    integration error at the data's step added (the model re-simulated on half the step:
+    docs/theory.md#verdict). An error above 2 times it, or a
     parameter on a bound, is a "poor fit" with the reasons: nothing is written and the exit
     code is 3, unless --accept-poor.
 
