@@ -428,30 +428,35 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
                 rows.append(row)
                 print(f"  {kind} #{i}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
                                                     for k, v in row.items() if k != "case"), flush=True)
-            n_rows = len(rows)
-            cmp_rows = [r for r in rows if "compare_wall_s" in r]
-            fig = {"draws": n_rows, "recovered_pct": 100 * np.mean([r["recovered"] for r in rows]),
-                   "false_alarm_pct": 100 * np.mean([r["false_alarm"] for r in rows]),
-                   "misses": int(sum(r["miss"] for r in rows)),
-                   "worst_k_pct": 100 * max(r["k_rms"] for r in rows),
-                   "worst_eta_pct": 100 * max(r["eta_rms"] for r in rows),
-                   "median_wall_s": float(np.median([r["wall_s"] for r in rows])),
-                   "max_wall_s": max(r["wall_s"] for r in rows),
-                   "median_cpu_s": float(np.median([r["cpu_s"] for r in rows])),
-                   "median_rig_s": float(np.median([r["rig_s"] for r in rows])),
-                   "compare_runs": len(cmp_rows),
-                   "compare_max_wall_s": max((r["compare_wall_s"] for r in cmp_rows), default=float("nan")),
-                   "compare_complete": all(r["compare_complete"] for r in cmp_rows)}
-            figures[kind] = fig
-            print(f"  {kind}: {n_rows} draws: recovered {fig['recovered_pct']:.0f} % "
-                  f"({sum(r['recovered'] for r in rows)}/{n_rows}), false alarms {fig['false_alarm_pct']:.0f} % "
-                  f"({sum(r['false_alarm'] for r in rows)}), misses {fig['misses']}; worst K' {fig['worst_k_pct']:.2f} % / "
-                  f"loss factor {fig['worst_eta_pct']:.2f} % RMS; time per fit median {fig['median_wall_s']:.1f} s wall / "
-                  f"{fig['median_cpu_s']:.1f} s CPU, max {fig['max_wall_s']:.1f} s wall; baseline the rig's campaign "
-                  f"{fig['median_rig_s']:.1f} s -> ratio {fig['median_wall_s'] / fig['median_rig_s']:.1f}; "
-                  f"compare-models {fig['compare_runs']} run(s), max {fig['compare_max_wall_s']:.1f} s wall, "
-                  f"table complete {fig['compare_complete']}", flush=True)
+            figures[kind] = hard_summary(kind, rows)
     return figures
+
+
+def hard_summary(kind: str, rows: list[dict]) -> dict:
+    """The figures of one family's hard draws (``rows``: one dict per draw, kept in the figures)."""
+    n_rows = len(rows)
+    cmp_rows = [r for r in rows if "compare_wall_s" in r]
+    fig = {"draws": n_rows, "recovered_pct": 100 * np.mean([r["recovered"] for r in rows]),
+           "false_alarm_pct": 100 * np.mean([r["false_alarm"] for r in rows]),
+           "misses": int(sum(r["miss"] for r in rows)),
+           "worst_k_pct": 100 * max(r["k_rms"] for r in rows),
+           "worst_eta_pct": 100 * max(r["eta_rms"] for r in rows),
+           "median_wall_s": float(np.median([r["wall_s"] for r in rows])),
+           "max_wall_s": max(r["wall_s"] for r in rows),
+           "median_cpu_s": float(np.median([r["cpu_s"] for r in rows])),
+           "median_rig_s": float(np.median([r["rig_s"] for r in rows])),
+           "compare_runs": len(cmp_rows),
+           "compare_max_wall_s": max((r["compare_wall_s"] for r in cmp_rows), default=float("nan")),
+           "compare_complete": all(r["compare_complete"] for r in cmp_rows), "rows": rows}
+    print(f"  {kind}: {n_rows} draws: recovered {fig['recovered_pct']:.0f} % "
+          f"({sum(r['recovered'] for r in rows)}/{n_rows}), false alarms {fig['false_alarm_pct']:.0f} % "
+          f"({sum(r['false_alarm'] for r in rows)}), misses {fig['misses']}; worst K' {fig['worst_k_pct']:.2f} % / "
+          f"loss factor {fig['worst_eta_pct']:.2f} % RMS; time per fit median {fig['median_wall_s']:.1f} s wall / "
+          f"{fig['median_cpu_s']:.1f} s CPU, max {fig['max_wall_s']:.1f} s wall; baseline the rig's campaign "
+          f"{fig['median_rig_s']:.1f} s -> ratio {fig['median_wall_s'] / fig['median_rig_s']:.1f}; "
+          f"compare-models {fig['compare_runs']} run(s), max {fig['compare_max_wall_s']:.1f} s wall, "
+          f"table complete {fig['compare_complete']}", flush=True)
+    return fig
 
 
 def main() -> None:
@@ -464,6 +469,8 @@ def main() -> None:
     parser.add_argument("--hard", action="store_true",
                         help="with --random: the hard draws of zerodim6, elastoslide, masing (item 9)")
     parser.add_argument("--compare", type=int, default=1, help="--hard: draws per family also run through compare_models")
+    parser.add_argument("--merge", nargs="+", metavar="JSON",
+                        help="--hard: merge the rows of earlier runs' --json files (other draws) into one set of figures")
     parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
     parser.add_argument("--families", default=None, help="families of --random (default: all of its kind)")
     parser.add_argument("--first", type=int, default=0, help="index of the first random coupling (--random)")
@@ -477,9 +484,16 @@ def main() -> None:
         families = [f.strip() for f in (args.families or ",".join(HARD_FAMILIES if args.hard else RANDOM_FAMILIES))
                     .split(",") if f.strip()]
         if args.hard:
+            if args.merge:  # runs made side by side (other draws): one set of figures from their rows
+                rows: dict[str, list] = {}
+                for path in args.merge:
+                    for kind, fig in json.loads(Path(path).read_text())["figures"]["families"].items():
+                        rows.setdefault(kind, []).extend(fig["rows"])
+                result = {kind: hard_summary(kind, sorted(r, key=lambda row: row["case"])) for kind, r in rows.items()}
+            else:
+                result = hard_acceptance(args.n, families, args.first, args.compare)
             write_figures(args.json, "bench_identify --random --hard",
-                          {"n_per_family": args.n, "first": args.first,
-                           "families": hard_acceptance(args.n, families, args.first, args.compare)})
+                          {"n_per_family": max(f["draws"] for f in result.values()), "families": result})
             return
         random_acceptance(args.n, families, servo=not args.drops, drops_=not args.servo, first=args.first)
         return
