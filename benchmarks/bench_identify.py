@@ -82,6 +82,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from droptower import load_coupling
+from droptower.errors import DroptowerError
 from droptower.identify import identify, make_segment
 from droptower.identify.fit import simulate
 from droptower.identify.families import ZeroDim6
@@ -402,9 +403,14 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
             rows = []
             for i in range(first, first + n):
                 rng = np.random.default_rng(27_000 + 1000 * HARD_FAMILIES.index(kind) + i)
-                data = hard_truth(kind, rng)
-                truth = parse_coupling(data)
-                decays, excluded, rig_s = campaign_decays(truth, Path(tmp), f"hard_{kind}_{i}")
+                while True:  # a draw the rig refuses (too stiff for its step) is redrawn
+                    data = hard_truth(kind, rng)
+                    truth = parse_coupling(data)
+                    try:
+                        decays, excluded, rig_s = campaign_decays(truth, Path(tmp), f"hard_{kind}_{i}")
+                        break
+                    except DroptowerError as exc:
+                        print(f"  {kind} #{i}: redrawn ({exc.message})", flush=True)
                 w0, c0 = time.perf_counter(), time.process_time()
                 result = identify_drops(kind, decays, excluded=excluded)
                 wall, cpu = time.perf_counter() - w0, time.process_time() - c0
