@@ -99,6 +99,7 @@ def _relaxation_problem(rng):
     return params, truth, residuals
 
 
+@pytest.mark.slow
 @given(seed=st.integers(0, 2 ** 16))
 @settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 def test_a_local_fit_from_the_guessed_roles_misses_the_role_swapped_truth_the_search_finds_it(seed):

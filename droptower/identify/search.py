@@ -14,10 +14,12 @@ copies of one coupling.
 
 Three rules keep the search from missing the family's own optimum (each one a measured miss):
 
-- a linear parameter from 0 over decades (a gain, a cubic coefficient) is sampled where it
-  acts: :data:`ZERO_SHARE` of its candidates exactly 0 (the term off), the rest log-uniform
-  from :data:`ACTS_FROM` of its scale to its upper bound (a linear spread puts almost every
-  candidate in the top decades, where such a term dominates the coupling);
+- a linear parameter from 0 over many decades (a gain, a cubic coefficient: upper bound at
+  least :data:`DECADES_FROM` times its scale) is sampled where it acts: :data:`ZERO_SHARE` of
+  its candidates exactly 0 (the term off), the rest log-uniform from :data:`ACTS_FROM` of its
+  scale to its upper bound (a linear spread puts almost every candidate in the top decades,
+  where such a term dominates the coupling); a shape parameter from 0 over a decade or two (a
+  yield spread's exponent) is spread by log(1 + z) over its range;
 - branches that are NOT exchangeable but whose relaxation times share their bounds (a fixed
   and a variable Maxwell branch) can play each other's role: the first guess's neighbourhood
   is sampled with the roles as guessed and swapped (:func:`role_swaps`), and the winner of the
@@ -53,6 +55,10 @@ ZERO_SHARE = 0.125
 #: data's stiffness per amplitude changes its branch by 0.1 % of the stiffness at the data's
 #: amplitude.
 ACTS_FROM = 1e-3
+#: A linear parameter from 0 whose upper bound (over its scale) reaches this spans decades of
+#: effect (a gain, a coefficient) and is sampled from :data:`ACTS_FROM`; below it (a spread
+#: exponent up to 30) it is a shape parameter, spread over its range by log(1 + z).
+DECADES_FROM = 100.0
 
 
 def exchangeable_branches(parameters: list[Parameter]) -> list[list[int]]:
@@ -164,13 +170,19 @@ def candidates(parameters: list[Parameter], x0: np.ndarray, free: np.ndarray, n:
         if n - 1 > m:
             unit = qmc.LatinHypercube(d=idx.size, seed=seed).random(n - 1 - m)
             z[m:] = lo + unit * (hi - lo)
-            # a linear parameter from 0 over decades (a gain, a cubic coefficient): a share at 0
-            # (the term off), the rest log-uniform from where it acts to its bound
             for k, i in enumerate(idx):
-                if not parameters[i].log and lo[k] == 0.0 and hi[k] > 10.0:
+                if parameters[i].log or lo[k] != 0.0 or hi[k] <= 10.0:
+                    continue
+                if hi[k] >= DECADES_FROM:
+                    # a linear parameter from 0 over many decades (a gain, a cubic coefficient): a
+                    # share at 0 (the term off), the rest log-uniform from where it acts to its bound
                     u = np.clip((unit[:, k] - ZERO_SHARE) / (1.0 - ZERO_SHARE), 0.0, 1.0)
                     z[m:, k] = np.where(unit[:, k] < ZERO_SHARE, 0.0,
                                         ACTS_FROM * np.exp(u * np.log(hi[k] / ACTS_FROM)))
+                else:
+                    # a shape parameter from 0 over a decade or two (a spread exponent): spread over
+                    # its range like a logarithmic one, z = expm1(u ln(1 + z_max))
+                    z[m:, k] = np.expm1(unit[:, k] * np.log1p(hi[k]))
         for k, i in enumerate(idx):
             rows[1:, i] = [parameters[i].to_value(v) for v in z[:, k]]
     rng = np.random.default_rng(seed)
