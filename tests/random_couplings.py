@@ -24,11 +24,16 @@ LOSS_FACTOR_RANGE = (0.04, 0.6)
 def random_truth(kind: str, rng) -> dict:
     """A coupling of family ``kind`` drawn from wide ranges that keep the drop tower's decays at
     15-80 Hz with a few cycles (:data:`LOSS_FACTOR_RANGE`; a draw outside is redrawn)."""
+    return _within_loss_window(_draw, kind, rng)
+
+
+def _within_loss_window(draw, kind: str, rng) -> dict:
+    """``draw(kind, rng)`` until its loss factor at 0.5 deg and 30 Hz lies in :data:`LOSS_FACTOR_RANGE`."""
     from droptower.rheology import parse_coupling
     from droptower.servo import run_grid
 
     while True:
-        data = _draw(kind, rng)
+        data = draw(kind, rng)
         eta = float(run_grid(parse_coupling(data), [np.radians(0.5)], [30.0], cycles=2, run_in_cycles=3,
                              simulation_rate_hz=9600.0)["loss_factor"].iloc[0])
         if LOSS_FACTOR_RANGE[0] <= eta <= LOSS_FACTOR_RANGE[1]:
@@ -46,15 +51,7 @@ def hard_truth(kind: str, rng) -> dict:
     least 3 x apart), the gain on the fast or on the slow branch (one draw each way);
     ``elastoslide``: p in {3, 5, 7}, v_r 0.05-3 rad/s; ``masing``: a broad yield spread
     (alpha 2-8, yield limits over a decade and a half)."""
-    from droptower.rheology import parse_coupling
-    from droptower.servo import run_grid
-
-    while True:
-        data = _hard(kind, rng)
-        eta = float(run_grid(parse_coupling(data), [np.radians(0.5)], [30.0], cycles=2, run_in_cycles=3,
-                             simulation_rate_hz=9600.0)["loss_factor"].iloc[0])
-        if LOSS_FACTOR_RANGE[0] <= eta <= LOSS_FACTOR_RANGE[1]:
-            return data
+    return _within_loss_window(_hard, kind, rng)
 
 
 def _hard(kind: str, rng) -> dict:
