@@ -38,6 +38,9 @@ BENCH_RESULTS = ROOT / "benchmarks" / "results"
 #: stored benchmark figures: name -> the script that writes them with ``--json``
 BENCHMARKS = {"core": "bench_core.py", "rig": "bench_rig.py", "extract": "bench_extract.py",
               "campaign": "bench_campaign.py", "identify": "bench_identify.py", "routes": "bench_routes.py"}
+#: stored figures of a benchmark run with arguments (name -> the command line after ``python benchmarks/``):
+#: rendered into their own blocks, not into the benchmark table's machine line
+BENCHMARK_RUNS = {"identify_hard": ("bench_identify.py", "--random", "--hard")}
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
 #: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
 #: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
@@ -123,7 +126,7 @@ def disagreements(written: str, block: Block) -> list[str]:
 def load_stored() -> dict[str, Any]:
     """The stored study summary (``study``) and each stored benchmark's figures (by name)."""
     stored = {"study": json.loads((STUDY_RESULTS / "summary.json").read_text())}
-    for name in BENCHMARKS:
+    for name in (*BENCHMARKS, *BENCHMARK_RUNS):
         stored[name] = json.loads((BENCH_RESULTS / f"{name}.json").read_text())
     return stored
 
@@ -203,6 +206,32 @@ def identify_drops(stored: dict[str, Any]) -> Block:
         **{f"{k[0]}_l": exact(d[k]["loss_factor_rms_pct"], ".2f") for k in ("elastoslide", "zerodim6", "masing")},
         wall=timed(t2["wall_s"], ".0f"), evals=on_cpu(t2["evaluations"], "d"),
         fit=exact(t2["angle_nrmse_fit_pct"], ".2f"), hold=exact(t2["angle_nrmse_holdout_pct"], ".2f"))
+
+
+def identify_hard(stored: dict[str, Any]) -> Block:
+    run = stored["identify_hard"]
+    fams = run["figures"]["families"]
+    rows, figures = [], {}
+    for kind, f in fams.items():
+        rows.append(f"| {kind} | {{{kind}_n}} | {{{kind}_rec}} % | {{{kind}_fa}} % | {{{kind}_miss}} | "
+                    f"{{{kind}_k}} % / {{{kind}_eta}} % | {{{kind}_wall}} s ({{{kind}_cpu}} s CPU) | {{{kind}_cmp}} s"
+                    f"{'' if f['compare_complete'] else ' (table incomplete)'} |\n")
+        figures.update({f"{kind}_n": exact(f["draws"], "d"), f"{kind}_rec": exact(f["recovered_pct"], ".0f"),
+                        f"{kind}_fa": exact(f["false_alarm_pct"], ".0f"), f"{kind}_miss": exact(f["misses"], "d"),
+                        f"{kind}_k": exact(f["worst_k_pct"], pct(f["worst_k_pct"])),
+                        f"{kind}_eta": exact(f["worst_eta_pct"], pct(f["worst_eta_pct"])),
+                        f"{kind}_wall": timed(f["median_wall_s"], ".0f"), f"{kind}_cpu": on_cpu(f["median_cpu_s"], ".0f"),
+                        f"{kind}_cmp": timed(f["compare_max_wall_s"], ".0f")})
+    m = run["machine"]
+    return fill(
+        f"Hard draws (`bench_identify.py --random --hard`, measured {m['date']} on {m['cores']} shared cores; the load "
+        "and the runs are stated in `benchmarks/results/identify_hard.txt`; [theory](docs/theory.md#verdict)): "
+        "recovery within K' 1 % / loss factor 3 % (target ≥ 99 %), false alarms (\"poor fit\" on a recovered fit, "
+        "≤ 2 %), misses (\"good fit\" outside 3 % / 10 %, 0), compare-models over the four drop-test families with "
+        "a 60 s wall-time budget each (≤ 120 s with a full table; a family over its budget is listed \"not "
+        "converged\"). Wall times stretch with the machine's load, CPU times hardly.\n\n"
+        "| family | draws | recovered | false alarms | misses | worst K' / loss factor RMS | time per fit, median "
+        "| compare-models, max |\n|---|---|---|---|---|---|---|---|\n" + "".join(rows), **figures)
 
 
 def map_auto(stored: dict[str, Any]) -> Block:
@@ -357,6 +386,7 @@ def routes_table(stored: dict[str, Any], outside: bool = True) -> Block:
 BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "map_auto": ("docs/guide/map.md", map_auto),
     "identify_drops": ("docs/guide/identification.md", identify_drops),
+    "identify_hard": ("docs/guide/identification.md", identify_hard),
     "bench_table": ("docs/benchmarks.md", bench_table),
     "study_targets": ("docs/study.md", study_targets),
     "study_results": ("analysis/README.md", study_results),
@@ -422,6 +452,8 @@ def rerun_benchmarks() -> None:
     BENCH_RESULTS.mkdir(parents=True, exist_ok=True)
     for name, script in BENCHMARKS.items():
         run([sys.executable, ROOT / "benchmarks" / script, "--json", BENCH_RESULTS / f"{name}.json"])
+    for name, (script, *args) in BENCHMARK_RUNS.items():
+        run([sys.executable, ROOT / "benchmarks" / script, *args, "--json", BENCH_RESULTS / f"{name}.json"])
 
 
 def main(argv: list[str] | None = None) -> int:

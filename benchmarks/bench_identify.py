@@ -41,6 +41,21 @@ The 20-parameter model on stepped sines (``--zerodim20`` runs only this):
    CPU, evaluations, verdict (target <= 60 s on the CI machine, ~1.4x slower: <= 40 s here);
    baseline measured in the same run: the six-parameter fit (``zerodim6``) on the same records.
 
+Hard draws (``--random --hard [--n N] [--compare C] [--families a,b]``; N = 30 per family by default):
+
+9. per family (zerodim6, elastoslide, masing) N couplings from the hard corners of its range
+   (``random_couplings.hard_truth``: two Maxwell branches both relaxing within a decade of the
+   test frequencies with the gain on either branch; elastoslides with p in {3, 5, 7} and v_r
+   0.05-3 rad/s; masing with broad yield spreads), a 12-test virtual campaign each: the rate
+   of fits within K' 1 % / loss factor 3 % of the truth (target >= 99 %), false alarms ("poor
+   fit" on such a fit, target <= 2 %), misses ("good fit" outside K' 3 % / loss factor 10 %,
+   target 0), the time per fit; ``compare_models`` over the drop-test families (60 s budget
+   each) on the first C draws: wall time (target <= 120 s) and a complete table. Baseline in
+   the same run: the rig simulating the campaign.
+
+Item 5 also identifies the 450 Table-2 tests with masing, elastoslide and zerodim6 (target
+<= 60 s each; baseline: the campaign itself).
+
 Randomised acceptance (``--random [--n N] [--families a,b]``; N = 30 per family by default):
 
 7. per family (zerodim6, elastoslide, masing, pfeffer, and the reference coupling
@@ -67,6 +82,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from droptower import load_coupling
+from droptower.errors import DroptowerError
 from droptower.identify import identify, make_segment
 from droptower.identify.fit import simulate
 from droptower.identify.families import ZeroDim6
@@ -123,6 +139,28 @@ def run(kind: str, truth, scale: float) -> tuple[float, object, list, float]:
 DROP_TRUTHS = json.loads((Path(__file__).resolve().parents[1] / "tests" / "data" / "unknown_couplings.json").read_text())
 
 
+#: The drop tests of every virtual campaign here: three levers (J kg*m^2, drop mass kg) x four heights (m).
+CASES = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+HEIGHTS = (0.1, 0.4, 1.0, 3.0)
+
+
+def campaign_decays(truth, folder: Path, prefix: str):
+    """The 12-test virtual campaign of coupling ``truth`` (rig ``rapp2022``, its sensor noise):
+    (decays, excluded, seconds the rig took)."""
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+
+    tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * i + k) for i, (j, m) in enumerate(CASES)
+             for k, h in enumerate(HEIGHTS)]
+    t0 = time.perf_counter()
+    results = rig_simulate(load_rig("rapp2022"), truth, tests, 0.25)
+    t_rig = time.perf_counter() - t0
+    paths = [r.write_log(folder / f"{prefix}_{i}.parquet") for i, r in enumerate(results)]
+    return (*read_decays(paths, ReadSettings()), t_rig)
+
+
 def drops() -> dict[str, dict[str, float]]:
     import tempfile
     from pathlib import Path
@@ -165,6 +203,10 @@ def drops() -> dict[str, dict[str, float]]:
     return figures
 
 
+#: Families identified from the 450 Table-2 tests beside the template (item 5; target <= 60 s each).
+TABLE2_FAMILIES = ("masing", "elastoslide", "zerodim6")
+
+
 def table2() -> dict[str, float]:
     import tempfile
 
@@ -180,6 +222,17 @@ def table2() -> dict[str, float]:
         decays, excluded = read_decays([f"{tmp}/table2"], ReadSettings())
         result = identify_drops("template", decays, excluded=excluded, options={"template": "rapp2022_nr60"})
         wall = time.perf_counter() - t0
+        families = {}
+        for kind in TABLE2_FAMILIES:  # families that cannot represent the reference coupling exactly
+            w0, c0 = time.perf_counter(), time.process_time()
+            other = identify_drops(kind, decays, excluded=excluded)
+            families[kind] = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
+                              "angle_nrmse_fit_pct": 100 * other.fit_error["angle_nrmse"],
+                              "escalated": bool(other.search.get("escalated")), "verdict": other.verdict.verdict}
+            print(f"Table 2: {kind}: {families[kind]['wall_s']:.1f} s wall / {families[kind]['cpu_s']:.1f} s CPU, angle "
+                  f"nRMSE fit {families[kind]['angle_nrmse_fit_pct']:.3f} % ({other.verdict.verdict}); baseline the "
+                  f"campaign {t_campaign:.1f} s -> ratio {families[kind]['wall_s'] / t_campaign:.2f}; target <= 60 s: "
+                  f"{'met' if families[kind]['wall_s'] <= 60 else 'MISSED'}", flush=True)
     print(f"Table 2: {len(decays)} tests ({len(excluded)} excluded), template rapp2022_nr60: converged "
           f"{result.converged}, {wall:.1f} s ({result.evaluations} evaluations), angle nRMSE fit "
           f"{100 * result.fit_error['angle_nrmse']:.3f} %, hold-out {100 * result.holdout_error['angle_nrmse']:.3f} %; "
@@ -187,7 +240,7 @@ def table2() -> dict[str, float]:
           f"target <= 300 s: {'met' if wall <= 300 else 'MISSED'}")
     return {"tests": len(decays), "wall_s": wall, "evaluations": result.evaluations, "campaign_s": t_campaign,
             "angle_nrmse_fit_pct": 100 * result.fit_error["angle_nrmse"],
-            "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"]}
+            "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"], "families": families}
 
 
 def zerodim20_data() -> dict[str, list]:
@@ -242,7 +295,7 @@ def zerodim20_fits() -> dict[str, dict[str, float]]:
 # ---------------------------------------------------------------------------- randomised acceptance
 RANDOM_FAMILIES = ("zerodim6", "elastoslide", "masing", "pfeffer", "template")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from random_couplings import REFERENCE, random_truth, servo_records  # noqa: E402  (shared with the tests)
+from random_couplings import HARD_FAMILIES, REFERENCE, hard_truth, random_truth, servo_records  # noqa: E402  (shared with the tests)
 def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: bool = True, first: int = 0) -> None:
     import tempfile
 
@@ -317,6 +370,101 @@ def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: b
         print("  " + "\n    ".join(parts))
 
 
+# ---------------------------------------------------------------------------- hard draws
+#: Acceptance of the hard draws: recovered within (K' RMS, loss factor RMS); a "good fit" outside
+#: MISS_LIMITS is a miss, a "poor fit" inside RECOVERY_LIMITS a false alarm.
+RECOVERY_LIMITS = (0.01, 0.03)
+MISS_LIMITS = (0.03, 0.10)
+#: The families compare-models --from-drop-tests fits by default.
+COMPARE_FAMILIES = ("elastoslide", "zerodim6", "masing", "pfeffer")
+
+
+def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 1,
+                    budget_s: float = 60.0) -> dict[str, dict[str, float]]:
+    """Item 9: the hard draws (``random_couplings.hard_truth``) of each family, a 12-test virtual
+    campaign each (rig ``rapp2022``, sensor noise, three inertias x heights 0.1-3 m): the family's
+    own fit against the truth on the servo grid (recovery within K' 1 % / loss factor 3 %),
+    its verdict (false alarms and misses), and ``compare_models`` over the drop-test families
+    on the first ``compare`` draws (wall time, complete table). Baseline in the same run: the
+    rig simulating the campaign."""
+    import tempfile
+
+    from droptower.identify import compare_models
+    from droptower.identify.dropfit import identify_drops, servo_agreement
+
+    figures = {}
+    print(f"hard draws: {n} per family from #{first} (recovery: K' <= {100 * RECOVERY_LIMITS[0]:g} % and loss factor "
+          f"<= {100 * RECOVERY_LIMITS[1]:g} % RMS, target >= 99 %; false alarm: 'poor fit' on a recovered fit, target "
+          f"<= 2 %; miss: 'good fit' outside {100 * MISS_LIMITS[0]:g} % / {100 * MISS_LIMITS[1]:g} %, target 0; "
+          f"compare-models over {', '.join(COMPARE_FAMILIES)} with {budget_s:g} s per family, target <= 120 s wall)",
+          flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in families:
+            rows = []
+            for i in range(first, first + n):
+                rng = np.random.default_rng(27_000 + 1000 * HARD_FAMILIES.index(kind) + i)
+                while True:  # a draw the rig refuses (too stiff for its step) is redrawn
+                    data = hard_truth(kind, rng)
+                    truth = parse_coupling(data)
+                    try:
+                        decays, excluded, rig_s = campaign_decays(truth, Path(tmp), f"hard_{kind}_{i}")
+                        break
+                    except DroptowerError as exc:
+                        print(f"  {kind} #{i}: redrawn ({exc.message})", flush=True)
+                w0, c0 = time.perf_counter(), time.process_time()
+                result = identify_drops(kind, decays, excluded=excluded)
+                wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+                agree = servo_agreement(result.coupling(), truth, decays)
+                k_err, eta_err = agree["storage_stiffness_rms"], agree["loss_factor_rms"]
+                recovered = k_err <= RECOVERY_LIMITS[0] and eta_err <= RECOVERY_LIMITS[1]
+                good = result.verdict.verdict == "good fit"
+                row = {"case": i, "rig_s": rig_s, "wall_s": wall, "cpu_s": cpu, "k_rms": k_err, "eta_rms": eta_err,
+                       "recovered": recovered, "verdict": result.verdict.verdict,
+                       "error_over_noise": result.verdict.error_over_noise,
+                       "false_alarm": recovered and not good,
+                       "miss": good and (k_err > MISS_LIMITS[0] or eta_err > MISS_LIMITS[1]),
+                       "escalated": bool(result.search.get("escalated")), "note": data.get("description", "")}
+                if i - first < compare:
+                    c0w = time.perf_counter()
+                    cmp = compare_models(decays, list(COMPARE_FAMILIES), budget_s=budget_s, excluded=excluded)
+                    row["compare_wall_s"] = time.perf_counter() - c0w
+                    row["compare_complete"] = len(cmp.ranking) + len(cmp.skipped) == len(COMPARE_FAMILIES)
+                    row["compare_best"] = cmp.best
+                    row["compare_not_converged"] = ",".join(cmp.not_converged)
+                rows.append(row)
+                print(f"  {kind} #{i}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                                                    for k, v in row.items() if k != "case"), flush=True)
+            figures[kind] = hard_summary(kind, rows)
+    return figures
+
+
+def hard_summary(kind: str, rows: list[dict]) -> dict:
+    """The figures of one family's hard draws (``rows``: one dict per draw, kept in the figures)."""
+    n_rows = len(rows)
+    cmp_rows = [r for r in rows if "compare_wall_s" in r]
+    fig = {"draws": n_rows, "recovered_pct": 100 * np.mean([r["recovered"] for r in rows]),
+           "false_alarm_pct": 100 * np.mean([r["false_alarm"] for r in rows]),
+           "misses": int(sum(r["miss"] for r in rows)),
+           "worst_k_pct": 100 * max(r["k_rms"] for r in rows),
+           "worst_eta_pct": 100 * max(r["eta_rms"] for r in rows),
+           "median_wall_s": float(np.median([r["wall_s"] for r in rows])),
+           "max_wall_s": max(r["wall_s"] for r in rows),
+           "median_cpu_s": float(np.median([r["cpu_s"] for r in rows])),
+           "median_rig_s": float(np.median([r["rig_s"] for r in rows])),
+           "compare_runs": len(cmp_rows),
+           "compare_max_wall_s": max((r["compare_wall_s"] for r in cmp_rows), default=float("nan")),
+           "compare_complete": all(r["compare_complete"] for r in cmp_rows), "rows": rows}
+    print(f"  {kind}: {n_rows} draws: recovered {fig['recovered_pct']:.0f} % "
+          f"({sum(r['recovered'] for r in rows)}/{n_rows}), false alarms {fig['false_alarm_pct']:.0f} % "
+          f"({sum(r['false_alarm'] for r in rows)}), misses {fig['misses']}; worst K' {fig['worst_k_pct']:.2f} % / "
+          f"loss factor {fig['worst_eta_pct']:.2f} % RMS; time per fit median {fig['median_wall_s']:.1f} s wall / "
+          f"{fig['median_cpu_s']:.1f} s CPU, max {fig['max_wall_s']:.1f} s wall; baseline the rig's campaign "
+          f"{fig['median_rig_s']:.1f} s -> ratio {fig['median_wall_s'] / fig['median_rig_s']:.1f}; "
+          f"compare-models {fig['compare_runs']} run(s), max {fig['compare_max_wall_s']:.1f} s wall, "
+          f"table complete {fig['compare_complete']}", flush=True)
+    return fig
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="15 s of data instead of 60 s")
@@ -324,8 +472,13 @@ def main() -> None:
     parser.add_argument("--servo", action="store_true", help="only the servo-record identification")
     parser.add_argument("--random", action="store_true", help="only the randomised acceptance (items 7)")
     parser.add_argument("--zerodim20", action="store_true", help="only zerodim20 on stepped sines (item 8)")
+    parser.add_argument("--hard", action="store_true",
+                        help="with --random: the hard draws of zerodim6, elastoslide, masing (item 9)")
+    parser.add_argument("--compare", type=int, default=1, help="--hard: draws per family also run through compare_models")
+    parser.add_argument("--merge", nargs="+", metavar="JSON",
+                        help="--hard: merge the rows of earlier runs' --json files (other draws) into one set of figures")
     parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
-    parser.add_argument("--families", default=",".join(RANDOM_FAMILIES), help="families of --random")
+    parser.add_argument("--families", default=None, help="families of --random (default: all of its kind)")
     parser.add_argument("--first", type=int, default=0, help="index of the first random coupling (--random)")
     json_option(parser)
     args = parser.parse_args()
@@ -334,8 +487,21 @@ def main() -> None:
         write_figures(args.json, "bench_identify", {"zerodim20": zerodim20_fits()})
         return
     if args.random:
-        random_acceptance(args.n, [f.strip() for f in args.families.split(",") if f.strip()],
-                          servo=not args.drops, drops_=not args.servo, first=args.first)
+        families = [f.strip() for f in (args.families or ",".join(HARD_FAMILIES if args.hard else RANDOM_FAMILIES))
+                    .split(",") if f.strip()]
+        if args.hard:
+            if args.merge:  # runs made side by side (other draws): one set of figures from their rows
+                rows: dict[str, list] = {}
+                for path in args.merge:
+                    for kind, fig in json.loads(Path(path).read_text())["figures"]["families"].items():
+                        rows.setdefault(kind, []).extend(fig["rows"])
+                result = {kind: hard_summary(kind, sorted(r, key=lambda row: row["case"])) for kind, r in rows.items()}
+            else:
+                result = hard_acceptance(args.n, families, args.first, args.compare)
+            write_figures(args.json, "bench_identify --random --hard",
+                          {"n_per_family": max(f["draws"] for f in result.values()), "families": result})
+            return
+        random_acceptance(args.n, families, servo=not args.drops, drops_=not args.servo, first=args.first)
         return
     if not args.servo:
         figures["drops"] = drops()

@@ -24,15 +24,93 @@ LOSS_FACTOR_RANGE = (0.04, 0.6)
 def random_truth(kind: str, rng) -> dict:
     """A coupling of family ``kind`` drawn from wide ranges that keep the drop tower's decays at
     15-80 Hz with a few cycles (:data:`LOSS_FACTOR_RANGE`; a draw outside is redrawn)."""
+    return _within_loss_window(_draw, kind, rng)
+
+
+def _within_loss_window(draw, kind: str, rng) -> dict:
+    """``draw(kind, rng)`` until its loss factor at 0.5 deg and 30 Hz lies in :data:`LOSS_FACTOR_RANGE`."""
     from droptower.rheology import parse_coupling
     from droptower.servo import run_grid
 
     while True:
-        data = _draw(kind, rng)
+        data = draw(kind, rng)
         eta = float(run_grid(parse_coupling(data), [np.radians(0.5)], [30.0], cycles=2, run_in_cycles=3,
                              simulation_rate_hz=9600.0)["loss_factor"].iloc[0])
         if LOSS_FACTOR_RANGE[0] <= eta <= LOSS_FACTOR_RANGE[1]:
             return data
+
+
+#: Families of the hard draws (:func:`hard_truth`).
+HARD_FAMILIES = ("zerodim6", "elastoslide", "masing")
+
+
+def hard_truth(kind: str, rng) -> dict:
+    """A coupling of family ``kind`` from the hard corners of its range (the loss-factor window
+    of :func:`random_truth` kept): ``zerodim6``: both Maxwell branches relaxing within a decade
+    of the drop tower's first-cycle frequencies (tau 1/(2 pi 10 f_max) .. 10/(2 pi f_min), at
+    least 3 x apart), the gain on the fast or on the slow branch (one draw each way);
+    ``elastoslide``: p in {3, 5, 7}, v_r 0.05-3 rad/s; ``masing``: a broad yield spread
+    (alpha 2-8, yield limits over a decade and a half)."""
+    return _within_loss_window(_hard, kind, rng)
+
+
+def _hard(kind: str, rng) -> dict:
+    k = _log_uniform(rng, *K_RANGE)
+    if kind == "zerodim6":
+        band = (1.0 / (2 * np.pi * 800.0), 10.0 / (2 * np.pi * 15.0))  # a decade beyond 15-80 Hz each way
+        t_fast = _log_uniform(rng, band[0], band[1] / 3.0)
+        t_slow = _log_uniform(rng, 3.0 * t_fast, band[1])
+        k1 = k * rng.uniform(0.4, 0.8)
+        kf, ks = (k - k1) * rng.dirichlet([1.0, 1.0])
+        gain_on_fast = bool(rng.integers(2))
+        (kv, tv), (km, tm) = ((kf, t_fast), (ks, t_slow)) if gain_on_fast else ((ks, t_slow), (kf, t_fast))
+        gain = kv * _log_uniform(rng, 1.0, 300.0)  # 1-300 per rad: 2-600 % at 0.02 rad
+        return {"name": "hard_zerodim6", "description": f"gain on the {'fast' if gain_on_fast else 'slow'} branch",
+                "element": [
+            {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": km, "damping": km * tm},
+            {"kind": "variable_maxwell", "stiffness": kv, "stiffness_gain": gain, "damping": kv * tv}]}
+    if kind == "elastoslide":
+        kk = k * rng.uniform(0.6, 1.0)
+        return {"name": "hard_elastoslide", "element": [
+            {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
+             "v_r": _log_uniform(rng, 0.05, 3.0), "p": int(rng.choice([3, 5, 7])), "n": 32}]}
+    if kind == "masing":
+        return _masing(rng, k, "hard_masing", (0.001, 0.03), (2.0, 8.0))
+    raise ValueError(kind)
+
+
+def _masing(rng, k: float, name: str, yield_range: tuple[float, float], alpha_range: tuple[float, float]) -> dict:
+    """A masing-type coupling of total stiffness ~``k``: yield limits ``yield_range`` of the Prandtl
+    stiffness (per element) and spread exponent alpha in ``alpha_range``."""
+    n = 7
+    kp = k * rng.uniform(0.2, 0.5)
+    c1, c2 = k * rng.uniform(0.05, 0.25, 2)
+    t1 = _log_uniform(rng, 1.0 / (2 * np.pi * 400.0), 1.0 / (2 * np.pi * 3.0))
+    t2 = t1 * _log_uniform(rng, 5.0, 100.0)
+    return {"name": name, "element": [
+        {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
+        {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, *yield_range) / n,
+         "alpha": rng.uniform(*alpha_range)},
+        {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
+        {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
+
+
+def truth_vector(kind: str, data: dict) -> np.ndarray:
+    """The parameter vector of family ``kind`` (its parameters' order) that IS the coupling ``data``
+    (a draw of :func:`hard_truth` or :func:`random_truth`)."""
+    e = data["element"]
+    if kind == "zerodim6":
+        sp, mx, vm = e
+        return np.array([sp["stiffness"], mx["stiffness"], mx["damping"] / mx["stiffness"], vm["stiffness"],
+                         vm["stiffness_gain"], vm["damping"] / vm["stiffness"]])
+    if kind == "elastoslide":
+        es = e[0]
+        return np.array([es["phi0"], es["k"], es["k0"], es["v_r"], float(es["p"])])
+    if kind == "masing":
+        cs, ms, m1, m2 = e
+        return np.array([cs["a"], cs["b"], ms["stiffness"], ms["max_yield_torque"], ms["alpha"],
+                         m1["stiffness"], m1["damping"] / m1["stiffness"], m2["stiffness"], m2["damping"] / m2["stiffness"]])
+    raise ValueError(kind)
 
 
 def _draw(kind: str, rng) -> dict:
@@ -53,17 +131,7 @@ def _draw(kind: str, rng) -> dict:
             {"kind": "elastoslide", "phi0": _log_uniform(rng, 0.004, 0.04), "k": kk, "k0": kk * rng.uniform(0.1, 0.5),
              "v_r": _log_uniform(rng, 0.05, 1.0), "p": int(rng.choice([3, 5, 7, 9])), "n": 32}]}
     if kind == "masing":
-        n = 7
-        kp = k * rng.uniform(0.2, 0.5)
-        c1, c2 = k * rng.uniform(0.05, 0.25, 2)
-        t1 = tau()
-        t2 = t1 * _log_uniform(rng, 5.0, 100.0)
-        return {"name": "random_masing", "element": [
-            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
-            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n,
-             "alpha": rng.uniform(0.5, 3.0)},
-            {"kind": "maxwell", "stiffness": c1, "damping": c1 * t1},
-            {"kind": "maxwell", "stiffness": c2, "damping": c2 * t2}]}
+        return _masing(rng, k, "random_masing", (0.002, 0.01), (0.5, 3.0))
     if kind == "pfeffer":
         alpha = _log_uniform(rng, 0.1, 1.0)
         return {"name": "random_pfeffer", "element": [

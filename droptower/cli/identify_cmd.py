@@ -15,7 +15,6 @@ records of mounts, bushings and dampers (translational), in any format the reade
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -23,10 +22,10 @@ from typing import Any
 import click
 from pydantic import Field
 
-from droptower.cli.options import note, progress, progress_disabled, quiet_option, wrote
+from droptower.cli.options import note, progress, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive, make_folder
 from droptower.validation import StrictModel, validate
-from droptower.cli.flags import cli_message
+from droptower.cli.flags import cli_text
 
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
@@ -134,7 +133,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
     The verdict: the fit's RMS error against the data's noise floor (estimated without a
     model: the residual of a local polynomial smoothing of the torque; for drop tests the angle's
-    pre-trigger noise plus the re-simulation's accuracy). An error above 2 times it, or a
+    pre-trigger noise plus the re-simulation's accuracy), with the fitted model's own
+    integration error at the data's step added (the model re-simulated on half the step:
+    docs/theory.md#verdict). An error above 2 times it, or a
     parameter on a bound, is a "poor fit" with the reasons: nothing is written and the exit
     code is 3, unless --accept-poor.
 
@@ -230,11 +231,14 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
 @click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
 @drop_options
+@click.option("--budget-s", type=float, default=60.0, show_default=True,
+              help="Wall-time budget of each family's fit (s); a family over it is listed 'not converged' and ranked "
+                   "last.")
 @click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
 def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str | None,
                    out: Path | None, as_json: bool, plot_dir: str | None, drops: bool, template: str | None,
                    holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
-                   accept_poor: bool) -> None:
+                   budget_s: float, accept_poor: bool) -> None:
     """Fit every model family on the same DATA (torsional or translational servo records, or with
     --from-drop-tests drop-test logs) and rank them.
 
@@ -244,14 +248,19 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     effective sample size from the noise (never from a family's own residual); a family with
     more parameters ranks higher only if it lowers the error by more than its parameters cost;
     within 2 of each other families are tied and the one with fewer parameters ranks first
-    (delta_bic: distance to the best; above 10: strong evidence against). The exit code is 3
-    when the best family's verdict is "poor fit" (no family describes the data to within 2
-    times the noise), unless --accept-poor. It also prints the zero-dimensional model paper's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
+    (delta_bic: distance to the best; above 10: strong evidence against). It also prints the zero-dimensional model paper's Fig. 8 as a table (per record: RMSE in percent of the largest torque, and
     relative to the worst model on that record). A family whose data requirement these
     records do not meet (overlay: steady sine blocks at several amplitudes and frequencies)
-    is skipped with the reason and the others are ranked; families whose fit fails or does not
-    converge are listed on stderr and the exit code is then 2. --holdout does not change the
-    ranking: it adds each family's error on a record none of them was fitted to.
+    is skipped with the reason and the others are ranked. Each family's fit has a wall-time
+    budget (--budget-s): a family that does not converge within it, or whose optimiser stops at
+    its evaluation limit, is listed with status 'not converged' (the reason in 'note') and
+    ranked after every converged family; the table is always complete. --holdout does not
+    change the ranking: it adds each family's error on a record none of them was fitted to.
+
+    \b
+    Exit code: 0 when the best-ranked converged family is a good fit; 3 when it is a "poor
+    fit" (no family describes the data to within 2 times the noise), unless --accept-poor;
+    2 when no family converged (or bad input).
 
     \b
     With --from-drop-tests, DATA are drop-test logs or campaign folders: every family
@@ -265,11 +274,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
       droptower compare-models sweep.csv --models zerodim6,elastoslide --out ranking.xlsx
       droptower compare-models --from-drop-tests runs/campaign --template rapp2022_nr60
     """
-    from tqdm import tqdm
-
-    from droptower.identify.criterion import RULE
-    from droptower.identify.report import plot_comparison, ranking_table, record_table
-    from droptower.identify.strategies import identify as run
+    from droptower.identify.compare import compare_models as run
+    from droptower.identify.report import plot_comparison
     from droptower.io.tables import check_table_path, write_table
 
     known = DROP_MODEL_KINDS + ("template",) if drops else MODEL_KINDS
@@ -280,110 +286,64 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
         raise DroptowerError(f"unknown model famil{'ies' if len(unknown) > 1 else 'y'} {', '.join(unknown)} "
                              f"(known: {', '.join(known)})" if unknown else "no model family given",
                              where="--models")
+    check_positive(budget_s, "--budget-s")
     if out is not None:
         check_table_path(out, "--out")
+    on_skip = lambda kind, why: progress(f"skipped {kind}: {cli_text(why)}")  # noqa: E731
     if drops:
-        return compare_drops(data, kinds, channels, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
-                             out, as_json, accept_poor)
-    segments = _read_data(data, channels, 0.0)
-    held = _read_data((holdout,), channels, 0.0) if holdout else None
-    results, failures, skipped = {}, [], []
-    with tqdm(kinds, desc="compare-models", unit="model", file=sys.stderr, disable=progress_disabled()) as bar:
-        for kind in bar:
-            bar.set_postfix_str(kind)
-            start = time.perf_counter()
-            try:
-                r = run(kind, segments, holdout=held, previous=results)
-            except DroptowerError as exc:  # compare-models takes no options: the data do not suit the family
-                skipped.append(f"{kind}: {cli_message(exc)}")
-                tqdm.write(f"droptower: skipped {skipped[-1]}", file=sys.stderr)
-                continue
-            r.time_s = time.perf_counter() - start
-            results[kind] = r
-            if not r.converged:
-                failures.append(f"{kind}: the fit did not converge")
-    if not results:
-        raise DroptowerError(f"no model family could be fitted to these records ({'; '.join(skipped)})")
-    ranking = ranking_table(results, segments)
-    records = record_table(results, segments + (held or []))
+        from droptower.cli.identify_drops_cmd import prepare
+
+        decays, excluded, settings, options, _ = prepare(data, None, channels, InitFile(), template, holdout_fraction,
+                                                         rig, inertia_kgm2, lever_length_m)
+        if "template" in kinds and "template" not in options:
+            raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
+        result = run(decays, kinds, budget_s=budget_s, excluded=excluded, settings=settings,
+                     options={"template": {"template": options["template"]}} if "template" in options else None,
+                     on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ..."),
+                     on_skip=on_skip)
+        segments, held = [], None
+    else:
+        segments = _read_data(data, channels, 0.0)
+        held = _read_data((holdout,), channels, 0.0) if holdout else None
+        result = run(segments, kinds, holdout=held, budget_s=budget_s,
+                     on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(segments)} record(s) ..."),
+                     on_skip=on_skip)
+    ranking, records = result.ranking, result.records
     if out is not None:
         wrote(write_table(ranking.rename_axis("rank").reset_index(), out, "--out"), f"ranking of {len(ranking)} families")
-        wrote(write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out"),
-              f"per record, {len(records)} rows")
+        if records is not None:
+            wrote(write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out"),
+                  f"per record, {len(records)} rows")
     if as_json:
-        click.echo(json.dumps({"ranking_rule": RULE, "ranking": json.loads(ranking.to_json(orient="records")),
-                               "records": json.loads(records.to_json(orient="records"))}, indent=1))
+        click.echo(json.dumps(result.as_dict(), indent=1))
+    elif drops:
+        click.echo(f"ranking ({result.rule}; angle nRMSE: RMS angle error in % of each test's peak, RMS over tests):")
+        click.echo(ranking.to_string(float_format=lambda v: f"{v:.4g}"))
     else:
-        click.echo(f"ranking ({RULE}; nRMSE: RMSE in % of the largest |torque|):")
+        click.echo(f"ranking ({result.rule}; nRMSE: RMSE in % of the largest |torque|):")
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.3f}"))
         click.echo("\nper record (the zero-dimensional model paper, Fig. 8): nRMSE % / RMSE relative to the worst model")
         if not records.empty:
             pct = records.pivot(index="record", columns="model", values="nrmse_percent")
             rel = records.pivot(index="record", columns="model", values="rmse_over_max_rmse")
             click.echo(pct.round(3).astype(str).add(" / ").add(rel.round(2).astype(str)).to_string())
-    if plot_dir and results:
+    if plot_dir and result.results and not drops:
         loop_segment = (held or segments)[0]
-        for path in plot_comparison(results, records, loop_segment, plot_dir):
+        for path in plot_comparison(result.results, records, loop_segment, plot_dir):
             wrote(path, "comparison")
-    if skipped:
-        click.echo(f"droptower: skipped {len(skipped)} famil{'ies' if len(skipped) > 1 else 'y'} "
-                   f"(data requirement not met): {'; '.join(skipped)}", err=True)
-    if failures:
-        for line in failures:
-            click.echo(f"droptower: failed: {line}", err=True)
-        raise click.exceptions.Exit(2)
-    _exit_if_best_is_poor(ranking, accept_poor)
+    if result.skipped:
+        n = len(result.skipped)
+        click.echo(f"droptower: skipped {n} famil{'ies' if n > 1 else 'y'} (data requirement not met): "
+                   + "; ".join(f"{k}: {v}" for k, v in result.skipped.items()), err=True)
+    for kind, why in result.not_converged.items():
+        click.echo(f"droptower: not converged: {kind}: {why} (ranked last)", err=True)
+    code = result.exit_code(accept_poor)
+    if code:
+        from droptower.identify.verdict import EXIT_POOR_FIT
 
-
-def _exit_if_best_is_poor(ranking, accept_poor: bool) -> None:
-    """Exit code 3 when the best-ranked family's verdict is a poor fit (unless ``accept_poor``)."""
-    from droptower.identify.verdict import EXIT_POOR_FIT, POOR
-
-    best = ranking.iloc[0]
-    if best["verdict"] == POOR and not accept_poor:
-        click.echo(f"droptower: the best-ranked family {best['model']} is a poor fit: no family describes these data "
-                   f"to within the noise (--accept-poor: exit 0; exit code {EXIT_POOR_FIT})", err=True)
-        raise click.exceptions.Exit(EXIT_POOR_FIT)
-
-
-def compare_drops(data: tuple[str, ...], kinds: list[str], channels: tuple[str, ...], template: str | None,
-                  holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
-                  out: Path | None, as_json: bool, accept_poor: bool) -> None:
-    """compare-models --from-drop-tests: every family fitted to the same tests, ranked by the one criterion."""
-    from droptower.cli.identify_drops_cmd import prepare
-    from droptower.identify.criterion import RULE
-    from droptower.identify.dropfit import identify_drops
-    from droptower.identify.report import drop_ranking_table
-    from droptower.io.tables import write_table
-
-    decays, excluded, settings, options, _ = prepare(data, None, channels, InitFile(), template, holdout_fraction, rig,
-                                                     inertia_kgm2, lever_length_m)
-    if "template" in kinds and "template" not in options:
-        raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
-    results, failures = {}, []
-    for kind in kinds:
-        progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ...")
-        opts = {"template": options["template"]} if kind == "template" else {}
-        try:
-            results[kind] = identify_drops(kind, decays, excluded=excluded, settings=settings, options=opts)
-        except DroptowerError as exc:
-            failures.append(f"{kind}: {cli_message(exc)}")
-            continue
-        if not results[kind].converged:
-            failures.append(f"{kind}: the fit did not converge")
-    if not results:
-        raise DroptowerError(f"no model family could be fitted to these drop tests ({'; '.join(failures)})")
-    ranking = drop_ranking_table(results)
-    if out is not None:
-        write_table(ranking.rename_axis("rank").reset_index(), out, "--out")
-    if as_json:
-        click.echo(json.dumps({"ranking_rule": RULE, "ranking": json.loads(ranking.to_json(orient="records"))},
-                              indent=1))
-    else:
-        click.echo(f"ranking ({RULE}; angle nRMSE: RMS angle error in % of each test's peak, RMS over tests):")
-        click.echo(ranking.to_string(float_format=lambda v: f"{v:.4g}"))
-    if failures:
-        for line in failures:
-            click.echo(f"droptower: failed: {line}", err=True)
-        raise click.exceptions.Exit(2)
-    _exit_if_best_is_poor(ranking, accept_poor)
+        if code == EXIT_POOR_FIT:
+            click.echo(f"droptower: the best-ranked family {result.best} is a poor fit: no family describes these data "
+                       f"to within the noise (--accept-poor: exit 0; exit code {EXIT_POOR_FIT})", err=True)
+        else:
+            click.echo(f"droptower: no family converged (within {budget_s:g} s each); exit code {code}", err=True)
+        raise click.exceptions.Exit(code)

@@ -21,6 +21,7 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from droptower.errors import DroptowerError
+from droptower.identify.budget import check as check_budget
 from droptower.identify.data import Segment
 from droptower.rheology import Coupling
 
@@ -119,6 +120,7 @@ def simulate_rows(model: Model, values: np.ndarray, segments: list[Segment], whi
             if substeps > 1:  # the same piecewise-linear angle, integrated on a finer step
                 fine = np.arange(1, n_max * substeps + 1) / substeps - 1.0
                 angles = np.array([np.interp(fine, np.arange(n_max), row, left=0.0) for row in angles])
+            check_budget()  # a fit stops within one core call of its time budget (.budget)
             batch = Coupling(coupling.elements, name=coupling.name, params=params[group])
             torque = batch.simulate(angles, dt / substeps).torque_nm[:, substeps - 1::substeps]
             for i, r in enumerate(group):

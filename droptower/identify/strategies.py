@@ -82,7 +82,7 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     # a start that the contained family's global search gave already: searching through it again repeats it
     searched_start = first is not None and "global_search" in first.extra
     if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
-        searched = global_search(s, segments, start, seed)
+        searched = global_search(s, segments, start, seed, staged=np.array(list(result.parameters.values())))
         searched.verdict = servo_verdict(searched, noise, s.family.parameters)
         searched.extra["staged_fit"] = {"nrmse": result.fit.nrmse, "verdict": result.verdict.verdict}
         if searched.fit.rmse_nm < result.fit.rmse_nm:
@@ -107,10 +107,13 @@ def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Pa
                  converged=result.converged)
 
 
-def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0) -> Identification:
+def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0,
+                  staged: np.ndarray | None = None) -> Identification:
     """Latin-hypercube candidates over the whole bounds (every batch in one core call), then the
     joint least squares from the best three distinct ones (:func:`~droptower.identify.search.global_fit`);
-    for the families of :data:`SEARCH_THROUGH`, :func:`search_through`."""
+    for the families of :data:`SEARCH_THROUGH`, :func:`search_through`. ``staged``: the staged
+    strategy's result, one more candidate (with its branches' roles swapped, another): it
+    competes with the others on cost instead of fixing which branch plays which role."""
     fam = s.family
     if fam.kind in SEARCH_THROUGH:
         return search_through(s, segments, start, seed)
@@ -132,7 +135,8 @@ def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0
 
     n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
     best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
-                               cost_of=lambda f: f.metrics.rmse_nm, near=n // 4)
+                               cost_of=lambda f: f.metrics.rmse_nm, near=n // 4,
+                               starts=None if staged is None else staged[None, :])
     return result_of(s, segments, best.values.copy(), [best], start,
                      extra={"global_search": summary, "search_evaluations": n})
 

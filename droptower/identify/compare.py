@@ -1,0 +1,227 @@
+"""Fit several model families to the same data and rank them: ``compare-models`` as a library call.
+
+:func:`compare_models` fits every family (servo records: :func:`~droptower.identify.strategies.identify`,
+the later families seeing the earlier results, so ``zerodim20`` starts from ``zerodim6``;
+drop-test decays: :func:`~droptower.identify.dropfit.identify_drops` on the same fitting tests),
+each within its own wall-time budget (:mod:`.budget`), and ranks them by one criterion
+(:data:`~droptower.identify.criterion.RULE`). The table is always complete:
+
+- a family whose data requirement the records do not meet (``overlay`` without steady sine
+  blocks at several amplitudes and frequencies) is skipped with the reason (not a row);
+- a family that does not converge (its optimiser's evaluation limit, or its time budget) is a
+  row with ``status`` "not converged" (and the reason), ranked after every converged family;
+- the others are ranked best first.
+
+:meth:`Comparison.exit_code` is the command line's exit code: 0 when the best-ranked family
+converged with a good fit (or ``accept_poor``), :data:`~droptower.identify.verdict.EXIT_POOR_FIT`
+when it is a poor fit, :data:`EXIT_NONE_FITS` when no family converged.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+import pandas as pd
+
+from droptower.errors import DroptowerError
+from droptower.identify.budget import BudgetExceeded, time_budget
+from droptower.identify.criterion import RULE
+
+#: Default wall-time budget of each family's fit (s).
+DEFAULT_BUDGET_S = 60.0
+#: Exit code when no family converged (as for a fit that does not converge: nothing usable).
+EXIT_NONE_FITS = 2
+CONVERGED, NOT_CONVERGED = "converged", "not converged"
+
+
+@dataclass
+class Comparison:
+    """The result of :func:`compare_models`.
+
+    ranking: one row per fitted family, best first (columns ``model``, ``status``,
+    ``n_parameters``, the errors, ``bic``, ``delta_bic``, ``verdict``, ``fit_time_s``, ...);
+    records: servo records only, the per-record error table (the zero-dimensional model paper,
+    Fig. 8), else None; results: the identifications of the families that ended (converged or
+    not) by name; skipped: family -> why its data requirement is not met; not_converged:
+    family -> why it did not converge; budget_s: the budget (s) of each family's fit, or family
+    -> its budget, as given (None: unbounded); drops: fitted to
+    drop-test decays.
+    """
+
+    ranking: pd.DataFrame
+    records: pd.DataFrame | None
+    results: dict[str, Any]
+    skipped: dict[str, str] = field(default_factory=dict)
+    not_converged: dict[str, str] = field(default_factory=dict)
+    budget_s: float | dict[str, float | None] | None = DEFAULT_BUDGET_S
+    drops: bool = False
+    rule: str = RULE
+
+    @property
+    def best(self) -> str | None:
+        """The best-ranked family that converged (None: none did)."""
+        ok = self.ranking[self.ranking["status"] == CONVERGED]
+        return None if ok.empty else str(ok["model"].iloc[0])
+
+    def exit_code(self, accept_poor: bool = False) -> int:
+        """0: the best family converged with a good fit (or ``accept_poor``); 3: it is a poor fit;
+        2: no family converged."""
+        from droptower.identify.verdict import EXIT_POOR_FIT, POOR
+
+        if self.best is None:
+            return EXIT_NONE_FITS
+        verdict = self.ranking.loc[self.ranking["model"] == self.best, "verdict"].iloc[0]
+        return EXIT_POOR_FIT if verdict == POOR and not accept_poor else 0
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: the rule, the ranking (and per-record table) as lists of rows, the skipped
+        and non-converged families with their reasons, the budget."""
+        import json
+
+        out = {"ranking_rule": self.rule, "ranking": json.loads(self.ranking.to_json(orient="records")),
+               "skipped": dict(self.skipped), "not_converged": dict(self.not_converged), "budget_s": self.budget_s}
+        if self.records is not None:
+            out["records"] = json.loads(self.records.to_json(orient="records"))
+        return out
+
+
+def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
+                   budget_s: float | dict[str, float | None] | None = DEFAULT_BUDGET_S, excluded: list[dict[str, str]] | None = None,
+                   settings: Any = None, options: dict[str, dict[str, Any]] | None = None,
+                   on_family: Callable[[str], None] | None = None,
+                   on_skip: Callable[[str, str], None] | None = None) -> Comparison:
+    """Fit every family of ``kinds`` to ``data`` and rank them (see the module docstring).
+
+    Parameters
+    ----------
+    data
+        Servo records (:class:`~droptower.identify.data.Segment`) or drop-test decays
+        (:class:`~droptower.identify.droplogs.DropDecay`), not mixed.
+    kinds
+        Family names, in the order they are fitted.
+    holdout
+        Servo records kept out of every fit (their error is reported, the ranking stays on the
+        fitting data).
+    budget_s
+        Wall-time budget of each family's fit in s (None: unbounded), or family -> its budget
+        (a family not named gets :data:`DEFAULT_BUDGET_S`). A family over its budget is listed
+        "not converged" and ranked last.
+    excluded, settings
+        Drop tests: the tests left out when reading (reported) and the fit settings
+        (:class:`~droptower.identify.dropfit.DropFitSettings`).
+    options
+        Family -> its options (e.g. ``{"template": {"template": "rapp2022_nr60"}}``).
+    on_family, on_skip
+        Called with a family's name before its fit; with its name and the reason when skipped.
+
+    Returns
+    -------
+    Comparison
+        The ranking and what was skipped or did not converge.
+
+    Raises
+    ------
+    DroptowerError
+        No data, no family, or data that suit no family.
+    """
+    from droptower.identify.droplogs import DropDecay
+
+    if not data:
+        raise DroptowerError("compare_models: no data")
+    if not kinds:
+        raise DroptowerError("compare_models: no model family given")
+    drops = isinstance(data[0], DropDecay)
+    if any(isinstance(d, DropDecay) != drops for d in data):
+        raise DroptowerError("compare_models: servo records and drop-test decays cannot be ranked together")
+    options = options or {}
+    results: dict[str, Any] = {}
+    skipped: dict[str, str] = {}
+    over: dict[str, tuple[str, float]] = {}  # family -> (reason, seconds spent)
+    for kind in kinds:
+        if on_family is not None:
+            on_family(kind)
+        start = time.perf_counter()
+        try:
+            with time_budget(budget_s.get(kind, DEFAULT_BUDGET_S) if isinstance(budget_s, dict) else budget_s):
+                results[kind] = _fit(kind, data, drops, holdout, results, excluded, settings, options.get(kind))
+        except BudgetExceeded as exc:
+            over[kind] = (str(exc), time.perf_counter() - start)
+            continue
+        except DroptowerError as exc:  # the data do not suit the family (its data requirement)
+            skipped[kind] = exc.message
+            if on_skip is not None:
+                on_skip(kind, exc.message)
+            continue
+        if not drops:
+            results[kind].time_s = time.perf_counter() - start
+    if not results and not over:
+        raise DroptowerError(f"no model family could be fitted to these "
+                             f"{'drop tests' if drops else 'records'} ({'; '.join(f'{k}: {v}' for k, v in skipped.items())})")
+    ranking, records = _tables(results, data, holdout, drops)
+    not_converged = {k: "the optimiser did not converge (its evaluation limit)"
+                     for k, r in results.items() if not r.converged}
+    rows = []
+    for kind, (reason, seconds) in over.items():
+        not_converged[kind] = reason
+        rows.append({"model": kind, "n_parameters": _n_parameters(kind, data, drops, options.get(kind)),
+                     "bic": math.nan, "verdict": NOT_CONVERGED, "fit_time_s": seconds, "converged": False})
+    ranking = _complete(ranking, rows, not_converged)
+    return Comparison(ranking, records, results, skipped, not_converged, budget_s, drops)
+
+
+def _fit(kind: str, data: list, drops: bool, holdout: list | None, results: dict[str, Any],
+         excluded: list[dict[str, str]] | None, settings: Any, options: dict[str, Any] | None) -> Any:
+    if drops:
+        from droptower.identify.dropfit import DropFitSettings, identify_drops
+
+        return identify_drops(kind, data, excluded=excluded, settings=settings or DropFitSettings(), options=options)
+    from droptower.identify.strategies import identify
+
+    return identify(kind, data, holdout=holdout, previous=results, options=options)
+
+
+def _tables(results: dict[str, Any], data: list, holdout: list | None,
+            drops: bool) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    from droptower.identify.report import drop_ranking_table, ranking_table, record_table
+
+    if not results:
+        return pd.DataFrame(), (None if drops else pd.DataFrame())
+    if drops:
+        return drop_ranking_table(results), None
+    return ranking_table(results, data), record_table(results, data + (holdout or []))
+
+
+def _n_parameters(kind: str, data: list, drops: bool, options: dict[str, Any] | None) -> int:
+    """The family's number of parameters (for the row of a family that ran out of time)."""
+    from droptower.identify.data import DataScale
+    from droptower.identify.families import family_class
+
+    if drops:
+        from droptower.identify.dropfit import drop_scale
+
+        scale = drop_scale(data)
+    else:
+        scale = DataScale.of(data)
+    try:
+        return len(family_class(kind)(scale, options).parameters)
+    except DroptowerError:
+        return 0
+
+
+def _complete(ranking: pd.DataFrame, rows: list[dict[str, Any]], not_converged: dict[str, str]) -> pd.DataFrame:
+    """The ranking with a ``status`` column (after ``model``) and the families that ran out of
+    time appended (ranked last, their scores NaN), numbered from 1."""
+    table = pd.concat([ranking, pd.DataFrame(rows)], ignore_index=True) if rows else ranking.reset_index(drop=True)
+    if "delta_bic" in table.columns:
+        table["delta_bic"] = table["delta_bic"].astype(float)
+    for key in ("noise_floor_nm", "noise_allowance_rad", "n_eff"):
+        if key in table.columns and rows:
+            table[key] = table[key].ffill()
+    status = [CONVERGED if bool(c) else NOT_CONVERGED for c in table["converged"]]
+    table.insert(1, "status", status)
+    table["note"] = [not_converged.get(m, "") for m in table["model"]]
+    table.index = np.arange(1, len(table) + 1)
+    return table

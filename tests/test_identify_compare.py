@@ -1,0 +1,82 @@
+"""compare_models as a library call: every family within its time budget, the table always
+complete, a family out of time listed "not converged" and ranked last, the exit code."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from droptower.cli.main import main
+from droptower.identify import compare_models
+from droptower.identify.budget import BudgetExceeded, check, remaining_s, time_budget
+from droptower.identify.compare import EXIT_NONE_FITS, NOT_CONVERGED
+from droptower.identify.verdict import EXIT_POOR_FIT
+from droptower.rheology import parse_coupling
+from random_couplings import random_truth, servo_records
+
+
+def test_budget_runs_out_nests_and_is_absent_outside():
+    check()  # no budget: never raises
+    assert remaining_s() == float("inf")
+    with time_budget(0.05):
+        check()
+        with time_budget(10.0):  # an inner budget never outlasts the outer one
+            assert remaining_s() <= 0.05
+        time.sleep(0.06)
+        with pytest.raises(BudgetExceeded, match="0.05 s"):
+            check()
+    check()
+    with time_budget(None):
+        check()
+    with pytest.raises(ValueError):
+        with time_budget(0.0):
+            pass
+
+
+@pytest.fixture(scope="module")
+def records():
+    """Short servo records (0.5 % noise, seeded) of a random pfeffer coupling."""
+    return servo_records(parse_coupling(random_truth("pfeffer", np.random.default_rng(27))), 27)
+
+
+def test_a_family_out_of_its_budget_is_listed_not_converged_and_ranked_last(records):
+    """zerodim6 gets a budget it cannot meet, pfeffer none: the table holds both, zerodim6
+    "not converged" with the reason and last, pfeffer first; the exit code is that of the
+    best converged family (0: its truth is a good fit)."""
+    result = compare_models(records, ["zerodim6", "pfeffer"], budget_s={"zerodim6": 1e-3, "pfeffer": None})
+    table = result.ranking
+    assert table["model"].tolist() == ["pfeffer", "zerodim6"] and table.index.tolist() == [1, 2]
+    row = table.iloc[-1]
+    assert row["status"] == NOT_CONVERGED and row["verdict"] == NOT_CONVERGED and np.isnan(row["bic"])
+    assert "time budget of 0.001 s" in row["note"] and row["n_parameters"] == 6
+    assert table.iloc[0]["status"] == "converged" and table.iloc[0]["verdict"] == "good fit"
+    assert result.best == "pfeffer" and result.exit_code() == 0
+    assert set(result.not_converged) == {"zerodim6"} and set(result.results) == {"pfeffer"}
+    doc = result.as_dict()
+    assert [r["model"] for r in doc["ranking"]] == ["pfeffer", "zerodim6"] and "records" in doc
+
+
+def test_no_family_within_its_budget_exits_2_with_a_full_table(records, tmp_path, capsys):
+    from droptower.io import write_log
+
+    paths = []
+    for seg in records:
+        paths.append(tmp_path / f"{seg.name}.csv")
+        write_log(paths[-1], np.arange(seg.n) * seg.dt_s, {"angle_rad": seg.angle_rad, "torque_nm": seg.torque_nm}, {})
+    result = compare_models(records, ["pfeffer", "zerodim6"], budget_s=1e-3)
+    assert result.ranking["status"].tolist() == [NOT_CONVERGED] * 2 and result.best is None
+    assert result.exit_code() == EXIT_NONE_FITS
+    code = main(["compare-models", *map(str, paths), "--models", "pfeffer,zerodim6", "--budget-s", "0.001"])
+    captured = capsys.readouterr()
+    assert code == EXIT_NONE_FITS
+    assert "pfeffer" in captured.out and "zerodim6" in captured.out and "not converged" in captured.out
+    assert "no family converged" in captured.err
+    code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--budget-s", "-1"])
+    assert code == 2 and "--budget-s" in capsys.readouterr().err
+
+
+def test_the_exit_code_follows_the_best_converged_family(records):
+    result = compare_models(records, ["pfeffer"], budget_s=None)
+    result.ranking.loc[1, "verdict"] = "poor fit"
+    assert result.exit_code() == EXIT_POOR_FIT and result.exit_code(accept_poor=True) == 0

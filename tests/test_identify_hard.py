@@ -1,0 +1,195 @@
+"""The global search finds its family's own optimum on hard couplings, and the verdict is right
+both ways: role-swapped branches, gains sampled where they act, staged starts that compete;
+a fit at the truth never "poor" (its allowance holds what the re-simulation can reach at the
+logs' step), a clearly-off fit always."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from droptower.identify.data import DataScale
+from droptower.identify.dropfit import DropFitSettings, DropProblem, drop_scale, drop_verdict, identify_drops, \
+    servo_agreement
+from droptower.identify.droplogs import ReadSettings, read_decays
+from droptower.identify.families import ElastoslideFamily, MasingFamily, ZeroDim6, family_class
+from droptower.identify.fit import Parameter, fit_rows
+from droptower.identify.search import ACTS_FROM, ZERO_SHARE, candidates, global_fit, role_swaps, swap_roles
+from droptower.rheology import parse_coupling
+from droptower.rig.config import load_rig
+from droptower.rig.simulate import DropTest, simulate
+from random_couplings import HARD_FAMILIES, hard_truth, truth_vector
+
+SCALE = DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0)
+RIG = load_rig("rapp2022")
+#: the issue's plan: three levers, heights 0.1-3 m
+CASES = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+HEIGHTS = (0.1, 0.4, 1.0, 3.0)
+
+
+def _decays(truth: dict, folder):
+    tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * a + b) for a, (j, m) in enumerate(CASES) for b, h in enumerate(HEIGHTS)]
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [r.write_log(folder / f"t{i}.parquet") for i, r in enumerate(simulate(RIG, parse_coupling(truth), tests, 0.25))]
+    decays, excluded = read_decays(paths, ReadSettings())  # a double impact may exclude a test
+    assert len(decays) >= 10
+    return decays
+
+
+# ---------------------------------------------------------------------------- the search's rules
+def test_fixed_and_variable_maxwell_branches_swap_roles_only_where_their_bounds_agree():
+    names = [p.name for p in ZeroDim6(SCALE).parameters]
+    (swap,) = role_swaps(ZeroDim6(SCALE).parameters)
+    assert sorted((names[i], names[j]) for i, j in swap) == [("k2_nm_per_rad", "k3_nm_per_rad"), ("tau2_s", "tau3_s")]
+    # the user confined the branches to their sides of tau_split_s: no swap
+    assert role_swaps(ZeroDim6(SCALE, {"tau_split_s": 0.1}).parameters) == []
+    # exchangeable branches are ordered, not swapped; single branches have nothing to swap with
+    assert role_swaps(MasingFamily(SCALE).parameters) == []
+    assert role_swaps(ElastoslideFamily(SCALE, {"maxwell_terms": 1}).parameters) == []
+    row = np.arange(6.0)
+    assert np.allclose(swap_roles(row, swap), [0, 3, 5, 1, 4, 2])  # the gain (index 4) stays
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_gains_are_sampled_where_they_act_and_the_swapped_guess_is_a_candidate(seed):
+    fam = ZeroDim6(SCALE)
+    params, x0 = fam.parameters, fam.initial()
+    free = np.ones(6, bool)
+    rows = candidates(params, x0, free, 801, seed=seed, near=200)
+    gain = params[4]
+    z = rows[201:, 4] / gain.scale  # the hypercube's part
+    # 0 is pulled inside the bounds by 1e-6 of the range (trust-region-reflective starts inside)
+    off = z <= 1e-6 * gain.upper / gain.scale * (1 + 1e-9)
+    assert np.mean(off) == pytest.approx(ZERO_SHARE, abs=0.01)
+    logs = np.log10(z[~off])
+    lo, hi = math.log10(ACTS_FROM), math.log10(gain.upper / gain.scale)
+    assert logs.min() >= lo - 1e-9 and logs.max() <= hi + 1e-9
+    counts = np.histogram(logs, bins=int(round(hi - lo)), range=(lo, hi))[0]
+    assert counts.min() > 0.7 * counts.mean()  # every decade alike
+    (swap,) = role_swaps(params)
+    assert any(np.allclose(r, swap_roles(x0, swap)) for r in rows[1:201])  # the guess with its roles swapped
+    near = rows[1:201]
+    assert 0.3 < np.mean(near[:, 2] > near[:, 5]) < 0.7  # the neighbourhood: both role assignments
+
+
+def _relaxation_problem(rng):
+    """A spring and two Maxwell branches, the variable one (stiffness k3 + gain a) relaxing slowly
+    and the fixed one fast, seen as relaxation moduli at three amplitudes a: the closed form
+    G(t, a) = k1 + k2 exp(-t / tau2) + (k3 + gain a) exp(-t / tau3)."""
+    t = np.geomspace(1e-4, 1.0, 60)
+    amps = np.array([0.005, 0.01, 0.02])
+    tau_fast = math.exp(rng.uniform(math.log(1e-3), math.log(3e-3)))
+    truth = np.array([rng.uniform(5e3, 9e3), rng.uniform(2e3, 5e3), tau_fast, rng.uniform(2e3, 5e3),
+                      rng.uniform(5e4, 3e5), tau_fast * rng.uniform(5.0, 20.0)])
+
+    def model(rows):
+        rows = np.atleast_2d(rows)
+        k1, k2, t2, k3, g, t3 = (rows[:, [i]] for i in range(6))
+        return np.concatenate([k1 + k2 * np.exp(-t / t2) + (k3 + g * a) * np.exp(-t / t3) for a in amps], axis=1)
+
+    def residuals(rows):
+        return (model(rows) - model(truth)) / 1e3
+
+    params = [Parameter("k1_nm_per_rad", 1.0, 1e6), Parameter("k2_nm_per_rad", 1.0, 1e6), Parameter("tau2_s", 1e-6, 1e4),
+              Parameter("k3_nm_per_rad", 1.0, 1e6), Parameter("k3_gain_nm_per_rad2", 0.0, 1e3 * 5e5, log=False, scale=5e5),
+              Parameter("tau3_s", 1e-6, 1e4)]
+    return params, truth, residuals
+
+
+@pytest.mark.slow
+@given(seed=st.integers(0, 2 ** 16))
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+def test_a_local_fit_from_the_guessed_roles_misses_the_role_swapped_truth_the_search_finds_it(seed):
+    """The guess has the fixed branch slow and the variable one fast (as zerodim6's does); the
+    truth the other way round. The search (near the guess only, no hypercube) recovers the
+    truth's parameters through the role-swapped starts and the winner's swapped fit."""
+    rng = np.random.default_rng(seed)
+    params, truth, residuals = _relaxation_problem(rng)
+    x0 = np.array([7e3, 3e3, 0.05, 3e3, 0.0, 2e-3])  # roles as zerodim6 guesses them: tau2 slow, tau3 fast
+    free = np.ones(6, bool)
+    best, summary = global_fit(params, x0, residuals, free=free, n_candidates=17, near=16, seed=seed, max_nfev=400,
+                               tol=1e-10)
+    assert np.allclose(best.values[[0, 1, 3]], truth[[0, 1, 3]], rtol=1e-4)
+    assert np.allclose(best.values[[2, 4, 5]], truth[[2, 4, 5]], rtol=1e-4)
+    assert len(summary["role_swapped_costs"]) == 1
+
+
+def test_a_staged_start_that_locked_a_branch_out_competes_with_its_swapped_copy():
+    """A staged result with the roles wrong (gain 0 on the fast branch) given as a start: its
+    swapped copy is a candidate too, and the search ends at the truth (no hypercube)."""
+    params, truth, residuals = _relaxation_problem(np.random.default_rng(3))
+    locked = truth.copy()
+    locked[[1, 2, 3, 5]] = truth[[3, 5, 1, 2]]
+    locked[4] = 0.0
+    free = np.ones(6, bool)
+    alone = fit_rows(params, locked, residuals, free=free, max_nfev=400, tol=1e-10)
+    assert float(alone.residual @ alone.residual) > 1.0  # a local fit from it stays locked out
+    best, _ = global_fit(params, np.array([7e3, 3e3, 1e-3, 3e3, 0.0, 1e-3]), residuals, free=free, n_candidates=1,
+                         starts=locked[None], max_nfev=400, tol=1e-10, swap_winner=False)
+    assert np.allclose(best.values, truth, rtol=1e-4)
+
+
+# ---------------------------------------------------------------------------- the verdict at the truth
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", HARD_FAMILIES)
+def test_the_verdict_never_calls_the_truth_poor_and_always_calls_a_clearly_off_fit_poor(kind, tmp_path):
+    """Hard draws (seeded) of each family on a 12-test campaign: the truth's own parameters are
+    a good fit (the allowance holds the noise, the re-simulation's accuracy and the model's
+    integration error at the logs' step), and the truth with its stiffness 3 % off or its
+    relaxation / slip rate 10x off is a poor fit."""
+    rng = np.random.default_rng(2700 + HARD_FAMILIES.index(kind))
+    for i in range(2):
+        data = hard_truth(kind, rng)
+        decays = _decays(data, tmp_path / str(i))
+        fam = family_class(kind)(drop_scale(decays))
+        problem = DropProblem(fam, decays, DropFitSettings())
+        x = truth_vector(kind, data)
+        verdict = drop_verdict(problem, x, [], True)[0]
+        assert verdict.verdict == "good fit" and verdict.error_over_noise < 1.0, (data, verdict.text())
+        stiff = {"zerodim6": [0, 1, 3], "elastoslide": [1, 2], "masing": [1, 2, 5, 7]}[kind]
+        off = x.copy()
+        off[stiff] *= 1.03
+        assert drop_verdict(problem, off, [], True)[0].poor
+        rate = {"zerodim6": [2, 5], "elastoslide": [3], "masing": [6, 8]}[kind]
+        off = x.copy()
+        off[rate] *= 10.0
+        assert drop_verdict(problem, off, [], True)[0].poor
+
+
+# ---------------------------------------------------------------------------- the issue's couplings
+@pytest.mark.slow
+def test_the_issues_six_parameter_coupling_is_found(tmp_path):
+    """Spring 7000 N*m/rad, Maxwell 4000 N*m/rad with tau 2 ms, variable Maxwell 3000 N*m/rad with
+    gain 5e4 N*m/rad^2 and tau 20 ms, 12 drops over three levers at 0.1-3 m: the fit used to end
+    at 42 x the allowance with the gain on the wrong branch; now at the truth (K' within 1 %,
+    loss factor within 3 %), a good fit, without the escalated search."""
+    truth = {"element": [{"kind": "spring", "stiffness": 7000.0},
+                         {"kind": "maxwell", "stiffness": 4000.0, "damping": 4000.0 * 0.002},
+                         {"kind": "variable_maxwell", "stiffness": 3000.0, "stiffness_gain": 5e4,
+                          "damping": 3000.0 * 0.02}]}
+    decays = _decays(truth, tmp_path)
+    result = identify_drops("zerodim6", decays)
+    agree = servo_agreement(result.coupling(), parse_coupling(truth), decays)
+    assert agree["storage_stiffness_rms"] <= 0.01 and agree["loss_factor_rms"] <= 0.03
+    assert result.verdict.verdict == "good fit" and "escalated" not in result.search
+    p = result.parameters
+    assert p["tau2_s"] == pytest.approx(0.002, rel=0.05) and p["tau3_s"] == pytest.approx(0.02, rel=0.05)
+    assert p["k3_gain_nm_per_rad2"] == pytest.approx(5e4, rel=0.1)
+
+
+@pytest.mark.slow
+def test_the_issues_elastoslide_is_not_called_poor(tmp_path):
+    """The elastoslide of p = 7, v_r = 0.11 rad/s, phi0 = 0.0105 (its stiffnesses drawn in the
+    random range, seeded): identified within K' 1 % / loss factor 3 % and a good fit."""
+    rng = np.random.default_rng(27)
+    k = float(np.exp(rng.uniform(np.log(6e3), np.log(3e4))))
+    truth = {"element": [{"kind": "elastoslide", "phi0": 0.0105, "k": k, "k0": k * rng.uniform(0.1, 0.5), "v_r": 0.11,
+                          "p": 7, "n": 32}]}
+    decays = _decays(truth, tmp_path)
+    result = identify_drops("elastoslide", decays)
+    agree = servo_agreement(result.coupling(), parse_coupling(truth), decays)
+    assert agree["storage_stiffness_rms"] <= 0.01 and agree["loss_factor_rms"] <= 0.03
+    assert result.verdict.verdict == "good fit", result.verdict.text()
