@@ -29,9 +29,9 @@ from droptower.validation import StrictModel, validate
 
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
-MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay")
+MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
 #: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_KINDS)
-DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer")
+DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
 
 
 class InitFile(StrictModel):
