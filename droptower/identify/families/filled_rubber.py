@@ -35,7 +35,7 @@ from droptower.rheology.elements import FillerNetwork, PowerLaw
 #: (PowerLaw rounds the terms per decade times the decades up).
 _TERMS_MARGIN = 1e-9
 #: Starts of the first guess's fit to the harmonic readings (a Latin hypercube over the bounds).
-GUESS_STARTS = 24
+GUESS_STARTS = 12
 
 
 class FilledRubberFamily(Family):
