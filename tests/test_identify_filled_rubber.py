@@ -185,3 +185,29 @@ def test_design_for_identification_of_filled_rubber(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["tests"] == 8 and doc["model"] == "filled_rubber"
     assert set(doc["predicted_std_errors"]) == set(FilledRubberFamily(SCALE).names)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0])
+def test_drop_tests_of_a_random_filled_rubber_coupling_predict_its_bench(seed, tmp_path):
+    """A seeded random coupling of the family's structure (its own band discretisation, numbers
+    no preset has), nine noisy rig logs over the three inertias: the identified coupling's bench
+    K' within 3 % and loss factor within 10 % RMS over the tested range."""
+    from droptower.identify.dropfit import DropFitSettings, identify_drops, servo_agreement
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+
+    truth = parse_coupling(random_truth("filled_rubber", np.random.default_rng(31_000 + seed)))
+    tests = [DropTest(j, m, h, 0.0, 0, 2000 + 10 * i + k) for i, (j, m) in enumerate([(0.1557, 1.0), (0.359, 2.0),
+                                                                                      (0.5233, 2.0)])
+             for k, h in enumerate((0.2, 1.0, 3.0))]
+    paths = [r.write_log(tmp_path / f"test_{k}.parquet")
+             for k, r in enumerate(rig_simulate(load_rig("rapp2022"), truth, tests, 0.25))]
+    decays, excluded = read_decays(paths, ReadSettings())
+    assert not excluded
+    result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0))
+    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10, agree
+    assert not result.verdict.poor
