@@ -254,7 +254,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
 
     \b
     With --from-drop-tests, DATA are drop-test logs or campaign folders: every family
-    (elastoslide, zerodim6, masing, pfeffer; template with --template) is fitted to the same
+    (elastoslide, zerodim6, masing, pfeffer, filled_rubber; template with --template) is fitted to the same
     fitting tests' free decays and ranked by the same criterion on the angle error (sigma:
     the logs' pre-trigger noise with the re-simulation's accuracy).
 
