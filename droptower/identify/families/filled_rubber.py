@@ -50,7 +50,7 @@ class FilledRubberFamily(Family):
     title = "filled elastomer: spring (cubic) + filler network (Payne/Mullins) + power-law branch"
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
-    OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 8}
+    OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12}
 
     def _parameters(self) -> list[Parameter]:
         s = self.scale
