@@ -56,6 +56,21 @@ Hard draws (``--random --hard [--n N] [--compare C] [--families a,b]``; N = 30 p
 Item 5 also identifies the 450 Table-2 tests with masing, elastoslide and zerodim6 (target
 <= 60 s each; baseline: the campaign itself).
 
+A generic filled-elastomer family (``--filled-rubber [--campaign DIR]``; docs/theory.md#filled-rubber):
+
+10. the Table-2 campaign of ``rapp2022_nr60`` (450 tests, run here or read from ``--campaign``)
+   identified with ``--model filled_rubber``: the fitted coupling's K' and loss factor on
+   validate's bench points (the docs/theory.md#servo sweeps) inside the hull of the tests,
+   against the coupling's own (targets: K' <= 3 %, loss factor <= 7 % RMS, <= 60 s wall on two
+   cores), the paper's map (eq. 19/20) on the same points beside it, and the ``template`` fit
+   (the preset's own structure) as the baseline measured in the same run;
+11. couplings of other structures (12-drop campaigns, rig ``rapp2022``, as item 4), seeded
+   draws of :func:`random_couplings.other_structure`: a friction bank (Masing) with a fractional
+   branch over several decades, the ``rapp2022_nr60_payne`` preset's structure with random
+   factors, a six-parameter form with a friction bank; K' and loss factor against the truth on
+   the 4 x 3 servo grid inside the tested range (targets: <= 5 % and <= 10 % RMS), and the
+   seeds' presets (the same, or an honest "poor fit"); baseline: the rig simulating the tests.
+
 Randomised acceptance (``--random [--n N] [--families a,b]``; N = 30 per family by default):
 
 7. per family (zerodim6, elastoslide, masing, pfeffer, and the reference coupling
@@ -74,6 +89,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -465,6 +481,118 @@ def hard_summary(kind: str, rows: list[dict]) -> dict:
     return fig
 
 
+# ---------------------------------------------------------------------------- filled_rubber (items 10-11)
+def bench_point_agreement(fitted, truth_points, hull) -> dict[str, float]:
+    """RMS relative deviation (%) of ``fitted``'s bench K' and loss factor from the truth's servo
+    points (:class:`~droptower.compare.servo_points.ServoPoints`) at the distinct points inside the
+    tests' hull (``hull``: a :class:`~droptower.maps.MapFit`)."""
+    from droptower.compare.servo_points import run_sweeps
+
+    ref = truth_points.table.drop_duplicates(["amplitude_deg", "frequency_hz"])
+    fit = run_sweeps(fitted).table.drop_duplicates(["amplitude_deg", "frequency_hz"])
+    both = ref.merge(fit, on=["amplitude_deg", "frequency_hz"], suffixes=("_ref", "_fit"))
+    inside = both[hull.in_range(both["amplitude_deg"], both["frequency_hz"])]
+    dk = inside["servo_stiffness_nm_per_deg_fit"] / inside["servo_stiffness_nm_per_deg_ref"] - 1
+    de = inside["servo_loss_factor_fit"] / inside["servo_loss_factor_ref"] - 1
+    return {"points": int(len(inside)), "storage_stiffness_rms_pct": float(100 * np.sqrt(np.mean(dk ** 2))),
+            "loss_factor_rms_pct": float(100 * np.sqrt(np.mean(de ** 2)))}
+
+
+def filled_rubber_table2(campaign: str | None) -> dict[str, dict[str, float]]:
+    """Item 10: the Table-2 campaign identified with filled_rubber (and template, the baseline),
+    predicted at validate's bench points inside the hull; the paper's map beside them."""
+    import tempfile
+
+    from droptower.campaign import run_campaign
+    from droptower.compare.servo_points import run_sweeps
+    from droptower.compare.validation import validate_map
+    from droptower.identify.dropfit import identify_drops
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.maps import fit_map
+
+    with tempfile.TemporaryDirectory() as tmp:
+        if campaign is None:
+            campaign = f"{tmp}/table2"
+            run_campaign(out=campaign, workers=1, progress=False)
+        truth = load_coupling("rapp2022_nr60")  # the campaign's coupling (run_campaign's default)
+        decays, excluded = read_decays([campaign], ReadSettings())
+        paper = fit_map(Path(campaign) / "results.parquet")
+    points = run_sweeps(truth)
+    inside = validate_map(paper, points).summary["inside"]
+    figures = {"paper_map": {"points": inside["n_points"], "storage_stiffness_rms_pct": inside["stiffness_rms_deviation_pct"],
+                             "loss_factor_rms_pct": inside["loss_factor_rms_deviation_pct"],
+                             "damping_ratio_rms_pct": inside["damping_rms_deviation_pct"]}}
+    print(f"Table 2 ({len(decays)} tests, {len(excluded)} excluded), validate's bench points inside the hull of the tests; "
+          f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the start")
+    print(f"  paper's map (eq. 19/20): {inside['n_points']} points, K' {inside['stiffness_rms_deviation_pct']:.2f} % RMS, "
+          f"loss factor {inside['loss_factor_rms_deviation_pct']:.2f} % RMS (d {inside['damping_rms_deviation_pct']:.2f} %)")
+    for kind, options in (("template", {"template": "rapp2022_nr60"}), ("filled_rubber", None)):
+        w0, c0 = time.perf_counter(), time.process_time()
+        result = identify_drops(kind, decays, excluded=excluded, options=options)
+        wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+        agree = bench_point_agreement(result.coupling(), points, paper)
+        figures[kind] = {**agree, "wall_s": wall, "cpu_s": cpu, "evaluations": result.evaluations,
+                         "verdict": result.verdict.verdict, "error_over_noise": result.verdict.error_over_noise}
+        print(f"  identify {kind}: K' {agree['storage_stiffness_rms_pct']:.2f} % RMS, loss factor "
+              f"{agree['loss_factor_rms_pct']:.2f} % RMS ({agree['points']} points); {result.verdict.verdict} "
+              f"({result.verdict.error_over_noise:.1f} x the noise); {wall:.1f} s wall / {cpu:.1f} s CPU, "
+              f"{result.evaluations} evaluations")
+    fr, base = figures["filled_rubber"], figures["template"]
+    met = fr["storage_stiffness_rms_pct"] <= 3 and fr["loss_factor_rms_pct"] <= 7 and fr["wall_s"] <= 60
+    print(f"  filled_rubber / template: wall {fr['wall_s'] / base['wall_s']:.2f}, CPU {fr['cpu_s'] / base['cpu_s']:.2f}; "
+          f"targets (K' <= 3 %, loss factor "
+          f"<= 7 %, <= 60 s): {'met' if met else 'MISSED'}")
+    return figures
+
+
+def filled_rubber_others(n: int) -> dict[str, list[dict[str, float]]]:
+    """Item 11: filled_rubber on 12-drop campaigns of couplings of other structures (``n`` seeded
+    draws each) and of the seeds' torsional presets."""
+    from random_couplings import OTHER_STRUCTURES
+
+    from droptower.identify.dropfit import identify_drops, servo_agreement
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+    import tempfile
+
+    rig = load_rig("rapp2022")
+    cases = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
+    heights = (0.1, 0.4, 1.0, 3.0)
+    tests = [DropTest(j, m, h, 0.0, 0, 500 + 10 * a + b) for a, (j, m) in enumerate(cases) for b, h in enumerate(heights)]
+    truths = [(f"{kind} #{i}", parse_coupling(random_truth(kind, np.random.default_rng(20_000 + 100 * k + i))))
+              for k, kind in enumerate(OTHER_STRUCTURES) for i in range(n)]
+    truths += [(name, load_coupling(name)) for name in ("seed000_six_parameter", "seed003_masing")]
+    out: dict[str, list[dict[str, float]]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, truth in truths:
+            t0 = time.perf_counter()
+            results = rig_simulate(rig, truth, tests, 0.25)
+            t_rig = time.perf_counter() - t0
+            paths = [r.write_log(Path(tmp) / f"{label.replace(' ', '_')}_{k}.parquet") for k, r in enumerate(results)]
+            decays, excluded = read_decays(paths, ReadSettings())
+            w0 = time.perf_counter()
+            result = identify_drops("filled_rubber", decays, excluded=excluded)
+            wall = time.perf_counter() - w0
+            agree = servo_agreement(result.coupling(), truth, decays)
+            ok = agree["storage_stiffness_rms"] <= 0.05 and agree["loss_factor_rms"] <= 0.10
+            row = {"storage_stiffness_rms_pct": 100 * agree["storage_stiffness_rms"],
+                   "loss_factor_rms_pct": 100 * agree["loss_factor_rms"], "wall_s": wall, "rig_s": t_rig,
+                   "verdict": result.verdict.verdict, "error_over_noise": result.verdict.error_over_noise, "met": ok}
+            out.setdefault(label.split(" #")[0], []).append(row)
+            honest = ok or result.verdict.poor
+            print(f"  {label}: K' {row['storage_stiffness_rms_pct']:.2f} %, loss factor {row['loss_factor_rms_pct']:.2f} % "
+                  f"RMS; {row['verdict']} ({row['error_over_noise']:.1f} x the noise); {wall:.1f} s (the rig's "
+                  f"{len(tests)} tests {t_rig:.1f} s -> ratio {wall / t_rig:.1f}); targets (5 % / 10 %) "
+                  f"{'met' if ok else 'MISSED' + (' (said: poor fit)' if honest else ' (NOT flagged)')}", flush=True)
+    for kind, rows in out.items():
+        print(f"  {kind}: {sum(r['met'] for r in rows)}/{len(rows)} within K' 5 % and loss factor 10 % RMS; worst K' "
+              f"{max(r['storage_stiffness_rms_pct'] for r in rows):.2f} %, loss factor "
+              f"{max(r['loss_factor_rms_pct'] for r in rows):.2f} %")
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="15 s of data instead of 60 s")
@@ -480,9 +608,19 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=30, help="random couplings per family (--random)")
     parser.add_argument("--families", default=None, help="families of --random (default: all of its kind)")
     parser.add_argument("--first", type=int, default=0, help="index of the first random coupling (--random)")
+    parser.add_argument("--filled-rubber", action="store_true", help="only the filled_rubber family (items 10-11)")
+    parser.add_argument("--campaign", default=None, help="--filled-rubber: an existing Table-2 campaign folder")
+    parser.add_argument("--skip-table2", action="store_true", help="--filled-rubber: only item 11 (other structures)")
+    parser.add_argument("--draws", type=int, default=3, help="--filled-rubber: seeded draws per other structure")
     json_option(parser)
     args = parser.parse_args()
     figures = {}
+    if args.filled_rubber:
+        if not args.skip_table2:
+            figures["filled_rubber_table2"] = filled_rubber_table2(args.campaign)
+        figures["filled_rubber_others"] = filled_rubber_others(args.draws)
+        write_figures(args.json, "bench_identify", figures)
+        return
     if args.zerodim20:
         write_figures(args.json, "bench_identify", {"zerodim20": zerodim20_fits()})
         return

@@ -8,6 +8,10 @@ import numpy as np
 
 #: The reference coupling whose structure the template family fits.
 REFERENCE = "rapp2022_nr60"
+#: The previous reference coupling (a payne element), whose structure ``random_truth("payne")`` draws.
+PAYNE = "rapp2022_nr60_payne"
+#: Structures other than the filled_rubber family's own (its acceptance on couplings it was not built from).
+OTHER_STRUCTURES = ("masing_fractional", "payne", "zerodim6_friction")
 #: Total stiffness range (N*m/rad) that puts the rig's inertias (0.156-0.523 kg*m^2) at 15-80 Hz.
 K_RANGE = (6e3, 3e4)
 
@@ -136,14 +140,47 @@ def _draw(kind: str, rng) -> dict:
         alpha = _log_uniform(rng, 0.1, 1.0)
         return {"name": "random_pfeffer", "element": [
             {"kind": "pfeffer", "k1": k / (1 + alpha), "alpha": alpha, "beta": rng.uniform(0.0, 0.3), "gamma": tau()}]}
-    if kind == "template":
+    if kind in ("template", "payne"):
         from droptower.identify.data import DataScale
         from droptower.identify.families import TemplateFamily
 
-        fam = TemplateFamily(DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0), {"template": REFERENCE})
+        reference = REFERENCE if kind == "template" else PAYNE
+        fam = TemplateFamily(DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0), {"template": reference})
         factors = np.exp(rng.uniform(np.log(0.6), np.log(1.6), len(fam.parameters)))
         c = fam.coupling(factors)
-        return {"name": "random_template", "element": [e.model_dump(exclude_none=True) for e in c.elements]}
+        return {"name": f"random_{kind}", "element": [e.model_dump(exclude_none=True) for e in c.elements]}
+    if kind == "filled_rubber":
+        # the filled_rubber family's structure with numbers from wide ranges (its own power-law
+        # discretisation: another reference frequency and term spacing than the family's)
+        k_eq, k_net = k * rng.uniform(0.2, 0.45), k * rng.uniform(0.3, 0.6)
+        crit = _log_uniform(rng, 0.002, 0.01)
+        f_min = _log_uniform(rng, 0.1, 3.0)
+        return {"name": "random_filled_rubber", "element": [
+            {"kind": "cubic_spring", "a": float(rng.choice([0.0, k * _log_uniform(rng, 10.0, 300.0)])), "b": k_eq},
+            {"kind": "filler_network", "stiffness": k_net, "critical_angle": crit, "exponent": rng.uniform(0.35, 0.7),
+             "breakdown_angle": crit * _log_uniform(rng, 2.0, 8.0), "n": 32},
+            {"kind": "power_law", "storage_stiffness": k * rng.uniform(0.02, 0.1), "loss_factor": rng.uniform(0.3, 2.0),
+             "reference_frequency": 30.0, "min_frequency": f_min, "max_frequency": f_min * 10 ** rng.uniform(3.0, 4.0),
+             "terms_per_decade": 1.5}]}
+    if kind == "masing_fractional":
+        # a friction bank (Masing) beside a fractional branch spread over three to five decades
+        n = 7
+        kp, kb = k * rng.uniform(0.2, 0.4), k * rng.uniform(0.05, 0.2)
+        f_min = _log_uniform(rng, 0.05, 3.0)
+        return {"name": "random_masing_fractional", "element": [
+            {"kind": "cubic_spring", "a": k * _log_uniform(rng, 10.0, 1000.0), "b": k * rng.uniform(0.3, 0.6)},
+            {"kind": "masing", "n": n, "stiffness": kp / n, "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n,
+             "alpha": rng.uniform(0.5, 3.0)},
+            {"kind": "power_law", "storage_stiffness": kb, "loss_factor": rng.uniform(0.1, 0.6),
+             "reference_frequency": 30.0, "min_frequency": f_min, "max_frequency": f_min * 10 ** rng.uniform(3.0, 5.0),
+             "terms_per_decade": 2.0}]}
+    if kind == "zerodim6_friction":
+        # the six-parameter form with a friction bank (Prandtl elements) beside it
+        six = _draw("zerodim6", rng)["element"]
+        kp, n = k * rng.uniform(0.1, 0.3), 5
+        six.append({"kind": "masing", "n": n, "stiffness": kp / n,
+                    "max_yield_torque": kp * _log_uniform(rng, 0.002, 0.01) / n, "alpha": rng.uniform(0.5, 3.0)})
+        return {"name": "random_zerodim6_friction", "element": six}
     raise ValueError(kind)
 
 

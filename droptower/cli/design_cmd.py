@@ -51,7 +51,7 @@ def _preloads(text: str) -> tuple[float, ...]:
 @click.option("--for-identification", "model", default=None,
               help="Instead of covering the target: the --max-tests drops (default 12) that identify this model "
                    "best (D-optimal; `template` = the coupling's own structure; or zerodim6, elastoslide, masing, "
-                   "pfeffer), with the parameters' predicted standard errors.")
+                   "pfeffer, filled_rubber), with the parameters' predicted standard errors.")
 @click.option("--preloads-nm", default="0", show_default=True, help="Preloads every condition is tested at (N*m), "
               "comma-separated, e.g. 0,500,1000.")
 @click.option("--repeats", type=click.IntRange(1, 1000), default=None,

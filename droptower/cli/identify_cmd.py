@@ -29,9 +29,9 @@ from droptower.cli.flags import cli_text
 
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
-MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay")
+MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
 #: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_KINDS)
-DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer")
+DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
 
 
 class InitFile(StrictModel):
@@ -264,7 +264,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
 
     \b
     With --from-drop-tests, DATA are drop-test logs or campaign folders: every family
-    (elastoslide, zerodim6, masing, pfeffer; template with --template) is fitted to the same
+    (elastoslide, zerodim6, masing, pfeffer, filled_rubber; template with --template) is fitted to the same
     fitting tests' free decays and ranked by the same criterion on the angle error (sigma:
     the logs' pre-trigger noise with the re-simulation's accuracy).
 

@@ -40,7 +40,7 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import DataScale
-from droptower.identify.droplogs import DropDecay
+from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
@@ -52,7 +52,7 @@ from droptower.rheology import Coupling, CouplingState
 from droptower.rig.preload import hold_at
 
 #: Model kinds a drop-test campaign can identify (the servo-only families need steady sine blocks).
-DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer")
+DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer", "filled_rubber")
 #: Relative tolerance of the fit (cost, step): far below the sensors' noise on the angle.
 TOL = 1e-6
 #: Weight of the prior toward the starting point, per square root of the number of tests.
@@ -317,6 +317,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
     s = setup_family(family, init, bounds)
     params, x0, given = family.parameters, s.x0, s.given
+    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
+        x0 = family.guess_from_readings(*first_cycle_readings([decays[i] for i in fit_idx]), x0, given)
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")

@@ -175,3 +175,20 @@ def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[li
         except DroptowerError as exc:
             excluded.append({"file": str(f), "reason": ": ".join(p for p in (exc.where, exc.problem) if p)})
     return decays, excluded
+
+
+def first_cycle_readings(decays: list[DropDecay]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(amplitude rad, frequency Hz, K' + i K'' N*m/rad) of each test's first cycles, read as a
+    linear coupling's (Rapp et al. 2022, eq. 16; docs/theory.md#decay): K' = J (omega^2 + delta^2),
+    K'' = 2 J delta omega, omega and delta from the crossings and the peaks' log decrement. Biased
+    by slow relaxation and friction (docs/theory.md#first-cycle): a first guess, not a result."""
+    amp, freq, k = [], [], []
+    for d in decays:
+        try:
+            omega, delta = start_frequency_and_decay(d.time_s, d.angle_rad, d.angle_noise_rad)
+        except DroptowerError:
+            continue
+        amp.append(d.amplitude_rad)
+        freq.append(omega / (2.0 * np.pi))
+        k.append(d.inertia_kgm2 * complex(omega ** 2 + delta ** 2, 2.0 * delta * omega))
+    return np.array(amp), np.array(freq), np.array(k, complex)

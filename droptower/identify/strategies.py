@@ -27,7 +27,7 @@ from droptower.io.fields import torsional_fields
 SEARCH_MODES = ("auto", "always", "never")
 #: Families whose identification is one parameter vector for all data (the global search's
 #: result replaces the staged one); overlay's parameters come from a map of sine blocks.
-SEARCHABLE = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "template")
+SEARCHABLE = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "template", "filled_rubber")
 #: Candidates of the servo global search per free parameter, at least MIN_CANDIDATES.
 CANDIDATES_PER_PARAMETER = 16
 MIN_CANDIDATES = 64

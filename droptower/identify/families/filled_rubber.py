@@ -1,0 +1,187 @@
+"""A generic filled-elastomer model (docs/theory.md#filled-rubber): family and strategy.
+
+Three mechanisms in parallel, as isolator and rail-vehicle engineers model filled rubber
+(Berg 1998; Sjöberg 2002; García Tárrago et al. 2007): an equilibrium spring that may stiffen
+at large strain (``cubic_spring``, its cubic term may be 0), a rate-independent friction network
+whose stiffness breaks down with the amplitude and recovers in time (``filler_network``: the
+Payne and Mullins effects) and a fractional viscoelastic branch (``power_law``, Bagley & Torvik
+1983) whose level, exponent and band are fitted. Every number is free within bounds scaled to
+the data; the filler network's bookkeeping times are options.
+
+The first guess comes from the data's harmonic readings (K' and K'' of the steady sine blocks
+of servo records, or of the drop tests' first cycles, :func:`~droptower.identify.droplogs.first_cycle_readings`):
+the family's closed-form K*(A, f) is fitted to them, which splits the stiffness into spring and
+network by its amplitude trend and gives the power-law level by its frequency trend. Then the
+joint least squares on the records (and the global search where that fit is poor).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import qmc
+
+from droptower.errors import DroptowerError
+from droptower.identify.cycles import evaluate_block
+from droptower.identify.data import Segment
+from droptower.identify.families.base import Family, stiffness_parameter
+from droptower.identify.families.stages import Setup, result_of, steady_blocks
+from droptower.identify.fit import Identification, Parameter, clip_to_bounds
+from droptower.rheology.elements import FillerNetwork, PowerLaw
+
+#: Relative margin that keeps the power-law band's term count at the ``terms`` option exactly
+#: (PowerLaw rounds the terms per decade times the decades up).
+_TERMS_MARGIN = 1e-9
+#: Starts of the first guess's fit to the harmonic readings (a Latin hypercube over the bounds).
+GUESS_STARTS = 12
+
+
+class FilledRubberFamily(Family):
+    """Equilibrium spring b x + a x^3 || filler network (Iwan, breakdown and recovery) || power-law branch.
+
+    Options: ``n`` (Jenkins elements of the network), ``recovery_time_s`` and
+    ``centre_relaxation_time_s`` (the network's bookkeeping times), ``terms`` (Maxwell terms of
+    the power-law band, whatever its width, so that every parameter set has one structure).
+    """
+
+    kind = "filled_rubber"
+    title = "filled elastomer: spring (cubic) + filler network (Payne/Mullins) + power-law branch"
+    source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
+              "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
+    OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12}
+
+    def _parameters(self) -> list[Parameter]:
+        s = self.scale
+        amp, f = s.amplitude_rad, max(s.frequency_hz, 1e-3)
+        if int(self.options["terms"]) < 2 or int(self.options["n"]) < 2:
+            raise DroptowerError(f"options terms and n of model {self.kind} must be integers >= 2, got "
+                                 f"{self.options['terms']} and {self.options['n']}")
+        for key in ("recovery_time_s", "centre_relaxation_time_s"):
+            if not float(self.options[key]) > 0:
+                raise DroptowerError(f"option {key} of model {self.kind} must be > 0, got {self.options[key]}")
+        cubic = s.torque_nm / amp ** 3
+        return [stiffness_parameter("k_nm_per_rad", s, 1e-3, 10.0),
+                Parameter("a_nm_per_rad3", 0.0, 10.0 * cubic, log=False, scale=cubic),
+                stiffness_parameter("kf_nm_per_rad", s, 1e-3, 30.0),
+                Parameter("critical_angle_rad", 1e-4 * amp, 10.0 * amp),
+                Parameter("exponent", 0.1, 2.0),
+                Parameter("breakdown_angle_rad", 1e-3 * amp, 100.0 * amp),
+                stiffness_parameter("kp_nm_per_rad", s, 1e-4, 10.0),
+                Parameter("matrix_loss_factor", 0.01, 5.0),
+                Parameter("min_frequency_hz", 1e-3 * f, 30.0 * f),
+                Parameter("band_decades", 0.3, 6.0)]
+
+    @property
+    def reference_frequency_hz(self) -> float:
+        """The power-law branch's reference frequency: the data's characteristic frequency (Hz)."""
+        return max(self.scale.frequency_hz, 1e-3)
+
+    def guess(self) -> np.ndarray:
+        s = self.scale
+        k, amp, f = s.stiffness_nm_per_rad, s.amplitude_rad, self.reference_frequency_hz
+        return np.array([0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0])
+
+    def elements(self, v: np.ndarray) -> list[dict[str, Any]]:
+        k, a, kf, ac, m, ab, kp, eta, f_min, decades = (float(x) for x in v)
+        terms = int(self.options["terms"])
+        return [{"kind": "cubic_spring", "name": "equilibrium", "a": a, "b": k},
+                {"kind": "filler_network", "name": "filler_network", "stiffness": kf, "critical_angle": ac,
+                 "exponent": m, "breakdown_angle": ab, "recovery_time": float(self.options["recovery_time_s"]),
+                 "centre_relaxation_time": float(self.options["centre_relaxation_time_s"]), "n": int(self.options["n"])},
+                {"kind": "power_law", "name": "matrix", "storage_stiffness": kp, "loss_factor": eta,
+                 "reference_frequency": self.reference_frequency_hz, "min_frequency": f_min,
+                 "max_frequency": f_min * 10.0 ** decades,
+                 "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)}]
+
+    def derived(self, v: np.ndarray) -> dict[str, float]:
+        eta, f_min, decades = float(v[7]), float(v[8]), float(v[9])
+        return {"max_frequency_hz": f_min * 10.0 ** decades, "matrix_exponent": 2.0 / math.pi * math.atan(eta),
+                "reference_frequency_hz": self.reference_frequency_hz}
+
+    # ------------------------------------------------------------------ closed form
+    def harmonic_stiffness(self, v: np.ndarray, amplitude_rad: np.ndarray, frequency_hz: np.ndarray) -> np.ndarray:
+        """K' + i K'' (N*m/rad) of parameter set ``v`` in a steady harmonic motion of amplitude A
+        (rad) at frequency f (Hz): the cubic spring's first harmonic b + 3/4 a A^2, the network
+        broken down to its equilibrium at A (:meth:`FillerNetwork.complex_stiffness`) and the
+        power-law band's Prony series (:meth:`PowerLaw.complex_stiffness`)."""
+        network, matrix = (el for el in self._specs(v))
+        amp = np.asarray(amplitude_rad, float)
+        return (v[0] + 0.75 * v[1] * amp ** 2 + network.complex_stiffness(amp)
+                + matrix.complex_stiffness(np.asarray(frequency_hz, float)))
+
+    def _specs(self, v: np.ndarray) -> tuple[FillerNetwork, PowerLaw]:
+        _, network, matrix = self.elements(v)
+        return FillerNetwork(**network), PowerLaw(**matrix)
+
+    def guess_from_readings(self, amplitude_rad: np.ndarray, frequency_hz: np.ndarray, stiffness: np.ndarray,
+                            x0: np.ndarray, given: np.ndarray, seed: int = 0) -> np.ndarray:
+        """A first guess from harmonic readings: the closed form (:meth:`harmonic_stiffness`)
+        fitted by least squares to K' and K'' at each reading's amplitude (rad) and frequency
+        (Hz) (``stiffness`` complex, N*m/rad), from :data:`GUESS_STARTS` Latin-hypercube starts
+        and ``x0``; the band stays at ``x0``'s (the readings span too narrow a band to place it),
+        and so do the ``given`` parameters. ``x0`` where fewer than three readings."""
+        amp, freq, k_obs = (np.asarray(a) for a in (amplitude_rad, frequency_hz, stiffness))
+        ok = np.isfinite(amp) & np.isfinite(freq) & np.isfinite(k_obs) & (amp > 0)
+        amp, freq, k_obs = amp[ok], freq[ok], k_obs[ok]
+        if amp.size < 3:
+            return x0
+        params = self.parameters
+        idx = [i for i in range(8) if not given[i]]
+        if not idx:
+            return x0
+        lo, hi = np.array([params[i].z_bounds() for i in idx]).T
+        weight = 1.0 / np.abs(k_obs)
+
+        def values(z: np.ndarray) -> np.ndarray:
+            v = np.array(x0, float)
+            v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z)]
+            return v
+
+        def resid(z: np.ndarray) -> np.ndarray:
+            d = (self.harmonic_stiffness(values(z), amp, freq) - k_obs) * weight
+            return np.concatenate([d.real, d.imag])
+
+        z0 = np.clip([params[i].to_z(x0[i]) for i in idx], lo, hi)
+        starts = [z0] + list(lo + qmc.LatinHypercube(d=len(idx), seed=seed).random(GUESS_STARTS) * (hi - lo))
+        best, cost = x0, math.inf
+        for z in starts:
+            try:
+                r = least_squares(resid, z, bounds=(lo, hi), method="trf", max_nfev=40 * len(idx), xtol=1e-6)
+            except (ValueError, DroptowerError):  # a start the element refuses
+                continue
+            if r.cost < cost:
+                best, cost = values(r.x), float(r.cost)
+        return clip_to_bounds(params, best)
+
+
+def servo_readings(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(amplitude rad, frequency Hz, K' + i K'' N*m/rad) of every steady sine block of the records
+    (the lab's evaluation of its cycles after the first)."""
+    rows = []
+    for sb in steady_blocks(segments):
+        seg = segments[sb.segment]
+        ev = evaluate_block(seg.measured_angle, seg.measured_torque, seg.dt_s, sb.block)
+        if ev is not None and np.isfinite(seg.measured_torque[sb.block.start:sb.block.stop]).all():
+            h = ev.harmonics[0]
+            rows.append((h.angle_amplitude_rad, h.frequency_hz, h.complex_stiffness_nm_per_rad))
+    if not rows:
+        return np.empty(0), np.empty(0), np.empty(0, complex)
+    a, f, k = zip(*rows)
+    return np.array(a), np.array(f), np.array(k, complex)
+
+
+def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
+    """The closed form fitted to the steady blocks' K' and K'' (the first guess), then the joint
+    least squares on all records."""
+    fam: FilledRubberFamily = s.family  # type: ignore[assignment]
+    amp, freq, stiffness = servo_readings(segments)
+    x = fam.guess_from_readings(amp, freq, stiffness, s.x0.copy(), s.given)
+    extra = {"readings": int(amp.size)}
+    r = s.fit(segments, x, None, "joint (from the harmonic readings' fit)" if amp.size >= 3 else "joint")
+    return result_of(s, segments, r.values.copy(), [r], start, extra=extra)
+
+
+FAMILY = FilledRubberFamily
+strategy = identify_filled_rubber
