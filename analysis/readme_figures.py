@@ -225,7 +225,7 @@ def identify_hard(stored: dict[str, Any]) -> Block:
     m = run["machine"]
     return fill(
         f"Hard draws (`bench_identify.py --random --hard`, measured {m['date']} on {m['cores']} shared cores; the load "
-        "and the runs are stated in `benchmarks/results/identify_hard.txt`; [theory](docs/theory.md#verdict)): "
+        "and the runs are stated in `benchmarks/results/identify_hard.txt`; [theory](../theory.md#verdict)): "
         "recovery within K' 1 % / loss factor 3 % (target ≥ 99 %), false alarms (\"poor fit\" on a recovered fit, "
         "≤ 2 %), misses (\"good fit\" outside 3 % / 10 %, 0), compare-models over the four drop-test families with "
         "a 60 s wall-time budget each (≤ 120 s with a full table; a family over its budget is listed \"not "

@@ -150,16 +150,22 @@ def expects(**kinds: "str | type | list"):
     """Decorator: refuse a wrong-typed argument with one TypeError naming the function, the
     argument, what it expects and what it got, before it fails somewhere inside as an
     AttributeError. ``kinds``: argument name -> a class, a dotted class path (resolved at the first
-    call, so no import cycle), or ``[kind]`` for a list or tuple of such."""
+    call, so no import cycle), a tuple of such (any of them), or ``[kind]`` for a list or tuple of
+    such."""
     import functools
     import importlib
     import inspect
 
     def resolve(kind):
+        if isinstance(kind, tuple):
+            return tuple(resolve(k) for k in kind)
         if isinstance(kind, str):
             module, _, name = kind.rpartition(".")
             return getattr(importlib.import_module(module), name)
         return kind
+
+    def _names(cls) -> str:
+        return " or ".join(c.__name__ for c in cls) if isinstance(cls, tuple) else cls.__name__
 
     def wrap(func):
         signature = inspect.signature(func)
@@ -177,9 +183,9 @@ def expects(**kinds: "str | type | list"):
                 cls = resolve(kind[0] if many else kind)
                 if many:
                     ok = isinstance(value, (list, tuple)) and all(isinstance(v, cls) for v in value)
-                    wanted = f"a list of {cls.__name__}"
+                    wanted = f"a list of {_names(cls)}"
                 else:
-                    ok, wanted = isinstance(value, cls), f"a {cls.__name__}"
+                    ok, wanted = isinstance(value, cls), f"a {_names(cls)}"
                 if not ok:
                     raise TypeError(f"{func.__qualname__}: {name} must be {wanted}, got {type(value).__name__}")
             return func(*args, **kwargs)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -27,6 +27,9 @@ from droptower.compare.servo_points import ServoPoints
 from droptower import sdof
 from droptower.maps import MapFit
 from droptower.errors import expects
+
+if TYPE_CHECKING:
+    from droptower.compare.model_map import ModelMap
 
 COLUMNS = ("sweep", "amplitude_deg", "frequency_hz", "in_range", "in_rectangle", "servo_stiffness_nm_per_deg",
            "map_stiffness_nm_per_deg", "stiffness_deviation_pct", "servo_damping_ratio", "map_damping_ratio",
@@ -74,9 +77,10 @@ def map_damping_measures(damping_ratio: np.ndarray) -> tuple[np.ndarray, np.ndar
     return sdof.loss_factor(r, 1.0), sdof.relative_damping(r, 1.0)
 
 
-@expects(fit="droptower.maps.mapfit.MapFit", points="droptower.compare.servo_points.ServoPoints")
-def validate_map(fit: MapFit, points: ServoPoints) -> Validation:
-    """Predict every servo point from the map and compare (module docstring)."""
+@expects(fit=("droptower.maps.mapfit.MapFit", "droptower.compare.model_map.ModelMap"), points="droptower.compare.servo_points.ServoPoints")
+def validate_map(fit: MapFit | ModelMap, points: ServoPoints) -> Validation:
+    """Predict every servo point from the map (the paper's :class:`MapFit` or a model-based
+    :class:`~droptower.compare.model_map.ModelMap`) and compare (module docstring)."""
     servo = points.table
     a, f = servo["amplitude_deg"].to_numpy(float), servo["frequency_hz"].to_numpy(float)
     c_map = fit.stiffness_nm_per_deg(a, f)
