@@ -1,6 +1,6 @@
 """Limits on the size of a request, checked before anything is allocated or run.
 
-A typo such as ``--duration-s 1e9`` or ``repeats = 1e7`` must not exhaust the memory or run for
+A typo such as ``duration_s=1e9`` or ``repeats = 1e7`` must not exhaust the memory or run for
 days: every command estimates the memory (and, where it matters, the number of time steps) of
 what it was asked, and refuses on one line that names the limit and how to split the work.
 
@@ -61,7 +61,7 @@ def require_memory(nbytes: float, what: str, split: str, **where: Any) -> None:
     """Refuse a request whose estimated memory ``nbytes`` exceeds the limit.
 
     what: what needs the memory (``"the record of 1 drop test of 1e+09 s"``); split: how to
-    make it smaller (``"shorten --duration-s to at most 870 s"``); ``where``/``file`` go to the
+    make it smaller (``"shorten `duration_s` to at most 870 s"``); ``where``/``file`` go to the
     :class:`DroptowerError`."""
     limit = memory_limit_bytes()
     if not nbytes <= limit:  # also refuses NaN

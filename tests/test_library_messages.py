@@ -1,6 +1,7 @@
 """The library speaks Python, the command line speaks flags: no string the library's code
-builds (messages, defaults; docstrings excepted) outside ``droptower/cli/`` names a
-command-line flag, except inside a whole ``droptower COMMAND ...`` example. A library message
+builds (messages, defaults) and no docstring or comment outside ``droptower/cli/`` (what a
+Python user reads in ``help()``) names a command-line flag, except inside a whole ``droptower
+COMMAND ...`` example that says which command wraps the code. A library message
 names the Python parameter or config key in backticks; the command line reports it with its
 flag (``droptower/cli/flags.py``), so every such name must have one there."""
 from __future__ import annotations
@@ -51,6 +52,15 @@ def test_no_command_line_flag_in_library_strings(path):
                      "turns it into the flag, droptower/cli/flags.py):\n" + "\n".join(bad))
 
 
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_command_line_flag_in_library_docs(path):
+    bad = [f"{path.relative_to(ROOT)}:{i}: {line.strip()[:100]}"
+           for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+           for match in FLAG.finditer(line) if not COMMAND.search(line[:match.start()])]
+    assert not bad, ("the library's docstrings or comments give a command-line flag to a Python reader; name the "
+                     "Python parameter (the CLI's help names its flags):\n" + "\n".join(bad))
+
+
 def test_every_name_the_library_cites_has_a_flag():
     cited = {(name, f"{path.relative_to(ROOT)}:{line}") for path in LIBRARY for line, text in _strings(path)
              for name in NAMED.findall(text)}
@@ -89,3 +99,17 @@ def test_the_command_line_reports_the_library_error_with_its_flags(tmp_path, cap
     assert main(["extract", str(log)]) == 2
     err = capsys.readouterr().err
     assert "give --inertia-kgm2" in err and "`" not in err, err
+
+
+@pytest.mark.slow  # predicts the planner's grid twice
+def test_the_planner_page_speaks_python_unless_the_command_line_writes_it(tmp_path):
+    from droptower.cli.planner_cmd import RUN_HINT as SHELL_HINT
+    from droptower.planner import write_planner
+    from droptower.rheology import load_coupling
+    from droptower.rig.config import load_rig
+
+    rig, coupling = load_rig("rapp2022"), load_coupling("rapp2022_nr60")
+    python_page = write_planner(rig, coupling, (0.0,), tmp_path / "python.html").read_text(encoding="utf-8")
+    shell_page = write_planner(rig, coupling, (0.0,), tmp_path / "shell.html", run_hint=SHELL_HINT).read_text(encoding="utf-8")
+    assert "run_campaign(" in python_page and "--doe" not in python_page
+    assert "droptower campaign --doe plan.toml" in shell_page

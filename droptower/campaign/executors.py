@@ -41,7 +41,7 @@ def local_cores() -> int:
 
 
 class InProcess:
-    """Chunks one after another in this process (``--workers 1``)."""
+    """Chunks one after another in this process (``workers=1``)."""
 
     description = "1 worker (this process)"
 

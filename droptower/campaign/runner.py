@@ -41,7 +41,7 @@ class CampaignRun:
     results: the results table (every finished test of the folder); failed: (test_id, error)
     of tests whose simulation or extraction failed (final, listed in the results); errors:
     chunks that crashed with an unexpected error in this run (their tests stay pending and are
-    retried by ``--resume``); pending: tests still unfinished; ran_tests: tests written in this
+    retried with ``resume=True``); pending: tests still unfinished; ran_tests: tests written in this
     run; executor: where the chunks ran; CPU time per phase summed over the workers (s), the
     wall time (s); peak memory (MB) of this process and of the largest worker.
     """

@@ -9,6 +9,10 @@ from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 from droptower.errors import DroptowerError
 
 
+#: the planner page's advice on running a saved plan, as a shell command
+RUN_HINT = "droptower campaign --doe plan.toml --out runs/designed"
+
+
 @click.command()
 @quiet_option
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="The page to write (.html).")
@@ -44,4 +48,4 @@ def planner(out: str, rig: str, coupling: str, preloads_nm: str) -> None:
     rig_cfg, model, preloads = load_rig(rig), load_coupling(coupling), _preloads(preloads_nm)
     check_preloads(rig_cfg, preloads)
     note(f"predicting every drop of rig {rig_cfg.name} with {model.name}")
-    click.echo(f"planner: {write_planner(rig_cfg, model, preloads, out)}")
+    click.echo(f"planner: {write_planner(rig_cfg, model, preloads, out, run_hint=RUN_HINT)}")

@@ -1,9 +1,9 @@
 """The files ``droptower validate --out DIR`` writes (also used by ``analysis/run_study.py``).
 
-- ``validation.csv`` (or ``--table-format``): one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
+- ``validation.csv`` (or the table format asked for): one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
 - ``validation_summary.json``: RMS / max deviations inside and outside the range, definitions;
-- ``servo_results.csv``: the servo points as measured or simulated (readable by
-  ``--servo-results``);
+- ``servo_results.csv``: the servo points as measured or simulated (read back by
+  :func:`droptower.compare.servo_points.read_servo_results`);
 - ``fig14_servo_validation.png``: Rapp et al. 2022, Fig. 14;
 - with a reference map: ``reference_comparison.csv`` and ``reference_summary.json``.
 """

@@ -3,7 +3,7 @@ over amplitude x frequency, beside the paper's map (docs/routes.md, docs/theory.
 
 The paper's map (Rapp et al. 2022, eq. 19/20) is fitted to first-cycle readings of the decays and
 inherits their bias (docs/theory.md#first-cycle). The model-based route reads the same campaign
-through a coupling model re-simulating every decay (``identify --from-drop-tests``), then asks the
+through a coupling model re-simulating every decay (:func:`~droptower.identify.dropfit.identify_drops`), then asks the
 model what a servo bench would measure. Per grid point (amplitude φ̂, frequency f):
 
 - ``storage_stiffness_nm_per_deg`` K', ``loss_stiffness_nm_per_deg`` K'', ``loss_factor``

@@ -30,7 +30,7 @@ from droptower.identify.families import family_class
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 
-#: Periods of each decay compared, as ``identify --from-drop-tests`` reads logs.
+#: Periods of each decay compared, as :func:`~droptower.identify.dropfit.identify_drops` reads logs.
 COMPARED_PERIODS = 3.0
 #: The sensitivities are evaluated on every this-many-th sample of the rig (a decay's
 #: information is carried by its shape; the count is scaled back to the rig's rate).

@@ -18,7 +18,7 @@ SHEET_COLUMNS = ["run", "block", "case", "inertia_kgm2", "drop_mass_kg", "drop_h
 
 def doe_document(conditions: pd.DataFrame, name: str, description: str, base_seed: int = 0) -> dict[str, Any]:
     """Designed conditions (one row per lever, mass, height and preload, with ``repeats``) as
-    the DOE TOML format holds them (``campaign --doe`` runs it as it is): one group per lever
+    the DOE TOML format holds them (:func:`~droptower.campaign.run_campaign` runs it as its ``doe``): one group per lever
     and drop mass with its own heights; the preloads for all. Equal repeats everywhere are the
     plan's ``repeats``; otherwise a height is listed once per repeat (the format adds them up)."""
     preloads = sorted({float(p) for p in conditions["preload_nm"]})

@@ -127,7 +127,7 @@ def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult,
     text, the drop's conditions included), then every result of
     :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
     the values agree (``inertia_kgm2`` used from the log) and kept as ``log_<key>`` when they
-    differ (``--inertia-kgm2`` overrode the log's)."""
+    differ (a given ``inertia_kgm2`` overrode the log's)."""
     results = result.as_dict()
     row: dict[str, Any] = {"file": str(path), "drop_index": int(drop_index), "t_impact_s": result.impact_time_s}
     for key, value in signals.metadata.items():

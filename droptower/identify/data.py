@@ -132,7 +132,7 @@ def segments_from_files(paths: Iterable[str | Path], roles: dict[str, str] | Non
     """Read servo records from files of any format the readers take: imposed angle and measured
     torque, or imposed displacement and measured force (a translational record).
 
-    roles: channel roles as from ``--channel ROLE=NAME[:UNIT]`` (``time``, ``angle``,
+    roles: channel role -> ``NAME[:UNIT]`` (roles ``time``, ``angle``,
     ``torque``, ``displacement``, ``force``); missing roles are found by name and units
     converted to SI (see :func:`droptower.io.mapping.map_servo_channels`). Every record must be
     of the same kind. notes: gets ``"<file>: <note>"`` for what was assumed in reading a file

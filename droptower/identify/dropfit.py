@@ -251,7 +251,7 @@ def holdout_split(decays: list[DropDecay], fraction: float) -> tuple[list[int], 
 
 @dataclass
 class DropIdentification:
-    """The result of fitting a family to drop-test decays (``--json`` keys: see :meth:`as_dict`)."""
+    """The result of fitting a family to drop-test decays (its JSON keys: see :meth:`as_dict`)."""
 
     model: str
     family: Family
@@ -305,7 +305,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
                    options: dict[str, Any] | None = None) -> DropIdentification:
     """Fit family ``kind`` (:data:`DROP_KINDS`; options as for ``identify``, e.g. ``template``)
     to the free decays ``decays``; ``init`` / ``bounds``: starting values and bounds by
-    parameter name (``--params``)."""
+    parameter name."""
     start = time.perf_counter()
     if kind not in DROP_KINDS:
         raise DroptowerError(f"model {kind!r} cannot be identified from drop tests (kinds: {', '.join(DROP_KINDS)})")

@@ -456,7 +456,7 @@ class Identification:
     std_error: their standard errors (NaN where not estimated); derived: quantities computed
     from them (e.g. dashpot coefficients from relaxation times); at_bounds: parameters on a
     bound; stages: one :class:`FitResult` summary per stage; fit / holdout: :class:`Metrics`;
-    coupling: the single coupling written by ``--out``; coupling_note: what that coupling
+    coupling: the single coupling that stands for the fit (the one written out); coupling_note: what that coupling
     represents when the model's parameters depend on amplitude or frequency; extra: the
     family's report (analytic identification, parameter functions, ...); converged: every
     least-squares stage converged; predict: the model's torque on other segments; verdict:

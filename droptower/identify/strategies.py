@@ -48,8 +48,8 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
              file: str | None = None, search: str = "auto", seed: int = 0) -> Identification:
     """Identify model family ``kind`` from ``segments``.
 
-    init, bounds, options: from ``--params INIT.toml`` (parameter name -> initial value;
-    name -> [lower, upper]; family options); holdout: data for the hold-out RMSE;
+    init, bounds, options: parameter name -> initial value; name -> [lower, upper]; family
+    options (the tables of an init TOML file); holdout: data for the hold-out RMSE;
     previous: results of other families on the same data (zerodim20 starts from zerodim6's,
     identified here where not given).
     Translational records (``Segment.units``) may name parameters and options for their units

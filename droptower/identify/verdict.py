@@ -19,7 +19,8 @@ without a model: :mod:`.noise`) and looks at the parameters:
   bound (the optimum lies outside the box, or the parameter is not supported by the data).
   A linear parameter on a lower bound of 0 is a term switched off, not a bound hit.
 
-The command line exits with :data:`EXIT_POOR_FIT` on a poor fit unless ``--accept-poor``.
+A poor fit is exit code :data:`EXIT_POOR_FIT` of ``identify`` and ``compare-models`` unless it is accepted
+(``accept_poor``, e.g. :meth:`~droptower.identify.compare.Comparison.exit_code`).
 """
 from __future__ import annotations
 

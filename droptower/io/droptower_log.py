@@ -208,7 +208,7 @@ def read_log(path: str | Path) -> Record:
     Parameters
     ----------
     path : str or Path
-        A log as :func:`write_log` (and ``droptower simulate --out``, ``campaign``) writes it.
+        A log as :func:`write_log` (and :meth:`~droptower.rig.simulate.DropResult.write_log`, a campaign) writes it.
 
     Returns
     -------

@@ -7,7 +7,7 @@ either ``angle`` and ``torque`` (torsional) or ``displacement`` and ``force`` (t
 mounts, bushings, dampers), each checked against its dimension (m, mm, µm, in; N, kN, lbf,
 kip) and converted to SI. A role is given as
 ``NAME`` or ``NAME:UNIT`` (the unit overrides a missing or wrong unit in the file), or ``-`` to
-leave an optional role out; on the command line as ``--channel ROLE=NAME[:UNIT]``. Roles not given are found by name: first the
+leave an optional role out (``roles={ROLE: 'NAME[:UNIT]'}``). Roles not given are found by name: first the
 droptower-log names (``time_s``, ``angle_rad``, ...), then common names matched
 case-insensitively (``Time``, ``Winkel``, ``Torque [N*m]``, ...).
 
@@ -67,7 +67,7 @@ _UNIT_IN_NAME = re.compile(r"\s*[\[(][^\])]*[\])]\s*$")
 def parse_channel_options(options: Iterable[str], roles_known: tuple[str, ...] = ROLES) -> dict[str, str]:
     """``["angle=Winkel:deg", "time=t"]`` -> ``{"angle": "Winkel:deg", "time": "t"}``.
 
-    Parses ``--channel ROLE=NAME[:UNIT]`` options; a role not in ``roles_known`` (the drop
+    Parses ``ROLE=NAME[:UNIT]`` texts (the command line's channel options); a role not in ``roles_known`` (the drop
     test's by default; :data:`SERVO_ROLES` for servo records), a missing ``=`` or a role given
     twice is a :class:`DroptowerError`.
     """

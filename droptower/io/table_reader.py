@@ -8,8 +8,8 @@ Parquet, Excel (``.xlsx``) and JSON tables (a list of row objects). Text columns
 Each wanted column is named with its unit suffix (``amplitude_deg``, ``frequency_hz``,
 ``storage_stiffness_nm_per_deg``, ``loss_factor``) and found, in this order, as
 
-1. given: ``columns={"amplitude_deg": "Amp:deg"}`` (``--servo-column amplitude_deg=Amp:deg``
-   on the command line: SOURCE or SOURCE:UNIT, the unit overriding the file's);
+1. given: ``columns={"amplitude_deg": "Amp:deg"}`` (SOURCE or SOURCE:UNIT, the unit
+   overriding the file's);
 2. the column of exactly that name;
 3. a column whose name, without its unit and lower-cased, is one of the wanted column's
    ``aliases`` (``Frequenz [Hz]`` for ``frequency_hz``);

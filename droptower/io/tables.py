@@ -1,8 +1,7 @@
 """Result tables written in the format their file name asks for.
 
-``write_table(table, path)`` is the one way the project writes a table (``plan --out``,
-``map --out``, ``extract --out``, ``validate --out``, campaign results, identification
-tables): the suffix picks the format — ``.csv``, ``.parquet``, ``.json`` (a list of row
+``write_table(table, path)`` is the one way the project writes a table (plans, map
+coefficients, extraction results, validations, campaign results, identification tables): the suffix picks the format — ``.csv``, ``.parquet``, ``.json`` (a list of row
 objects, NaN as null) or ``.xlsx`` (openpyxl) — and any other suffix is refused with one
 line naming the file, before anything is computed when the caller checks it first with
 :func:`check_table_path`. Files are written atomically (a reader never sees half a table).
@@ -58,7 +57,7 @@ TABLE_SUFFIXES = tuple(WRITERS)
 
 def check_table_path(path: str | Path, option: str | None = None) -> Path:
     """``path`` as a Path if its suffix names a table format; else a one-line error (naming
-    ``option``, e.g. ``"--out"``, when given)."""
+    ``option``, the parameter or flag that gave it, when given)."""
     path = Path(path)
     if path.suffix.lower() not in WRITERS:
         got = f"'{path.suffix}'" if path.suffix else "no suffix"

@@ -190,7 +190,7 @@ PAPER = MapForm("paper", Equation(("exp_amplitude", "exp_amplitude", "sqrt_frequ
 #: the paper's Table 4 (every coefficient identifiable; see README), as a fixed form.
 VELOCITY = MapForm("velocity", Equation(("exp_amplitude", "sqrt_frequency", "exp_velocity")),
                    Equation(("constant", "exp_amplitude", "exp_velocity")))
-#: The fixed forms by name (``map --form``); ``auto`` chooses terms by cross-validation.
+#: The fixed forms by name (``fit_map(form=...)``); ``auto`` chooses terms by cross-validation.
 FORMS = {f.name: f for f in (PAPER, VELOCITY)}
 #: The terms ``auto`` chooses from (any sub-multiset; see :mod:`droptower.maps.select`).
 AUTO_STIFFNESS_TERMS = ("exp_amplitude", "exp_amplitude", "sqrt_frequency", "exp_frequency", "exp_velocity")

@@ -210,9 +210,9 @@ class MapFit:
         }
 
     def coefficient_table(self) -> "pd.DataFrame":
-        """The coefficients as a table (``map --out map.csv|.parquet|.xlsx``): ``coefficient``,
+        """The coefficients as a table (written as ``map.csv|.parquet|.xlsx``): ``coefficient``,
         ``equation``, ``unit``, ``value``, ``std`` (NaN: not identifiable), ``at_bound``,
-        ``not_unique``. Only ``map.json`` is read back (``validate --map``)."""
+        ``not_unique``. Only ``map.json`` is read back (:meth:`from_json`)."""
         import pandas as pd
 
         paper = self.form == PAPER

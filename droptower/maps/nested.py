@@ -1,4 +1,4 @@
-"""Nested cross-validation of ``--form auto``: the term selection inside the validation.
+"""Nested cross-validation of the ``auto`` form: the term selection inside the validation.
 
 ``auto`` picks its terms by their cross-validated error and then reports that same error,
 which is optimistic: the held-out tests took part in the choice. Here every outer fold (the

@@ -30,8 +30,11 @@ button{padding:4px 14px;font-size:14px}
 .hint{color:#555;font-size:13px}
 """
 
+#: How the page tells its reader to run a saved plan, in Python (the command line passes its own form).
+RUN_HINT = 'droptower.run_campaign("runs/designed", doe="plan.toml")'
 
-def page_html(data: dict[str, Any]) -> str:
+
+def page_html(data: dict[str, Any], run_hint: str = RUN_HINT) -> str:
     """The whole HTML document of the planner for ``data`` (:func:`droptower.planner.planner_data`)."""
     rig, preloads = data["rig"], ", ".join(f"{p:g}" for p in data["preloads_nm"])
     lo, hi = rig["drop_height_range_m"]
@@ -71,7 +74,7 @@ placeholder="none"></div>
 </fieldset>
 </div><div><div id="plane"></div>
 <div class="scroll"><table class="plain" id="conditions"></table></div>
-<p class="hint">Run it with <code>droptower campaign --doe plan.toml --out runs/designed</code>.</p>
+<p class="hint">Run it with <code>{html.escape(run_hint)}</code>.</p>
 <pre id="toml"></pre></div></div>"""
     return (
         "<!doctype html><html lang='en'><head><meta charset='utf-8'>"
@@ -84,9 +87,11 @@ placeholder="none"></div>
 
 
 @expects(rig="droptower.rig.config.RigConfig", coupling="droptower.rheology.coupling.Coupling")
-def write_planner(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, ...], out: str | Path) -> Path:
-    """Predict the grid for ``rig`` and ``coupling`` at ``preloads_nm`` (N*m) and write the page to ``out``."""
-    text = page_html(planner_data(rig, coupling, preloads_nm))
+def write_planner(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, ...], out: str | Path,
+                  run_hint: str = RUN_HINT) -> Path:
+    """Predict the grid for ``rig`` and ``coupling`` at ``preloads_nm`` (N*m) and write the page to ``out``;
+    ``run_hint``: how the page tells its reader to run a saved plan (the command line gives its own)."""
+    text = page_html(planner_data(rig, coupling, preloads_nm), run_hint)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))

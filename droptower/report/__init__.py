@@ -1,5 +1,5 @@
 """``droptower report``: one self-contained HTML report of a campaign folder or of an
-``extract --out`` results table with its logs.
+extraction's results table with its logs.
 
 :func:`write_report` reads the run (:mod:`droptower.report.run`), fits the map
 (:func:`droptower.maps.fit_map`), draws the decay fit of every test again from its log
@@ -53,7 +53,7 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
     """Write the report of ``source`` (campaign folder or results table) to ``out``.
 
     form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
-    for reading real logs (as ``extract --channel``); extra_sections: (heading, HTML) pairs
+    for reading real logs (as the extraction's channel roles); extra_sections: (heading, HTML) pairs
     appended (the study's); inline_max_tests: more tests than this put their decay figures in
     side files in ``<out stem>_files/`` beside the page; returns the path of the page."""
     run = load_run(source)

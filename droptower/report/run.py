@@ -1,4 +1,4 @@
-"""What a report is about: a campaign folder or an ``extract --out`` results table, read into
+"""What a report is about: a campaign folder or an extraction's results table, read into
 one :class:`Run` (facts for the summary, the results table, where each test's log is, and how
 its log was extracted so the decay fit can be drawn again).
 
@@ -58,7 +58,7 @@ def load_run(source: str | Path) -> Run:
         if (source / "manifest.json").is_file():
             return _campaign(source)
         raise DroptowerError("a folder without manifest.json (not a campaign folder); give a results table "
-                             "from `droptower extract --out` or a campaign folder", file=source)
+                             "of the extraction (its results file) or a campaign folder", file=source)
     if not source.is_file():
         raise missing_file(source)
     return _results_table(source)

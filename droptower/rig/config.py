@@ -151,7 +151,7 @@ class RigConfig(StrictModel):
         """Reject a test this rig cannot run: non-positive values, height or preload out of range.
 
         The error names ``file`` and ``where`` plus the field (``labels`` renames fields, e.g.
-        ``{"drop_height_m": "--height-m"}`` for command-line values).
+        ``{"drop_height_m": "height"}``: a caller's own names for its values).
         """
         labels = labels or {}
 

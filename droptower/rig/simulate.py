@@ -119,7 +119,7 @@ class DropResult:
         return float(np.max(np.abs(total - supplied)) / supplied)
 
     def summary(self) -> dict[str, Any]:
-        """The figures of the test, every key with its unit (``--json`` of ``droptower simulate``)."""
+        """The figures of the test, every key with its unit (what ``droptower simulate`` prints as JSON)."""
         first = self.contacts[0] if self.contacts else Contact(start_s=math.nan)
         L = self.rig.lever_length_m
         rate = first.lever_rate_after_rad_per_s

@@ -33,7 +33,7 @@ STRATEGIES: dict[str, Callable[..., Identification]] = {m.FAMILY.kind: m.strateg
 
 
 def family_class(kind: str) -> type[Family]:
-    """The family of a ``--model`` name; a one-line error for an unknown one."""
+    """The family of a model name (``zerodim6``, ...); a one-line error for an unknown one."""
     if kind not in FAMILIES:
         raise DroptowerError(f"unknown model kind {kind!r} (known: {', '.join(FAMILIES)})")
     return FAMILIES[kind]

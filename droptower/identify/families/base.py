@@ -22,7 +22,7 @@ class Family:
     """Base of the model families.
 
     kind: the name on the command line; title, source: for reports and coupling files;
-    OPTIONS: family options (``[options]`` of ``--params INIT.toml``) with their defaults.
+    OPTIONS: family options (the ``[options]`` table of an init TOML file) with their defaults.
     """
 
     kind: ClassVar[str] = ""
