@@ -40,7 +40,96 @@ PAYNE = 8
 FILLER_NETWORK = 9
 MAXWELL_BANK = 10
 
-N_HEADER = 3  # stored, dissipated, torque
+# named slots of the parameter and state slices (the layouts of droptower.rheology.kinds)
+# ---------------------------------------------------------------- slot offsets (generated)
+# from droptower.rheology.kinds by `python -m droptower.rheology.slots`: do not edit by hand
+S_STORED_ENERGY_J = 0
+S_DISSIPATED_ENERGY_J = 1
+S_TORQUE_NM = 2
+N_HEADER = 3
+P_LINEAR_SPRING_K = 0
+P_TABLE_SPRING_N = 0
+P_TABLE_SPRING_TABLES = 1
+P_CUBIC_SPRING_A = 0
+P_CUBIC_SPRING_B = 1
+P_DASHPOT_C = 0
+P_MAXWELL_K = 0
+P_MAXWELL_C = 1
+S_MAXWELL_ELONGATION_RAD = 3
+S_MAXWELL_CACHED_HK = 4
+S_MAXWELL_CACHED_C = 5
+S_MAXWELL_CACHED_DECAY = 6
+S_MAXWELL_CACHED_GAIN = 7
+P_SLIDER_BANK_N = 0
+P_SLIDER_BANK_V_R = 1
+P_SLIDER_BANK_P = 2
+P_SLIDER_BANK_CONSTRICTION_P = 3
+P_SLIDER_BANK_CONSTRICTION_K = 4
+P_SLIDER_BANK_TABLES = 5
+S_SLIDER_BANK_BLOCKS = 3
+P_VARIABLE_MAXWELL_K0 = 0
+P_VARIABLE_MAXWELL_GAIN = 1
+P_VARIABLE_MAXWELL_C0 = 2
+P_VARIABLE_MAXWELL_NK = 3
+P_VARIABLE_MAXWELL_NC = 4
+P_VARIABLE_MAXWELL_FORCE_MODE = 5
+P_VARIABLE_MAXWELL_TABLES = 6
+S_VARIABLE_MAXWELL_ELONGATION_RAD = 3
+S_VARIABLE_MAXWELL_CACHED_H = 4
+S_VARIABLE_MAXWELL_CACHED_C_OVER_H = 5
+P_PFEFFER_K1 = 0
+P_PFEFFER_ALPHA = 1
+P_PFEFFER_BETA = 2
+P_PFEFFER_GAMMA = 3
+S_PFEFFER_Z_RAD = 3
+S_PFEFFER_CACHED_LAMBDA_H = 4
+S_PFEFFER_CACHED_DECAY = 5
+P_PAYNE_STIFFNESS = 0
+P_PAYNE_CRITICAL_ANGLE = 1
+P_PAYNE_EXPONENT = 2
+P_PAYNE_LOSS_STIFFNESS = 3
+P_PAYNE_LOSS_PEAK_STIFFNESS = 4
+P_PAYNE_CENTRE_RELAXATION_TIME = 5
+P_PAYNE_MEMORY_TIME = 6
+P_PAYNE_STORAGE_FREQUENCY_EXPONENT = 7
+P_PAYNE_LOSS_FREQUENCY_EXPONENT = 8
+P_PAYNE_REFERENCE_OMEGA = 9
+P_PAYNE_REST_RELAXATION_TIME = 10
+S_PAYNE_ELONGATION_RAD = 3
+S_PAYNE_STIFFNESS = 4
+S_PAYNE_DAMPING = 5
+S_PAYNE_OMEGA = 6
+S_PAYNE_PEAK_ELONGATION = 7
+S_PAYNE_PEAK_RATE = 8
+S_PAYNE_ELAPSED_S = 9
+S_PAYNE_HALF_CYCLE_SIGN = 10
+S_PAYNE_MODE = 11
+S_PAYNE_CACHED_CENTRE_DECAY = 12
+S_PAYNE_CACHED_H = 13
+S_PAYNE_CACHED_REST_DECAY = 14
+P_FILLER_NETWORK_N = 0
+P_FILLER_NETWORK_BREAKDOWN_ANGLE = 1
+P_FILLER_NETWORK_TWO_M = 2
+P_FILLER_NETWORK_RECOVERY_TIME = 3
+P_FILLER_NETWORK_CENTRE_RELAXATION_TIME = 4
+P_FILLER_NETWORK_REST_RATE = 5
+P_FILLER_NETWORK_TABLES = 6
+S_FILLER_NETWORK_DAMAGE = 3
+S_FILLER_NETWORK_CENTRE_ELONGATION_RAD = 4
+S_FILLER_NETWORK_CACHED_H = 5
+S_FILLER_NETWORK_CACHED_H_OVER_CENTRE_TIME = 6
+S_FILLER_NETWORK_CACHED_CENTRE_OVER_RECOVERY_TIME = 7
+S_FILLER_NETWORK_CACHED_INVERSE_REST_STEP = 8
+S_FILLER_NETWORK_CACHED_G_CAP = 9
+S_FILLER_NETWORK_CACHED_THRESHOLD_RAD = 10
+S_FILLER_NETWORK_BLOCKS = 11
+P_MAXWELL_BANK_N = 0
+P_MAXWELL_BANK_TABLES = 1
+S_MAXWELL_BANK_CACHED_H = 3
+S_MAXWELL_BANK_CACHED_K1 = 4
+S_MAXWELL_BANK_CACHED_C1 = 5
+S_MAXWELL_BANK_BLOCKS = 6
+# ---------------------------------------------------------------- end of the generated slot offsets
 
 CACHE = cache_available()  # False where no cache folder is writable: compiled at every start instead
 prefer_fork_safe_threads()
@@ -91,10 +180,10 @@ def _ipow(u, p):
 @njit(inline="always", **JIT)
 def linear_spring(p, po, s, so, x0, x1, h):
     """T = k x.  params: [k]."""
-    k = p[po + 0]
-    s[so + 0] = 0.5 * k * x1 * x1
-    s[so + 2] = k * x1
-    return s[so + 2]
+    k = p[po + P_LINEAR_SPRING_K]
+    s[so + S_STORED_ENERGY_J] = 0.5 * k * x1 * x1
+    s[so + S_TORQUE_NM] = k * x1
+    return s[so + S_TORQUE_NM]
 
 
 @njit(**JIT)
@@ -104,33 +193,33 @@ def table_spring(p, po, s, so, x0, x1, h):
     params: [n, x_1..x_n, T_1..T_n, E_1..E_n] with E_i the stored energy at x_i (the integral
     of f from 0, precomputed), so the energy at x is E_i plus one trapezoid.
     """
-    n = int(p[po + 0])
-    xs = p[po + 1:po + 1 + n]
-    ys = p[po + 1 + n:po + 1 + 2 * n]
+    n = int(p[po + P_TABLE_SPRING_N])
+    xs = p[po + P_TABLE_SPRING_TABLES:po + P_TABLE_SPRING_TABLES + n]
+    ys = p[po + P_TABLE_SPRING_TABLES + n:po + P_TABLE_SPRING_TABLES + 2 * n]
     i = _segment(x1, xs, n)
     torque = ys[i] + (x1 - xs[i]) / (xs[i + 1] - xs[i]) * (ys[i + 1] - ys[i])
-    s[so + 0] = p[po + 1 + 2 * n + i] + 0.5 * (ys[i] + torque) * (x1 - xs[i])
-    s[so + 2] = torque
+    s[so + S_STORED_ENERGY_J] = p[po + P_TABLE_SPRING_TABLES + 2 * n + i] + 0.5 * (ys[i] + torque) * (x1 - xs[i])
+    s[so + S_TORQUE_NM] = torque
     return torque
 
 
 @njit(inline="always", **JIT)
 def cubic_spring(p, po, s, so, x0, x1, h):
     """T = A x^3 + B x (Heine & Plagemann 2014). params: [A, B]."""
-    a = p[po + 0]
-    b = p[po + 1]
-    s[so + 0] = 0.25 * a * x1 ** 4 + 0.5 * b * x1 * x1
-    s[so + 2] = a * x1 ** 3 + b * x1
-    return s[so + 2]
+    a = p[po + P_CUBIC_SPRING_A]
+    b = p[po + P_CUBIC_SPRING_B]
+    s[so + S_STORED_ENERGY_J] = 0.25 * a * x1 ** 4 + 0.5 * b * x1 * x1
+    s[so + S_TORQUE_NM] = a * x1 ** 3 + b * x1
+    return s[so + S_TORQUE_NM]
 
 
 # ---------------------------------------------------------------- dissipative elements
 @njit(inline="always", **JIT)
 def dashpot(p, po, s, so, x0, x1, h):
     """T = c dx/dt, the rate of the step. params: [c]."""
-    t1 = p[po + 0] * (x1 - x0) / h
-    s[so + 1] += 0.5 * (s[so + 2] + t1) * (x1 - x0)
-    s[so + 2] = t1
+    t1 = p[po + P_DASHPOT_C] * (x1 - x0) / h
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + t1) * (x1 - x0)
+    s[so + S_TORQUE_NM] = t1
     return t1
 
 
@@ -141,22 +230,23 @@ def maxwell(p, po, s, so, x0, x1, h):
     params: [k, c]; internal: spring elongation e (de/dt = dx/dt - (k/c) e), then a cache of
     the step's coefficients, keyed on h k and c: e1 = e0 exp(-h k/c) + dx tau (1 - exp(-h k/c)) / h.
     """
-    k = p[po + 0]
-    c = p[po + 1]
-    e0 = s[so + 3]
-    if s[so + 4] != h * k or s[so + 5] != c:  # exp() and divisions only when h or the parameters change
+    k = p[po + P_MAXWELL_K]
+    c = p[po + P_MAXWELL_C]
+    e0 = s[so + S_MAXWELL_ELONGATION_RAD]
+    # exp() and divisions only when h or the parameters change
+    if s[so + S_MAXWELL_CACHED_HK] != h * k or s[so + S_MAXWELL_CACHED_C] != c:
         tau = c / k
-        s[so + 4] = h * k
-        s[so + 5] = c
-        s[so + 6] = np.exp(-h / tau)
-        s[so + 7] = tau * (1.0 - s[so + 6]) / h
-    e1 = e0 * s[so + 6] + (x1 - x0) * s[so + 7]
+        s[so + S_MAXWELL_CACHED_HK] = h * k
+        s[so + S_MAXWELL_CACHED_C] = c
+        s[so + S_MAXWELL_CACHED_DECAY] = np.exp(-h / tau)
+        s[so + S_MAXWELL_CACHED_GAIN] = tau * (1.0 - s[so + S_MAXWELL_CACHED_DECAY]) / h
+    e1 = e0 * s[so + S_MAXWELL_CACHED_DECAY] + (x1 - x0) * s[so + S_MAXWELL_CACHED_GAIN]
     t1 = k * e1
     # dashpot stroke = (x1 - x0) - (e1 - e0), carrying the mean spring force
-    s[so + 1] += 0.5 * (s[so + 2] + t1) * ((x1 - x0) - (e1 - e0))
-    s[so + 0] = 0.5 * k * e1 * e1
-    s[so + 2] = t1
-    s[so + 3] = e1
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + t1) * ((x1 - x0) - (e1 - e0))
+    s[so + S_STORED_ENERGY_J] = 0.5 * k * e1 * e1
+    s[so + S_TORQUE_NM] = t1
+    s[so + S_MAXWELL_ELONGATION_RAD] = e1
     return t1
 
 
@@ -287,34 +377,35 @@ def slider_bank(p, po, s, so, x0, x1, h):
       P > 0 : the bank's torque is scaled by the constriction S(x) (Heine & Plagemann 2014), K its floor.
     internal: elongations e_1..e_n, then 2n scratch slots (trial elongations, Newton iterates).
     """
-    n = int(p[po + 0])
-    v_r = p[po + 1]
-    p_exp = int(p[po + 2])
-    p_c = p[po + 3]
-    k_c = p[po + 4]
-    ko = po + 5          # spring stiffnesses k_i
-    fo = po + 5 + n      # slider limits f_i
+    n = int(p[po + P_SLIDER_BANK_N])
+    v_r = p[po + P_SLIDER_BANK_V_R]
+    p_exp = int(p[po + P_SLIDER_BANK_P])
+    p_c = p[po + P_SLIDER_BANK_CONSTRICTION_P]
+    k_c = p[po + P_SLIDER_BANK_CONSTRICTION_K]
+    ko = po + P_SLIDER_BANK_TABLES          # spring stiffnesses k_i
+    fo = po + P_SLIDER_BANK_TABLES + n      # slider limits f_i
+    eo = so + S_SLIDER_BANK_BLOCKS          # elongations e_i, then the scratch blocks
     dx = x1 - x0
     if p_exp == 0:
-        _bank_coulomb(p[ko:ko + n], p[fo:fo + n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], n, dx)
+        _bank_coulomb(p[ko:ko + n], p[fo:fo + n], s[eo:eo + n], s[eo + n:eo + 2 * n], n, dx)
     else:
         # slices with offsets from 0 keep the loops free of index checks, so they vectorise
-        _bank_rate_dependent(p[po + 5 + 2 * n:po + 5 + 3 * n], p[po + 5 + 3 * n:po + 5 + 4 * n],
-                             s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], s[so + 3 + 2 * n:so + 3 + 3 * n],
+        _bank_rate_dependent(p[ko + 2 * n:ko + 3 * n], p[ko + 3 * n:ko + 4 * n],
+                             s[eo:eo + n], s[eo + n:eo + 2 * n], s[eo + 2 * n:eo + 3 * n],
                              v_r, p_exp, n, dx, h)
-    force, energy, slider_work = _bank_commit(p[ko:ko + n], s[so + 3:so + 3 + n], s[so + 3 + n:so + 3 + 2 * n], n, dx)
+    force, energy, slider_work = _bank_commit(p[ko:ko + n], s[eo:eo + n], s[eo + n:eo + 2 * n], n, dx)
     if p_c > 0.0:
         # the constriction modulates the bank: its dissipation is work minus stored energy
         scale = _constriction(x1, p_c, k_c)
         t1 = scale * force
         e_new = scale * energy
-        s[so + 1] += 0.5 * (s[so + 2] + t1) * dx - (e_new - s[so + 0])
-        s[so + 0] = e_new
+        s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + t1) * dx - (e_new - s[so + S_STORED_ENERGY_J])
+        s[so + S_STORED_ENERGY_J] = e_new
     else:
         t1 = force
-        s[so + 1] += slider_work
-        s[so + 0] = energy
-    s[so + 2] = t1
+        s[so + S_DISSIPATED_ENERGY_J] += slider_work
+        s[so + S_STORED_ENERGY_J] = energy
+    s[so + S_TORQUE_NM] = t1
     return t1
 
 
@@ -328,20 +419,17 @@ def _clamped(x, xs, ys, n):
     return _interp(x, xs, ys, n)
 
 
-VM_HEADER = 6  # k0, gain, c0, n_k, n_c, force_mode
-
-
 @njit(**JIT)
 def _vm_spring(e, p, nk):
     """Spring force of the variable Maxwell branch at its deformation e: (k0 + g|e|) e; or
     k(e) e with k from the stiffness table; or, in force mode, the force table f(e) itself."""
     if nk > 0:
-        xs = p[VM_HEADER:VM_HEADER + nk]
-        ys = p[VM_HEADER + nk:VM_HEADER + 2 * nk]
-        if p[5] > 0.0:
+        xs = p[P_VARIABLE_MAXWELL_TABLES:P_VARIABLE_MAXWELL_TABLES + nk]
+        ys = p[P_VARIABLE_MAXWELL_TABLES + nk:P_VARIABLE_MAXWELL_TABLES + 2 * nk]
+        if p[P_VARIABLE_MAXWELL_FORCE_MODE] > 0.0:
             return _interp(e, xs, ys, nk)
         return _clamped(e, xs, ys, nk) * e
-    return (p[0] + p[1] * abs(e)) * e
+    return (p[P_VARIABLE_MAXWELL_K0] + p[P_VARIABLE_MAXWELL_GAIN] * abs(e)) * e
 
 
 @njit(**JIT)
@@ -349,7 +437,7 @@ def _vm_energy(e, p, nk):
     """Stored energy of the variable Maxwell spring: integral of its force from 0 to e."""
     if nk > 0:
         # the force is at most quadratic between knots: Simpson per segment is exact
-        xs = p[VM_HEADER:VM_HEADER + nk]
+        xs = p[P_VARIABLE_MAXWELL_TABLES:P_VARIABLE_MAXWELL_TABLES + nk]
         lo = min(0.0, e)
         hi = max(0.0, e)
         total = 0.0
@@ -364,16 +452,16 @@ def _vm_energy(e, p, nk):
             total += (b - a) / 6.0 * (_vm_spring(a, p, nk) + 4.0 * _vm_spring(m, p, nk) + _vm_spring(b, p, nk))
             a = b
         return total if e > 0.0 else -total
-    return 0.5 * p[0] * e * e + p[1] * abs(e) ** 3 / 3.0
+    return 0.5 * p[P_VARIABLE_MAXWELL_K0] * e * e + p[P_VARIABLE_MAXWELL_GAIN] * abs(e) ** 3 / 3.0
 
 
 @njit(**JIT)
 def _vm_dashpot(v, p, nk, nc):
     """Dashpot force c(|v|) v, with c from a table over the rate (end value beyond it) or c0."""
     if nc > 0:
-        off = VM_HEADER + 2 * nk
+        off = P_VARIABLE_MAXWELL_TABLES + 2 * nk
         return _clamped(abs(v), p[off:off + nc], p[off + nc:off + 2 * nc], nc) * v
-    return p[2] * v
+    return p[P_VARIABLE_MAXWELL_C0] * v
 
 
 @njit(**JIT)
@@ -385,12 +473,12 @@ def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
     stored energy comes from the knot energies precomputed after the table, the slopes of the
     segments after those. Internal: e, then the cached time step and c/h.
     """
-    xs = pv[VM_HEADER:VM_HEADER + nk]
-    ys = pv[VM_HEADER + nk:VM_HEADER + 2 * nk]
-    if s[so + 4] != h:  # c/h only when the time step changes
-        s[so + 4] = h
-        s[so + 5] = pv[2] / h
-    beta = s[so + 5]
+    xs = pv[P_VARIABLE_MAXWELL_TABLES:P_VARIABLE_MAXWELL_TABLES + nk]
+    ys = pv[P_VARIABLE_MAXWELL_TABLES + nk:P_VARIABLE_MAXWELL_TABLES + 2 * nk]
+    if s[so + S_VARIABLE_MAXWELL_CACHED_H] != h:  # c/h only when the time step changes
+        s[so + S_VARIABLE_MAXWELL_CACHED_H] = h
+        s[so + S_VARIABLE_MAXWELL_CACHED_C_OVER_H] = pv[P_VARIABLE_MAXWELL_C0] / h
+    beta = s[so + S_VARIABLE_MAXWELL_CACHED_C_OVER_H]
     rhs = beta * (e0 + dx)
     lo = 0
     hi = nk - 1
@@ -406,13 +494,13 @@ def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
             else:
                 hi = mid
     i = lo
-    slope = pv[VM_HEADER + 3 * nk + i]  # precomputed segment slopes
+    slope = pv[P_VARIABLE_MAXWELL_TABLES + 3 * nk + i]  # precomputed segment slopes
     e = (rhs - ys[i] + slope * xs[i]) / (slope + beta)
     t1 = ys[i] + slope * (e - xs[i])
-    s[so + 1] += 0.5 * (s[so + 2] + t1) * (dx - (e - e0))
-    s[so + 0] = pv[VM_HEADER + 2 * nk + i] + 0.5 * (ys[i] + t1) * (e - xs[i])
-    s[so + 2] = t1
-    s[so + 3] = e
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + t1) * (dx - (e - e0))
+    s[so + S_STORED_ENERGY_J] = pv[P_VARIABLE_MAXWELL_TABLES + 2 * nk + i] + 0.5 * (ys[i] + t1) * (e - xs[i])
+    s[so + S_TORQUE_NM] = t1
+    s[so + S_VARIABLE_MAXWELL_ELONGATION_RAD] = e
     return t1
 
 
@@ -429,11 +517,11 @@ def variable_maxwell(p, po, s, so, x0, x1, h):
     between 0 and e0 + dx, so a safeguarded Newton/bisection always converges.
     """
     pv = p[po:]  # the helpers index the parameters from the element's start
-    nk = int(pv[3])
-    nc = int(pv[4])
-    e0 = s[so + 3]
+    nk = int(pv[P_VARIABLE_MAXWELL_NK])
+    nc = int(pv[P_VARIABLE_MAXWELL_NC])
+    e0 = s[so + S_VARIABLE_MAXWELL_ELONGATION_RAD]
     dx = x1 - x0
-    if pv[5] > 0.0 and nc == 0:
+    if pv[P_VARIABLE_MAXWELL_FORCE_MODE] > 0.0 and nc == 0:
         return _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h)
     lo = min(0.0, e0 + dx)
     hi = max(0.0, e0 + dx)
@@ -458,10 +546,10 @@ def variable_maxwell(p, po, s, so, x0, x1, h):
             e_new = 0.5 * (lo + hi)
         e = e_new
     t1 = _vm_spring(e, pv, nk)
-    s[so + 1] += 0.5 * (s[so + 2] + t1) * (dx - (e - e0))
-    s[so + 0] = _vm_energy(e, pv, nk)
-    s[so + 2] = t1
-    s[so + 3] = e
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + t1) * (dx - (e - e0))
+    s[so + S_STORED_ENERGY_J] = _vm_energy(e, pv, nk)
+    s[so + S_TORQUE_NM] = t1
+    s[so + S_VARIABLE_MAXWELL_ELONGATION_RAD] = e
     return t1
 
 
@@ -473,30 +561,31 @@ def pfeffer(p, po, s, so, x0, x1, h):
     internal: z, the Kelvin-Voigt deflection, then a cache of (lambda h, exp(-lambda h)); dz/dt = (du/dt - (alpha/gamma) z) / (1 + beta),
     integrated exactly for the step's constant du/dt. F = k1 [u + gamma (du/dt - dz/dt)].
     """
-    k1 = p[po + 0]
-    alpha = p[po + 1]
-    beta = p[po + 2]
-    gamma = p[po + 3]
-    z0 = s[so + 3]
+    k1 = p[po + P_PFEFFER_K1]
+    alpha = p[po + P_PFEFFER_ALPHA]
+    beta = p[po + P_PFEFFER_BETA]
+    gamma = p[po + P_PFEFFER_GAMMA]
+    z0 = s[so + S_PFEFFER_Z_RAD]
     v = (x1 - x0) / h
     lam = alpha / (gamma * (1.0 + beta))
-    if s[so + 4] != lam * h:  # exp() only when the time step (or the parameters) change
-        s[so + 4] = lam * h
-        s[so + 5] = np.exp(-lam * h)
-    decay = s[so + 5]
+    if s[so + S_PFEFFER_CACHED_LAMBDA_H] != lam * h:  # exp() only when the time step (or the parameters) change
+        s[so + S_PFEFFER_CACHED_LAMBDA_H] = lam * h
+        s[so + S_PFEFFER_CACHED_DECAY] = np.exp(-lam * h)
+    decay = s[so + S_PFEFFER_CACHED_DECAY]
     z1 = z0 * decay + v / (1.0 + beta) * (1.0 - decay) / lam
     zdot1 = (v - alpha / gamma * z1) / (1.0 + beta)
     c1 = gamma * k1
     k2 = alpha * k1
     branch1 = c1 * (v - zdot1)
     t1 = k1 * x1 + branch1
-    branch0 = s[so + 2] - k1 * x0
+    branch0 = s[so + S_TORQUE_NM] - k1 * x0
     mean_branch = 0.5 * (branch0 + branch1)
     # c1 stroke (dx - dz) and c2 stroke dz, c2 force = branch force - k2 z
-    s[so + 1] += mean_branch * ((x1 - x0) - (z1 - z0)) + (mean_branch - 0.5 * k2 * (z0 + z1)) * (z1 - z0)
-    s[so + 0] = 0.5 * k1 * x1 * x1 + 0.5 * k2 * z1 * z1
-    s[so + 2] = t1
-    s[so + 3] = z1
+    s[so + S_DISSIPATED_ENERGY_J] += (mean_branch * ((x1 - x0) - (z1 - z0))
+                                      + (mean_branch - 0.5 * k2 * (z0 + z1)) * (z1 - z0))
+    s[so + S_STORED_ENERGY_J] = 0.5 * k1 * x1 * x1 + 0.5 * k2 * z1 * z1
+    s[so + S_TORQUE_NM] = t1
+    s[so + S_PFEFFER_Z_RAD] = z1
     return t1
 
 
@@ -556,38 +645,38 @@ def payne(p, po, s, so, x0, x1, h):
     mode (0 virgin, 1 oscillating, 2 at rest: no crossing for memory_s, until the rate exceeds
     100x the largest rate seen resting), cached exp(-h/centre_tau), h and exp(-h/rest_tau).
     """
-    dk = p[po + 0]
-    angle_c = p[po + 1]
-    m = p[po + 2]
-    loss0 = p[po + 3]
-    loss_peak = p[po + 4]
-    tau = p[po + 5]
-    memory = p[po + 6]
-    beta_s = p[po + 7]
-    beta_l = p[po + 8]
-    omega_ref = p[po + 9]
-    rest_tau = p[po + 10]
-    if s[so + 13] != h:
-        s[so + 13] = h
-        s[so + 12] = np.exp(-h / tau)
-        s[so + 14] = np.exp(-h / rest_tau)
-    resting = s[so + 11] == 2.0
+    dk = p[po + P_PAYNE_STIFFNESS]
+    angle_c = p[po + P_PAYNE_CRITICAL_ANGLE]
+    m = p[po + P_PAYNE_EXPONENT]
+    loss0 = p[po + P_PAYNE_LOSS_STIFFNESS]
+    loss_peak = p[po + P_PAYNE_LOSS_PEAK_STIFFNESS]
+    tau = p[po + P_PAYNE_CENTRE_RELAXATION_TIME]
+    memory = p[po + P_PAYNE_MEMORY_TIME]
+    beta_s = p[po + P_PAYNE_STORAGE_FREQUENCY_EXPONENT]
+    beta_l = p[po + P_PAYNE_LOSS_FREQUENCY_EXPONENT]
+    omega_ref = p[po + P_PAYNE_REFERENCE_OMEGA]
+    rest_tau = p[po + P_PAYNE_REST_RELAXATION_TIME]
+    if s[so + S_PAYNE_CACHED_H] != h:
+        s[so + S_PAYNE_CACHED_H] = h
+        s[so + S_PAYNE_CACHED_CENTRE_DECAY] = np.exp(-h / tau)
+        s[so + S_PAYNE_CACHED_REST_DECAY] = np.exp(-h / rest_tau)
+    resting = s[so + S_PAYNE_MODE] == 2.0
     if resting:  # at rest the centre follows the angle fast: a held preload leaves no offset
         tau = rest_tau
-        decay = s[so + 14]
+        decay = s[so + S_PAYNE_CACHED_REST_DECAY]
     else:
-        decay = s[so + 12]
-    e0 = s[so + 3]
-    k_old = s[so + 4]
+        decay = s[so + S_PAYNE_CACHED_CENTRE_DECAY]
+    e0 = s[so + S_PAYNE_ELONGATION_RAD]
+    k_old = s[so + S_PAYNE_STIFFNESS]
     dx = x1 - x0
     # centre relaxation: de/dt = dx/dt - e / tau, exact for the step's constant rate
     e1 = e0 * decay + dx * tau * (1.0 - decay) / h
     rate_e = (e1 - e0) / h
-    w = s[so + 6]
-    peak_e = s[so + 7]
-    peak_v = s[so + 8]
-    elapsed = s[so + 9] + h
-    sign = s[so + 10]
+    w = s[so + S_PAYNE_OMEGA]
+    peak_e = s[so + S_PAYNE_PEAK_ELONGATION]
+    peak_v = s[so + S_PAYNE_PEAK_RATE]
+    elapsed = s[so + S_PAYNE_ELAPSED_S] + h
+    sign = s[so + S_PAYNE_HALF_CYCLE_SIGN]
     crossed = (e1 > 0.0 and sign < 0.0) or (e1 < 0.0 and sign > 0.0) or (sign == 0.0 and e1 != 0.0)
     if crossed:
         # a completed half cycle gives the frequency by its duration (the zero crossings of a
@@ -608,7 +697,7 @@ def payne(p, po, s, so, x0, x1, h):
         peak_v = 0.0
         elapsed = (1.0 - theta) * h  # from the crossing to the end of this step
         sign = 1.0 if e1 > 0.0 else -1.0
-    mode = s[so + 11]  # 0: virgin, 1: oscillating, 2: at rest
+    mode = s[so + S_PAYNE_MODE]  # 0: virgin, 1: oscillating, 2: at rest
     rest = False
     started = False
     if crossed:
@@ -653,10 +742,10 @@ def payne(p, po, s, so, x0, x1, h):
         if k_new > k_old and k_old > 0.0:
             e1 = e1 * k_old / k_new
         else:
-            k_new = min(k_new, k_old) if s[so + 11] > 0.0 else k_new
+            k_new = min(k_new, k_old) if s[so + S_PAYNE_MODE] > 0.0 else k_new
     elif crossed and e0 * e1 < 0.0:
         k_new = max(k_new, k_old)  # a fall waits for the next step (keeps the step passive)
-    elif s[so + 11] > 0.0:
+    elif s[so + S_PAYNE_MODE] > 0.0:
         k_new = min(k_new, k_old)  # within a half cycle the network only breaks down
     c = 0.0
     if omega > 0.0 and not rest:
@@ -664,25 +753,25 @@ def payne(p, po, s, so, x0, x1, h):
     # the dashpot's coefficient may fall only while the rate keeps its sign: then the
     # trapezoidal work of its force c v is >= 0 over any history (each step's c v^2 h / 2
     # covers the cross terms of the reversals next to it)
-    c_old = s[so + 5]
-    if c < c_old and (s[so + 2] - k_old * e0) * dx < 0.0:
+    c_old = s[so + S_PAYNE_DAMPING]
+    if c < c_old and (s[so + S_TORQUE_NM] - k_old * e0) * dx < 0.0:
         c = c_old
     t1 = k_new * e1 + c * dx / h
     stored1 = 0.5 * k_new * e1 * e1
     # dissipated = trapezoidal work of the step - change of stored energy (dashpot, centre
     # relaxation, breakdown and re-forming of the network all included)
-    s[so + 1] += 0.5 * (s[so + 2] + t1) * dx - (stored1 - s[so + 0])
-    s[so + 0] = stored1
-    s[so + 2] = t1
-    s[so + 3] = e1
-    s[so + 4] = k_new
-    s[so + 5] = c
-    s[so + 6] = w
-    s[so + 7] = peak_e
-    s[so + 8] = peak_v
-    s[so + 9] = elapsed
-    s[so + 10] = sign
-    s[so + 11] = max(mode, 1.0)
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + t1) * dx - (stored1 - s[so + S_STORED_ENERGY_J])
+    s[so + S_STORED_ENERGY_J] = stored1
+    s[so + S_TORQUE_NM] = t1
+    s[so + S_PAYNE_ELONGATION_RAD] = e1
+    s[so + S_PAYNE_STIFFNESS] = k_new
+    s[so + S_PAYNE_DAMPING] = c
+    s[so + S_PAYNE_OMEGA] = w
+    s[so + S_PAYNE_PEAK_ELONGATION] = peak_e
+    s[so + S_PAYNE_PEAK_RATE] = peak_v
+    s[so + S_PAYNE_ELAPSED_S] = elapsed
+    s[so + S_PAYNE_HALF_CYCLE_SIGN] = sign
+    s[so + S_PAYNE_MODE] = max(mode, 1.0)
     return t1
 
 
@@ -713,26 +802,26 @@ def maxwell_bank(p, po, s, so, x0, x1, h):
     params: [n, k_1..k_n, c_1..c_n]; internal: cached h, k_1, c_1 (the key of the cache), then
     the elongations e_1..e_n, the decays exp(-h k_i/c_i) and the ramp factors tau_i (1 - decay_i)/h.
     """
-    n = int(p[po])
-    eo = so + 6
-    if s[so + 3] != h or s[so + 4] != p[po + 1] or s[so + 5] != p[po + 1 + n]:
-        s[so + 3] = h
-        s[so + 4] = p[po + 1]
-        s[so + 5] = p[po + 1 + n]
+    n = int(p[po + P_MAXWELL_BANK_N])
+    eo = so + S_MAXWELL_BANK_BLOCKS
+    ko = po + P_MAXWELL_BANK_TABLES  # k_1..k_n, then c_1..c_n
+    if (s[so + S_MAXWELL_BANK_CACHED_H] != h or s[so + S_MAXWELL_BANK_CACHED_K1] != p[ko]
+            or s[so + S_MAXWELL_BANK_CACHED_C1] != p[ko + n]):
+        s[so + S_MAXWELL_BANK_CACHED_H] = h
+        s[so + S_MAXWELL_BANK_CACHED_K1] = p[ko]
+        s[so + S_MAXWELL_BANK_CACHED_C1] = p[ko + n]
         for i in range(n):
-            tau = p[po + 1 + n + i] / p[po + 1 + i]
+            tau = p[ko + n + i] / p[ko + i]
             s[eo + n + i] = np.exp(-h / tau)
             s[eo + 2 * n + i] = -tau * np.expm1(-h / tau) / h
-    torque, energy, dissipated = _maxwell_terms(p, po + 1, s, eo, n, x1 - x0)
-    s[so + 0] = energy
-    s[so + 1] += dissipated
-    s[so + 2] = torque
+    torque, energy, dissipated = _maxwell_terms(p, ko, s, eo, n, x1 - x0)
+    s[so + S_STORED_ENERGY_J] = energy
+    s[so + S_DISSIPATED_ENERGY_J] += dissipated
+    s[so + S_TORQUE_NM] = torque
     return torque
 
 
 # ---------------------------------------------------------------- filler network (Payne effect, any history)
-FN_HEADER_PARAMS = 6
-FN_N_INTERNAL = 8  # damage, e_c, h, h / tau_c, tau_c / tau_r, 1 / (h rest_rate), g cap, its threshold
 #: the breakdown threshold is cached for an intact fraction this share of the damage above the
 #: current one (a power per renewal instead of one per step; the result is the same)
 FN_THRESHOLD_CAP = 0.01
@@ -805,20 +894,23 @@ def filler_network(p, po, s, so, x0, x1, h):
     The sliders' return mapping is that of a Coulomb slider bank (:func:`kernels.slider_bank`),
     fused here with the recovery's rescaling and the sums in one vectorised pass.
     """
-    n = int(p[po])
-    breakdown_angle = p[po + 1]
-    two_m = p[po + 2]
-    if s[so + 5] != h:  # the step's share of the relaxation and recovery times, when it changes
-        s[so + 5] = h
-        s[so + 6] = h / p[po + 4]
-        s[so + 7] = p[po + 4] / p[po + 3]
-        s[so + 8] = 1.0 / (h * p[po + 5])
+    n = int(p[po + P_FILLER_NETWORK_N])
+    breakdown_angle = p[po + P_FILLER_NETWORK_BREAKDOWN_ANGLE]
+    two_m = p[po + P_FILLER_NETWORK_TWO_M]
+    if s[so + S_FILLER_NETWORK_CACHED_H] != h:  # the step's share of the relaxation and recovery times, when it changes
+        s[so + S_FILLER_NETWORK_CACHED_H] = h
+        s[so + S_FILLER_NETWORK_CACHED_H_OVER_CENTRE_TIME] = h / p[po + P_FILLER_NETWORK_CENTRE_RELAXATION_TIME]
+        s[so + S_FILLER_NETWORK_CACHED_CENTRE_OVER_RECOVERY_TIME] = (p[po + P_FILLER_NETWORK_CENTRE_RELAXATION_TIME]
+                                                                     / p[po + P_FILLER_NETWORK_RECOVERY_TIME])
+        s[so + S_FILLER_NETWORK_CACHED_INVERSE_REST_STEP] = 1.0 / (h * p[po + P_FILLER_NETWORK_REST_RATE])
     dx = x1 - x0
     # the network re-forms only while it is held (docs/theory.md#filler-network): at the step's
     # rate |dx|/h its centre, its stress and its structure relax with the rates
     # 1/centre_relaxation_time and 1/recovery_time times rest = 1 / (1 + |dx|/h / rest_rate);
     # exact for the step's constant rate
-    rate = s[so + 6] / (1.0 + abs(dx) * s[so + 8])  # h rest / centre_relaxation_time
+    # h rest / centre_relaxation_time
+    rate = (s[so + S_FILLER_NETWORK_CACHED_H_OVER_CENTRE_TIME]
+            / (1.0 + abs(dx) * s[so + S_FILLER_NETWORK_CACHED_INVERSE_REST_STEP]))
     if rate < 1e-8:  # a moving network: the series to rate (error rate^2 / 2: round-off)
         gain = 1.0 - 0.5 * rate
         centre_decay = 1.0 - rate
@@ -828,25 +920,26 @@ def filler_network(p, po, s, so, x0, x1, h):
     else:
         centre_decay = np.exp(-rate)
         gain = (1.0 - centre_decay) / rate
-    damage0 = s[so + 3]
+    damage0 = s[so + S_FILLER_NETWORK_DAMAGE]
     g0 = 1.0 - damage0
-    centre_elongation = s[so + 4] * centre_decay + dx * gain
+    centre_elongation = s[so + S_FILLER_NETWORK_CENTRE_ELONGATION_RAD] * centre_decay + dx * gain
     # recovery towards the intact network, then breakdown by the elongation about the centre:
     # g = min(g_rec, g_eq(|e_c|)). g_eq(|e_c|) >= g_rec below the elongation where g_eq equals
     # g_rec; that elongation falls as g_rec rises, so the one of a cap above g_rec bounds it
-    recovery = rate * s[so + 7]  # h rest / recovery_time
+    recovery = rate * s[so + S_FILLER_NETWORK_CACHED_CENTRE_OVER_RECOVERY_TIME]  # h rest / recovery_time
     g_rec = 1.0 - damage0 * ((1.0 - recovery * (1.0 - 0.5 * recovery)) if recovery < 1e-5 else np.exp(-recovery))
-    if g_rec > s[so + 9]:
+    if g_rec > s[so + S_FILLER_NETWORK_CACHED_G_CAP]:
         cap = g_rec + FN_THRESHOLD_CAP * damage0
-        s[so + 9] = cap
-        s[so + 10] = breakdown_angle * (1.0 / cap - 1.0) ** (1.0 / two_m) if cap < 1.0 else 0.0
+        s[so + S_FILLER_NETWORK_CACHED_G_CAP] = cap
+        threshold = breakdown_angle * (1.0 / cap - 1.0) ** (1.0 / two_m) if cap < 1.0 else 0.0
+        s[so + S_FILLER_NETWORK_CACHED_THRESHOLD_RAD] = threshold
     elongation = abs(centre_elongation)
     g_target = g_rec
-    if elongation > s[so + 10]:
+    if elongation > s[so + S_FILLER_NETWORK_CACHED_THRESHOLD_RAD]:
         g_target = min(g_rec, 1.0 / (1.0 + (elongation / breakdown_angle) ** two_m))
-    eo = so + 3 + FN_N_INTERNAL
-    stored0 = s[so + 0]
-    torque0 = s[so + 2]
+    eo = so + S_FILLER_NETWORK_BLOCKS
+    stored0 = s[so + S_STORED_ENERGY_J]
+    torque0 = s[so + S_TORQUE_NM]
     # the network's stress relaxes about its rest state like the centre (a held twist becomes
     # unstrained): the elongations shrink by the centre's decay at the start of the step; the booked trapezoid adds (1 - relax) torque0 dx / 2 to the energy it releases, so
     # it is skipped in a step where that sum would be negative (a large step against the torque)
@@ -856,18 +949,18 @@ def filler_network(p, po, s, so, x0, x1, h):
     # recovery: re-formed bonds are unstrained, so the elongations shrink by g0 / g (the torque
     # g k e is kept, the stored energy falls) before the step's motion
     ratio = relax * (g0 / g_target if g_target > g0 else 1.0)
-    force, energy = _filler_sliders(p[po + FN_HEADER_PARAMS:po + FN_HEADER_PARAMS + n],
-                             p[po + FN_HEADER_PARAMS + n:po + FN_HEADER_PARAMS + 2 * n], s[eo:eo + n], n, ratio, dx)
+    ko = po + P_FILLER_NETWORK_TABLES  # k_1..k_n, then a_1..a_n
+    force, energy = _filler_sliders(p[ko:ko + n], p[ko + n:ko + 2 * n], s[eo:eo + n], n, ratio, dx)
     g = g_target
     if g < g0 and 0.5 * (relax * torque0 + g * force) * dx - (g * energy - relax * relax * stored0) < 0.0:
         g = g0  # this step cannot book the breakdown with a non-negative balance: the next one will
     torque1 = g * force
     stored1 = g * energy
-    s[so + 1] += 0.5 * (torque0 + torque1) * dx - (stored1 - stored0)
-    s[so + 0] = stored1
-    s[so + 2] = torque1
-    s[so + 3] = 1.0 - g
-    s[so + 4] = centre_elongation
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (torque0 + torque1) * dx - (stored1 - stored0)
+    s[so + S_STORED_ENERGY_J] = stored1
+    s[so + S_TORQUE_NM] = torque1
+    s[so + S_FILLER_NETWORK_DAMAGE] = 1.0 - g
+    s[so + S_FILLER_NETWORK_CENTRE_ELONGATION_RAD] = centre_elongation
     return torque1
 
 
@@ -941,8 +1034,8 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
             e_sum = 0.0
             d_sum = 0.0
             for e in range(n_el):
-                e_sum += sb[s_off[e]]
-                d_sum += sb[s_off[e] + 1]
+                e_sum += sb[s_off[e] + S_STORED_ENERGY_J]
+                d_sum += sb[s_off[e] + S_DISSIPATED_ENERGY_J]
             stored[b, n] = e_sum
             dissipated[b, n] = d_sum
 

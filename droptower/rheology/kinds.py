@@ -30,8 +30,7 @@ import numpy as np
 from droptower.rheology import kernels as K
 
 HEADER = ("stored_energy_j", "dissipated_energy_j", "torque_nm")
-STORED, DISSIPATED, TORQUE = range(len(HEADER))
-assert len(HEADER) == K.N_HEADER
+STORED, DISSIPATED, TORQUE = range(len(HEADER))  # the kernels' S_* header slots (droptower.rheology.slots)
 
 
 @dataclass(frozen=True)
@@ -139,7 +138,8 @@ def _slider_bank_stiffness(v, p, motion):
 def _variable_maxwell_stiffness(v, p, motion):
     # the spring in series with the dashpot bounds the branch's tangent over any step
     nk = int(v["nk"])
-    xs, ys = p[K.VM_HEADER:K.VM_HEADER + nk], p[K.VM_HEADER + nk:K.VM_HEADER + 2 * nk]
+    tables = K.P_VARIABLE_MAXWELL_TABLES
+    xs, ys = p[tables:tables + nk], p[tables + nk:tables + 2 * nk]
     if nk and v["force_mode"] > 0:  # force table: its steepest segment
         return float(np.max(_table_slopes(xs, ys)))
     if nk:  # stiffness table: d(k(e) e)/de = k + k' e, linear in e on a segment, extreme at its knots
@@ -239,9 +239,9 @@ FILLER_NETWORK = KernelKind(
     internal=("damage", "centre_elongation_rad", "cached_h", "cached_h_over_centre_time", "cached_centre_over_recovery_time",
               "cached_inverse_rest_step", "cached_g_cap", "cached_threshold_rad"),  # then e_1..e_n
     # every spring of the intact network sticking (g <= 1); the element has no viscous part
-    stiffness_bound=lambda v, p, motion: float(np.sum(p[K.FN_HEADER_PARAMS:K.FN_HEADER_PARAMS + int(v["n"])])),
-    n_params=lambda v: K.FN_HEADER_PARAMS + 2 * int(v["n"]),
-    n_internal=lambda v: K.FN_N_INTERNAL + int(v["n"]))
+    stiffness_bound=lambda v, p, motion: float(np.sum(p[K.P_FILLER_NETWORK_TABLES:][:int(v["n"])])),
+    n_params=lambda v: K.P_FILLER_NETWORK_TABLES + 2 * int(v["n"]),
+    n_internal=lambda v: K.S_FILLER_NETWORK_BLOCKS - K.N_HEADER + int(v["n"]))
 
 KINDS: dict[int, KernelKind] = {k.code: k for k in (
     LINEAR_SPRING, TABLE_SPRING, CUBIC_SPRING, DASHPOT, MAXWELL, SLIDER_BANK, VARIABLE_MAXWELL, PFEFFER, PAYNE,
