@@ -58,6 +58,7 @@ from droptower.compare.reference_map import compare_reference
 from droptower.data import table4_path
 from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.maps import fit_map
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.impact import impact_velocities
@@ -71,7 +72,7 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 CASES = {1: (0.1557, 1.0), 2: (0.359, 2.0), 3: (0.5233, 2.0)}   # J kg*m^2, drop mass kg (docs/theory.md#rig)
 LEVER_M, RESTITUTION = 0.2, 0.5
 HEIGHTS_M = np.array([0.05, 0.2, 0.4, 0.55, 0.7, 1.0, 1.4, 1.8, 3.5, 6.0])  # Table 2
-RATE_HZ = 38_400.0
+RATE_HZ = RIG_SAMPLE_RATE_HZ
 DURATION_S = 0.075
 #: the reference coupling's targets (percent RMS, ratios)
 TARGETS = {"table4_stiffness_rms_pct": 5.0, "table4_damping_rms_pct": 12.0,

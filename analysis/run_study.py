@@ -47,6 +47,7 @@ from droptower.data import table4_path
 from droptower.errors import DroptowerError
 from droptower.maps import fit_map, select_tests
 from droptower.maps.plots import plot_all
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
 from droptower.servo.steady import rubber_figures
@@ -237,7 +238,7 @@ def portable_path(path: Path) -> str:
     return path.name
 
 
-def real_time_factor(coupling, rate_hz: float = 38_400.0, repeats: int = 5) -> float:
+def real_time_factor(coupling, rate_hz: float = RIG_SAMPLE_RATE_HZ, repeats: int = 5) -> float:
     """Simulated seconds per second of CPU time: 1 s of a 30 Hz, 1.5 deg sine at 38.4 kHz,
     single instance, best of ``repeats`` (benchmarks/bench_core.py measures it against its
     baseline). A single instance runs on one thread, so its CPU time is the wall time of an idle

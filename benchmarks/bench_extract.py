@@ -22,10 +22,11 @@ from droptower.extract.files import Settings
 from droptower.extract.synthetic import SyntheticDrop
 from droptower.io.mapping import map_channels
 from droptower.io.readers import read_any
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from timing import json_option, write_figures
 
 SAMPLES = 10_000
-RATE = 38_400.0
+RATE = RIG_SAMPLE_RATE_HZ
 
 
 def make_logs(folder: Path, count: int) -> list[Path]:
@@ -88,7 +89,7 @@ def main() -> None:
         paths = make_logs(Path(tmp), args.logs)
         run_droptower(paths[:5])  # warm-up: imports, caches
         run_naive(paths[:5])
-        print(f"logs: {len(paths)} CSV files x {SAMPLES} samples x 4 columns (droptower-log CSV, 38.4 kHz), "
+        print(f"logs: {len(paths)} CSV files x {SAMPLES} samples x 4 columns (droptower-log CSV, {RATE / 1e3:g} kHz), "
               f"one process; load average before: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
         for label, clock in (("wall time", time.perf_counter), ("CPU time, all threads", time.process_time)):
             parse, fit, ours = run_droptower(paths, clock)

@@ -103,11 +103,12 @@ from droptower.identify import identify, make_segment
 from droptower.identify.fit import simulate
 from droptower.identify.families import ZeroDim6
 from droptower.identify.families.stages import setup
+from droptower.rates import SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import parse_coupling
 from droptower.servo import histories as H
 from timing import json_option, write_figures
 
-FS = 2048.0
+FS = SERVO_SAMPLE_RATE_HZ
 D = np.radians
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from droptower.io import map_channels, read_any, write_log
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 
 N_SAMPLES = 10_000
 REPEAT = 40
@@ -19,7 +20,7 @@ REPEAT = 40
 
 def _logs(folder: Path) -> dict[str, Path]:
     rng = np.random.default_rng(1)
-    t = np.arange(N_SAMPLES) / 38_400.0
+    t = np.arange(N_SAMPLES) / RIG_SAMPLE_RATE_HZ
     angle = 0.02 * np.exp(-40 * t) * np.sin(2 * np.pi * 60 * t) + 1e-5 * rng.normal(size=t.size)
     channels = {"angle_rad": angle, "torque_nm": 900 * angle + rng.normal(size=t.size),
                 "impact_force_n": 1e3 * np.exp(-((t - 0.01) / 1e-3) ** 2), "laser_distance_m": 0.1 * angle}

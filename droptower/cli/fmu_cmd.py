@@ -7,6 +7,7 @@ import click
 
 from droptower.cli.options import quiet_option
 from droptower.errors import DroptowerError
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 
 
 @click.command("export-fmu")
@@ -14,7 +15,8 @@ from droptower.errors import DroptowerError
 @click.argument("coupling")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="The FMU file to write (.fmu).")
-@click.option("--internal-step-s", type=float, default=1.0 / 38_400.0, show_default="1/38400 s (38.4 kHz)",
+@click.option("--internal-step-s", type=float, default=1.0 / RIG_SAMPLE_RATE_HZ,
+              show_default=f"1/{RIG_SAMPLE_RATE_HZ:.0f} s ({RIG_SAMPLE_RATE_HZ / 1e3:g} kHz, the rig's sample rate)",
               help="Largest internal time step in s: a communication step is split into equal steps of at most this.")
 def export_fmu(coupling: str, out: Path, internal_step_s: float) -> None:
     """Write COUPLING (a coupling TOML file, a shipped preset's name, or an `identify` result)

@@ -8,6 +8,7 @@ import click
 
 from droptower.cli.options import note, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive
+from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
 
 #: Columns of the default table (all are in the JSON output).
 TABLE_COLUMNS = ["amplitude_deg", "frequency_hz", "preload_nm", "offset_deg", "storage_stiffness_nm_per_rad",
@@ -39,9 +40,9 @@ def _float_list(option: str, text: str) -> list[float]:
 @click.option("--preload-n", default=None, type=float, help="Translational coupling: mean force (N) [default: 0].")
 @click.option("--preload-hold-s", default=60.0, show_default=True, type=float,
               help="With a preload: how long the mean angle is held, after a quasi-static ramp, before the sine.")
-@click.option("--sample-rate-hz", default=2048.0, show_default=True, type=float,
-              help="Acquisition rate of the evaluated record (the paper's bench: 2048 Hz).")
-@click.option("--simulation-rate-hz", default=38400.0, show_default=True, type=float,
+@click.option("--sample-rate-hz", default=SERVO_SAMPLE_RATE_HZ, show_default=True, type=float,
+              help="Acquisition rate of the evaluated record (default: the paper's bench).")
+@click.option("--simulation-rate-hz", default=RIG_SAMPLE_RATE_HZ, show_default=True, type=float,
               help="Least rate the coupling is simulated at (raised to 4096 steps per cycle, "
                    "rounded up to a multiple of the sample rate).")
 @click.option("--cycles", default=5, show_default=True, type=click.IntRange(min=1), help="Evaluated cycles.")

@@ -31,6 +31,7 @@ from droptower.compare.validation import deviation_stats
 from droptower.errors import DroptowerError
 from droptower.decayfit import fit_decay, start_frequency_and_decay
 from droptower.maps import MapFit
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact import G
@@ -41,7 +42,7 @@ from droptower.servo.steady import steady_state
 #: Newton iterations on (log J, log rate) and the relative tolerance on (A, f)
 ITERATIONS = 12
 TOLERANCE = 2e-3
-STEP_S = 1 / 38400.0
+STEP_S = 1 / RIG_SAMPLE_RATE_HZ
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike
 from droptower import sdof
 from droptower.errors import DroptowerError, readable_file
 from droptower.maps.mapfit import MapRange, read_json_object
+from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
 
 FORMAT = "droptower-model-map"
@@ -50,8 +51,6 @@ Z95 = 1.959963984540054
 #: sigma-point step in units of a principal standard deviation: small enough that the quantities
 #: are linear over it, large enough that the bench's own repeatability (~1e-9) is far below it
 BAND_STEP = 0.1
-#: the bench's acquisition rate and history (docs/theory.md#servo; droptower.servo.bench defaults)
-SAMPLE_RATE_HZ = 2048.0
 #: the quantities per grid point (first harmonic), with their bands where the map has a covariance
 QUANTITIES = ("storage_stiffness_nm_per_deg", "loss_stiffness_nm_per_deg", "loss_factor",
               "dynamic_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio", "lehr_damping")
@@ -96,12 +95,12 @@ def bench_first_harmonics(elements: Coupling, params: np.ndarray, amplitude_deg:
     params = np.atleast_2d(np.asarray(params, float))
     n_sets = params.shape[0]
     out = np.empty((n_sets, a.size), complex)
-    rate = max(SAMPLE_RATE_HZ, 40.0 * float(f.max()))  # at least 40 samples per cycle, as identify's servo grid
+    rate = max(SERVO_SAMPLE_RATE_HZ, 40.0 * float(f.max()))  # at least 40 samples per cycle, as identify's servo grid
     for freq in np.unique(f):
         cols = np.flatnonzero(f == freq)
         amps = np.radians(a[cols])
         rows = Coupling(elements.elements, name=elements.name, params=np.repeat(params, cols.size, axis=0))
-        fine = max(38400.0, bench.MIN_STEPS_PER_CYCLE * freq)
+        fine = max(RIG_SAMPLE_RATE_HZ, bench.MIN_STEPS_PER_CYCLE * freq)
         substeps = max(1, math.ceil(fine / rate - 1e-9))
         _, evals, *_ = bench._run_frequency(rows, float(freq), np.tile(amps, n_sets), 0.0, rate, substeps, 5, 5, 2,
                                             True)

@@ -45,6 +45,7 @@ from droptower import sdof
 from droptower.errors import DroptowerError
 from droptower.io.fields import field_name
 from droptower.io.table_reader import COMMON_ALIASES, read_table
+from droptower.rates import SERVO_SAMPLE_RATE_HZ
 
 #: docs/theory.md#servo: frequency sweeps at these amplitudes (deg) up to these frequencies (Hz) ...
 FREQUENCY_SWEEPS = {0.5: 100.0, 1.5: 60.0, 2.5: 20.0}
@@ -93,7 +94,7 @@ def sweep_points(reduced: bool = False) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["sweep", "amplitude_deg", "frequency_hz"])
 
 
-def run_sweeps(coupling, reduced: bool = False, sample_rate_hz: float = 2048.0) -> ServoPoints:
+def run_sweeps(coupling, reduced: bool = False, sample_rate_hz: float = SERVO_SAMPLE_RATE_HZ) -> ServoPoints:
     """Run the sweeps on the virtual servo bench (:func:`droptower.servo.run_grid`), each
     distinct point once: per frequency one batch of all its amplitudes."""
     from droptower.rheology import Coupling, load_coupling

@@ -21,6 +21,7 @@ import numpy as np
 from droptower.sdof import decay_ratio
 from droptower.io.droptower_log import write_log
 from droptower.io.signals import DropSignals
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,7 @@ class SyntheticDrop:
     stiffness_nm_per_rad: float = 14_000.0
     damping_ratio: float = 1.5
     amplitude_deg: float = 1.0
-    sample_rate_hz: float = 38_400.0
+    sample_rate_hz: float = RIG_SAMPLE_RATE_HZ
     duration_s: float = 0.25
     pretrigger_s: float = 0.02
     preload_nm: float = 0.0

@@ -7,10 +7,11 @@ import tempfile
 from pathlib import Path
 
 from droptower.errors import DroptowerError, WriteError
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology.coupling import Coupling
 
-#: the default internal step: the rig's sample rate (Rapp et al. 2022: 38.4 kHz)
-DEFAULT_STEP_S = 1.0 / 38_400.0
+#: the default internal step: the rig's sample rate (Rapp et al. 2022)
+DEFAULT_STEP_S = 1.0 / RIG_SAMPLE_RATE_HZ
 
 
 def coupling_data(coupling: Coupling) -> dict:

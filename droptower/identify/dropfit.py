@@ -48,6 +48,7 @@ from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_t
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
+from droptower.rates import SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.preload import hold_at
 
@@ -496,7 +497,7 @@ def servo_grid(coupling: Coupling, amplitudes_rad: np.ndarray, frequencies_hz: n
     at least 40 times per cycle."""
     from droptower.servo import run_grid
 
-    rate = max(2048.0, 40.0 * float(np.max(frequencies_hz)))
+    rate = max(SERVO_SAMPLE_RATE_HZ, 40.0 * float(np.max(frequencies_hz)))
     return run_grid(coupling, amplitudes_rad, frequencies_hz, sample_rate_hz=rate)
 
 

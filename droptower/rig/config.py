@@ -19,6 +19,7 @@ from pydantic import Field, NonNegativeFloat, NonNegativeInt, PositiveFloat, Pos
 from droptower.configs import display_name, read_toml, resolve
 from droptower.errors import DroptowerError, not_in_range
 from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.validation import StrictModel, validate
 
 if TYPE_CHECKING:
@@ -90,7 +91,7 @@ class ForceSensor(StrictModel):
 class Sensors(StrictModel):
     """The rig's data acquisition: sample rate (Hz), pre-trigger time (s) and its three sensors."""
 
-    sample_rate_hz: PositiveFloat = 38400.0
+    sample_rate_hz: PositiveFloat = RIG_SAMPLE_RATE_HZ
     pre_trigger_s: PositiveFloat = 0.005
     laser: Laser
     torque: TorqueSensor

@@ -39,6 +39,7 @@ import pandas as pd
 
 from droptower.errors import DroptowerError
 from droptower.limits import require_memory, require_steps
+from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, load_coupling
 from droptower.servo import histories
 from droptower.servo.evaluate import MIN_SAMPLES_PER_CYCLE, CycleEvaluation, evaluate_cycles
@@ -265,8 +266,8 @@ def _grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], freq
 
 
 def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
-              preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *, run_in_cycles: int = 5,
-              ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True,
+              preload_nm: float = 0.0, sample_rate_hz: float = SERVO_SAMPLE_RATE_HZ, cycles: int = 5, *, run_in_cycles: int = 5,
+              ramp_cycles: int = 2, simulation_rate_hz: float = RIG_SAMPLE_RATE_HZ, smooth: bool = True,
               preload_hold_s: float = PRELOAD_HOLD_S) -> BenchResult:
     """Run the grid amplitudes x frequencies on the bench; see :func:`run_grid`."""
     rows, evaluations = [], []
@@ -288,8 +289,8 @@ def run_bench(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], 
 
 
 def run_records(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
-                preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *,
-                run_in_cycles: int = 5, ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0,
+                preload_nm: float = 0.0, sample_rate_hz: float = SERVO_SAMPLE_RATE_HZ, cycles: int = 5, *,
+                run_in_cycles: int = 5, ramp_cycles: int = 2, simulation_rate_hz: float = RIG_SAMPLE_RATE_HZ,
                 preload_hold_s: float = PRELOAD_HOLD_S) -> list[BenchRecord]:
     """The time records of the grid amplitudes x frequencies (frequency-major, as the rows of
     :func:`run_grid`), sampled at ``sample_rate_hz``: the raw signals behind the table, for
@@ -302,8 +303,8 @@ def run_records(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float]
 
 
 def run_grid(coupling: Coupling | str | Path, amplitudes_rad: Sequence[float], frequencies_hz: Sequence[float],
-             preload_nm: float = 0.0, sample_rate_hz: float = 2048.0, cycles: int = 5, *, run_in_cycles: int = 5,
-             ramp_cycles: int = 2, simulation_rate_hz: float = 38400.0, smooth: bool = True,
+             preload_nm: float = 0.0, sample_rate_hz: float = SERVO_SAMPLE_RATE_HZ, cycles: int = 5, *, run_in_cycles: int = 5,
+             ramp_cycles: int = 2, simulation_rate_hz: float = RIG_SAMPLE_RATE_HZ, smooth: bool = True,
              preload_hold_s: float = PRELOAD_HOLD_S) -> pd.DataFrame:
     """Servo-bench results on the grid ``amplitudes_rad`` x ``frequencies_hz``, one row each.
 

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from droptower.errors import DroptowerError
+from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
 
 #: fewest simulation steps per cycle (the kernels see the angle linear between steps)
@@ -38,7 +39,7 @@ class SteadyState:
 
 
 def steady_state(coupling: Coupling, amplitudes_rad: ArrayLike, frequencies_hz: ArrayLike, *, cycles: int = 5,
-                 run_in_cycles: int = 5, simulation_rate_hz: float = 38_400.0, harmonics: int = 1) -> SteadyState:
+                 run_in_cycles: int = 5, simulation_rate_hz: float = RIG_SAMPLE_RATE_HZ, harmonics: int = 1) -> SteadyState:
     """Drive each row with x = A sin(2 pi f t) (amplitude rising over the first cycle) from a
     virgin state and evaluate the last ``cycles`` of ``run_in_cycles + cycles``."""
     amps = np.atleast_1d(np.asarray(amplitudes_rad, float))
