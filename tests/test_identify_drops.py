@@ -12,7 +12,7 @@ import pytest
 
 from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.cli.main import main
-from droptower.identify.dropfit import DropFitSettings, identify_drops, servo_agreement
+from droptower.identify.dropfit import SERVO_GRID, DropFitSettings, identify_drops, servo_agreement
 from droptower.identify.droplogs import ReadSettings, read_decays
 from droptower.identify.lever import at_times, free_decay
 from droptower.rig.config import load_rig
@@ -151,7 +151,7 @@ def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     assert code == 0
     report = json.loads(capsys.readouterr().out)
     servo = pd.read_csv(pred)  # the model over the tested range on a servo grid
-    assert len(servo) == 20 and {"model_storage_stiffness_nm_per_deg", "model_loss_factor"} <= set(servo)
+    assert len(servo) == SERVO_GRID[0] * SERVO_GRID[1] and {"model_storage_stiffness_nm_per_deg", "model_loss_factor"} <= set(servo)
     for key in ("converged", "model", "parameters", "fit_error", "holdout_error", "tests_used", "tests_excluded",
                 "wall_s", "coupling_file"):
         assert key in report

@@ -74,11 +74,10 @@ def servo_prediction(result: Any, decays: list, paths: list[str], settings: Any)
     import pandas as pd
 
     from droptower.extract.files import Settings, extract_file, result_row
-    from droptower.identify.dropfit import servo_grid, tested_range
+    from droptower.identify.dropfit import servo_grid, tested_grid
     from droptower.maps.fit import fit_map
 
-    (a0, a1), (f0, f1) = tested_range(decays)
-    grid = servo_grid(result.coupling(), np.geomspace(a0, a1, 5), np.geomspace(f0, f1, 4))
+    grid = servo_grid(result.coupling(), *tested_grid(decays))
     table = pd.DataFrame({
         "amplitude_deg": grid["amplitude_deg"], "frequency_hz": grid["frequency_hz"],
         "model_storage_stiffness_nm_per_deg": grid["storage_stiffness_nm_per_deg"],

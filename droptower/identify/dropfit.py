@@ -492,6 +492,20 @@ def tested_range(decays: list[DropDecay]) -> tuple[tuple[float, float], tuple[fl
     return (min(a), max(a)), (min(f), max(f))
 
 
+#: The servo grid inside the tested range, (amplitudes, frequencies), each geometric: the grid of
+#: the identification's acceptance measure (:func:`servo_agreement`, docs/guide/identification.md)
+#: and of the drop-test report's servo prediction
+SERVO_GRID = (4, 3)
+
+
+def tested_grid(decays: list[DropDecay], n_amplitudes: int = SERVO_GRID[0],
+                n_frequencies: int = SERVO_GRID[1]) -> tuple[np.ndarray, np.ndarray]:
+    """The servo grid inside the campaign's tested range (:func:`tested_range`): ``n_amplitudes``
+    amplitudes (rad) and ``n_frequencies`` frequencies (Hz), geometrically spaced, ends included."""
+    (a0, a1), (f0, f1) = tested_range(decays)
+    return np.geomspace(a0, a1, n_amplitudes), np.geomspace(f0, f1, n_frequencies)
+
+
 def servo_grid(coupling: Coupling, amplitudes_rad: np.ndarray, frequencies_hz: np.ndarray) -> Any:
     """The virtual servo bench's K' and loss factor of ``coupling`` on a grid (DataFrame), sampled
     at least 40 times per cycle."""
@@ -501,12 +515,11 @@ def servo_grid(coupling: Coupling, amplitudes_rad: np.ndarray, frequencies_hz: n
     return run_grid(coupling, amplitudes_rad, frequencies_hz, sample_rate_hz=rate)
 
 
-def servo_agreement(fitted: Coupling, truth: Coupling, decays: list[DropDecay], n_amplitudes: int = 4,
-                    n_frequencies: int = 3) -> dict[str, float]:
+def servo_agreement(fitted: Coupling, truth: Coupling, decays: list[DropDecay], n_amplitudes: int = SERVO_GRID[0],
+                    n_frequencies: int = SERVO_GRID[1]) -> dict[str, float]:
     """RMS relative deviation of the fitted coupling's storage stiffness and loss factor from
-    ``truth``'s on a servo grid inside the tested range (the issue's acceptance measure)."""
-    (a0, a1), (f0, f1) = tested_range(decays)
-    amps, freqs = np.geomspace(a0, a1, n_amplitudes), np.geomspace(f0, f1, n_frequencies)
+    ``truth``'s on the servo grid inside the tested range (:func:`tested_grid`; the acceptance measure)."""
+    amps, freqs = tested_grid(decays, n_amplitudes, n_frequencies)
     fit, ref = servo_grid(fitted, amps, freqs), servo_grid(truth, amps, freqs)
     dk = fit["storage_stiffness_nm_per_rad"].to_numpy() / ref["storage_stiffness_nm_per_rad"].to_numpy() - 1.0
     de = fit["loss_factor"].to_numpy() / ref["loss_factor"].to_numpy() - 1.0
