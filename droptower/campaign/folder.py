@@ -20,7 +20,6 @@ import contextlib
 import fcntl
 import functools
 import json
-import math
 import platform
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -31,6 +30,7 @@ from typing import Any, Iterator
 from droptower.campaign.spec import CampaignSpec
 from droptower.errors import DroptowerError, WriteError
 from droptower.io.droptower_log import atomic_write
+from droptower.jsonsafe import json_safe
 
 FORMAT = "droptower-campaign"
 #: The lock file of a running campaign (see :func:`folder_lock`).
@@ -93,22 +93,9 @@ def versions() -> dict[str, str]:
 def write_json(path: Path, value: Any, indent: int | None = 1) -> Path:
     """Write strict JSON (NaN and infinities as null, numpy scalars as numbers) atomically;
     ``indent=None``: one line (Python's C encoder, several times faster than an indented one)."""
-    text = json.dumps(strict_json(value), indent=indent, default=str) + "\n"
+    text = json.dumps(json_safe(value), indent=indent) + "\n"
     atomic_write(path, lambda tmp: Path(tmp).write_text(text))
     return path
-
-
-def strict_json(value: Any) -> Any:
-    """``value`` as strict JSON data: NaN and infinities as None, numpy scalars as Python numbers."""
-    if isinstance(value, dict):
-        return {k: strict_json(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [strict_json(v) for v in value]
-    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
-        value = value.item()  # numpy scalars
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def read_manifest(path: Path) -> dict[str, Any]:

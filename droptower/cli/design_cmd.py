@@ -10,6 +10,7 @@ import click
 from droptower.cli.options import note, quiet_option
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 from droptower.errors import DroptowerError
+from droptower.jsonsafe import json_safe
 from droptower.cli.flags import cli_text
 
 #: Columns printed as the table (all are in --json).
@@ -143,12 +144,12 @@ def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | Non
         plot_coverage(result, plot_path, f"{coupling_model.name} on {rig_cfg.name}: "
                                          f"{100 * result.covered_fraction:.0f} % of the target covered")
     if as_json:
-        click.echo(json.dumps({
+        click.echo(json.dumps(json_safe({
             "tests": result.n_tests, "conditions": _records(result.conditions),
             "target_covered_fraction": result.covered_fraction, "reachable_fraction": result.reachable_fraction,
             "unreachable": result.unreachable, "double_impacts_predicted": result.double_impacts_predicted,
             "limits_hit": [cli_text(line) for line in result.limits_hit], "repeats": result.repeats, "plan_file": str(plan_file),
-            "sheet_file": sheet}, indent=1, default=_json_default))
+            "sheet_file": sheet}), indent=1))
         return
     click.echo(f"{result.n_conditions} conditions x {result.repeats} repeats = {result.n_tests} drops on rig "
                f"{rig_cfg.name} with {coupling_model.name}; {100 * result.covered_fraction:.0f} % of the target "
@@ -177,9 +178,9 @@ def _identification(rig, coupling, target, model: str, n_tests: int, out: str, s
     params = {r.parameter: {"value": r.value, "std_error": r.std_error, "relative_std_error": r.relative_std_error}
               for r in result.parameters.itertuples()}
     if as_json:
-        click.echo(json.dumps({"tests": int(c["repeats"].sum()), "conditions": _records(c), "model": model,
-                               "predicted_std_errors": params, "log_det_information": result.log_det,
-                               "plan_file": str(plan_file), "sheet_file": sheet}, indent=1, default=_json_default))
+        click.echo(json.dumps(json_safe({"tests": int(c["repeats"].sum()), "conditions": _records(c), "model": model,
+                                         "predicted_std_errors": params, "log_det_information": result.log_det,
+                                         "plan_file": str(plan_file), "sheet_file": sheet}), indent=1))
         return
     click.echo(f"{n_tests} drops that identify {model} best (D-optimal) on rig {rig.name} with {coupling.name}:")
     _print_table(c)
@@ -190,13 +191,7 @@ def _identification(rig, coupling, target, model: str, n_tests: int, out: str, s
 
 
 def _records(table) -> list[dict]:
-    cols = [*TABLE_COLUMNS, "inertia_kgm2", "warnings"]
-    return [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
-            for r in table[cols].to_dict(orient="records")]
-
-
-def _json_default(value):
-    return value.item() if hasattr(value, "item") else str(value)
+    return table[[*TABLE_COLUMNS, "inertia_kgm2", "warnings"]].to_dict(orient="records")
 
 
 def pd_options():

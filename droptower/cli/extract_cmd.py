@@ -120,7 +120,8 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     from tqdm import tqdm
 
     from droptower.extract.drops import parse_drop_selection, read_drop_conditions
-    from droptower.extract.files import Settings, extract_drops, json_safe, result_row
+    from droptower.extract.files import Settings, extract_drops, result_row
+    from droptower.jsonsafe import json_safe
     from droptower.extract.window import Window
     from droptower.io.tables import check_table_path, write_table
     from droptower.io.mapping import parse_channel_options
@@ -185,7 +186,7 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     if plots:
         wrote(plot_dir, f"{len(plots)} decay-fit plot(s)")
     if as_json:
-        click.echo(json.dumps([json_safe(r) for r in rows], indent=2, default=str))
+        click.echo(json.dumps(json_safe(rows), indent=2))
     elif out is None and rows:
         click.echo(_summary(rows))
     if failures and (len(paths) > 1 or rows):  # one file, one failure: its error line above says it all

@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 import json
-import math
 
 import click
 
 from droptower.cli.options import quiet_option, wrote
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG
+from droptower.jsonsafe import json_safe
 
 #: Columns printed as the table (all are in --out and --json).
 TABLE_COLUMNS = ["case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats",
@@ -66,9 +66,7 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
 
         wrote(plot_plan(table, rig_cfg, plot_path, model.name), "twist, frequency, peak torque, clearance over height")
     if as_json:
-        records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
-                   for rec in table.to_dict(orient="records")]
-        click.echo(json.dumps(records, indent=1, default=lambda v: v.item() if hasattr(v, "item") else str(v)))
+        click.echo(json.dumps(json_safe(table.to_dict(orient="records")), indent=1))
         return
     click.echo(f"{plan_cfg.name}: {len(table)} conditions, {int(table['repeats'].sum())} tests; "
                f"{model.name} on {rig_cfg.name}")

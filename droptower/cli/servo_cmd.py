@@ -8,6 +8,7 @@ import click
 
 from droptower.cli.options import note, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive
+from droptower.jsonsafe import json_safe
 from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
 
 #: Columns of the default table (all are in the JSON output).
@@ -111,9 +112,7 @@ def servo(coupling: str, amplitude_deg: str, frequency_hz: str, preload_nm: floa
         note(f"note: no smoothing at {', '.join(f'{f:g}' for f in unsmoothed)} Hz (one eighth of a "
              f"cycle is fewer than 5 samples at {sample_rate_hz:g} Hz)")
     if as_json:
-        records = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
-                   for rec in table.to_dict(orient="records")]
-        click.echo(json.dumps(records, indent=1))
+        click.echo(json.dumps(json_safe(table.to_dict(orient="records")), indent=1))
     else:
         click.echo(f"{model.name}: servo bench, sampled at {sample_rate_hz:g} Hz, "
                    f"simulated at {table['simulation_rate_hz'].min():g} to {table['simulation_rate_hz'].max():g} Hz, "

@@ -2,26 +2,12 @@
 from __future__ import annotations
 
 import json
-import math
-from typing import Any
 
 import click
 
 from droptower.cli.options import quiet_option, renamed_option, wrote
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
-
-
-def json_safe(value: Any) -> Any:
-    """NaN and infinities as null, numpy scalars as Python numbers, recursively."""
-    if isinstance(value, dict):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    if hasattr(value, "item"):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+from droptower.jsonsafe import json_safe
 
 
 @click.command()

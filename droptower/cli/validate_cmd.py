@@ -102,7 +102,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
             wrote(write_table(routes[model_map.route].table, out / f"validation_model_map.{table_format}", "--out"),
                   f"the {model_map.route} at every servo point")
     if as_json:
-        from droptower.campaign.folder import strict_json
+        from droptower.jsonsafe import json_safe
 
         doc = {"summary": validation.summary, "points": validation.table.to_dict(orient="records")}
         if comparison is not None:
@@ -110,7 +110,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
         if routes is not None:
             doc["routes"] = {name: {"summary": v.summary, "points": v.table.to_dict(orient="records")}
                              for name, v in routes.items()}
-        click.echo(json.dumps(strict_json(doc), indent=1))
+        click.echo(json.dumps(json_safe(doc), indent=1))
         return
     click.echo(format_summary(validation))
     if routes is not None:

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike
 
 from droptower import sdof
 from droptower.errors import DroptowerError, readable_file
+from droptower.jsonsafe import json_safe
 from droptower.maps.mapfit import MapRange, read_json_object
 from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
@@ -194,7 +195,7 @@ class ModelMap:
         from droptower.rheology import coupling_to_toml
 
         r = self.range
-        grid = None if self.grid is None else _json_safe(self.grid.to_dict(orient="list"))
+        grid = None if self.grid is None else json_safe(self.grid.to_dict(orient="list"))
         return {"format": FORMAT, "format_version": FORMAT_VERSION, "route": self.route, "family": self.family,
                 "coupling_toml": coupling_to_toml(self.coupling),
                 "parameters_raw": self.coupling.params[0].tolist(),
@@ -203,7 +204,7 @@ class ModelMap:
                 "range": {"amplitude_deg_min": r.amplitude_deg_min, "amplitude_deg_max": r.amplitude_deg_max,
                           "frequency_hz_min": r.frequency_hz_min, "frequency_hz_max": r.frequency_hz_max,
                           "hull_amplitude_deg_frequency_hz": [list(v) for v in r.hull]},
-                "identification": _json_safe(self.identification), "source": self.source, "grid": grid}
+                "identification": json_safe(self.identification), "source": self.source, "grid": grid}
 
     def to_json(self, path: str | Path | None = None) -> str:
         """The map as JSON text; with ``path``, also written there (atomically)."""
@@ -261,20 +262,6 @@ class ModelMap:
                          f"d {g['drop_tower_equivalent_damping_ratio'].min():.3g}-"
                          f"{g['drop_tower_equivalent_damping_ratio'].max():.3g}")
         return "\n".join(lines)
-
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
 
 
 def sigma_point_sets(family: Any, values: np.ndarray, free: np.ndarray, cov_z: np.ndarray,

@@ -15,6 +15,7 @@ from droptower.extract.result import ExtractionResult
 from droptower.extract.window import Window
 from droptower.io.logsettings import LogSettings
 from droptower.io.signals import DropSignals
+from droptower.jsonsafe import json_safe
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,7 @@ def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> t
 def _scalar(value: Any) -> Any:
     if value is None or isinstance(value, (str, bool, int, float)):
         return value
-    return json.dumps(value, default=str)
+    return json.dumps(json_safe(value))
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -138,8 +139,3 @@ def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult,
         row[key] = _scalar(value)
     row.update(results)
     return row
-
-
-def json_safe(row: dict[str, Any]) -> dict[str, Any]:
-    """NaN and infinities -> None, so the row is strict JSON."""
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}

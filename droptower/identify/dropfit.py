@@ -48,6 +48,7 @@ from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_t
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
+from droptower.jsonsafe import json_safe
 from droptower.rates import SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.preload import hold_at
@@ -284,9 +285,7 @@ class DropIdentification:
         return self.family.coupling(self.values, description=description)
 
     def as_dict(self) -> dict[str, Any]:
-        from droptower.identify.report import _clean
-
-        return _clean({
+        return json_safe({
             "converged": self.converged, "model": self.model, "message": self.message,
             "parameters": {n: {"value": v, "std_error": s, "at_bound": n in self.at_bounds}
                            for n, v, s in zip(self.family.names, self.values, self.std_error)},

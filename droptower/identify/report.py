@@ -19,23 +19,7 @@ from droptower.identify.data import Segment
 from droptower.identify.fit import Identification, metrics
 from droptower.io.droptower_log import save_figure
 from droptower.io.fields import field_name, translate_fields
-
-
-def _clean(value: Any) -> Any:
-    """JSON-safe: numpy scalars and arrays to Python, NaN/inf to None."""
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
+from droptower.jsonsafe import json_safe
 
 
 def result_dict(ident: Identification) -> dict[str, Any]:
@@ -46,7 +30,7 @@ def result_dict(ident: Identification) -> dict[str, Any]:
     def named(names: list[str]) -> list[str]:
         return [field_name(n, units) for n in names]
 
-    return translate_fields(_clean({
+    return translate_fields(json_safe({
         "model": ident.family,
         "converged": ident.converged,
         **(ident.verdict.as_dict() if ident.verdict else {}),

@@ -45,6 +45,7 @@ from pydantic import create_model
 
 from droptower import sdof
 from droptower.errors import DroptowerError, WriteError, readable_file, unreadable_file
+from droptower.jsonsafe import json_safe
 from droptower.maps.forms import PAPER, UNIT_TEXT, Equation, MapForm
 from droptower.maps.results import ExcludedTest
 from droptower.validation import StrictModel, validate
@@ -197,11 +198,11 @@ class MapFit:
             "format_version": FORMAT_VERSION,
             "equations": self.form.equations(),
             "form": self.form.to_dict(),
-            "coefficients": {f"{k}_{u}": _finite(self.coefficients[k]) for k, u in units.items()},
-            "coefficients_std": {f"{k}_{u}": _finite(self.uncertainties[k]) for k, u in units.items()},
+            "coefficients": {f"{k}_{u}": json_safe(self.coefficients[k]) for k, u in units.items()},
+            "coefficients_std": {f"{k}_{u}": json_safe(self.uncertainties[k]) for k, u in units.items()},
             "at_bounds": list(self.at_bounds),
             "not_unique": list(self.not_unique),
-            "fit": {k: v if isinstance(v, int) or v is None else _finite(v) for k, v in asdict(self.stats).items()},
+            "fit": json_safe(asdict(self.stats)),
             "cross_validation": self.cross_validation,
             "range": {**{k: v for k, v in asdict(self.range).items() if k != "hull"},
                       "hull_amplitude_deg_frequency_hz": [list(v) for v in self.range.hull]},
@@ -342,10 +343,6 @@ def read_json_object(path: Path, what: str) -> dict[str, Any]:
 
 def _cv_text(value: float | None) -> str:
     return "" if value is None else f" (cross-validated {value:.2f} %)"
-
-
-def _finite(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
 
 
 # ---- map.json schema (pydantic), so a hand-edited or truncated file gives a one-line error ----

@@ -13,7 +13,6 @@ so that the page's selection repeats ``droptower design``'s exactly.
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -22,6 +21,7 @@ import pandas as pd
 from droptower.design import choose
 from droptower.design.coverage import GRID_POINTS
 from droptower.errors import DroptowerError, expects
+from droptower.jsonsafe import json_safe
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.planner import MIN_SAMPLES_PER_PERIOD, plan
@@ -37,11 +37,6 @@ REFINE_ROUNDS = 4
 #: Predicted quantities the page shows, interpolated in log height (units in their names).
 QUANTITIES = ("amplitude_deg", "frequency_hz", "damping_ratio", "peak_torque_nm", "impact_force_peak_n",
               "min_clearance_mm", "max_twist_deg", "samples_per_period", "impact_velocity_m_per_s")
-
-
-def _numbers(values: Any) -> list[float | None]:
-    """Floats for JSON; NaN (no complete oscillation) as null."""
-    return [float(v) if math.isfinite(v) else None for v in np.asarray(values, float)]
 
 
 def check_preloads(rig: RigConfig, preloads_nm: tuple[float, ...]) -> None:
@@ -103,7 +98,7 @@ def planner_data(rig: RigConfig, coupling: Coupling, preloads_nm: tuple[float, .
                              "limit (double impact, twist, sensor ranges)")
     levers, masses = sorted(rig.inertias_kgm2), sorted(rig.drop_masses_kg)
     heights, pred = _grid(rig, coupling, [(j, m, p) for j in levers for m in masses for p in preloads_nm], n_heights)
-    grid: dict[str, list] = {q: _numbers(pred[q]) for q in QUANTITIES}
+    grid: dict[str, list] = {q: json_safe(np.asarray(pred[q], float)) for q in QUANTITIES}  # NaN: no oscillation
     grid["double_impact"] = [bool(v) for v in pred["double_impact"]]
     grid["ok"] = [not w for w in choose.with_margin(pred)]
     return {
