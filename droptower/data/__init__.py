@@ -1,6 +1,6 @@
 """Reference data shipped inside the package, found after any install (nothing beside the checkout needed).
 
-- ``rapp2022_table4_map.csv``: Rapp et al.'s (2022) measured map (Rapp et al., Experimental Mechanics 62
+- ``rapp2022_table4_map.csv``: Rapp et al.'s (2022) measured map (Experimental Mechanics 62
   (2022) 823-836, Table 4); the source notice is ``README.md`` beside it.
 """
 from __future__ import annotations
