@@ -3,6 +3,7 @@
 - :mod:`.elements`: the element kinds of a coupling file (validated specs);
 - :mod:`.kernels`: their compiled per-step updates (numba), with energy accounting;
 - :mod:`.kinds`: one record per kernel kind (layout with named slots, step, bounds);
+- :mod:`.slots`: the kernels' named slot offsets, generated from the records;
 - :mod:`.coupling`: :class:`Coupling`, explicit state and time step, batch axis first;
 - :mod:`.loader`: TOML files -> :class:`Coupling`.
 """

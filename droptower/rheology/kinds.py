@@ -13,7 +13,9 @@ record of a kind is what every consumer reads instead of knowing the layout itse
 - ``droptower.identify.lever`` steps whole couplings through :func:`.kernels.step_instance`.
 
 Adding a kind: its kernel (and its branch of ``step_element``) in :mod:`.kernels`, one record
-here, the element spec that compiles to it in :mod:`.elements`. ``tests/test_kinds.py`` walks
+here, the element spec that compiles to it in :mod:`.elements`; then ``python -m
+droptower.rheology.slots`` writes the record's named slot offsets (``P_<KIND>_<PARAM>``,
+``S_<KIND>_<STATE>``) into the kernels, which index by them (:mod:`.slots`). ``tests/test_kinds.py`` walks
 every kind through every consumer, so a kind registered in only some of them fails there.
 
 Every kernel's state starts with the same header (:data:`HEADER`): stored energy (J), energy
