@@ -144,16 +144,17 @@ def build(values: dict[str, float], matrix: bool = True) -> Coupling:
 
 
 # ---------------------------------------------------------------- the fast loop
-def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[float, float, float, float]:
-    """(amplitude deg at the window's middle, frequency Hz, stiffness N*m/deg, d_ratio) of the
-    first complete cycle, fitted like the extractor does (docs/theory.md#extraction)."""
+def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[float, float, float, float, float]:
+    """(amplitude deg at the window's middle, frequency Hz, stiffness N*m/deg, d_ratio, the
+    envelope's amplitude deg at the window's start) of the first complete cycle, fitted like the
+    extractor does (docs/theory.md#extraction)."""
     omega0, delta0 = start_frequency_and_decay(t, angle, 0.0)
     window = t <= 2 * np.pi / omega0
     fit = fit_decay(t[window], angle[window], omega0, delta0)
     amp, delta, omega, _ = fit.params
     t_max = t[window][-1]
     return (np.rad2deg(amp * np.exp(-delta * t_max / 2)), omega / (2 * np.pi),
-            float(stiffness(inertia, omega, delta)) * np.pi / 180, float(damping_ratio(delta, omega)))
+            float(stiffness(inertia, omega, delta)) * np.pi / 180, float(damping_ratio(delta, omega)), np.rad2deg(amp))
 
 
 def predict(coupling: Coupling) -> pd.DataFrame:
@@ -170,7 +171,8 @@ def predict(coupling: Coupling) -> pd.DataFrame:
     props = np.array([decay_properties(t, a[1:], j) for a, j in zip(decay.angle_rad, inertia)])
     return pd.DataFrame({"inertia_kgm2": inertia, "drop_mass_kg": mass, "drop_height_m": heights,
                          "amplitude_deg": props[:, 0], "frequency_hz": props[:, 1],
-                         "stiffness_nm_per_deg": props[:, 2], "damping_ratio": props[:, 3]})
+                         "stiffness_nm_per_deg": props[:, 2], "damping_ratio": props[:, 3],
+                         "initial_amplitude_deg": props[:, 4]})
 
 
 def servo_at(coupling: Coupling, points: pd.DataFrame, cycles: int = 5) -> pd.DataFrame:
