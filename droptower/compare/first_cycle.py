@@ -12,7 +12,10 @@ loop at its amplitude,
 
     dE/dn = -W(A),  E(A) = 1/2 K'(A) A^2,  W(A) = pi K''(A) A^2,
 
-integrated over one cycle (n from 0 to 1) from the reading's A_0. It holds no slow relaxation:
+integrated over one cycle (n from 0 to 1) from the reading's A_0. Since the energy is spent
+through a stiffness that changes with the amplitude, (A_0 / A_1)^2 = (E_0 / E_1) K'(A_1) / K'(A_0):
+a coupling that stiffens as the amplitude falls (the Payne effect) reads a larger d than its
+loop at the window's middle even where the cycle loses just that loop's energy. It holds no slow relaxation:
 a branch relaxing below the decay's frequency adds a creep mode the fit reads as decay
 (docs/theory.md#first-cycle), which a linear model of that branch measures separately.
 """
