@@ -38,7 +38,9 @@ analysis/results/. Reproducible: the fit starts from fixed values and is determi
 pipeline's campaign is seeded, and the directions of the parameter space the objective does
 not determine are reported (``nr60_undetermined_directions.csv``) and fixed by a rule (a weak
 pull towards the start values, ``PRIOR_DECADES``). Table 4 cross-validated by lever case
-(calibrate on two cases, predict the third): ``nr60_cross_validation.csv``. The acceptance
+(calibrate on two cases, predict the third): ``nr60_cross_validation.csv``. ``--frontier`` fits
+only the frontier between the decays' damping bias against the bench and the other targets
+(``nr60_frontier.csv``, FRONTIER). The acceptance
 numbers of the preset come from the full study (``analysis/run_study.py``).
 """
 from __future__ import annotations
@@ -436,12 +438,15 @@ FRONTIER = [
 ]
 FRONTIER_BAND_MIN_HZ = [1.0, 3.0, 10.0]
 FRONTIER_EVALUATIONS = 40
+#: the decays' damping bias against the bench (percent RMS) the preset met before its filler
+#: network re-formed only at rest: the bound the frontier asks for together with the targets
+BIAS_BOUND_PCT = 50.0
 
 
 def fast_figures(coupling: Coupling, table: pd.DataFrame) -> dict[str, float]:
     """The fast loop's figures (noise-free; the pipeline reads its decays within 0.5 %): Table 4,
     the decays against the bench at their own points, the rubber-like figures, and whether all
-    of the reference coupling's targets and the bias bound (50 % RMS) are met."""
+    of the reference coupling's targets and the bias bound (BIAS_BOUND_PCT) are met."""
     points = predict(coupling)
     servo = servo_at(coupling, points)
     dc = points["stiffness_nm_per_deg"] / servo["servo_stiffness_nm_per_deg"] - 1
@@ -461,7 +466,7 @@ def fast_figures(coupling: Coupling, table: pd.DataFrame) -> dict[str, float]:
                             and out["loss_factor_ratio_1hz_30hz"] >= TARGETS["loss_factor_ratio_1hz_30hz_min"]
                             and out["storage_rise_pct_per_decade"] >= TARGETS["storage_rise_pct_per_decade_min"]
                             and out["third_harmonic_pct"] <= TARGETS["third_harmonic_pct_max"]
-                            and out["decay_vs_servo_damping_rms_pct"] <= 50.0)
+                            and out["decay_vs_servo_damping_rms_pct"] <= BIAS_BOUND_PCT)
     return out
 
 
