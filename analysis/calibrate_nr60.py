@@ -38,7 +38,9 @@ analysis/results/. Reproducible: the fit starts from fixed values and is determi
 pipeline's campaign is seeded, and the directions of the parameter space the objective does
 not determine are reported (``nr60_undetermined_directions.csv``) and fixed by a rule (a weak
 pull towards the start values, ``PRIOR_DECADES``). Table 4 cross-validated by lever case
-(calibrate on two cases, predict the third): ``nr60_cross_validation.csv``. The acceptance
+(calibrate on two cases, predict the third): ``nr60_cross_validation.csv``. ``--frontier`` fits
+only the frontier between the decays' damping bias against the bench and the other targets
+(``nr60_frontier.csv``, FRONTIER). The acceptance
 numbers of the preset come from the full study (``analysis/run_study.py``).
 """
 from __future__ import annotations
@@ -116,8 +118,8 @@ FLAT_RATIO = 1e-3
 DIFF_STEP = 0.03
 
 
-def build(values: dict[str, float], matrix: bool = True) -> Coupling:
-    """The coupling for one set of parameter values (SI)."""
+def build(values: dict[str, float], matrix: bool = True, min_frequency_hz: float = POWER_LAW_MIN_HZ) -> Coupling:
+    """The coupling for one set of parameter values (SI); ``min_frequency_hz`` the matrix branch's lowest decade."""
     v = values
     elements = [
         {"kind": "spring", "name": "equilibrium", "stiffness": v["spring_stiffness"]},
@@ -129,7 +131,7 @@ def build(values: dict[str, float], matrix: bool = True) -> Coupling:
     if matrix:
         elements.append({"kind": "power_law", "name": "matrix", "storage_stiffness": v["matrix_storage_stiffness"],
                          "loss_factor": v["matrix_loss_factor"], "reference_frequency": POWER_LAW_REFERENCE_HZ,
-                         "min_frequency": POWER_LAW_MIN_HZ, "max_frequency": POWER_LAW_MAX_HZ,
+                         "min_frequency": min_frequency_hz, "max_frequency": POWER_LAW_MAX_HZ,
                          "terms_per_decade": POWER_LAW_TERMS_PER_DECADE})
     return parse_coupling({
         "name": "rapp2022_nr60",
@@ -145,16 +147,17 @@ def build(values: dict[str, float], matrix: bool = True) -> Coupling:
 
 
 # ---------------------------------------------------------------- the fast loop
-def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[float, float, float, float]:
-    """(amplitude deg at the window's middle, frequency Hz, stiffness N*m/deg, d_ratio) of the
-    first complete cycle, fitted like the extractor does (docs/theory.md#extraction)."""
+def decay_properties(t: np.ndarray, angle: np.ndarray, inertia: float) -> tuple[float, float, float, float, float]:
+    """(amplitude deg at the window's middle, frequency Hz, stiffness N*m/deg, d_ratio, the
+    envelope's amplitude deg at the window's start) of the first complete cycle, fitted like the
+    extractor does (docs/theory.md#extraction)."""
     omega0, delta0 = start_frequency_and_decay(t, angle, 0.0)
     window = t <= 2 * np.pi / omega0
     fit = fit_decay(t[window], angle[window], omega0, delta0)
     amp, delta, omega, _ = fit.params
     t_max = t[window][-1]
     return (np.rad2deg(amp * np.exp(-delta * t_max / 2)), omega / (2 * np.pi),
-            float(stiffness(inertia, omega, delta)) * np.pi / 180, float(damping_ratio(delta, omega)))
+            float(stiffness(inertia, omega, delta)) * np.pi / 180, float(damping_ratio(delta, omega)), np.rad2deg(amp))
 
 
 def predict(coupling: Coupling) -> pd.DataFrame:
@@ -171,7 +174,8 @@ def predict(coupling: Coupling) -> pd.DataFrame:
     props = np.array([decay_properties(t, a[1:], j) for a, j in zip(decay.angle_rad, inertia)])
     return pd.DataFrame({"inertia_kgm2": inertia, "drop_mass_kg": mass, "drop_height_m": heights,
                          "amplitude_deg": props[:, 0], "frequency_hz": props[:, 1],
-                         "stiffness_nm_per_deg": props[:, 2], "damping_ratio": props[:, 3]})
+                         "stiffness_nm_per_deg": props[:, 2], "damping_ratio": props[:, 3],
+                         "initial_amplitude_deg": props[:, 4]})
 
 
 def servo_at(coupling: Coupling, points: pd.DataFrame, cycles: int = 5) -> pd.DataFrame:
@@ -193,7 +197,8 @@ class Weights:
     servo_stiffness: float | None = 0.03     # None: left out of the objective
     servo_damping: float | None = 0.04
     matrix: bool = True                      # the power-law branch is part of the model
-    loss_factor_ratio: float = 0.02          # scale of the penalty on eta(1 Hz) / eta(30 Hz) below 0.75
+    loss_factor_ratio: float = 0.02          # scale of the penalty on eta(1 Hz) / eta(30 Hz) below ...
+    loss_factor_ratio_floor: float = 0.75    # ... this floor (the target is 0.7)
 
 
 def data_residuals(log_values: np.ndarray, weights: Weights, table: pd.DataFrame,
@@ -219,7 +224,7 @@ def data_residuals(log_values: np.ndarray, weights: Weights, table: pd.DataFrame
         if weights.servo_damping:
             parts.append((own["damping_ratio"] / servo["servo_damping_ratio"] - 1) / weights.servo_damping)
     rubber = rubber_figures(coupling)
-    parts.append(np.array([max(0.0, 0.75 - rubber["loss_factor_ratio"]) / weights.loss_factor_ratio,
+    parts.append(np.array([max(0.0, weights.loss_factor_ratio_floor - rubber["loss_factor_ratio"]) / weights.loss_factor_ratio,
                            max(0.0, RISE_PENALTY_BELOW - rubber["storage_rise_pct_per_decade"]) / 0.1,
                            max(0.0, rubber["third_harmonic_pct"] - 4.5) / 0.5]))
     return np.concatenate([np.asarray(p, float) for p in parts])
@@ -415,6 +420,79 @@ def by_case(coupling: Coupling, table: pd.DataFrame) -> pd.DataFrame:
                                      damping_rms_pct=("dd", lambda v: float(np.sqrt(np.mean(v ** 2))))).reset_index()
 
 
+# ---------------------------------------------------------------- the frontier
+#: Can the decays' damping bias against the bench be kept below 50 % RMS with the loss-factor
+#: ratio (>= 0.7) and Table 4's damping (<= 12 %) met? Fits from the shipped preset with the bias
+#: weighted more, the ratio's penalty floor lowered towards its target, one from a matrix branch
+#: with a low loss factor (a K' rise with less loss), and the matrix band's lower edge moved (no
+#: fit): the slow decades' creep mode is the other source of the bias (docs/theory.md#first-cycle).
+FRONTIER = [
+    ("bench_d_10pct", Weights(servo_damping=0.10, loss_factor_ratio=0.004), {}),
+    ("bench_d_10pct_from_matrix_loss_0.35", Weights(servo_damping=0.10, loss_factor_ratio=0.004),
+     {"matrix_loss_factor": 0.35, "matrix_storage_stiffness": 1500.0}),
+    ("floor_0.705", Weights(servo_damping=0.15, loss_factor_ratio=0.004, loss_factor_ratio_floor=0.705), {}),
+    ("floor_0.708_bench_d_12pct_table4_d_5pct", Weights(servo_damping=0.12, table4_damping=0.05, loss_factor_ratio=0.002,
+                                                        loss_factor_ratio_floor=0.708), {}),
+    ("floor_0.712_bench_d_10pct", Weights(servo_damping=0.10, loss_factor_ratio=0.004, loss_factor_ratio_floor=0.712), {}),
+    ("floor_0.705_bench_d_8pct_table4_d_5pct", Weights(servo_damping=0.08, table4_damping=0.05, loss_factor_ratio=0.004,
+                                                       loss_factor_ratio_floor=0.705), {}),
+]
+FRONTIER_BAND_MIN_HZ = [1.0, 3.0, 10.0]
+FRONTIER_EVALUATIONS = 40
+#: the decays' damping bias against the bench (percent RMS) the preset met before its filler
+#: network re-formed only at rest: the bound the frontier asks for together with the targets
+BIAS_BOUND_PCT = 50.0
+
+
+def fast_figures(coupling: Coupling, table: pd.DataFrame) -> dict[str, float]:
+    """The fast loop's figures (noise-free; the pipeline reads its decays within 0.5 %): Table 4,
+    the decays against the bench at their own points, the rubber-like figures, and whether all
+    of the reference coupling's targets and the bias bound (BIAS_BOUND_PCT) are met."""
+    points = predict(coupling)
+    servo = servo_at(coupling, points)
+    dc = points["stiffness_nm_per_deg"] / servo["servo_stiffness_nm_per_deg"] - 1
+    dd = points["damping_ratio"] / servo["servo_damping_ratio"] - 1
+    _, t4 = compare_reference(table, results=points)
+    rubber = rubber_figures(coupling)
+    rms = lambda x: float(100 * np.sqrt(np.mean(np.square(x))))  # noqa: E731
+    out = {"table4_stiffness_rms_pct": t4["campaign"]["stiffness_rms_deviation_pct"],
+           "table4_damping_rms_pct": t4["campaign"]["damping_rms_deviation_pct"],
+           "decay_vs_servo_stiffness_rms_pct": rms(dc), "decay_vs_servo_damping_rms_pct": rms(dd),
+           "decay_vs_servo_damping_min_pct": float(100 * dd.min()),
+           "loss_factor_ratio_1hz_30hz": rubber["loss_factor_ratio"],
+           "storage_rise_pct_per_decade": rubber["storage_rise_pct_per_decade"],
+           "third_harmonic_pct": rubber["third_harmonic_pct"]}
+    out["meets_all"] = bool(out["table4_stiffness_rms_pct"] <= TARGETS["table4_stiffness_rms_pct"]
+                            and out["table4_damping_rms_pct"] <= TARGETS["table4_damping_rms_pct"]
+                            and out["loss_factor_ratio_1hz_30hz"] >= TARGETS["loss_factor_ratio_1hz_30hz_min"]
+                            and out["storage_rise_pct_per_decade"] >= TARGETS["storage_rise_pct_per_decade_min"]
+                            and out["third_harmonic_pct"] <= TARGETS["third_harmonic_pct_max"]
+                            and out["decay_vs_servo_damping_rms_pct"] <= BIAS_BOUND_PCT)
+    return out
+
+
+def frontier(table: pd.DataFrame) -> pd.DataFrame:
+    """The frontier's rows (FRONTIER): the shipped preset, its matrix band's lower edge moved, and
+    the fits from it, each with its fast-loop figures and values."""
+    start = {n: v for n, v in zip(NAMES, preset_values())}
+    rows = [{"variant": "preset", **fast_figures(build(start), table), **{f"param_{k}": v for k, v in start.items()}}]
+    for hz in FRONTIER_BAND_MIN_HZ:
+        rows.append({"variant": f"preset_matrix_from_{hz:g}_hz", **fast_figures(build(start, min_frequency_hz=hz), table),
+                     **{f"param_{k}": v for k, v in start.items()}})
+    for name, weights, moved in FRONTIER:
+        print(f"frontier {name}:", flush=True)
+        values, _ = fit({**start, **moved}, weights, table, None, FRONTIER_EVALUATIONS)
+        rows.append({"variant": name, **fast_figures(build(values), table), **{f"param_{k}": v for k, v in values.items()}})
+        print("    " + ", ".join(f"{k} {v:.3g}" for k, v in rows[-1].items() if k != "variant"), flush=True)
+    return pd.DataFrame(rows)
+
+
+def preset_values() -> list[float]:
+    """The shipped preset's fitted parameters (NAMES order), from its stored best candidate."""
+    best = pd.read_csv(RESULTS / "nr60_candidates.csv").iloc[0]
+    return [float(best[f"param_{n}"]) for n in NAMES]
+
+
 PRESET = REPOSITORY / "rig_configs" / "couplings" / "rapp2022_nr60.toml"
 RESULTS = REPOSITORY / "analysis" / "results"
 
@@ -437,8 +515,19 @@ def main() -> None:
     ap.add_argument("--no-cross-validation", action="store_true",
                     help="skip Table 4 cross-validated by lever case (3 more fits)")
     ap.add_argument("--work", type=Path, default=Path("calibration_work"), help="folder for the pipeline runs")
+    ap.add_argument("--frontier", action="store_true",
+                    help="only the frontier between the decays' damping bias and the other targets (FRONTIER): "
+                         "nr60_frontier.csv in --out (and in analysis/results/ with --write-preset)")
     args = ap.parse_args()
     table = pd.read_csv(table4_path())
+    if args.frontier:
+        rows = frontier(table)
+        for folder in [args.out] + ([RESULTS] if args.write_preset else []):
+            folder.mkdir(parents=True, exist_ok=True)
+            rows.to_csv(folder / "nr60_frontier.csv", index=False)
+        print(rows[["variant", "meets_all", "decay_vs_servo_damping_rms_pct", "table4_stiffness_rms_pct",
+                    "table4_damping_rms_pct", "loss_factor_ratio_1hz_30hz", "storage_rise_pct_per_decade"]].to_string(index=False))
+        return
     chosen = [c for c in CANDIDATES if args.only is None or c.name in args.only.split(",")]
     rows, flat_rows = [], []
     for cand in chosen:

@@ -4,13 +4,16 @@ The calibration (analysis/calibrate_nr60.py) stores every candidate's figures in
 analysis/results/nr60_candidates.csv and writes the best as the preset; the full study's
 figures are checked in tests/test_study.py. Here: the shipped preset is the stored best
 candidate, it is rubber-like (items 1 and 2 of the issue), its drop-tower decays agree with the
-servo bench at their own points (the map-free part of item 4) and the preload does not change it.
+servo bench at their own points in stiffness and read the damping the first cycle's two mechanisms
+predict (the map-free part of item 4), no calibration on the stored frontier meets the bias bound
+with the other targets, and the preload does not change it.
 """
 from __future__ import annotations
 
 import importlib.util
 import math
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +21,16 @@ import pandas as pd
 import pytest
 
 import droptower as dt
+from droptower.compare.first_cycle import loop_span_damping_ratio
+from droptower.configs import resolve
 from droptower.extract import Settings, extract_file
+from droptower.rheology import parse_coupling
 from droptower.rig import load_rig, simulate
 from droptower.servo.steady import rubber_figures
 
 ROOT = Path(__file__).resolve().parents[1]
 CANDIDATES = ROOT / "analysis" / "results" / "nr60_candidates.csv"
+FRONTIER = ROOT / "analysis" / "results" / "nr60_frontier.csv"
 
 
 def _calibration_module():
@@ -67,29 +74,77 @@ def test_the_preset_is_rubber_like():
     assert 0.1 < figures["loss_factor"] < 0.35  # Table 4's d of 0.5-2 is eta 0.1-0.25 (docs/theory.md#damping-measures)
 
 
+def _preset_without(kind: str):
+    """The shipped preset with its elements of ``kind`` left out (one mechanism at a time)."""
+    data = tomllib.loads(resolve("rapp2022_nr60", "couplings").read_text())
+    data["element"] = [el for el in data["element"] if el["kind"] != kind]
+    return parse_coupling(data)
+
+
+def _rms(x) -> float:
+    return math.sqrt(np.mean(np.square(x)))
+
+
+def test_no_calibration_on_the_frontier_meets_the_bias_bound(calibration):
+    """analysis/results/nr60_frontier.csv (``calibrate_nr60.py --frontier``): its first row is the
+    shipped preset, and none of its variants keeps the decays' damping bias against the bench
+    below 50 % RMS while meeting the loss-factor ratio (>= 0.7) and Table 4 (stiffness <= 5 %,
+    damping <= 12 %): those below 50 % miss the ratio or Table 4's damping."""
+    frontier = pd.read_csv(FRONTIER)
+    assert frontier["variant"].iloc[0] == "preset"
+    shipped = dt.load_coupling("rapp2022_nr60")
+    rebuilt = calibration.build({n: frontier[f"param_{n}"].iloc[0] for n in calibration.NAMES})
+    np.testing.assert_allclose(shipped.params, rebuilt.params, rtol=1e-9)
+    assert not frontier["meets_all"].any()
+    below = frontier[frontier["decay_vs_servo_damping_rms_pct"] <= 50.0]
+    assert len(below) >= 2
+    assert np.all((below["loss_factor_ratio_1hz_30hz"] < 0.7) | (below["table4_damping_rms_pct"] > 12.0)
+                  | (below["table4_stiffness_rms_pct"] > 5.0))
+
+
+@pytest.mark.slow
 def test_decays_against_the_bench_at_their_own_points(calibration):
     """The fast loop's 30 decays (3 cases x Table 2's heights) against the steady state at each
-    decay's amplitude and frequency: the stiffness within 3 % RMS. The damping ratio the
-    drop tower reads is higher than the bench's at every point (docs/theory.md#first-cycle): the
-    filler network's friction loss grows with the amplitude, which a first cycle spanning
-    amplitudes about a factor 2 apart turns into a larger decay rate than the steady loop at the
-    window's middle amplitude, and the matrix branch's relaxation slower than the oscillation
-    adds a creep mode that the fit reads as decay (d = (e^(4 pi r) - 1)/2 doubles the difference
-    in r): measured 53 % RMS on the shipped preset (52.7 % through the pipeline,
-    analysis/results/nr60_candidates.csv). The bound was 50 % for the preset before the filler
-    network re-formed only while held: its loss factor at 1 Hz then had a share from the
-    network's 5 s relaxation (an artifact: docs/theory.md#filler-network), and the recalibrated
-    preset holds eta(1 Hz) / eta(30 Hz) >= 0.7 with more friction instead, the loss that grows
-    with the amplitude and so this bias (the candidates that keep it below 50 % miss the loss
-    ratio or Table 4's damping: analysis/README.md)."""
+    decay's amplitude and frequency: the stiffness within 3 % RMS; the damping ratio the drop
+    tower reads is higher than the bench's at every point (53 % RMS), and the two mechanisms of
+    docs/theory.md#first-cycle predict by how much, each computed from the model on its own:
+
+    - the stiffness changes over the amplitudes the first cycle spans (about a factor 2): the
+      energy balance of the decay with the coupling's own steady loops over that span
+      (:func:`droptower.compare.first_cycle.loop_span_damping_ratio`). The cycle loses the
+      energy the bench's loop shows (within 1-4 %), but the Payne effect's stiffness rises as the
+      amplitude falls, (A_0 / A_1)^2 = (E_0 / E_1) K'(A_1) / K'(A_0), so the amplitude falls faster
+      than the energy: 28 % above the bench on its own;
+    - the matrix branch's relaxation slower than the oscillation: a creep mode the fit reads as
+      decay, measured as the reading over the bench of the preset's linear part (spring and
+      matrix, no friction) dropped from the same height.
+
+    Their product predicts the readings as well as the energy balance alone predicts those of the
+    preset's spring and filler network alone, where the amplitude span is the only mechanism
+    (measured 4.9 % RMS against 6.2 %), and neither mechanism alone does (19.6 % and 30 %). No
+    calibration of this model keeps the bias below 50 % RMS and meets the loss-factor ratio and
+    Table 4's damping (analysis/README.md: the frontier)."""
     coupling = dt.load_coupling("rapp2022_nr60")
     points = calibration.predict(coupling)
     servo = calibration.servo_at(coupling, points)
     dc = points["stiffness_nm_per_deg"] / servo["servo_stiffness_nm_per_deg"] - 1
-    dd = points["damping_ratio"] / servo["servo_damping_ratio"] - 1
-    assert math.sqrt(np.mean(dc ** 2)) <= 0.03
-    assert np.all(dd > 0)
-    assert math.sqrt(np.mean(dd ** 2)) <= 0.55
+    read, bench = points["damping_ratio"].to_numpy(), servo["servo_damping_ratio"].to_numpy()
+    assert _rms(dc) <= 0.03
+    assert np.all(read > bench)
+
+    span = loop_span_damping_ratio(coupling, np.radians(points["initial_amplitude_deg"]), points["frequency_hz"])
+    linear = _preset_without("filler_network")
+    linear_points = calibration.predict(linear)  # the same lever cases and impacts
+    creep = linear_points["damping_ratio"].to_numpy() / calibration.servo_at(linear, linear_points)[
+        "servo_damping_ratio"].to_numpy()
+    predicted = span * creep
+    network = _preset_without("power_law")
+    network_points = calibration.predict(network)
+    alone = network_points["damping_ratio"] / loop_span_damping_ratio(
+        network, np.radians(network_points["initial_amplitude_deg"]), network_points["frequency_hz"]) - 1
+    assert np.all(creep > 1) and np.all(predicted > bench)  # both mechanisms raise the reading
+    assert _rms(read / predicted - 1) <= _rms(alone)
+    assert min(_rms(read / span - 1), _rms(read / (bench * creep) - 1)) > _rms(alone)  # neither alone
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
