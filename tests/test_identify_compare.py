@@ -75,6 +75,8 @@ def test_no_family_within_its_budget_exits_2_with_a_full_table(records, tmp_path
     assert "no family converged" in captured.err
     code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--budget-s", "-1"])
     assert code == 2 and "--budget-s" in capsys.readouterr().err
+    code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--total-budget-s", "0"])
+    assert code == 2 and "--total-budget-s" in capsys.readouterr().err
 
 
 def test_the_exit_code_follows_the_best_converged_family(records):
