@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from droptower.cli.main import main
+from droptower.errors import DroptowerError
 from droptower.identify import compare_models
 from droptower.identify.budget import BudgetExceeded, check, remaining_s, time_budget
 from droptower.identify.compare import EXIT_NONE_FITS, NOT_CONVERGED
@@ -74,9 +75,45 @@ def test_no_family_within_its_budget_exits_2_with_a_full_table(records, tmp_path
     assert "no family converged" in captured.err
     code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--budget-s", "-1"])
     assert code == 2 and "--budget-s" in capsys.readouterr().err
+    code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--total-budget-s", "0"])
+    assert code == 2 and "--total-budget-s" in capsys.readouterr().err
 
 
 def test_the_exit_code_follows_the_best_converged_family(records):
     result = compare_models(records, ["pfeffer"], budget_s=None)
     result.ranking.loc[1, "verdict"] = "poor fit"
     assert result.exit_code() == EXIT_POOR_FIT and result.exit_code(accept_poor=True) == 0
+
+
+def test_the_total_budget_is_shared_the_cheaper_families_first(records, monkeypatch):
+    """Every family stalls (it checks its budget until that runs out): they are fitted in the
+    order of their parameter counts, each gets an equal share of what is left of the total
+    budget (its own budget larger), and the whole table is done within the total (each fit
+    stops within one check of its share) with every family "not converged"."""
+    import droptower.identify.compare as compare
+    from droptower.identify.data import DataScale
+    from droptower.identify.families import family_class
+
+    got = []
+
+    def stall(kind, *args):
+        got.append((kind, remaining_s()))
+        while True:
+            time.sleep(0.005)
+            check()
+
+    monkeypatch.setattr(compare, "_fit", stall)
+    kinds = ["zerodim20", "pfeffer", "zerodim6"]
+    total = 0.6
+    t0 = time.perf_counter()
+    result = compare_models(records, kinds, budget_s=60.0, total_budget_s=total)
+    wall = time.perf_counter() - t0
+    sizes = {k: len(family_class(k)(DataScale.of(records)).parameters) for k in kinds}
+    assert [k for k, _ in got] == sorted(kinds, key=sizes.get)
+    assert got[0][1] == pytest.approx(total / 3, abs=0.02)
+    for i, (_, share) in enumerate(got):
+        assert share <= total / 3 + 0.02 * (i + 1)  # an equal share of what is left, never more
+    assert wall <= total + 0.1
+    assert result.ranking["status"].tolist() == [NOT_CONVERGED] * 3 and set(result.not_converged) == set(kinds)
+    with pytest.raises(DroptowerError, match="total_budget_s"):
+        compare_models(records, kinds, total_budget_s=0.0)

@@ -234,11 +234,14 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 @click.option("--budget-s", type=float, default=60.0, show_default=True,
               help="Wall-time budget of each family's fit (s); a family over it is listed 'not converged' and ranked "
                    "last.")
+@click.option("--total-budget-s", type=float, default=110.0, show_default=True,
+              help="Wall-time budget of all the fits together (s): each family gets at most an equal share of what "
+                   "is left (the cheaper families first).")
 @click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
 def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str | None,
                    out: Path | None, as_json: bool, plot_dir: str | None, drops: bool, template: str | None,
                    holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
-                   budget_s: float, accept_poor: bool) -> None:
+                   budget_s: float, total_budget_s: float, accept_poor: bool) -> None:
     """Fit every model family on the same DATA (torsional or translational servo records, or with
     --from-drop-tests drop-test logs) and rank them.
 
@@ -287,6 +290,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
                              f"(known: {', '.join(known)})" if unknown else "no model family given",
                              where="--models")
     check_positive(budget_s, "--budget-s")
+    check_positive(total_budget_s, "--total-budget-s")
     if out is not None:
         check_table_path(out, "--out")
     on_skip = lambda kind, why: progress(f"skipped {kind}: {cli_text(why)}")  # noqa: E731
@@ -297,7 +301,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
                                                          rig, inertia_kgm2, lever_length_m)
         if "template" in kinds and "template" not in options:
             raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
-        result = run(decays, kinds, budget_s=budget_s, excluded=excluded, settings=settings,
+        result = run(decays, kinds, budget_s=budget_s, total_budget_s=total_budget_s, excluded=excluded, settings=settings,
                      options={"template": {"template": options["template"]}} if "template" in options else None,
                      on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ..."),
                      on_skip=on_skip)
@@ -305,7 +309,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     else:
         segments = _read_data(data, channels, 0.0)
         held = _read_data((holdout,), channels, 0.0) if holdout else None
-        result = run(segments, kinds, holdout=held, budget_s=budget_s,
+        result = run(segments, kinds, holdout=held, budget_s=budget_s, total_budget_s=total_budget_s,
                      on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(segments)} record(s) ..."),
                      on_skip=on_skip)
     ranking, records = result.ranking, result.records

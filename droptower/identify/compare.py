@@ -32,6 +32,10 @@ from droptower.identify.criterion import RULE
 
 #: Default wall-time budget of each family's fit (s).
 DEFAULT_BUDGET_S = 60.0
+#: Default wall-time budget of all the families' fits together (s): 120 s for the whole table,
+#: less a margin for the one core call a family may run past its budget (:mod:`.budget`
+#: checks between calls) and for the tables.
+DEFAULT_TOTAL_BUDGET_S = 110.0
 #: Exit code when no family converged (as for a fit that does not converge: nothing usable).
 EXIT_NONE_FITS = 2
 CONVERGED, NOT_CONVERGED = "converged", "not converged"
@@ -89,7 +93,8 @@ class Comparison:
 
 
 def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
-                   budget_s: float | dict[str, float | None] | None = DEFAULT_BUDGET_S, excluded: list[dict[str, str]] | None = None,
+                   budget_s: float | dict[str, float | None] | None = DEFAULT_BUDGET_S,
+                   total_budget_s: float | None = DEFAULT_TOTAL_BUDGET_S, excluded: list[dict[str, str]] | None = None,
                    settings: Any = None, options: dict[str, dict[str, Any]] | None = None,
                    on_family: Callable[[str], None] | None = None,
                    on_skip: Callable[[str, str], None] | None = None) -> Comparison:
@@ -101,7 +106,8 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
         Servo records (:class:`~droptower.identify.data.Segment`) or drop-test decays
         (:class:`~droptower.identify.droplogs.DropDecay`), not mixed.
     kinds
-        Family names, in the order they are fitted.
+        Family names; they are fitted in the order of their number of parameters (the cheaper
+        first, ties in the order given), so a budget runs out on the costliest.
     holdout
         Servo records kept out of every fit (their error is reported, the ranking stays on the
         fitting data).
@@ -109,6 +115,11 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
         Wall-time budget of each family's fit in s (None: unbounded), or family -> its budget
         (a family not named gets :data:`DEFAULT_BUDGET_S`). A family over its budget is listed
         "not converged" and ranked last.
+    total_budget_s
+        Wall-time budget of all the fits together in s (None: unbounded): each family gets at
+        most an equal share of what is left of it when its fit starts (what a cheaper family
+        leaves unused goes to the later ones), so the table is complete within it (plus at
+        most one core call per family).
     excluded, settings
         Drop tests: the tests left out when reading (reported) and the fit settings
         (:class:`~droptower.identify.dropfit.DropFitSettings`).
@@ -140,12 +151,20 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
     results: dict[str, Any] = {}
     skipped: dict[str, str] = {}
     over: dict[str, tuple[str, float]] = {}  # family -> (reason, seconds spent)
-    for kind in kinds:
+    if total_budget_s is not None and not total_budget_s > 0:
+        raise DroptowerError(f"compare_models: total_budget_s must be positive, got {total_budget_s!r}")
+    sizes = {kind: _n_parameters(kind, data, drops, options.get(kind)) for kind in kinds}
+    kinds = sorted(kinds, key=lambda kind: sizes[kind])  # stable: ties keep the order given
+    deadline = time.perf_counter() + (math.inf if total_budget_s is None else float(total_budget_s))
+    for i, kind in enumerate(kinds):
+        left = len(kinds) - i  # families not yet fitted, this one included
         if on_family is not None:
             on_family(kind)
         start = time.perf_counter()
+        own = budget_s.get(kind, DEFAULT_BUDGET_S) if isinstance(budget_s, dict) else budget_s
+        share = max((deadline - start) / left, 1e-3)  # an equal share of what is left (never 0: a budget is > 0)
         try:
-            with time_budget(budget_s.get(kind, DEFAULT_BUDGET_S) if isinstance(budget_s, dict) else budget_s):
+            with time_budget(share if own is None or share < own else own):
                 results[kind] = _fit(kind, data, drops, holdout, results, excluded, settings, options.get(kind))
         except BudgetExceeded as exc:
             over[kind] = (str(exc), time.perf_counter() - start)
@@ -166,7 +185,7 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
     rows = []
     for kind, (reason, seconds) in over.items():
         not_converged[kind] = reason
-        rows.append({"model": kind, "n_parameters": _n_parameters(kind, data, drops, options.get(kind)),
+        rows.append({"model": kind, "n_parameters": sizes[kind],
                      "bic": math.nan, "verdict": NOT_CONVERGED, "fit_time_s": seconds, "converged": False})
     ranking = _complete(ranking, rows, not_converged)
     return Comparison(ranking, records, results, skipped, not_converged, budget_s, drops)

@@ -270,3 +270,25 @@ def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[
         best = local(best.values, tol)
     return best, {"candidates": int(len(rows)), "best_candidate_cost": float(np.min(cost)),
                   "local_fits": len(fits), "local_costs": local_costs, "role_swapped_costs": swapped_costs}
+
+
+def basin_hops(parameters: list[Parameter], moves: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+               keep: int, local: Callable[[np.ndarray, float], Any],
+               cost_of: Callable[[Any], float] = lambda f: float(f.residual @ f.residual),
+               refine: Callable[[np.ndarray, float], Any] | None = None, tol: float = 1e-7) -> tuple[Any, dict]:
+    """Local fits from the ``keep`` best distinct of ``moves`` (parameter sets a family proposes
+    in other basins near a fit, e.g. a branch moved to another relaxation time), all evaluated
+    in batched calls of ``residuals``; the lowest-cost fit is refined to ``tol`` (``refine``,
+    default ``local``; it may return None: not worth refining). Returns the fit (or None) and
+    a summary (moves, their best cost, the local fits' costs)."""
+    rows = np.array([clip_to_bounds(parameters, r) for r in np.atleast_2d(moves)])
+    cost = costs(residuals, rows)
+    firsts = best_starts(parameters, rows, cost, keep, min_distance=0.0)  # distinct by construction
+    summary = {"moves": int(len(rows)), "best_move_cost": float(np.min(cost)) if len(rows) else float("inf"),
+               "local_costs": []}
+    if not len(firsts):
+        return None, summary
+    fits = [local(s, max(tol, SCREEN_TOL)) for s in firsts]
+    summary["local_costs"] = [cost_of(f) for f in fits]
+    best = fits[int(np.argmin(summary["local_costs"]))]
+    return (refine or local)(best.values, tol), summary
