@@ -2,14 +2,12 @@
 extraction's results table with its logs.
 
 :func:`write_report` reads the run (:mod:`droptower.report.run`), fits the map
-(:func:`droptower.maps.fit_map`), draws the decay fit of every test again from its log
-(:mod:`droptower.report.figures`) and writes the page (:mod:`droptower.report.page`).
+(:func:`droptower.maps.fit_map`), draws the decay fit of every test over its log's trace
+(:mod:`droptower.report.decays`, in worker processes) and writes the page
+(:mod:`droptower.report.page`).
 """
 from __future__ import annotations
 
-import html
-import math
-import sys
 from pathlib import Path
 from urllib.parse import quote
 
@@ -22,6 +20,7 @@ from droptower.io.droptower_log import atomic_write
 from droptower.maps import MapFit, fit_map, select_tests
 from droptower.maps.results import flag_list
 from droptower.report import figures
+from droptower.report.decays import decay_figures
 from droptower.report.page import fit_link, map_section, page, plain_table, tests_table
 from droptower.report.run import FLAG_REASONS, Run, load_run
 
@@ -49,13 +48,15 @@ def default_out(source: str | Path) -> Path:
 
 def write_report(source: str | Path, out: str | Path | None = None, form: str = "paper",
                  channels: dict[str, str] | None = None, extra_sections: list[tuple[str, str]] | None = None,
-                 title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS) -> Path:
+                 title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS,
+                 workers: int | None = None) -> Path:
     """Write the report of ``source`` (campaign folder or results table) to ``out``.
 
     form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
     for reading real logs (as the extraction's channel roles); extra_sections: (heading, HTML) pairs
     appended (the study's); inline_max_tests: more tests than this put their decay figures in
-    side files in ``<out stem>_files/`` beside the page; returns the path of the page."""
+    side files in ``<out stem>_files/`` beside the page; workers: processes drawing the decay
+    figures (None: every local core, 1: this process); returns the path of the page."""
     run = load_run(source)
     out = Path(out) if out is not None else default_out(source)
     table = run.table
@@ -69,7 +70,7 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
     except DroptowerError as exc:
         map_error = exc.message
 
-    fits = _decay_figures(run, channels or {}, progress)
+    fits = decay_figures(run, channels or {}, progress, workers)
     problems = _problems(run, usable_mask, excluded_reason, fits)
     fit_files = None
     if len(fits) > inline_max_tests:
@@ -177,36 +178,3 @@ def _rounded(x: np.ndarray) -> np.ndarray:
         scale = 10.0 ** (DIGITS - 1 - np.floor(np.log10(np.abs(x))))
         r = np.round(x * scale) / scale
     return np.where(np.isfinite(r), r, x)
-
-
-def _decay_figures(run: Run, channels: dict[str, str], progress: bool) -> dict[str, object]:
-    """Per test name: its decay-fit figure, or why there is none (a one-line text)."""
-    from tqdm import tqdm
-
-    from droptower.extract.files import Settings, extract_file
-    from droptower.extract.result import DEG
-    from droptower.extract.window import Window
-
-    base = dict(run.extract)
-    window = Window.parse(base.pop("window", "first-cycle"))
-    out: dict[str, object] = {}
-    inertia = pd.to_numeric(run.table.get("inertia_kgm2", pd.Series(np.nan, index=run.table.index)), errors="coerce")
-    drop_index = pd.to_numeric(run.table.get("drop_index", pd.Series(1, index=run.table.index)), errors="coerce")
-    for i, (name, log) in enumerate(tqdm(list(zip(run.test, run.logs)), desc="report", unit="test", file=sys.stderr,
-                                         disable=None if progress else True)):  # None: a bar on a terminal only
-        if log is None:
-            out[name] = "log not found"
-            continue
-        j = float(inertia.iloc[i])
-        settings = Settings(roles=channels, window=window, inertia_kgm2=j if math.isfinite(j) and j > 0 else None, **base)
-        try:
-            k = float(drop_index.iloc[i])
-            signals, result = extract_file(log, settings, int(k) if math.isfinite(k) and k >= 1 else 1)
-        except DroptowerError as exc:
-            out[name] = f"the log cannot be extracted again: {exc.message.replace(str(log), log.name)}"
-            continue
-        title = (f"f = {result.frequency_hz:.2f} Hz, amplitude = {result.amplitude_ref_rad / DEG:.3f} deg, "
-                 f"c = {result.stiffness_nm_per_rad * DEG:.1f} N·m/deg, d = {result.damping_ratio:.3f}"
-                 + (f" [{', '.join(result.flags)}]" if result.flags else ""))
-        out[name] = figures.decay_figure(signals, result, html.escape(title))
-    return out
