@@ -7,13 +7,15 @@ needs the measured trace from the log and those numbers, not the fit again. A te
 lacks them (a failed test, an extraction's results table, which may name channel roles or hold
 several drops per log) is extracted again from its log, as the extraction did. Tests go to
 worker processes :data:`TESTS_PER_TASK` at a time (:func:`droptower.campaign.executors.make_executor`):
-a report of 4 500 tests reads 4 500 logs.
+a report of 4 500 tests reads 4 500 logs; :class:`Drawing` does it while the report's own
+process fits the map and writes the tables.
 """
 from __future__ import annotations
 
 import html
 import math
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -137,34 +139,81 @@ def draw(task: tuple[list[Job], dict[str, Any]]) -> list[tuple[str, object]]:
                 text = title(result.frequency_hz, result.amplitude_ref_rad / DEG, result.stiffness_nm_per_rad * DEG,
                              result.damping_ratio, result.flags)
         except DroptowerError as exc:
-            out.append((job.name, f"the log cannot be extracted again: {exc.message.replace(str(job.log), job.log.name)}"))
+            doing = "read" if fit is not None else "extracted again"
+            out.append((job.name, f"the log cannot be {doing}: {exc.message.replace(str(job.log), job.log.name)}"))
             continue
         out.append((job.name, decay_figure(signals, fit, text)))
     return out
+
+
+class Drawing:
+    """The decay figures of a run drawn in the background (worker processes, collected by a
+    thread of this process) while this process does the rest of the report:
+
+        with Drawing(run, channels) as drawing:
+            ...  # the map, the tables
+            figures = drawing.result()
+
+    channels: role -> ``NAME[:UNIT]`` for reading the logs; progress: a progress bar on stderr;
+    workers: processes drawing (None: every local core; 1: this process, in the thread)."""
+
+    def __init__(self, run: Any, channels: dict[str, str], progress: bool = False, workers: int | None = None):
+        from droptower.campaign.executors import local_cores
+        from droptower.extract.window import Window
+
+        settings_kw = dict(run.extract)
+        settings_kw["window"] = Window.parse(settings_kw.pop("window", "first-cycle"))
+        settings_kw["roles"] = channels
+        self.jobs = jobs(run)
+        self.tasks = [(self.jobs[k:k + TESTS_PER_TASK], settings_kw) for k in range(0, len(self.jobs), TESTS_PER_TASK)]
+        self.workers = max(1, min(local_cores() if workers is None else workers, len(self.tasks)))
+        self.progress = progress
+        self._drawn: dict[str, object] = {}
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+
+    def __enter__(self) -> "Drawing":
+        from droptower.campaign.executors import make_executor
+
+        self._executor = make_executor(self.workers).__enter__()
+        self._executor.start()  # its processes exist before this process runs a second thread
+        self._thread = threading.Thread(target=self._collect, name="report-decays", daemon=True)
+        self._thread.start()
+        return self
+
+    def _collect(self) -> None:
+        from tqdm import tqdm
+
+        try:
+            with tqdm(total=len(self.jobs), desc="report", unit="test", file=sys.stderr,
+                      disable=None if self.progress else True) as bar:  # None: a bar on a terminal only
+                for task, outcome in self._executor.run(draw, self.tasks):
+                    if self._stop.is_set():  # the report failed: no more tasks
+                        return
+                    if isinstance(outcome, BaseException):
+                        raise outcome
+                    self._drawn.update(outcome)
+                    bar.update(len(task[0]))
+        except BaseException as exc:  # given to the caller by result()
+            self._error = exc
+
+    def result(self) -> dict[str, object]:
+        """Per test name (in the run's order): its figure, or why there is none (a one-line text)."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return {job.name: self._drawn[job.name] for job in self.jobs}
+
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if exc_type is not None:
+            self._stop.set()
+        self._thread.join()
+        self._executor.__exit__(exc_type, *exc)
 
 
 def decay_figures(run: Any, channels: dict[str, str], progress: bool = False,
                   workers: int | None = None) -> dict[str, object]:
     """Per test name (in the run's order): its decay-fit figure, or why there is none (a
     one-line text). workers: processes drawing them (None: every local core; 1: this process)."""
-    from tqdm import tqdm
-
-    from droptower.campaign.executors import local_cores, make_executor
-    from droptower.extract.window import Window
-
-    settings_kw = dict(run.extract)
-    settings_kw["window"] = Window.parse(settings_kw.pop("window", "first-cycle"))
-    settings_kw["roles"] = channels
-    todo = jobs(run)
-    tasks = [(todo[k:k + TESTS_PER_TASK], settings_kw) for k in range(0, len(todo), TESTS_PER_TASK)]
-    workers = local_cores() if workers is None else workers
-    drawn: dict[str, object] = {}
-    with make_executor(max(1, min(workers, len(tasks)))) as executor, \
-            tqdm(total=len(todo), desc="report", unit="test", file=sys.stderr,
-                 disable=None if progress else True) as bar:  # None: a bar on a terminal only
-        for task, outcome in executor.run(draw, tasks):
-            if isinstance(outcome, BaseException):
-                raise outcome
-            drawn.update(outcome)
-            bar.update(len(task[0]))
-    return {job.name: drawn[job.name] for job in todo}
+    with Drawing(run, channels, progress, workers) as drawing:
+        return drawing.result()
