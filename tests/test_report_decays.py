@@ -107,3 +107,15 @@ def test_workers_draw_what_this_process_draws_in_order(campaign, tmp_path) -> No
     run.logs[7] = bad
     text = decay_figures(run, {}, workers=1)["test_00007"]
     assert text.startswith("the log cannot be read: ") and str(tmp_path) not in text and "broken" in text
+
+
+def test_an_internal_error_of_a_worker_reaches_the_caller(campaign, monkeypatch) -> None:  # noqa: F811
+    """Not a one-line reason of a test: a bug in drawing is raised by the report, not swallowed."""
+    import droptower.report.decays as decays
+
+    def broken(task):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(decays, "draw", broken)
+    with pytest.raises(ZeroDivisionError, match="a bug"):
+        decays.decay_figures(load_run(campaign), {}, workers=1)
