@@ -1,6 +1,7 @@
 """Campaigns at scale on a local Dask cluster (2 worker processes), at a small size: a worker
 killed mid-run loses no test, and a killed client resumes to the same results; the submission
-window keeps the number of chunks in flight bounded; the estimate before a run."""
+window keeps the number of chunks in flight bounded, on the client and on the scheduler; the
+estimate before a run."""
 from __future__ import annotations
 
 import os
@@ -121,6 +122,26 @@ def test_local_pool_keeps_a_bounded_window_of_chunks_in_flight():
             seen.append((task, outcome))
             assert len(pool.pool._pending_work_items) <= WINDOW_PER_WORKER * 2
     assert sorted(t for t, _ in seen) == list(range(-100, 0)) and all(o == -t for t, o in seen)
+
+
+@pytest.mark.slow
+def test_dask_client_and_scheduler_hold_a_bounded_window_whatever_the_plan(cluster):
+    """200 tasks on the 2-worker cluster: at every yield the client holds at most
+    WINDOW_PER_WORKER chunks per worker (plus the one being released), and so does the scheduler (finished ones are released,
+    not kept): memory and scheduling per chunk do not grow with the plan. Every task runs once."""
+    from droptower.campaign.executors import DaskCluster
+
+    executor = DaskCluster(cluster.scheduler_address)
+    try:
+        seen, held = [], []
+        for task, outcome in executor.run(abs, range(-200, 0)):
+            seen.append((task, outcome))
+            held.append((len(executor.client.futures), len(cluster.scheduler.tasks)))
+        assert sorted(t for t, _ in seen) == list(range(-200, 0)) and all(o == -t for t, o in seen)
+        # the window, and the chunk just yielded whose release is on its way to the scheduler
+        assert max(max(c, s) for c, s in held) <= WINDOW_PER_WORKER * 2 + 1, max(held)
+    finally:
+        executor.close()
 
 
 def _bytes(folder: Path) -> int:

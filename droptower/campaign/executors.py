@@ -51,6 +51,9 @@ class InProcess:
     def __exit__(self, *exc: Any) -> None:
         pass
 
+    def start(self) -> None:
+        """Nothing to start (see :meth:`LocalPool.start`)."""
+
     def run(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Result]:
         for task in tasks:
             try:
@@ -79,6 +82,12 @@ class LocalPool:
     def __exit__(self, exc_type: Any, *exc: Any) -> None:
         # on Ctrl-C or an error, drop the chunks not started yet; running ones finish their files
         self.pool.shutdown(wait=True, cancel_futures=exc_type is not None)
+
+    def start(self) -> None:
+        """Start the worker processes now, before this process runs threads of its own: a pool
+        forks all its workers at its first task, and a fork while another thread holds a lock
+        (BLAS, logging) leaves the child waiting for it forever."""
+        self.pool.submit(int).result()
 
     def run(self, fn: Callable[[Any], Any], tasks: Iterable[Any]) -> Iterator[Result]:
         pending = iter(tasks)

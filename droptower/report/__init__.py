@@ -2,26 +2,26 @@
 extraction's results table with its logs.
 
 :func:`write_report` reads the run (:mod:`droptower.report.run`), fits the map
-(:func:`droptower.maps.fit_map`), draws the decay fit of every test again from its log
-(:mod:`droptower.report.figures`) and writes the page (:mod:`droptower.report.page`).
+(:func:`droptower.maps.fit_map`), draws the decay fit of every test over its log's trace
+(:mod:`droptower.report.decays`, in worker processes) and writes the page
+(:mod:`droptower.report.page`).
 """
 from __future__ import annotations
 
-import html
-import math
-import sys
+import json
 from pathlib import Path
 from urllib.parse import quote
 
 import numpy as np
 import pandas as pd
-import plotly.io as pio
+from threadpoolctl import threadpool_limits
 
 from droptower.errors import DroptowerError, make_folder
 from droptower.io.droptower_log import atomic_write
 from droptower.maps import MapFit, fit_map, select_tests
 from droptower.maps.results import flag_list
 from droptower.report import figures
+from droptower.report.decays import Drawing
 from droptower.report.page import fit_link, map_section, page, plain_table, tests_table
 from droptower.report.run import FLAG_REASONS, Run, load_run
 
@@ -49,38 +49,52 @@ def default_out(source: str | Path) -> Path:
 
 def write_report(source: str | Path, out: str | Path | None = None, form: str = "paper",
                  channels: dict[str, str] | None = None, extra_sections: list[tuple[str, str]] | None = None,
-                 title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS) -> Path:
+                 title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS,
+                 workers: int | None = None) -> Path:
     """Write the report of ``source`` (campaign folder or results table) to ``out``.
 
     form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
     for reading real logs (as the extraction's channel roles); extra_sections: (heading, HTML) pairs
     appended (the study's); inline_max_tests: more tests than this put their decay figures in
-    side files in ``<out stem>_files/`` beside the page; returns the path of the page."""
+    side files in ``<out stem>_files/`` beside the page; workers: processes drawing the decay
+    figures (None: every local core, 1: this process); returns the path of the page."""
     run = load_run(source)
     out = Path(out) if out is not None else default_out(source)
-    table = run.table
+    with Drawing(run, channels or {}, progress, workers) as drawing:  # the decay figures, meanwhile the rest
+        fit, map_error, usable_mask, excluded_reason, sections = _map_and_tests(run, source, form)
+        fits = drawing.result()
+    problems = _problems(run, usable_mask, excluded_reason, fits)
+    fit_files = None
+    if len(fits) > inline_max_tests:
+        fits, fit_files = _write_fit_files(fits, out)
+    text = page(title or f"droptower report: {run.name}", run.facts + _counts(run, usable_mask, fit), problems,
+                *sections, fits, extra_sections or [], fit_files)
+    make_folder(out.parent)
+    atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    return out
 
+
+def _map_and_tests(run: Run, source: str | Path, form: str) -> tuple[MapFit | None, str | None, np.ndarray,
+                                                                      dict[int, str], tuple[str, str]]:
+    """The map (its fit or why there is none), which tests it used and why others were left
+    out, and the HTML of the map's section and of the per-test table."""
+    table = run.table
+    usable = None
     fit, map_error, usable_mask, excluded_reason = None, None, np.zeros(len(table), bool), {}
     try:
         usable, excluded = select_tests(table, source)
         usable_mask = table.index.isin(usable.index)
         excluded_reason = dict(zip(np.flatnonzero(~usable_mask), (e.reason for e in excluded)))
-        fit = fit_map(table, source=_shown_source(source), form=form)
+        # the map's least squares factor a (tests x a few) Jacobian hundreds of times: BLAS
+        # threads cannot speed up so thin a matrix, and on a busy machine they made the map of
+        # 4 500 tests ten times slower (54 s against 5 s, measured on 2 loaded cores)
+        with threadpool_limits(limits=1, user_api="blas"):
+            fit = fit_map(table, source=_shown_source(source), form=form)
     except DroptowerError as exc:
         map_error = exc.message
-
-    fits = _decay_figures(run, channels or {}, progress)
-    problems = _problems(run, usable_mask, excluded_reason, fits)
-    fit_files = None
-    if len(fits) > inline_max_tests:
-        fits, fit_files = _write_fit_files(fits, out)
     map_figure = figures.map_figure(usable, [n for n, ok in zip(run.test, usable_mask) if ok], fit) if fit else None
-    text = page(title or f"droptower report: {run.name}", run.facts + _counts(run, usable_mask, fit), problems,
-                map_section(fit, map_error, map_figure), tests_table(_tests(run, usable_mask, excluded_reason, fit)),
-                fits, extra_sections or [], fit_files)
-    make_folder(out.parent)
-    atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
-    return out
+    sections = (map_section(fit, map_error, map_figure), tests_table(_tests(run, usable_mask, excluded_reason, fit)))
+    return fit, map_error, usable_mask, excluded_reason, sections
 
 
 def _write_fit_files(fits: dict[str, object], out: Path) -> tuple[dict[str, object], dict[str, str]]:
@@ -98,7 +112,9 @@ def _write_fit_files(fits: dict[str, object], out: Path) -> tuple[dict[str, obje
     for k in range(0, len(drawn), FITS_PER_FILE):
         names = drawn[k:k + FITS_PER_FILE]
         path = folder / f"fits_{k // FITS_PER_FILE:04d}.js"
-        text = f"droptowerFits({pio.to_json({n: fits[n] for n in names}, validate=False)});\n"
+        # plain json: the figures are plain data (plotly's encoder parses and writes each file
+        # twice); a NaN is a number in a script, as it is not in JSON
+        text = f"droptowerFits({json.dumps({n: fits[n] for n in names}, separators=(',', ':'))});\n"
         atomic_write(path, lambda tmp, text=text: Path(tmp).write_text(text, encoding="utf-8"))
         url = f"{quote(folder.name)}/{path.name}"
         files.update(dict.fromkeys(names, url))
@@ -120,17 +136,24 @@ def _counts(run: Run, usable: np.ndarray, fit: MapFit | None) -> list[tuple[str,
 def _problems(run: Run, usable: np.ndarray, excluded_reason: dict[int, str], fits: dict[str, object]) -> str:
     """Failed tests, tests left out of the map and flagged tests, each with its reason."""
     t = run.table
+    n = len(t)
+
+    def column(name: str, default: object) -> list:  # plain lists: a 4 500-test loop of .iloc took seconds
+        return t[name].tolist() if name in t.columns else [default] * n
+
+    statuses, errors, flags, warnings_ = (column("status", "done"), column("error", None), column("flags", None),
+                                          column("simulation_warnings", None))
     rows = []
     for i, name in enumerate(run.test):
-        status = str(t["status"].iloc[i]) if "status" in t.columns else "done"
+        status = str(statuses[i])
         reasons = []
         if status == "failed":
-            reasons.append(("failed", f"extraction failed: {t['error'].iloc[i]}" if "error" in t.columns else "failed"))
+            reasons.append(("failed", f"extraction failed: {errors[i]}" if "error" in t.columns else "failed"))
         if i in excluded_reason and status != "failed":
             reasons.append(("excluded from the map", excluded_reason[i]))
-        for flag in flag_list(t["flags"].iloc[i]) if "flags" in t.columns else []:
+        for flag in flag_list(flags[i]) if "flags" in t.columns else []:
             reasons.append((f"flag {flag}", FLAG_REASONS.get(flag, "see the extractor's documentation")))
-        warnings = t["simulation_warnings"].iloc[i] if "simulation_warnings" in t.columns else None
+        warnings = warnings_[i]
         if isinstance(warnings, str) and warnings:
             reasons.append(("simulation warning", warnings))
         if isinstance(fits.get(name), str):
@@ -140,7 +163,7 @@ def _problems(run: Run, usable: np.ndarray, excluded_reason: dict[int, str], fit
         return "<p class='ok'>No failures, no flags: every test went into the map.</p>"
     table = pd.DataFrame(rows)
     order = {"failed": 0, "excluded from the map": 1}
-    table = table.iloc[sorted(range(len(table)), key=lambda k: order.get(table["what"].iloc[k], 2))]
+    table = table.iloc[np.argsort(table["what"].map(order).fillna(2).to_numpy(), kind="stable")]
     n_failed = sum(table["what"] == "failed")
     n_excluded = sum(table["what"] == "excluded from the map")
     head = (f"<p><span class='{'bad' if n_failed else 'ok'}'>{n_failed} failed</span>, "
@@ -177,36 +200,3 @@ def _rounded(x: np.ndarray) -> np.ndarray:
         scale = 10.0 ** (DIGITS - 1 - np.floor(np.log10(np.abs(x))))
         r = np.round(x * scale) / scale
     return np.where(np.isfinite(r), r, x)
-
-
-def _decay_figures(run: Run, channels: dict[str, str], progress: bool) -> dict[str, object]:
-    """Per test name: its decay-fit figure, or why there is none (a one-line text)."""
-    from tqdm import tqdm
-
-    from droptower.extract.files import Settings, extract_file
-    from droptower.extract.result import DEG
-    from droptower.extract.window import Window
-
-    base = dict(run.extract)
-    window = Window.parse(base.pop("window", "first-cycle"))
-    out: dict[str, object] = {}
-    inertia = pd.to_numeric(run.table.get("inertia_kgm2", pd.Series(np.nan, index=run.table.index)), errors="coerce")
-    drop_index = pd.to_numeric(run.table.get("drop_index", pd.Series(1, index=run.table.index)), errors="coerce")
-    for i, (name, log) in enumerate(tqdm(list(zip(run.test, run.logs)), desc="report", unit="test", file=sys.stderr,
-                                         disable=None if progress else True)):  # None: a bar on a terminal only
-        if log is None:
-            out[name] = "log not found"
-            continue
-        j = float(inertia.iloc[i])
-        settings = Settings(roles=channels, window=window, inertia_kgm2=j if math.isfinite(j) and j > 0 else None, **base)
-        try:
-            k = float(drop_index.iloc[i])
-            signals, result = extract_file(log, settings, int(k) if math.isfinite(k) and k >= 1 else 1)
-        except DroptowerError as exc:
-            out[name] = f"the log cannot be extracted again: {exc.message.replace(str(log), log.name)}"
-            continue
-        title = (f"f = {result.frequency_hz:.2f} Hz, amplitude = {result.amplitude_ref_rad / DEG:.3f} deg, "
-                 f"c = {result.stiffness_nm_per_rad * DEG:.1f} N·m/deg, d = {result.damping_ratio:.3f}"
-                 + (f" [{', '.join(result.flags)}]" if result.flags else ""))
-        out[name] = figures.decay_figure(signals, result, html.escape(title))
-    return out

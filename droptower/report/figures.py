@@ -8,6 +8,7 @@ from __future__ import annotations
 import base64
 import functools
 import json
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -15,6 +16,7 @@ import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
+from droptower.decayfit import DecayFit, TorqueFit
 from droptower.extract.result import DEG, ExtractionResult
 from droptower.io.signals import DropSignals
 from droptower.maps import MapFit
@@ -83,9 +85,26 @@ def _decay_layout(panels: int) -> str:
     return json.dumps(layout)
 
 
-def decay_figure(signals: DropSignals, result: ExtractionResult, title: str) -> dict[str, Any]:
+@dataclass(frozen=True)
+class StoredFit:
+    """What a decay figure draws of an extraction (SI; times since the impact but
+    ``impact_time_s``, on the log's clock), as :class:`~droptower.extract.result.ExtractionResult`
+    names it: a result itself, or one rebuilt from a results-table row by
+    :func:`droptower.report.decays.stored_fit`."""
+
+    impact_time_s: float
+    window_start_s: float
+    window_end_s: float
+    angle_offset_rad: float
+    angle_fit: DecayFit
+    torque_offset_nm: float
+    torque_fit: TorqueFit | None
+
+
+def decay_figure(signals: DropSignals, result: ExtractionResult | StoredFit, title: str) -> dict[str, Any]:
     """Angle (deg) and torque (N·m) minus their pre-trigger offsets over the time since the
-    impact (ms), with the fits: solid inside the fit window (shaded), dashed beyond it.
+    impact (ms), with the fits: solid inside the fit window (shaded), dashed beyond it. result:
+    the extraction, or its fit as the results table stores it (:class:`StoredFit`).
     Returns the figure as a dict without its template (the page adds the shared one).
 
     Built as plain data on a cached layout (no plotly objects per test: a report of thousands
