@@ -430,7 +430,7 @@ class DropTowerScenes:
         self.in_space[scenes] = into_space
 
     def run(self, coupling: Coupling, state: CouplingState, pretwist_rad: np.ndarray, screw_nm: np.ndarray,
-            n_samples: int, steps_per_sample: int, energy_every: int) -> SceneRecord:
+            n_samples: int, steps_per_sample: int, energy_every: int, fly_between_contacts: bool = True) -> SceneRecord:
         """Step ``n_samples * steps_per_sample`` times; sample every ``steps_per_sample`` steps.
 
         ``state`` is the coupling state at the twist ``pretwist_rad`` (B,); the screw holds the
@@ -441,6 +441,8 @@ class DropTowerScenes:
         (:mod:`.flight`, the same steps compiled), from the start until its drop mass may come
         within :data:`~droptower.rig.flight.MARGIN_M` of the lever in the next sample, and again
         from a sample where it touches nothing and stays clear for :data:`LEAVE_SAMPLES` samples.
+        ``fly_between_contacts=False`` keeps every scene in the space all along (the reference
+        the flight is tested against).
         """
         B, dt, sps = self.batch, self.dt, steps_per_sample
         n_energy = (n_samples - 1) // energy_every + 1
@@ -477,7 +479,8 @@ class DropTowerScenes:
             stop[scenes] = out
 
         self._move(np.flatnonzero(self.in_space), False)
-        fly(np.arange(B), 0)
+        if fly_between_contacts:
+            fly(np.arange(B), 0)
         members = np.empty(0, int)  # the scenes in the space, while it does not change:
         bodies: _FewBodies | _ManyBodies | None = None
         sub: CouplingState | None = None  # their coupling state,
@@ -536,7 +539,7 @@ class DropTowerScenes:
                     bodies.refresh()  # an impact moved bodies
                 if s == 0:
                     lever_angle, lever_rate, mass_y, mass_v = (np.asarray(a) for a in bodies.state())
-                    clear = [not contacts.touching[i] and flight.clear_of(
+                    clear = [fly_between_contacts and not contacts.touching[i] and flight.clear_of(
                         a, w, (sc - t) / J, yy, u, self.L, self.r, self.g, horizon_leave)
                         for i, a, w, yy, u, sc, t, J in zip(
                             members.tolist(), lever_angle.tolist(), lever_rate.tolist(), mass_y.tolist(),
