@@ -3,8 +3,9 @@
 Shared by the extractor (measured logs), the planner (predicted decays: a plan predicts what the
 extractor will report), identification and the comparisons, so they all read a decay the same way.
 
-Angle: φ(t) = φ̂·e^(−δt)·cos(ωt − Φ), fitted over (φ̂, δ, ω, Φ) with
-:func:`scipy.optimize.least_squares` from robust starting values. Torque (eq. 17): δ and ω
+Angle: φ(t) = φ̂·e^(−δt)·cos(ωt − Φ), fitted over (φ̂, δ, ω, Φ) by a compiled Levenberg-Marquardt
+from robust starting values, to the minimum :func:`scipy.optimize.least_squares` (MINPACK) finds, which
+takes over where it does not converge. Torque (eq. 17): δ and ω
 fixed from the angle fit, T(t) = T̂·e^(−δt)·cos(ωt − Φ_T) + offset, which is linear in
 (T̂ cos Φ_T, T̂ sin Φ_T, offset) and so solved exactly by linear least squares.
 t is the time since the impact onset (s); angles in rad, torques in N·m.
@@ -17,18 +18,25 @@ deterministic disturbance such as the torque ringing an overestimate.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.optimize import least_squares
 
 from droptower.errors import DroptowerError
+from droptower.rheology.numba_cache import cache_available
+
+_JIT = dict(cache=cache_available(), nogil=True, fastmath=False, error_model="numpy")
 
 HYSTERESIS_FRACTION = 0.05   # zero-crossing band: this fraction of the first peak ...
 HYSTERESIS_NOISE = 5.0       # ... or this many noise standard deviations, whichever is larger
 START_CROSSINGS = 5          # zero crossings used for the starting frequency
 START_PEAKS = 4              # peaks used for the starting decay coefficient
 FALLBACK_DECAY_RATIO = 0.05  # δ/ω assumed when fewer than two peaks are in the record
+STEP_TOLERANCE = 1e-11       # the decay fit has converged when no parameter moves more than this of its scale
+MAX_ITERATIONS = 100         # decay fit: Gauss-Newton steps before MINPACK takes over
 
 
 @dataclass(frozen=True)
@@ -134,6 +142,87 @@ def start_frequency_and_decay(t: np.ndarray, y: np.ndarray, noise: float) -> tup
     return omega, max(delta, 0.0)
 
 
+def _residual_and_jacobian(p: np.ndarray, t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The residual decay(p, t) - y and its Jacobian over (φ̂, δ, ω, Φ), from one exp, cos and sin."""
+    amp, delta, omega, phase = p
+    e = np.exp(-delta * t)
+    arg = omega * t - phase
+    c, s = e * np.cos(arg), e * np.sin(arg)
+    return amp * c - y, np.column_stack([c, -t * amp * c, -t * amp * s, amp * s])
+
+
+def _normal_equations(p, t, y, a, g):
+    """Sum of squares of decay(p, t) - y; fills a = JᵀJ (4, 4) and g = Jᵀr (4,) in one pass."""
+    amp, delta, omega, phase = p[0], p[1], p[2], p[3]
+    a[:] = 0.0
+    g[:] = 0.0
+    cost = 0.0
+    col = np.empty(4)
+    for i in range(t.size):
+        e = math.exp(-delta * t[i])
+        arg = omega * t[i] - phase
+        c = e * math.cos(arg)
+        s = e * math.sin(arg)
+        r = amp * c - y[i]
+        col[0] = c
+        col[1] = -t[i] * amp * c
+        col[2] = -t[i] * amp * s
+        col[3] = amp * s
+        cost += r * r
+        for j in range(4):
+            g[j] += col[j] * r
+            for k in range(j + 1):
+                a[j, k] += col[j] * col[k]
+    for j in range(4):
+        for k in range(j):
+            a[k, j] = a[j, k]
+    return cost
+
+
+def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
+    """The least-squares decay parameters from x0: Gauss-Newton steps, damped by Marquardt's
+    (scaled) diagonal only where a step would raise the sum of squares. Returns (params, True)
+    once no parameter moves by more than ``tolerance`` of its ``scale``, (x0, False) if that
+    does not happen."""
+    p = x0.copy()
+    a = np.empty((4, 4))
+    g = np.empty(4)
+    a_trial = np.empty((4, 4))
+    g_trial = np.empty(4)
+    cost = _normal_equations(p, t, y, a, g)
+    lam = 0.0
+    for _ in range(max_iterations):
+        d = np.sqrt(np.diag(a))
+        if not np.all(d > 0.0) or not math.isfinite(cost):
+            return x0, False
+        a_scaled = a / np.outer(d, d)
+        g_scaled = g / d
+        while True:
+            step = -np.linalg.solve(a_scaled + lam * np.eye(4), g_scaled) / d
+            small = np.all(np.abs(step) <= tolerance * scale)
+            trial = p + step
+            cost_trial = _normal_equations(trial, t, y, a_trial, g_trial)
+            if cost_trial <= cost:
+                break
+            if small:  # at the minimum up to rounding
+                return p, True
+            lam = max(10.0 * lam, 1e-3)
+            if lam > 1e10:
+                return x0, False
+        p = trial
+        cost = cost_trial
+        a[:] = a_trial
+        g[:] = g_trial
+        lam = 0.1 * lam if lam > 1e-6 else 0.0
+        if small:
+            return p, True
+    return x0, False
+
+
+_normal_equations = njit(**_JIT)(_normal_equations)
+_levenberg_marquardt = njit(**_JIT)(_levenberg_marquardt)
+
+
 def fit_decay(t: np.ndarray, y: np.ndarray, omega0: float, delta0: float, baseline_var: float = 0.0) -> DecayFit:
     """Least-squares fit of φ̂ e^(−δt) cos(ωt − Φ) to (t, y) (Rapp et al. 2022, eq. 13-14).
 
@@ -147,23 +236,21 @@ def fit_decay(t: np.ndarray, y: np.ndarray, omega0: float, delta0: float, baseli
     (a, b), *_ = np.linalg.lstsq(basis, y, rcond=None)
     x0 = np.array([np.hypot(a, b), delta0, omega0, np.arctan2(b, a)])
 
-    def residual(p: np.ndarray) -> np.ndarray:
-        return decay(p, t) - y
-
-    def jacobian(p: np.ndarray) -> np.ndarray:
-        amp, delta, omega, phase = p
-        e = np.exp(-delta * t)
-        arg = omega * t - phase
-        c, s = e * np.cos(arg), e * np.sin(arg)
-        return np.column_stack([c, -t * amp * c, -t * amp * s, amp * s])
-
-    sol = least_squares(residual, x0, jac=jacobian, method="lm", x_scale="jac")
-    params = sol.x.copy()
+    scale = np.array([abs(x0[0]), abs(x0[2]), abs(x0[2]), 1.0])  # φ̂ of the amplitude, δ and ω of the frequency
+    converged = False
+    if np.all(np.isfinite(x0)) and np.all(scale > 0):
+        params, converged = _levenberg_marquardt(np.ascontiguousarray(t, np.float64),
+                                                 np.ascontiguousarray(y, np.float64), x0, scale, STEP_TOLERANCE,
+                                                 MAX_ITERATIONS)
+    if not converged:  # a signal far from a decay: MINPACK's safeguarded search
+        sol = least_squares(lambda p: _residual_and_jacobian(p, t, y)[0], x0,
+                            jac=lambda p: _residual_and_jacobian(p, t, y)[1], method="lm", x_scale="jac")
+        params = sol.x
+    params = params.copy()
     if params[0] < 0:  # same curve, positive amplitude
         params[0], params[3] = -params[0], params[3] + np.pi
     params[3] = float(np.angle(np.exp(1j * params[3])))
-    r = residual(params)
-    jac = jacobian(params)
+    r, jac = _residual_and_jacobian(params, t, y)
     inverse = _normal_inverse(jac)
     shift = inverse @ jac.sum(axis=0)
     cov = _residual_variance(r, 4) * inverse + baseline_var * np.outer(shift, shift)

@@ -34,6 +34,7 @@ Physics choices (the reasons are the rig's accuracy targets):
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,12 +42,15 @@ import pymunk
 import pymunk.batch
 
 from droptower.rheology import Coupling, CouplingState
+from droptower.rheology.kinds import DISSIPATED, STORED
+from droptower.rig import flight
 
 SPACING_M = 1.0          # distance between neighbouring scenes along x
 LEVER_BODY_MASS_KG = 10.0  # translational mass of the lever; the pivot holds it, it never enters the result
 TIP_MARGIN_M = 0.02      # lever line continues this far beyond the impact point
 COLLISION_SLOP_M = 1e-9
 MASS_TYPE, LEVER_TYPE = 1, 2
+LEAVE_SAMPLES = 4        # a scene leaves the space when it stays clear of the lever for this many samples
 FEW_SCENES = 8           # up to this many, body properties are read one by one (the batch API's fixed cost is higher)
 
 
@@ -108,10 +112,15 @@ class SceneRecord:
 
 
 class _FewBodies:
-    """Body state one property at a time: cheapest for a few scenes."""
+    """Body state one property at a time: cheapest for a few scenes.
 
-    def __init__(self, masses: list[pymunk.Body], levers: list[pymunk.Body]):
+    masses, levers: the bodies of the scenes ``members`` (global scene indices), in that order.
+    """
+
+    def __init__(self, masses: list[pymunk.Body], levers: list[pymunk.Body], members: np.ndarray, batch: int):
         self.masses, self.levers = masses, levers
+        self.local = np.full(batch, -1)
+        self.local[members] = np.arange(len(members))
 
     def refresh(self) -> None:
         """Nothing to fetch: properties are read when asked for."""
@@ -122,14 +131,15 @@ class _FewBodies:
             out[i] = twist[i] + lever.angle + lever.angular_velocity * dt
 
     def state(self) -> tuple[list[float], list[float], list[float], list[float]]:
-        """(lever angle, lever rate, drop-mass height, drop-mass vertical velocity), each (B,)."""
+        """(lever angle, lever rate, drop-mass height, drop-mass vertical velocity), each per member."""
         return ([b.angle for b in self.levers], [b.angular_velocity for b in self.levers],
                 [b.position.y for b in self.masses], [b.velocity.y for b in self.masses])
 
     def velocities(self, scenes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(drop-mass vertical velocity, lever rate) of the given scenes."""
-        return (np.array([self.masses[i].velocity.y for i in scenes]),
-                np.array([self.levers[i].angular_velocity for i in scenes]))
+        """(drop-mass vertical velocity, lever rate) of the given scenes (global indices)."""
+        local = self.local[scenes].tolist()
+        return (np.array([self.masses[i].velocity.y for i in local]),
+                np.array([self.levers[i].angular_velocity for i in local]))
 
     def apply_torque(self, screw: list[float], coupling_torque: np.ndarray) -> None:
         for lever, s, t in zip(self.levers, screw, coupling_torque.tolist()):
@@ -142,13 +152,16 @@ class _ManyBodies:
     FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE | pymunk.batch.BodyFields.VELOCITY
               | pymunk.batch.BodyFields.ANGULAR_VELOCITY)
 
-    def __init__(self, space: pymunk.Space, masses: list[pymunk.Body], levers: list[pymunk.Body]):
+    def __init__(self, space: pymunk.Space, masses: list[pymunk.Body], levers: list[pymunk.Body],
+                 members: np.ndarray, batch: int):
         self.space = space
         ids = pymunk.batch.Buffer()
         pymunk.batch.get_space_bodies(space, pymunk.batch.BodyFields.BODY_ID, ids)
         where = {int(body_id): k for k, body_id in enumerate(np.frombuffer(ids.int_buf(), dtype=np.uintp))}
-        self.mass_at = np.array([where[b.id] for b in masses])   # position of each scene's bodies
+        self.mass_at = np.array([where[b.id] for b in masses])   # position of each member's bodies
         self.lever_at = np.array([where[b.id] for b in levers])  # in the space's body order
+        self.local = np.full(batch, -1)
+        self.local[members] = np.arange(len(members))
         self.buffer = pymunk.batch.Buffer()
         self.torque = np.zeros(len(where))
         self.torque_buffer = pymunk.batch.Buffer()
@@ -173,7 +186,8 @@ class _ManyBodies:
         return self.lever[:, 2], self.lever[:, 5], self.mass[:, 1], self.mass[:, 4]
 
     def velocities(self, scenes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.mass[scenes, 4], self.lever[scenes, 5]
+        local = self.local[scenes]
+        return self.mass[local, 4], self.lever[local, 5]
 
     def apply_torque(self, screw: np.ndarray, coupling_torque: np.ndarray) -> None:
         self.torque[self.lever_at] = screw - coupling_torque
@@ -364,6 +378,7 @@ class DropTowerScenes:
         self.space = space
         self.masses: list[pymunk.Body] = []
         self.levers: list[pymunk.Body] = []
+        self.parts: list[tuple] = []  # each scene's bodies, shapes and joints (added while it needs pymunk)
         scene_of: dict[pymunk.Shape, int] = {}
         pivot_x = SPACING_M * np.arange(self.batch)
         for i, x0 in enumerate(pivot_x.tolist()):
@@ -380,6 +395,7 @@ class DropTowerScenes:
             top = self.r + 2.0 * float(gap_m[i]) + 1.0
             guide = pymunk.GrooveJoint(space.static_body, mass, (x0 - self.L, -1.0), (x0 - self.L, top), (0.0, 0.0))
             space.add(mass, striker, lever, line, pivot, guide)
+            self.parts.append((mass, striker, lever, line, pivot, guide))
             self.masses.append(mass)
             self.levers.append(lever)
             scene_of[striker] = i
@@ -398,18 +414,37 @@ class DropTowerScenes:
             arbiter.restitution = k  # exactly k for the pair, not a product of elasticities
 
         space.on_collision(MASS_TYPE, LEVER_TYPE, begin=begin, pre_solve=pre_solve, separate=separate)
-        self.bodies = (_FewBodies(self.masses, self.levers) if self.batch <= FEW_SCENES
-                       else _ManyBodies(space, self.masses, self.levers))
+        self.in_space = np.ones(self.batch, bool)
+        self.bodies = self._bodies(np.arange(self.batch))
+
+    def _bodies(self, members: np.ndarray) -> _FewBodies | _ManyBodies:
+        masses, levers = [self.masses[i] for i in members], [self.levers[i] for i in members]
+        if len(members) <= FEW_SCENES:
+            return _FewBodies(masses, levers, members, self.batch)
+        return _ManyBodies(self.space, masses, levers, members, self.batch)
+
+    def _move(self, scenes: np.ndarray, into_space: bool) -> None:
+        """Add the scenes to the space (pymunk integrates them) or take them out (they fly)."""
+        for i in scenes.tolist():
+            (self.space.add if into_space else self.space.remove)(*self.parts[i])
+        self.in_space[scenes] = into_space
 
     def run(self, coupling: Coupling, state: CouplingState, pretwist_rad: np.ndarray, screw_nm: np.ndarray,
-            n_samples: int, steps_per_sample: int, energy_every: int) -> SceneRecord:
+            n_samples: int, steps_per_sample: int, energy_every: int, fly_between_contacts: bool = True) -> SceneRecord:
         """Step ``n_samples * steps_per_sample`` times; sample every ``steps_per_sample`` steps.
 
         ``state`` is the coupling state at the twist ``pretwist_rad`` (B,); the screw holds the
         lever with the constant torque ``screw_nm`` (B,). Energies are sampled every
         ``energy_every`` output samples.
+
+        A scene is in pymunk's space only around its contacts: between them it flies
+        (:mod:`.flight`, the same steps compiled), from the start until its drop mass may come
+        within :data:`~droptower.rig.flight.MARGIN_M` of the lever in the next sample, and again
+        from a sample where it touches nothing and stays clear for :data:`LEAVE_SAMPLES` samples.
+        ``fly_between_contacts=False`` keeps every scene in the space all along (the reference
+        the flight is tested against).
         """
-        B, dt = self.batch, self.dt
+        B, dt, sps = self.batch, self.dt, steps_per_sample
         n_energy = (n_samples - 1) // energy_every + 1
         angle = np.empty((B, n_samples))
         torque_hist = np.empty((B, n_samples))
@@ -417,48 +452,132 @@ class DropTowerScenes:
         kinetic, potential, stored, dissipated, screw_work, loss = (np.empty((B, n_energy)) for _ in range(6))
         stored0 = coupling.stored_energy(state)
         dissipated0 = coupling.dissipated_energy(state)
-        few = isinstance(self.bodies, _FewBodies)
-        twist = np.asarray(pretwist_rad, float)
-        screw = np.asarray(screw_nm, float)
-        twist_arg, screw_arg = (twist.tolist(), screw.tolist()) if few else (twist, screw)
-        torque = state.torque_nm.copy()
-        pred = np.empty(B)
-        bodies, contacts = self.bodies, self.contacts
-        step = self.space.step
+        twist = np.ascontiguousarray(pretwist_rad, float)
+        screw = np.ascontiguousarray(screw_nm, float)
+        contacts = self.contacts
         contacts.start_history(n_samples)
-        step_samples = 1.0 / steps_per_sample
-        k = 0
-        for n in range(n_samples):
-            for s in range(steps_per_sample):
+        step_samples = 1.0 / sps
+        # what a flying scene carries: lever angle and rate, drop-mass height and velocity, torque
+        phi = np.array([b.angle for b in self.levers])
+        rate = np.array([b.angular_velocity for b in self.levers])
+        y = np.array([b.position.y for b in self.masses])
+        v = np.array([b.velocity.y for b in self.masses])
+        torque = state.torque_nm.copy()
+        stop = np.zeros(B, np.int64)  # the sample where each scene's flight stopped (n_samples: the record's end)
+        slots = coupling.s_off[:-1]
+        stored_idx, dissipated_idx = (np.ascontiguousarray(slots + k, np.int64) for k in (STORED, DISSIPATED))
+        horizon_leave = LEAVE_SAMPLES * sps * dt
+
+        def fly(scenes: np.ndarray, n: int) -> None:
+            rows = np.ascontiguousarray(scenes, np.int64)
+            out = np.empty(rows.size, np.int64)
+            flight.fly(coupling.codes, coupling.p_off, coupling.s_off, coupling.params, state.values, state.angle_rad,
+                       state.torque_nm, rows, np.full(rows.size, n, np.int64), out, twist, screw, self.inertia,
+                       self.mass, phi, rate, y, v, torque, stored_idx, dissipated_idx, stored0, dissipated0,
+                       contacts.loss_total, self.L, self.r, self.g, dt, sps, energy_every,
+                       angle, torque_hist, mass_hist, kinetic, potential, stored, dissipated, screw_work, loss)
+            stop[scenes] = out
+
+        self._move(np.flatnonzero(self.in_space), False)
+        if fly_between_contacts:
+            fly(np.arange(B), 0)
+        members = np.empty(0, int)  # the scenes in the space, while it does not change:
+        bodies: _FewBodies | _ManyBodies | None = None
+        sub: CouplingState | None = None  # their coupling state,
+        sub_coupling = coupling           # parameters,
+        sub_torque = np.empty(0)          # torque,
+        twist_arg: np.ndarray | list[float] = []
+        screw_arg: np.ndarray | list[float] = []
+        pred = np.empty(0)
+
+        def regroup(leaving: np.ndarray, entering: np.ndarray) -> None:
+            """Scenes leave the space (their state goes to the flight carriers) or enter it."""
+            nonlocal members, bodies, sub, sub_coupling, sub_torque, twist_arg, screw_arg, pred
+            if sub is not None:  # the members' coupling state back into the batch's
+                state.values[members], state.angle_rad[members], state.torque_nm[members] = \
+                    sub.values, sub.angle_rad, sub.torque_nm
+                torque[members] = sub_torque
+            if leaving.size:
+                local = bodies.local[leaving]
+                lever_angle, lever_rate, mass_y, mass_v = (np.asarray(a)[local] for a in bodies.state())
+                phi[leaving], rate[leaving], y[leaving], v[leaving] = lever_angle, lever_rate, mass_y, mass_v
+                self._move(leaving, False)
+            for i in entering.tolist():  # where its flight stopped
+                lever, mass = self.levers[i], self.masses[i]
+                lever.angle, lever.angular_velocity = float(phi[i]), float(rate[i])
+                mass.position = (mass.position.x, float(y[i]))
+                mass.velocity = (mass.velocity.x, float(v[i]))
+            self._move(entering, True)
+            members = np.flatnonzero(self.in_space)
+            if not members.size:
+                bodies = sub = None
+                return
+            bodies = self._bodies(members)
+            sub = CouplingState(state.values[members], state.angle_rad[members], state.torque_nm[members])
+            sub_coupling = coupling
+            if coupling.n_sets > 1:
+                sub_coupling = copy.copy(coupling)
+                sub_coupling.params = coupling.params[members]
+            sub_torque = torque[members]
+            few = isinstance(bodies, _FewBodies)
+            twist_arg, screw_arg = (twist[members].tolist(), screw[members].tolist()) if few else \
+                (twist[members], screw[members])
+            pred = np.empty(members.size)
+
+        n = 0
+        while n < n_samples:
+            entering = np.flatnonzero(~self.in_space & (stop == n))
+            if entering.size:
+                regroup(np.empty(0, int), entering)
+            if not members.size:  # every scene flies: on to the next that stops
+                n = int(stop.min())
+                continue
+            for s in range(sps):
+                k = n * sps + s
                 bodies.refresh()
-                if contacts.pending is not None and contacts.account(bodies, k / steps_per_sample, step_samples):
+                if contacts.pending is not None and contacts.account(bodies, k / sps, step_samples):
                     bodies.refresh()  # an impact moved bodies
-                # the coupling angle this step will reach (pymunk moves positions first, with the old rate)
-                bodies.predict(dt, twist_arg, pred)
                 if s == 0:
-                    lever_angle, rate, mass_y, mass_vy = bodies.state()
-                    angle[:, n] = lever_angle
-                    torque_hist[:, n] = torque  # the torque at this angle (from the previous step)
-                    mass_hist[:, n] = mass_y
+                    lever_angle, lever_rate, mass_y, mass_v = (np.asarray(a) for a in bodies.state())
+                    clear = [fly_between_contacts and not contacts.touching[i] and flight.clear_of(
+                        a, w, (sc - t) / J, yy, u, self.L, self.r, self.g, horizon_leave)
+                        for i, a, w, yy, u, sc, t, J in zip(
+                            members.tolist(), lever_angle.tolist(), lever_rate.tolist(), mass_y.tolist(),
+                            mass_v.tolist(), screw[members].tolist(), sub_torque.tolist(),
+                            self.inertia[members].tolist())]
+                    if any(clear):
+                        leaving = members[np.array(clear)]
+                        regroup(leaving, np.empty(0, int))
+                        fly(leaving, n)
+                        if not members.size:
+                            break
+                        lever_angle, lever_rate, mass_y, mass_v = (np.asarray(a) for a in bodies.state())
+                    angle[members, n] = lever_angle
+                    torque_hist[members, n] = sub_torque  # the torque at this angle (from the previous step)
+                    mass_hist[members, n] = mass_y
                     if n % energy_every == 0:
                         e = n // energy_every
-                        vy, w = np.asarray(mass_vy), np.asarray(rate)
-                        kinetic[:, e] = 0.5 * self.mass * vy ** 2 + 0.5 * self.inertia * w ** 2
-                        potential[:, e] = self.mass * self.g * (mass_hist[:, n] - self.r)
-                        stored[:, e] = coupling.stored_energy(state) - stored0
-                        dissipated[:, e] = coupling.dissipated_energy(state) - dissipated0
-                        screw_work[:, e] = screw * angle[:, n]
-                        loss[:, e] = contacts.loss_total
-                torque = coupling.step(state, pred, dt)
-                bodies.apply_torque(screw_arg, torque)
-                k += 1
-                self.time_s = self.t0 + k * dt  # the end of this step: contacts are stamped with it
-                step(dt)
+                        mass_kg, inertia = self.mass[members], self.inertia[members]
+                        kinetic[members, e] = 0.5 * mass_kg * mass_v ** 2 + 0.5 * inertia * lever_rate ** 2
+                        potential[members, e] = mass_kg * self.g * (mass_y - self.r)
+                        stored[members, e] = coupling.stored_energy(sub) - stored0[members]
+                        dissipated[members, e] = coupling.dissipated_energy(sub) - dissipated0[members]
+                        screw_work[members, e] = screw[members] * lever_angle
+                        loss[members, e] = contacts.loss_total[members]
+                # the coupling angle this step will reach (pymunk moves positions first, with the old rate)
+                bodies.predict(dt, twist_arg, pred)
+                sub_torque = sub_coupling.step(sub, pred, dt)
+                bodies.apply_torque(screw_arg, sub_torque)
+                self.time_s = self.t0 + (k + 1) * dt  # the end of this step: contacts are stamped with it
+                self.space.step(dt)
                 if contacts.open:
                     contacts.query()
-        bodies.refresh()
-        contacts.account(bodies, k / steps_per_sample, step_samples)
-        time_s = self.t0 + np.arange(n_samples) * steps_per_sample * dt
+            n += 1
+        if members.size:
+            bodies.refresh()
+            contacts.account(bodies, n_samples, step_samples)
+            regroup(np.empty(0, int), np.empty(0, int))  # the members' coupling state back into the batch's
+        time_s = self.t0 + np.arange(n_samples) * sps * dt
         return SceneRecord(time_s=time_s, angle_rad=angle, coupling_torque_nm=torque_hist, drop_mass_m=self.r - mass_hist,
                            energy_time_s=time_s[::energy_every], kinetic_j=kinetic, potential_j=potential,
                            stored_j=stored, dissipated_j=dissipated, screw_work_j=screw_work, contact_loss_j=loss,

@@ -281,7 +281,8 @@ def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.
 
 
 def _run_batch(rig: RigConfig, coupling: Coupling, tests: list[DropTest], duration_s: float,
-               twist: Pretwist) -> list[DropResult]:
+               twist: Pretwist, fly_between_contacts: bool = True) -> list[DropResult]:
+    """The tests in one scene batch (``fly_between_contacts``: see :meth:`DropTowerScenes.run`)."""
     g = rig.gravity_m_per_s2
     inertia = np.array([t.inertia_kgm2 for t in tests])
     mass = np.array([t.drop_mass_kg for t in tests])
@@ -299,7 +300,7 @@ def _run_batch(rig: RigConfig, coupling: Coupling, tests: list[DropTest], durati
                              solver_iterations=rig.simulation.solver_iterations, t0_s=-t_pre)
     energy_every = max(1, int(round(ENERGY_SAMPLE_S * fs)))
     rec = scenes.run(coupling, twist.state, twist.angle_rad, twist.torque_nm, n_samples,
-                     rig.simulation.steps_per_sample, energy_every)
+                     rig.simulation.steps_per_sample, energy_every, fly_between_contacts)
     results = []
     for i, test in enumerate(tests):
         pred = ImpactVelocities(**{k: np.asarray(v)[i] for k, v in vars(predicted).items()})
