@@ -30,7 +30,8 @@ def _random_values(fam: FilledRubberFamily, rng) -> np.ndarray:
     f_min = math.exp(rng.uniform(math.log(0.1), math.log(3.0)))
     return np.array([k * rng.uniform(0.2, 0.5), k * rng.uniform(0.0, 300.0), k * rng.uniform(0.3, 0.7),
                      rng.uniform(0.002, 0.01), rng.uniform(0.35, 0.7), rng.uniform(0.01, 0.05),
-                     k * rng.uniform(0.02, 0.1), rng.uniform(0.3, 2.0), f_min, rng.uniform(2.0, 4.0)])
+                     k * rng.uniform(0.02, 0.1), rng.uniform(0.3, 2.0), f_min, rng.uniform(2.0, 4.0),
+                     k * rng.uniform(0.02, 0.2), k * rng.uniform(0.0, 100.0), 1.0 / (2 * math.pi * rng.uniform(3.0, 300.0))])
 
 
 def test_the_family_is_registered_for_servo_records_and_drop_tests():
@@ -56,6 +57,29 @@ def test_closed_form_is_the_benchs_first_harmonic(seed):
     closed = fam.harmonic_stiffness(v, grid["amplitude_rad"].to_numpy(), grid["frequency_hz"].to_numpy())
     np.testing.assert_allclose(closed.real, bench.real, rtol=0.015)
     np.testing.assert_allclose(closed.imag, bench.imag, atol=0.04 * float(np.max(np.abs(bench))))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_stiffening_maxwell_closed_form_is_the_benchs_first_harmonic(seed):
+    """The stiffening Maxwell branch's first-harmonic linearisation (the closed form's viscous
+    part that grows with the amplitude) against the core on the virtual bench, at random
+    springs, gains (up to a fivefold stiffening at 3 deg) and relaxation frequencies (3-300 Hz):
+    K' and K'' within 2 % of |K*| (the linearisation leaves out the spring's higher harmonics)."""
+    from droptower.identify.families.filled_rubber import stiffening_maxwell_stiffness
+
+    rng = np.random.default_rng(700 + seed)
+    k0 = 10 ** rng.uniform(3.0, 4.0)
+    gain, damping = k0 * rng.uniform(10.0, 80.0), k0 / (2 * math.pi * 10 ** rng.uniform(math.log10(3.0), math.log10(300.0)))
+    coupling = parse_coupling({"name": "stiffening_maxwell", "element": [
+        {"kind": "variable_maxwell", "stiffness": k0, "stiffness_gain": gain, "damping": damping}]})
+    grid = run_grid(coupling, np.radians([0.3, 1.0, 3.0]), np.array([5.0, 30.0]), sample_rate_hz=4096.0)
+    bench = grid["storage_stiffness_nm_per_rad"].to_numpy() + 1j * grid["loss_stiffness_nm_per_rad"].to_numpy()
+    closed = stiffening_maxwell_stiffness(k0, gain, damping, grid["amplitude_rad"].to_numpy(), grid["frequency_hz"].to_numpy())
+    np.testing.assert_array_less(np.abs(closed.real - bench.real), 0.02 * np.abs(bench))
+    np.testing.assert_array_less(np.abs(closed.imag - bench.imag), 0.02 * np.abs(bench))
+    # the mechanism: at 30 Hz the loss factor changes with the amplitude as the spring stiffens
+    eta = (closed.imag / closed.real)[grid["frequency_hz"].to_numpy() == 30.0]
+    assert abs(eta[-1] / eta[0] - 1) > 0.05
 
 
 @settings(max_examples=40, deadline=None, derandomize=True)
@@ -84,7 +108,7 @@ def test_first_guess_reproduces_the_readings_of_its_own_closed_form(seed):
     a, f = np.meshgrid(np.radians([0.2, 0.6, 1.5, 3.0]), [20.0, 35.0, 55.0])
     k_obs = fam.harmonic_stiffness(truth, a.ravel(), f.ravel())
     x0 = fam.initial()
-    x0[8:] = truth[8:]
+    x0[8:10] = truth[8:10]
     guess = fam.guess_from_readings(a.ravel(), f.ravel(), k_obs, x0, np.zeros(len(x0), bool))
     got = fam.harmonic_stiffness(guess, a.ravel(), f.ravel())
     assert np.max(np.abs(got - k_obs) / np.abs(k_obs)) < 0.01
@@ -211,4 +235,34 @@ def test_drop_tests_of_a_random_filled_rubber_coupling_predict_its_bench(seed, t
     result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0))
     agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10, agree
+    assert not result.verdict.poor
+
+
+@pytest.mark.slow
+def test_drop_tests_of_a_coupling_whose_viscous_loss_grows_with_the_amplitude_predict_its_bench(tmp_path):
+    """A seeded six-parameter form with a friction bank (random_couplings' zerodim6_friction: its
+    Maxwell branch stiffens with its deformation, so its loss factor at 30 Hz rises by half from
+    0.4 to 2.6 deg, which only the family's stiffening Maxwell branch represents), nine noisy rig
+    logs over the three inertias: the identified coupling's bench K' within 5 % and loss factor
+    within 10 % RMS over the tested range (the issue's bounds for other structures), a good fit."""
+    from droptower.identify.dropfit import DropFitSettings, identify_drops, servo_agreement
+    from droptower.identify.droplogs import ReadSettings, read_decays
+    from droptower.rig.config import load_rig
+    from droptower.rig.simulate import DropTest
+    from droptower.rig.simulate import simulate as rig_simulate
+
+    truth = parse_coupling(random_truth("zerodim6_friction", np.random.default_rng(32_004)))
+    eta = run_grid(truth, np.radians([0.4, 2.6]), [30.0], cycles=2, run_in_cycles=3,
+                   simulation_rate_hz=9600.0)["loss_factor"].to_numpy()
+    assert eta[1] > 1.3 * eta[0]  # the draw has the mechanism under test
+    tests = [DropTest(j, m, h, 0.0, 0, 2100 + 10 * i + k) for i, (j, m) in enumerate([(0.1557, 1.0), (0.359, 2.0),
+                                                                                      (0.5233, 2.0)])
+             for k, h in enumerate((0.2, 1.0, 3.0))]
+    paths = [r.write_log(tmp_path / f"test_{k}.parquet")
+             for k, r in enumerate(rig_simulate(load_rig("rapp2022"), truth, tests, 0.25))]
+    decays, excluded = read_decays(paths, ReadSettings())
+    assert not excluded
+    result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0))
+    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    assert agree["storage_stiffness_rms"] <= 0.05 and agree["loss_factor_rms"] <= 0.10, agree
     assert not result.verdict.poor

@@ -36,6 +36,31 @@ from droptower.rheology.elements import FillerNetwork, PowerLaw
 _TERMS_MARGIN = 1e-9
 #: Starts of the first guess's fit to the harmonic readings (a Latin hypercube over the bounds).
 GUESS_STARTS = 12
+#: The power-law band's placement (min_frequency_hz, band_decades): left out of the first guess.
+_BAND = (8, 9)
+#: First harmonic of |sin| sin: the stiffening spring (k0 + g |e|) e at e = E sin is k0 + g 8/(3 pi) E.
+_ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
+
+
+def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitude_rad: np.ndarray,
+                                 frequency_hz: np.ndarray, iterations: int = 48) -> np.ndarray:
+    """K' + i K'' (N*m/rad) of a Maxwell branch whose spring force is (k0 + g |e|) e (spring
+    ``k0`` N*m/rad, ``gain`` g N*m/rad^2, dashpot ``damping`` c N*m*s/rad) in a steady harmonic
+    motion of amplitude A (rad) at f (Hz), on the first harmonic (equivalent linearisation): the
+    spring's elongation amplitude E and its secant k(E) = k0 + g 8/(3 pi) E solve
+    E = A omega c / |k(E) + i omega c| (bisection: the left side rises with E, the right falls),
+    and the branch is a linear Maxwell k(E) || omega c: K* = k(E) i omega c / (k(E) + i omega c)."""
+    amp = np.asarray(amplitude_rad, float)
+    wc = 2.0 * math.pi * np.asarray(frequency_hz, float) * damping
+    amp, wc = np.broadcast_arrays(amp, wc)
+    lo, hi = np.zeros(amp.shape), amp.copy()
+    for _ in range(iterations):
+        e = 0.5 * (lo + hi)
+        k = k0 + gain * _ABS_SIN_HARMONIC * e
+        above = e > amp * wc / np.abs(k + 1j * wc)
+        hi, lo = np.where(above, e, hi), np.where(above, lo, e)
+    k = k0 + gain * _ABS_SIN_HARMONIC * 0.5 * (lo + hi)
+    return k * 1j * wc / (k + 1j * wc)
 
 
 class FilledRubberFamily(Family):
@@ -71,7 +96,11 @@ class FilledRubberFamily(Family):
                 stiffness_parameter("kp_nm_per_rad", s, 1e-4, 10.0),
                 Parameter("matrix_loss_factor", 0.01, 5.0),
                 Parameter("min_frequency_hz", 1e-3 * f, 30.0 * f),
-                Parameter("band_decades", 0.3, 6.0)]
+                Parameter("band_decades", 0.3, 6.0),
+                stiffness_parameter("kv_nm_per_rad", s, 1e-4, 10.0),
+                Parameter("kv_gain_nm_per_rad2", 0.0, 10.0 * s.stiffness_nm_per_rad / amp, log=False,
+                          scale=s.stiffness_nm_per_rad / amp),
+                Parameter("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))]
 
     @property
     def reference_frequency_hz(self) -> float:
@@ -81,10 +110,11 @@ class FilledRubberFamily(Family):
     def guess(self) -> np.ndarray:
         s = self.scale
         k, amp, f = s.stiffness_nm_per_rad, s.amplitude_rad, self.reference_frequency_hz
-        return np.array([0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0])
+        return np.array([0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0,
+                         0.05 * k, 0.0, 1.0 / (2 * math.pi * f)])
 
     def elements(self, v: np.ndarray) -> list[dict[str, Any]]:
-        k, a, kf, ac, m, ab, kp, eta, f_min, decades = (float(x) for x in v)
+        k, a, kf, ac, m, ab, kp, eta, f_min, decades, kv, gain, tau_v = (float(x) for x in v)
         terms = int(self.options["terms"])
         return [{"kind": "cubic_spring", "name": "equilibrium", "a": a, "b": k},
                 {"kind": "filler_network", "name": "filler_network", "stiffness": kf, "critical_angle": ac,
@@ -93,26 +123,30 @@ class FilledRubberFamily(Family):
                 {"kind": "power_law", "name": "matrix", "storage_stiffness": kp, "loss_factor": eta,
                  "reference_frequency": self.reference_frequency_hz, "min_frequency": f_min,
                  "max_frequency": f_min * 10.0 ** decades,
-                 "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)}]
+                 "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)},
+                {"kind": "variable_maxwell", "name": "amplitude_viscous", "stiffness": kv, "stiffness_gain": gain,
+                 "damping": kv * tau_v}]
 
     def derived(self, v: np.ndarray) -> dict[str, float]:
         eta, f_min, decades = float(v[7]), float(v[8]), float(v[9])
         return {"max_frequency_hz": f_min * 10.0 ** decades, "matrix_exponent": 2.0 / math.pi * math.atan(eta),
-                "reference_frequency_hz": self.reference_frequency_hz}
+                "reference_frequency_hz": self.reference_frequency_hz,
+                "cv_nms_per_rad": float(v[10]) * float(v[12])}
 
     # ------------------------------------------------------------------ closed form
     def harmonic_stiffness(self, v: np.ndarray, amplitude_rad: np.ndarray, frequency_hz: np.ndarray) -> np.ndarray:
         """K' + i K'' (N*m/rad) of parameter set ``v`` in a steady harmonic motion of amplitude A
         (rad) at frequency f (Hz): the cubic spring's first harmonic b + 3/4 a A^2, the network
-        broken down to its equilibrium at A (:meth:`FillerNetwork.complex_stiffness`) and the
-        power-law band's Prony series (:meth:`PowerLaw.complex_stiffness`)."""
+        broken down to its equilibrium at A (:meth:`FillerNetwork.complex_stiffness`), the
+        power-law band's Prony series (:meth:`PowerLaw.complex_stiffness`) and the stiffening
+        Maxwell branch linearised on its first harmonic (:func:`stiffening_maxwell_stiffness`)."""
         network, matrix = (el for el in self._specs(v))
-        amp = np.asarray(amplitude_rad, float)
-        return (v[0] + 0.75 * v[1] * amp ** 2 + network.complex_stiffness(amp)
-                + matrix.complex_stiffness(np.asarray(frequency_hz, float)))
+        amp, freq = np.asarray(amplitude_rad, float), np.asarray(frequency_hz, float)
+        return (v[0] + 0.75 * v[1] * amp ** 2 + network.complex_stiffness(amp) + matrix.complex_stiffness(freq)
+                + stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq))
 
     def _specs(self, v: np.ndarray) -> tuple[FillerNetwork, PowerLaw]:
-        _, network, matrix = self.elements(v)
+        _, network, matrix, _ = self.elements(v)
         return FillerNetwork(**network), PowerLaw(**matrix)
 
     def guess_from_readings(self, amplitude_rad: np.ndarray, frequency_hz: np.ndarray, stiffness: np.ndarray,
@@ -128,7 +162,7 @@ class FilledRubberFamily(Family):
         if amp.size < 3:
             return x0
         params = self.parameters
-        idx = [i for i in range(8) if not given[i]]
+        idx = [i for i in range(len(params)) if not given[i] and i not in _BAND]
         if not idx:
             return x0
         lo, hi = np.array([params[i].z_bounds() for i in idx]).T
