@@ -119,3 +119,10 @@ def test_an_internal_error_of_a_worker_reaches_the_caller(campaign, monkeypatch)
     monkeypatch.setattr(decays, "draw", broken)
     with pytest.raises(ZeroDivisionError, match="a bug"):
         decays.decay_figures(load_run(campaign), {}, workers=1)
+
+
+def test_workers_below_one_are_a_one_line_error(campaign) -> None:  # noqa: F811
+    from droptower.errors import DroptowerError
+
+    with pytest.raises(DroptowerError, match="workers.*at least 1, got 0"):
+        decay_figures(load_run(campaign), {}, workers=0)

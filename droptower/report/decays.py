@@ -28,6 +28,7 @@ from droptower.errors import DroptowerError
 from droptower.extract.result import DEG
 from droptower.maps.results import flag_list
 from droptower.report.figures import StoredFit, decay_figure
+from droptower.report.run import Run
 
 #: Tests per task of a worker process: enough that a task costs far more than sending it.
 TESTS_PER_TASK = 50
@@ -92,7 +93,7 @@ class Job:
     stored: dict[str, Any] | None
 
 
-def jobs(run: Any) -> list[Job]:
+def jobs(run: Run) -> list[Job]:
     """The figures a run's report draws: one job per test. A campaign's rows carry their stored
     fits (its logs hold one drop each and were extracted with the campaign's settings)."""
     table = run.table
@@ -157,7 +158,7 @@ class Drawing:
     channels: role -> ``NAME[:UNIT]`` for reading the logs; progress: a progress bar on stderr;
     workers: processes drawing (None: every local core; 1: this process, in the thread)."""
 
-    def __init__(self, run: Any, channels: dict[str, str], progress: bool = False, workers: int | None = None):
+    def __init__(self, run: Run, channels: dict[str, str], progress: bool = False, workers: int | None = None):
         from droptower.campaign.executors import local_cores
         from droptower.extract.window import Window
 
@@ -166,6 +167,8 @@ class Drawing:
         settings_kw["roles"] = channels
         self.jobs = jobs(run)
         self.tasks = [(self.jobs[k:k + TESTS_PER_TASK], settings_kw) for k in range(0, len(self.jobs), TESTS_PER_TASK)]
+        if workers is not None and workers < 1:
+            raise DroptowerError(f"must be at least 1, got {workers}", where="workers")
         self.workers = max(1, min(local_cores() if workers is None else workers, len(self.tasks)))
         self.progress = progress
         self._drawn: dict[str, object] = {}
@@ -211,7 +214,7 @@ class Drawing:
         self._executor.__exit__(exc_type, *exc)
 
 
-def decay_figures(run: Any, channels: dict[str, str], progress: bool = False,
+def decay_figures(run: Run, channels: dict[str, str], progress: bool = False,
                   workers: int | None = None) -> dict[str, object]:
     """Per test name (in the run's order): its decay-fit figure, or why there is none (a
     one-line text). workers: processes drawing them (None: every local core; 1: this process)."""
