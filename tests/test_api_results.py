@@ -130,3 +130,25 @@ def test_a_design_prints_and_converts(tmp_path):
     assert path.is_file() and plan.to_dict()["plan_file"] == str(path)
     with pytest.raises(DroptowerError, match="give `repeats` or `uncertainty_pct`, not both"):
         design((0.5, 2.0), (25.0, 45.0), repeats=2, uncertainty_pct=1.0)
+
+
+@pytest.mark.slow
+def test_a_map_and_its_validation_print_and_convert():
+    """The paper's Table 4 map (Rapp et al. 2022) validated against the quick servo sweeps of the
+    coupling calibrated to it: the result's table is the validation's points, its dict is JSON,
+    its summary the command's text."""
+    import droptower as dt
+    from droptower.compare.validation import format_summary
+
+    fit = dt.fit_map(dt.read_results("rapp2022_table4"))
+    assert repr(fit).startswith("<MapFit paper: ") and fit.to_frame().equals(fit.coefficient_table())
+    v = dt.validate(fit, "rapp2022_nr60", quick=True)
+    table = v.to_frame()
+    assert len(table) == len(v.validation.table) > 0
+    doc = v.to_dict()
+    json.dumps(doc, allow_nan=False)
+    assert doc["summary"] == json.loads(json.dumps(doc["summary"])) and len(doc["points"]) == len(table)
+    assert v.summary().startswith(format_summary(v.validation)) and "reference" not in doc
+    assert repr(v).startswith(f"<MapValidation: {len(table)} servo points")
+    with pytest.raises(DroptowerError, match="`results` needs `reference`"):
+        dt.validate(fit, results="campaign")

@@ -59,6 +59,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     """
     from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, read_results, select_tests
+    from droptower.maps.nested import nested_summary
 
     if out is not None:
         check_table_path(out, "--out")
@@ -78,7 +79,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     elif out is not None:
         coefficients = fit.coefficient_table()
         options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
-    nested = _nested(table, results) if nested_cv else None
+    nested = nested_summary(table, results) if nested_cv else None
     model_map = None
     if model_kind is not None or model_coupling is not None:
         from droptower.compare.model_map import build_model_map
@@ -125,18 +126,3 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
-
-
-def _nested(table, source: Path) -> dict:
-    """The nested cross-validation of auto on the usable tests, as plain data (units in the keys)."""
-    from droptower.maps import select_tests
-    from droptower.maps.results import REQUIRED
-    from droptower.maps.nested import INNER_FOLDS, chosen_summary, nested_cv
-    from droptower.maps.select import cv_groups
-
-    usable = select_tests(table, source)[0]
-    a, f, c, d = (usable[col].to_numpy(float) for col in REQUIRED)
-    groups, method = cv_groups(usable)
-    result = nested_cv(a, f, c, d, groups)
-    return {"outer": method, "inner_folds": INNER_FOLDS, "stiffness_rms_error_pct": result.stiffness_rms_pct,
-            "damping_ratio_rms_error_pct": result.damping_ratio_rms_pct, "chosen": chosen_summary(result)}
