@@ -152,3 +152,20 @@ def test_a_map_and_its_validation_print_and_convert():
     assert repr(v).startswith(f"<MapValidation: {len(table)} servo points")
     with pytest.raises(DroptowerError, match="`results` needs `reference`"):
         dt.validate(fit, results="campaign")
+
+
+def test_a_comparison_prints_and_converts():
+    """A ranking as compare_models builds it: the best converged family, the table, JSON."""
+    import pandas as pd
+
+    from droptower.identify import Comparison
+
+    ranking = pd.DataFrame({"model": ["zerodim6", "pfeffer"], "status": ["converged", "not converged"],
+                            "bic": [10.0, math.nan], "verdict": ["good fit", "not converged"]}, index=[1, 2])
+    c = Comparison(ranking, None, {}, skipped={"overlay": "no sine blocks"}, not_converged={"pfeffer": "budget"})
+    assert c.best == "zerodim6" and c.exit_code() == 0
+    assert c.to_frame().equals(ranking) and c.to_dict() == c.as_dict()
+    json.dumps(c.to_dict(), allow_nan=False)
+    assert repr(c) == ("<Comparison of 2 families on servo records: best zerodim6; skipped overlay; "
+                       "not converged pfeffer>")
+    assert "zerodim6" in c._repr_html_()
