@@ -100,7 +100,7 @@ def identify_plan(truth_file: str | Path, conditions: pd.DataFrame, tmp: Path, l
     t0 = time.perf_counter()
     options = {"template": "rapp2022_nr60"} if kind == "template" else None
     fit = identify_drops(kind, decays, excluded=excluded, options=options)
-    agree = servo_agreement(fit.coupling(), load_coupling(truth_file), decays)
+    agree = servo_agreement(fit.coupling, load_coupling(truth_file), decays)
     return {"tests": len(decays), "k_rms": agree["storage_stiffness_rms"], "eta_rms": agree["loss_factor_rms"],
             "wall_s": time.perf_counter() - t0}
 

@@ -206,11 +206,11 @@ def drops() -> dict[str, dict[str, float]]:
             decays, excluded = read_decays(paths, ReadSettings())
             result = identify_drops(kind, decays, excluded=excluded)
             wall = time.perf_counter() - t0
-            agree = servo_agreement(result.coupling(), truth, decays)
+            agree = servo_agreement(result.coupling, truth, decays)
             print(f"drops {kind}: {len(decays)} tests used ({len(excluded)} excluded), converged {result.converged}, "
                   f"{wall:.1f} s ({result.evaluations} evaluations), angle nRMSE fit "
-                  f"{100 * result.fit_error['angle_nrmse']:.3f} % / hold-out "
-                  f"{100 * result.holdout_error['angle_nrmse']:.3f} %; servo grid: K' {100 * agree['storage_stiffness_rms']:.2f} % "
+                  f"{100 * result.fit['angle_nrmse']:.3f} % / hold-out "
+                  f"{100 * result.holdout['angle_nrmse']:.3f} %; servo grid: K' {100 * agree['storage_stiffness_rms']:.2f} % "
                   f"RMS (max {100 * agree['storage_stiffness_max']:.2f} %), loss factor "
                   f"{100 * agree['loss_factor_rms']:.2f} % RMS (max {100 * agree['loss_factor_max']:.2f} %); "
                   f"baseline: the rig simulating the 12 tests {t_rig:.1f} s -> ratio {wall / t_rig:.1f}; targets "
@@ -245,7 +245,7 @@ def table2() -> dict[str, float]:
             w0, c0 = time.perf_counter(), time.process_time()
             other = identify_drops(kind, decays, excluded=excluded)
             families[kind] = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
-                              "angle_nrmse_fit_pct": 100 * other.fit_error["angle_nrmse"],
+                              "angle_nrmse_fit_pct": 100 * other.fit["angle_nrmse"],
                               "escalated": bool(other.search.get("escalated")), "verdict": other.verdict.verdict}
             print(f"Table 2: {kind}: {families[kind]['wall_s']:.1f} s wall / {families[kind]['cpu_s']:.1f} s CPU, angle "
                   f"nRMSE fit {families[kind]['angle_nrmse_fit_pct']:.3f} % ({other.verdict.verdict}); baseline the "
@@ -253,12 +253,12 @@ def table2() -> dict[str, float]:
                   f"{'met' if families[kind]['wall_s'] <= 60 else 'MISSED'}", flush=True)
     print(f"Table 2: {len(decays)} tests ({len(excluded)} excluded), template rapp2022_nr60: converged "
           f"{result.converged}, {wall:.1f} s ({result.evaluations} evaluations), angle nRMSE fit "
-          f"{100 * result.fit_error['angle_nrmse']:.3f} %, hold-out {100 * result.holdout_error['angle_nrmse']:.3f} %; "
+          f"{100 * result.fit['angle_nrmse']:.3f} %, hold-out {100 * result.holdout['angle_nrmse']:.3f} %; "
           f"baseline: the campaign itself (simulate, log, extract) {t_campaign:.1f} s -> ratio {wall / t_campaign:.1f}; "
           f"target <= 300 s: {'met' if wall <= 300 else 'MISSED'}")
     return {"tests": len(decays), "wall_s": wall, "evaluations": result.evaluations, "campaign_s": t_campaign,
-            "angle_nrmse_fit_pct": 100 * result.fit_error["angle_nrmse"],
-            "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"], "families": families}
+            "angle_nrmse_fit_pct": 100 * result.fit["angle_nrmse"],
+            "angle_nrmse_holdout_pct": 100 * result.holdout["angle_nrmse"], "families": families}
 
 
 def zerodim20_data() -> dict[str, list]:
@@ -348,7 +348,7 @@ def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: b
                     w0, c0 = time.perf_counter(), time.process_time()
                     result = identify_drops(kind, decays, excluded=excluded, options=options)
                     row["drop_wall_s"], row["drop_cpu_s"] = time.perf_counter() - w0, time.process_time() - c0
-                    agree = servo_agreement(result.coupling(), truth, decays)
+                    agree = servo_agreement(result.coupling, truth, decays)
                     row.update(drop_k=agree["storage_stiffness_rms"], drop_eta=agree["loss_factor_rms"],
                                drop_ok=agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10,
                                drop_verdict=result.verdict.verdict, f_min=min(d.frequency_hz for d in decays),
@@ -433,7 +433,7 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
                 w0, c0 = time.perf_counter(), time.process_time()
                 result = identify_drops(kind, decays, excluded=excluded)
                 wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-                agree = servo_agreement(result.coupling(), truth, decays)
+                agree = servo_agreement(result.coupling, truth, decays)
                 k_err, eta_err = agree["storage_stiffness_rms"], agree["loss_factor_rms"]
                 recovered = k_err <= RECOVERY_LIMITS[0] and eta_err <= RECOVERY_LIMITS[1]
                 good = result.verdict.verdict == "good fit"
@@ -534,7 +534,7 @@ def filled_rubber_table2(campaign: str | None) -> dict[str, dict[str, float]]:
         w0, c0 = time.perf_counter(), time.process_time()
         result = identify_drops(kind, decays, excluded=excluded, options=options)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-        agree = bench_point_agreement(result.coupling(), points, paper)
+        agree = bench_point_agreement(result.coupling, points, paper)
         figures[kind] = {**agree, "wall_s": wall, "cpu_s": cpu, "evaluations": result.evaluations,
                          "verdict": result.verdict.verdict, "error_over_noise": result.verdict.error_over_noise}
         print(f"  identify {kind}: K' {agree['storage_stiffness_rms_pct']:.2f} % RMS, loss factor "
@@ -579,7 +579,7 @@ def filled_rubber_others(n: int) -> dict[str, list[dict[str, float]]]:
             w0 = time.perf_counter()
             result = identify_drops("filled_rubber", decays, excluded=excluded)
             wall = time.perf_counter() - w0
-            agree = servo_agreement(result.coupling(), truth, decays)
+            agree = servo_agreement(result.coupling, truth, decays)
             ok = agree["storage_stiffness_rms"] <= 0.05 and agree["loss_factor_rms"] <= 0.10
             row = {"storage_stiffness_rms_pct": 100 * agree["storage_stiffness_rms"],
                    "loss_factor_rms_pct": 100 * agree["loss_factor_rms"], "wall_s": wall, "rig_s": t_rig,

@@ -18,12 +18,13 @@ from droptower.errors import DroptowerError
 
 if TYPE_CHECKING:
     from droptower.campaign import CampaignRun, run_campaign
-    from droptower.compare import run_sweeps, validate_map
+    from droptower.compare import MapValidation, run_sweeps, validate, validate_map
     from droptower.design import design_campaign
     from droptower.extract import Settings as ExtractSettings
     from droptower.extract import extract_file
     from droptower.fmu import build_fmu
-    from droptower.identify import make_segment, segments_from_files
+    from droptower.identify import (Comparison, Identification, Parameter, Parameters, compare_models,
+                                    identify_from_drop_tests, make_segment, segments_from_files)
     from droptower.identify.dropfit import identify_drops
     from droptower.identify.droplogs import read_decays
     from droptower.io import read_log
@@ -36,9 +37,9 @@ if TYPE_CHECKING:
 __version__ = "0.1.0"
 
 #: the curated namespace: name -> (module, name there), imported on first use. The functions
-#: ``extract`` and ``identify`` share their names with subpackages (``droptower.extract``,
-#: ``droptower.identify``), which importing either binds here, so they are reached as
-#: ``from droptower.identify import identify``.
+#: ``extract``, ``identify`` and ``design`` share their names with subpackages (``droptower.extract``,
+#: ``droptower.identify``, ``droptower.design``), which importing either binds here, so they are
+#: reached as ``from droptower.identify import identify``, ``from droptower.design import design``.
 _LAZY: dict[str, tuple[str, str]] = {
     # couplings
     "Coupling": ("droptower.rheology", "Coupling"),
@@ -62,6 +63,8 @@ _LAZY: dict[str, tuple[str, str]] = {
     "MapFit": ("droptower.maps", "MapFit"),
     "run_sweeps": ("droptower.compare", "run_sweeps"),
     "validate_map": ("droptower.compare", "validate_map"),
+    "validate": ("droptower.compare", "validate"),
+    "MapValidation": ("droptower.compare", "MapValidation"),
     "design_campaign": ("droptower.design", "design_campaign"),
     # the servo bench
     "run_grid": ("droptower.servo", "run_grid"),
@@ -71,6 +74,12 @@ _LAZY: dict[str, tuple[str, str]] = {
     "segments_from_files": ("droptower.identify", "segments_from_files"),
     "read_decays": ("droptower.identify.droplogs", "read_decays"),
     "identify_drops": ("droptower.identify.dropfit", "identify_drops"),
+    "identify_from_drop_tests": ("droptower.identify", "identify_from_drop_tests"),
+    "compare_models": ("droptower.identify", "compare_models"),
+    "Comparison": ("droptower.identify", "Comparison"),
+    "Identification": ("droptower.identify", "Identification"),
+    "Parameters": ("droptower.identify", "Parameters"),
+    "Parameter": ("droptower.identify", "Parameter"),
     "build_fmu": ("droptower.fmu", "build_fmu"),
 }
 
@@ -78,7 +87,8 @@ __all__ = ["DroptowerError", "__version__", "Coupling", "CouplingState", "load_c
           "load_doe", "DropTest", "simulate", "plan", "read_log", "extract_file", "ExtractSettings",
           "run_campaign", "CampaignRun", "read_results", "fit_map", "MapFit", "run_sweeps", "validate_map",
           "design_campaign", "run_grid", "run_records", "make_segment", "segments_from_files", "read_decays",
-          "identify_drops", "build_fmu"]
+          "identify_drops", "identify_from_drop_tests", "compare_models", "Comparison", "Identification", "Parameters",
+          "Parameter", "validate", "MapValidation", "build_fmu"]
 
 
 def __getattr__(name: str) -> Any:

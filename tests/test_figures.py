@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from droptower.cli.identify_drops_cmd import COINCIDE, servo_prediction_figure
+from droptower.identify.dropreport import COINCIDE, servo_prediction_figure
 from droptower.rig.config import load_rig
 from droptower.rig.plots import plan_figure
 

@@ -81,8 +81,8 @@ def test_round_trip_on_unknown_couplings(logs, kind):
     assert not excluded
     result = identify_drops(kind, decays, settings=DropFitSettings(holdout_fraction=0.0))
     assert result.converged
-    assert result.fit_error["angle_nrmse"] < 0.01
-    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    assert result.fit["angle_nrmse"] < 0.01
+    agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03
     assert agree["loss_factor_rms"] <= 0.10
     if kind == "elastoslide":
@@ -90,9 +90,9 @@ def test_round_trip_on_unknown_couplings(logs, kind):
         # phi0 and v_r only as the reported combination
         truth_values = {"k_nm_per_rad": 25000.0, "k0_nm_per_rad": 6000.0}
         for name, value in truth_values.items():
-            i = result.family.names.index(name)
-            assert abs(result.values[i] - value) <= 4 * result.std_error[i], name
-        assert result.values[result.family.names.index("p")] == 5
+            p = result.params[name]
+            assert abs(p.value - value) <= 4 * p.stderr, name
+        assert result.params["p"].value == 5
         assert any({"phi0_per_nm", "v_r_rad_per_s"} <= set(c) for c in result.non_identifiable)
 
 
@@ -110,7 +110,7 @@ def test_template_family_follows_any_coupling_file(logs, tmp_path):
     result = identify_drops("template", decays, settings=DropFitSettings(holdout_fraction=0.0),
                             options={"template": str(path)})
     assert result.converged
-    agree = servo_agreement(result.coupling(), parse_coupling(TRUTHS["zerodim6"]), decays, 3, 2)
+    agree = servo_agreement(result.coupling, parse_coupling(TRUTHS["zerodim6"]), decays, 3, 2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
 
 
@@ -125,7 +125,7 @@ def test_angle_only_logs(logs):
     for a in decays:
         assert a.rate0_rad_per_s == pytest.approx(with_force[a.name].rate0_rad_per_s, rel=0.02)  # cubic over 1/8 period
     result = identify_drops("zerodim6", decays, settings=DropFitSettings(holdout_fraction=0.0))
-    agree = servo_agreement(result.coupling(), parse_coupling(TRUTHS["zerodim6"]), decays, 3, 2)
+    agree = servo_agreement(result.coupling, parse_coupling(TRUTHS["zerodim6"]), decays, 3, 2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
 
 
@@ -217,7 +217,7 @@ def test_template_of_the_reference_coupling_recovers_another_coupling_of_its_str
     assert not excluded
     result = identify_drops("template", decays, settings=DropFitSettings(holdout_fraction=0.0),
                             options={"template": "rapp2022_nr60"})
-    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
 
 
@@ -237,7 +237,7 @@ def test_two_branches_in_the_test_band_are_found_and_judged(seed, tmp_path):
         {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": rng.uniform(0, 50) * k3, "damping": k3 * tau3}]})
     decays, excluded = read_decays(_campaign(truth, tmp_path), ReadSettings())
     result = identify_drops("zerodim6", decays, settings=DropFitSettings(holdout_fraction=0.0))
-    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
     assert result.verdict.verdict == "good fit" and not result.at_bounds
     assert result.search["candidates"] >= 96 and result.search["local_fits"] == 3

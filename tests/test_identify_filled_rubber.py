@@ -233,7 +233,7 @@ def test_drop_tests_of_a_random_filled_rubber_coupling_predict_its_bench(seed, t
     decays, excluded = read_decays(paths, ReadSettings())
     assert not excluded
     result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0))
-    agree = servo_agreement(result.coupling(), truth, decays, n_amplitudes=3, n_frequencies=2)
+    agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10, agree
     assert not result.verdict.poor
 

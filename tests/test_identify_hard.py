@@ -172,7 +172,7 @@ def test_the_issues_six_parameter_coupling_is_found(tmp_path):
                           "damping": 3000.0 * 0.02}]}
     decays = _decays(truth, tmp_path)
     result = identify_drops("zerodim6", decays)
-    agree = servo_agreement(result.coupling(), parse_coupling(truth), decays)
+    agree = servo_agreement(result.coupling, parse_coupling(truth), decays)
     assert agree["storage_stiffness_rms"] <= 0.01 and agree["loss_factor_rms"] <= 0.03
     assert result.verdict.verdict == "good fit" and "escalated" not in result.search
     p = result.parameters
@@ -190,7 +190,7 @@ def test_the_issues_elastoslide_is_not_called_poor(tmp_path):
                           "p": 7, "n": 32}]}
     decays = _decays(truth, tmp_path)
     result = identify_drops("elastoslide", decays)
-    agree = servo_agreement(result.coupling(), parse_coupling(truth), decays)
+    agree = servo_agreement(result.coupling, parse_coupling(truth), decays)
     assert agree["storage_stiffness_rms"] <= 0.01 and agree["loss_factor_rms"] <= 0.03
     assert result.verdict.verdict == "good fit", result.verdict.text()
 

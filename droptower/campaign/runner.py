@@ -62,6 +62,37 @@ class CampaignRun:
     peak_rss_worker_mb: float = 0.0
     warnings: list[str] = field(default_factory=list)
 
+    @property
+    def done(self) -> int:
+        """Tests extracted."""
+        return int((self.results["status"] == "done").sum()) if len(self.results) else 0
+
+    def summary(self) -> str:
+        """One line: the campaign, its tests extracted, failed and pending, this run's time."""
+        n = len(self.spec.tests)
+        return (f"{self.spec.coupling.name} on {self.spec.rig.name}, plan {self.spec.doe.name}: {n} tests, "
+                f"{self.done} extracted, {len(self.failed)} failed, {self.pending} pending "
+                f"({self.ran_tests} run now{' on ' + self.executor if self.executor else ''}, {self.wall_s:.1f} s; "
+                f"record {self.spec.duration_s:g} s after the impact)")
+
+    def to_frame(self) -> pd.DataFrame:
+        """The results table: one row per finished test (plan fields, extracted values, flags)."""
+        return self.results.copy()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready figures of the run (the results table is :meth:`to_frame`)."""
+        return {"folder": str(self.root), "rig": self.spec.rig.name, "coupling": self.spec.coupling.name,
+                "doe": self.spec.doe.name, "tests": len(self.spec.tests), "extracted": self.done,
+                "failed": [{"test_id": int(t), "error": e} for t, e in self.failed], "errors": list(self.errors),
+                "pending": self.pending, "ran_tests": self.ran_tests, "executor": self.executor,
+                "wall_s": self.wall_s, "duration_s": self.spec.duration_s, "warnings": list(self.warnings)}
+
+    def __repr__(self) -> str:
+        return f"<CampaignRun {self.root}: {self.summary()}>"
+
+    def _repr_html_(self) -> str:
+        return f"<p>{self.summary()}</p>" + self.results.head(10).to_html(index=False)
+
 
 def run_campaign(out: str | Path, rig: str | Path | None = None, coupling: str | Path | None = None,
                  doe: str | Path | None = None, *, workers: int | None = None, scheduler: str | None = None,
@@ -121,6 +152,7 @@ def estimate_campaign(out: str | Path, rig: str | Path | None = None, coupling: 
                       scheduler_timeout_s: float = SCHEDULER_TIMEOUT_S) -> Estimate:
     """Time and disk the campaign :func:`run_campaign` would run with the same arguments
     (:mod:`.estimate`); ``out`` is only read (with ``resume``: its settings and finished tests)."""
+    out = Path(out)  # a path even where only a resume reads it (a TypeError for anything else)
     if workers is not None and workers < 1:
         raise DroptowerError(f"must be at least 1, got {workers}", where="workers")
     spec = _spec(out, rig, coupling, doe, resume, {"duration_s": duration_s, "chunk_size": chunk_size,

@@ -95,12 +95,8 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
         raise click.exceptions.Exit(130) from None
     for line in run.warnings:
         click.echo(f"droptower: warning: {line}", err=True)
-    n = len(run.spec.tests)
-    done = int((run.results["status"] == "done").sum()) if len(run.results) else 0
-    click.echo(f"{run.spec.coupling.name} on {run.spec.rig.name}, plan {run.spec.doe.name}: {n} tests, "
-               f"{done} extracted, {len(run.failed)} failed, {run.pending} pending "
-               f"({run.ran_tests} run now{' on ' + run.executor if run.executor else ''}, {run.wall_s:.1f} s; "
-               f"record {run.spec.duration_s:g} s after the impact)")
+    n, done = len(run.spec.tests), run.done
+    click.echo(run.summary())
     for name in ("results.parquet", "results.csv"):
         options.wrote(run.root / name, f"{len(run.results)} test(s), one row each")
     options.wrote(run.root / "logs", "a log per simulated test")

@@ -37,6 +37,17 @@ FLAGS: dict[str, str] = {
     "max_tests": "--max-tests",
     "for_identification": "--for-identification",
     "columns": "--column",
+    "verbose": "--verbose",
+    "coupling_file": "--model-coupling",
+    "results": "--results",
+    "reference": "--reference",
+    "servo_results": "--servo-results",
+    "servo_columns": "--servo-column",
+    "sheet": "--sheet",
+    "repeats": "--repeats",
+    "uncertainty_pct": "--uncertainty-pct",
+    "model": "--model",
+    "template": "--template",
 }
 
 _ROLE = re.compile(r"`roles=\{'(\w+)': '([^']*)'\}`")

@@ -23,7 +23,7 @@ import click
 from pydantic import Field
 
 from droptower.cli.options import note, progress, quiet_option, wrote
-from droptower.errors import DroptowerError, check_positive, make_folder
+from droptower.errors import DroptowerError, check_positive
 from droptower.validation import StrictModel, validate
 from droptower.cli.flags import cli_text
 
@@ -72,22 +72,6 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float)
     for text in notes:
         note(f"note: {text}")
     return segments
-
-
-def _write_coupling(result, out: str, sources: list[str]) -> None:
-    from droptower.rheology import coupling_to_toml, load_coupling
-
-    c = result.coupling
-    quality = f"nRMSE {100 * result.fit.nrmse:.2f} % on the fitting data"
-    if result.holdout:
-        quality += f", {100 * result.holdout.nrmse:.2f} % on hold-out data"
-    c.description = f"{c.description}. Identified by droptower identify --model {result.family} ({quality}). " \
-                    f"{result.coupling_note}".strip()
-    c.source = f"{c.source}; identified from {', '.join(sources)}"
-    path = Path(out)
-    make_folder(path.parent)
-    path.write_text(coupling_to_toml(c))
-    load_coupling(path)  # what is written must read back
 
 
 @click.command()
@@ -170,7 +154,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
       droptower identify --from-drop-tests runs/table2 --model template \\
           --template rapp2022_nr60 --out fitted.toml --predict-servo servo.csv
     """
-    from droptower.identify.report import plot_identification, result_dict, result_text
+    from droptower.identify.report import plot_identification
     from droptower.identify.strategies import identify as run
 
     init = _read_init(params_path)
@@ -191,7 +175,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     result = run(kind, segments, init=init.initial, bounds=init.bounds, options=init.options, holdout=held,
                  file=params_path)
     progress(f"identify: {kind} done in {time.perf_counter() - start:.1f} s")
-    click.echo(json.dumps(result_dict(result), indent=1) if as_json else result_text(result))
+    click.echo(json.dumps(result.to_dict(), indent=1) if as_json else result.summary())
     if plot_dir:
         for path in plot_identification(result, segments, plot_dir, held):
             wrote(path, "fit over time and loops")
@@ -206,7 +190,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
     if out:
-        _write_coupling(result, out, [Path(p).name for p in data])
+        result.write_coupling(out, [Path(p).name for p in data])
         wrote(out, f"coupling {kind}, for simulate, campaign, servo")
 
 
@@ -297,11 +281,13 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     if drops:
         from droptower.cli.identify_drops_cmd import prepare
 
-        decays, excluded, settings, options, _ = prepare(data, None, channels, InitFile(), template, holdout_fraction,
-                                                         rig, inertia_kgm2, lever_length_m)
+        campaign = prepare(data, None, channels, InitFile(), template, holdout_fraction, rig, inertia_kgm2,
+                           lever_length_m)
+        decays, options = campaign.decays, campaign.options
         if "template" in kinds and "template" not in options:
             raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
-        result = run(decays, kinds, budget_s=budget_s, total_budget_s=total_budget_s, excluded=excluded, settings=settings,
+        result = run(decays, kinds, budget_s=budget_s, total_budget_s=total_budget_s, excluded=campaign.excluded,
+                     settings=campaign.settings,
                      options={"template": {"template": options["template"]}} if "template" in options else None,
                      on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ..."),
                      on_skip=on_skip)

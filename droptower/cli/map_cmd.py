@@ -8,6 +8,7 @@ import click
 
 from droptower.cli import options
 from droptower.cli.options import quiet_option
+from droptower.cli.flags import cli_text
 from droptower.errors import DroptowerError
 
 
@@ -58,6 +59,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     """
     from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, read_results, select_tests
+    from droptower.maps.nested import nested_summary
 
     if out is not None:
         check_table_path(out, "--out")
@@ -77,10 +79,13 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     elif out is not None:
         coefficients = fit.coefficient_table()
         options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
-    nested = _nested(table, results) if nested_cv else None
+    nested = nested_summary(table, results) if nested_cv else None
     model_map = None
     if model_kind is not None or model_coupling is not None:
-        model_map = _model_map(results, fit, model_kind, template, model_coupling)
+        from droptower.compare.model_map import build_model_map
+
+        model_map = build_model_map(results, fit, model=model_kind, template=template, coupling_file=model_coupling,
+                                    on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress)
     extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
              **({"model_map": model_map.to_dict()} if model_map is not None else {})}
     if as_json and extra:
@@ -121,61 +126,3 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
-
-
-def _model_map(results: Path, fit, kind: str | None, template: str | None, coupling_file: Path | None):
-    """The model-based map beside ``fit`` (the paper's, whose measured range it shares): of a
-    coupling file as it is, or identified from the campaign's logs with bands."""
-    from droptower.compare.model_map import model_map_from_coupling, model_map_from_identification
-
-    if coupling_file is not None:
-        from droptower.rheology import load_coupling
-
-        family = None
-        if coupling_file.suffix.lower() == ".json":  # identify --from-drop-tests --json: the coupling it wrote
-            from droptower.maps.mapfit import read_json_object
-
-            doc = read_json_object(coupling_file, "an identification (identify --from-drop-tests --json)")
-            if not doc.get("coupling_file"):
-                raise DroptowerError("the identification wrote no coupling (run it with --out COUPLING.toml)",
-                                     file=coupling_file)
-            family, coupling_file = doc.get("model"), Path(doc["coupling_file"])
-        mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
-    else:
-        from droptower.campaign.folder import saved_inputs
-        from droptower.cli.identify_cmd import InitFile
-        from droptower.cli.identify_drops_cmd import prepare
-        from droptower.identify.dropfit import identify_drops
-
-        inputs = saved_inputs(results) if results.is_dir() else {}
-        if not (results / "logs").is_dir() or "rig" not in inputs:
-            raise DroptowerError("--model identifies from a campaign's logs: RESULTS must be a campaign folder",
-                                 file=results)
-        decays, excluded, settings, family_options, _ = prepare((str(results / "logs"),), kind, (), InitFile(),
-                                                                template, 0.0, str(inputs["rig"]), None, None)
-        options.progress(f"map: identifying {kind} from {len(decays)} drop test(s) for the model-based map ...")
-        ident = identify_drops(kind, decays, excluded=excluded, settings=settings, options=family_options)
-        if not ident.converged:
-            raise DroptowerError(f"model {kind}: the fit to the drop tests did not converge ({ident.message}); "
-                                 "no model-based map")
-        mm = model_map_from_identification(ident, decays, settings, tested=fit.range, source=str(results))
-        if ident.verdict is not None and ident.verdict.poor:
-            options.note(f"note: model {kind} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
-                         "trusted beyond the paper's")
-    mm.evaluate_grid()
-    return mm
-
-
-def _nested(table, source: Path) -> dict:
-    """The nested cross-validation of auto on the usable tests, as plain data (units in the keys)."""
-    from droptower.maps import select_tests
-    from droptower.maps.results import REQUIRED
-    from droptower.maps.nested import INNER_FOLDS, chosen_summary, nested_cv
-    from droptower.maps.select import cv_groups
-
-    usable = select_tests(table, source)[0]
-    a, f, c, d = (usable[col].to_numpy(float) for col in REQUIRED)
-    groups, method = cv_groups(usable)
-    result = nested_cv(a, f, c, d, groups)
-    return {"outer": method, "inner_folds": INNER_FOLDS, "stiffness_rms_error_pct": result.stiffness_rms_pct,
-            "damping_ratio_rms_error_pct": result.damping_ratio_rms_pct, "chosen": chosen_summary(result)}

@@ -62,60 +62,25 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
       droptower validate --map map.json --coupling rapp2022_nr60 --out validation/
       droptower validate --map map.json --servo-results measured.csv --out validation/ --table-format xlsx
     """
-    from droptower.compare import (compare_reference, format_comparison, format_summary, read_reference,
-                                   read_servo_results, run_sweeps, validate_map)
+    from droptower.compare.validate import validate as run_validation
     from droptower.errors import DroptowerError
     from droptower.io.table_reader import parse_column_options
-    from droptower.maps import MapFit, read_results
 
     if results is not None and reference is None:
         raise DroptowerError("--results needs --reference (the measured map to compare the campaign with)")
     if out is not None:
-        from droptower.compare.files import output_folder, write_validation
+        from droptower.compare.files import output_folder
 
         output_folder(out, create=False)  # before the sweeps: a bad --out fails at once
-    fit = MapFit.from_json(map_path)
-    reference_table = read_reference(reference) if reference is not None else None
-    campaign = read_results(results) if results is not None else None
-    if servo_columns and servo_results is None:
-        raise DroptowerError("--servo-column needs --servo-results (the table whose columns it names)")
     columns = parse_column_options(servo_columns, "--servo-column")
-    points = (read_servo_results(servo_results, columns) if servo_results is not None
-              else run_sweeps(coupling, reduced=quick))
-    validation = validate_map(fit, points)
-    comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
-    routes = None
-    if model_map_path is not None:
-        from droptower.compare.model_map import PAPER_ROUTE, ModelMap
-        from droptower.compare.validation import route_table, validate_routes
-
-        model_map = ModelMap.from_json(model_map_path)
-        routes = validate_routes({PAPER_ROUTE: fit, model_map.route: model_map}, points, hull=fit)
+    result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
+                            reference=reference, results=results, model_map=model_map_path, quick=quick)
     if out is not None:
-        for path in write_validation(out, validation, fit, points, comparison, table_suffix=f".{table_format}"):
-            wrote(path, "validation")
-        if routes is not None:
-            from droptower.io.tables import write_table
-
-            wrote(write_table(route_table(routes), out / f"validation_routes.{table_format}", "--out"),
-                  "the two routes vs the servo points")
-            wrote(write_table(routes[model_map.route].table, out / f"validation_model_map.{table_format}", "--out"),
-                  f"the {model_map.route} at every servo point")
+        described = {"validation_routes": "the two routes vs the servo points",
+                     "validation_model_map": f"the {result.model_route} at every servo point"}
+        for path in result.write(out, table_format):
+            wrote(path, described.get(path.stem, "validation"))
     if as_json:
-        from droptower.jsonsafe import json_safe
-
-        doc = {"summary": validation.summary, "points": validation.table.to_dict(orient="records")}
-        if comparison is not None:
-            doc["reference"] = {"summary": comparison[1], "rows": comparison[0].to_dict(orient="records")}
-        if routes is not None:
-            doc["routes"] = {name: {"summary": v.summary, "points": v.table.to_dict(orient="records")}
-                             for name, v in routes.items()}
-        click.echo(json.dumps(json_safe(doc), indent=1))
+        click.echo(json.dumps(result.to_dict(), indent=1))
         return
-    click.echo(format_summary(validation))
-    if routes is not None:
-        from droptower.compare.validation import format_routes
-
-        click.echo(format_routes(routes))
-    if comparison is not None:
-        click.echo(format_comparison(comparison[1], reference.name))
+    click.echo(result.summary())

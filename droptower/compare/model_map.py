@@ -32,7 +32,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -285,7 +285,7 @@ def sigma_point_sets(family: Any, values: np.ndarray, free: np.ndarray, cov_z: n
 
 def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
     """(free mask, covariance of the optimised variables z) of a drop-test identification
-    (:class:`~droptower.identify.dropfit.DropIdentification`), cluster-robust by test: the
+    (:class:`~droptower.identify.result.Identification` from drop tests), cluster-robust by test: the
     sandwich (J'J)⁺ (Σ_tests J_t' r_t r_t' J_t) (J'J)⁺ · G/(G − 1) on the fitting tests' residual
     and its forward-difference Jacobian (batched calls of the core): the scatter between tests,
     whatever the correlation within a test. The identification's reported standard errors add the
@@ -298,19 +298,20 @@ def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4)
     if len(fitting) < 2:
         raise DroptowerError(f"model map bands: {len(fitting)} of the identification's fitting tests are among "
                              "the given logs; give the logs it was fitted to")
-    problem = DropProblem(ident.family, fitting, settings)
-    params = ident.family.parameters
-    free = np.isfinite(np.asarray(ident.std_error, float))
+    problem = DropProblem(ident.family_model, fitting, settings)
+    params = ident.family_model.parameters
+    values = ident.params.vector()
+    free = np.isfinite(ident.params.stderr_vector())
     idx = np.flatnonzero(free)
-    z0 = np.array([params[i].to_z(ident.values[i]) for i in idx])
-    rows = np.tile(np.asarray(ident.values, float), (idx.size + 1, 1))
+    z0 = np.array([params[i].to_z(values[i]) for i in idx])
+    rows = np.tile(values, (idx.size + 1, 1))
     for j, i in enumerate(idx):
         rows[j + 1, i] = params[i].to_value(z0[j] + step)
     # parameter sets x tests per core call bounded (a 450-test campaign's decays are long)
     per_call = max(1, MAX_DECAYS_PER_CALL // len(fitting))
     res = np.concatenate([problem.residuals(rows[i:i + per_call]) for i in range(0, len(rows), per_call)])
     jac = ((res[1:] - res[0]) / step).T
-    sol = RowsFit(params, np.asarray(ident.values, float), free, res[0], jac, [], 0, 0, True, "")
+    sol = RowsFit(params, values, free, res[0], jac, [], 0, 0, True, "")
     return free, sol.covariance_z_clustered(problem.test_of_residual)
 
 
@@ -323,20 +324,19 @@ def model_map_from_identification(ident: Any, decays: list, settings: Any, teste
     """The model map of a drop-test identification, with cluster-robust 95 % bands (``bands``),
     over the tested range ``tested`` (default: the decays' first-cycle amplitudes and
     frequencies). Evaluate it with :meth:`ModelMap.evaluate_grid`."""
-    coupling = ident.coupling()
+    coupling = ident.coupling
     if tested is None:
         tested = MapRange.of_points([math.degrees(d.amplitude_rad) for d in decays], [d.frequency_hz for d in decays])
     band_sets = None
     if bands:
         free, cov = drop_covariance(ident, decays, settings)
-        band_sets = sigma_point_sets(ident.family, np.asarray(ident.values, float), free, cov)
+        band_sets = sigma_point_sets(ident.family_model, ident.params.vector(), free, cov)
     verdict = ident.verdict.as_dict() if ident.verdict is not None else {}
-    info = {"model": ident.model, "converged": ident.converged, "verdict": verdict.get("verdict"),
-            "angle_nrmse": ident.fit_error.get("angle_nrmse"), "tests_used": len(ident.tests_used),
-            "wall_s": ident.wall_s,
-            "parameters": {n: {"value": float(v), "std_error": float(s)} for n, v, s in
-                           zip(ident.family.names, ident.values, ident.std_error)}}
-    return ModelMap(coupling, ident.model, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
+    info = {"model": ident.family, "converged": ident.converged, "verdict": verdict.get("verdict"),
+            "angle_nrmse": ident.fit.get("angle_nrmse"), "tests_used": len(ident.tests_used),
+            "wall_s": ident.time_s,
+            "parameters": {n: {"value": p.value, "std_error": p.stderr} for n, p in ident.params.items()}}
+    return ModelMap(coupling, ident.family, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
                     source)
 
 
@@ -346,3 +346,87 @@ def model_map_from_coupling(coupling: Coupling, tested: MapRange, family: str | 
     if coupling.n_sets != 1:
         raise DroptowerError(f"model map: the coupling has {coupling.n_sets} parameter sets; give one")
     return ModelMap(coupling, family or coupling.name or "coupling", tested, source=source)
+
+
+#: excluded logs named one by one in the notes of :func:`build_model_map` (the rest are counted)
+EXCLUDED_NAMED = 5
+
+
+def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, template: str | None = None,
+                    coupling_file: str | Path | None = None, campaign: Any = None,
+                    on_note: Callable[[str], None] | None = None,
+                    on_progress: Callable[[str], None] | None = None) -> ModelMap:
+    """The model-based map beside the paper's map ``fit`` (whose measured range it shares),
+    evaluated on its grid.
+
+    Parameters
+    ----------
+    results : str or path
+        The campaign folder (its logs and its rig) the paper's map was fitted to.
+    fit : MapFit
+        The paper's map.
+    model : str, optional
+        Identify this drop-test family from the campaign's logs
+        (:func:`~droptower.identify.drops.identify_from_drop_tests`); the map gets 95 % bands,
+        cluster-robust by test.
+    template : str, optional
+        With ``model="template"``: the coupling whose structure is fitted.
+    coupling_file : str or path, optional
+        Instead of ``model``: a coupling file as it is, or the JSON of a drop-test
+        identification that wrote one (no bands: no covariance).
+    campaign : DropCampaign, optional
+        The campaign's logs already read (:func:`~droptower.identify.drops.read_drop_tests`).
+    on_note : callable, optional
+        Called with a note: the excluded logs, a poor fit.
+    on_progress : callable, optional
+        Called with a line on what is being done.
+
+    Returns
+    -------
+    ModelMap
+        Evaluated on its grid (:meth:`ModelMap.evaluate_grid`).
+    """
+    results = Path(results)
+    if (model is None) == (coupling_file is None):
+        raise DroptowerError("give `model` (identify from the logs) or `coupling_file` (a coupling as it is), one of them")
+    if coupling_file is not None:
+        from droptower.rheology import load_coupling
+
+        coupling_file, family = Path(coupling_file), None
+        if coupling_file.suffix.lower() == ".json":  # a drop-test identification's JSON: the coupling it wrote
+            from droptower.maps.mapfit import read_json_object
+
+            doc = read_json_object(coupling_file, "a drop-test identification's JSON")
+            if not doc.get("coupling_file"):
+                raise DroptowerError("the identification wrote no coupling (run it with an output coupling file)",
+                                     file=coupling_file)
+            family, coupling_file = doc.get("model"), Path(doc["coupling_file"])
+        mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
+    else:
+        from droptower.campaign.folder import saved_inputs
+        from droptower.identify.drops import identify_from_drop_tests, read_drop_tests
+
+        inputs = saved_inputs(results) if results.is_dir() else {}
+        if not (results / "logs").is_dir() or "rig" not in inputs:
+            raise DroptowerError("`model` identifies from a campaign's logs: this must be a campaign folder",
+                                 file=results)
+        if campaign is None:
+            campaign = read_drop_tests(results / "logs", model=model, template=template, holdout_fraction=0.0,
+                                       rig=str(inputs["rig"]))
+            for e in campaign.excluded[:EXCLUDED_NAMED] if on_note is not None else []:
+                on_note(f"excluded {e['file']}: {e['reason']}")
+            if len(campaign.excluded) > EXCLUDED_NAMED and on_note is not None:
+                on_note(f"excluded {len(campaign.excluded) - EXCLUDED_NAMED} more test(s)")
+        if on_progress is not None:
+            on_progress(f"map: identifying {model} from {len(campaign.decays)} drop test(s) for the model-based map ...")
+        ident = identify_from_drop_tests(campaign, model)
+        if not ident.converged:
+            raise DroptowerError(f"model {model}: the fit to the drop tests did not converge ({ident.message}); "
+                                 "no model-based map")
+        mm = model_map_from_identification(ident, campaign.decays, campaign.settings, tested=fit.range,
+                                           source=str(results))
+        if ident.verdict is not None and ident.verdict.poor and on_note is not None:
+            on_note(f"note: model {model} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
+                    "trusted beyond the paper's")
+    mm.evaluate_grid()
+    return mm

@@ -19,6 +19,8 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -68,10 +70,58 @@ class Design:
     unreachable: list[str] = field(default_factory=list)
     limits_hit: list[str] = field(default_factory=list)
     repeats: int = 1
+    rig_name: str = ""
+    coupling_name: str = ""
+    plan_file: str | None = None
+    sheet_file: str | None = None
 
     @property
     def n_conditions(self) -> int:
         return len(self.conditions)
+
+    def write(self, out: str | Path, sheet: str | Path | None = None, seed: int = 0) -> Path:
+        """Write the plan TOML ``out`` (what :func:`~droptower.campaign.run_campaign` runs as its
+        ``doe``) and, if given, the lab's run ``sheet`` (a table: seeded random order blocked by
+        lever and mass); returns the plan's path (also in :attr:`plan_file`)."""
+        from droptower.design.outputs import coverage_description, write_plan
+
+        return write_plan(self, out, coverage_description(self), sheet, seed)
+
+    def to_frame(self) -> pd.DataFrame:
+        """The designed conditions, one row per lever, mass, height and preload (with ``repeats``
+        and the planner's prediction)."""
+        return self.conditions.copy()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: tests, conditions, coverage, what the rig cannot reach, limits, files."""
+        from droptower.design.outputs import condition_records
+
+        return {"tests": self.n_tests, "conditions": condition_records(self.conditions),
+                "target_covered_fraction": self.covered_fraction, "reachable_fraction": self.reachable_fraction,
+                "unreachable": list(self.unreachable), "double_impacts_predicted": self.double_impacts_predicted,
+                "limits_hit": list(self.limits_hit), "repeats": self.repeats, "plan_file": self.plan_file,
+                "sheet_file": self.sheet_file}
+
+    def summary(self) -> str:
+        """The design in a few lines: tests, coverage, the condition table, what is out of reach."""
+        from droptower.design.outputs import condition_table
+
+        lines = [f"{self.n_conditions} conditions x {self.repeats} repeats = {self.n_tests} drops on rig "
+                 f"{self.rig_name} with {self.coupling_name}; {100 * self.covered_fraction:.0f} % of the target "
+                 f"covered ({100 * self.reachable_fraction:.0f} % reachable with this rig)", condition_table(self.conditions)]
+        lines += [f"unreachable: {line}" for line in self.unreachable]
+        lines += [f"limit: {line}" for line in self.limits_hit]
+        lines.append(f"{self.double_impacts_predicted} double impact(s) predicted")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"<Design: {self.n_conditions} conditions x {self.repeats} repeats = {self.n_tests} drops, "
+                f"{100 * self.covered_fraction:.0f} % of the target covered>")
+
+    def _repr_html_(self) -> str:
+        from droptower.design.outputs import TABLE_COLUMNS
+
+        return f"<p>{repr(self).strip('<>')}</p>" + self.conditions[TABLE_COLUMNS].to_html(index=False)
 
     @property
     def n_tests(self) -> int:

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -52,6 +54,52 @@ class IdentificationDesign:
     conditions: pd.DataFrame
     parameters: pd.DataFrame
     log_det: float
+    rig_name: str = ""
+    coupling_name: str = ""
+    plan_file: str | None = None
+    sheet_file: str | None = None
+
+    @property
+    def n_tests(self) -> int:
+        return int(self.conditions["repeats"].sum())
+
+    def write(self, out: str | Path, sheet: str | Path | None = None, seed: int = 0) -> Path:
+        """Write the plan TOML ``out`` and, if given, the lab's run ``sheet`` (as
+        :meth:`~droptower.design.choose.Design.write`); returns the plan's path."""
+        from droptower.design.outputs import write_plan
+
+        return write_plan(self, out, f"designed by droptower design --for-identification {self.model}: "
+                                     f"{self.n_tests} drops (D-optimal)", sheet, seed)
+
+    def to_frame(self) -> pd.DataFrame:
+        """The chosen drops, one row per distinct drop (``repeats`` its multiplicity)."""
+        return self.conditions.copy()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: tests, conditions, the parameters' predicted standard errors, log det F, files."""
+        from droptower.design.outputs import condition_records
+
+        params = {r.parameter: {"value": r.value, "std_error": r.std_error, "relative_std_error": r.relative_std_error}
+                  for r in self.parameters.itertuples()}
+        return {"tests": self.n_tests, "conditions": condition_records(self.conditions), "model": self.model,
+                "predicted_std_errors": params, "log_det_information": self.log_det, "plan_file": self.plan_file,
+                "sheet_file": self.sheet_file}
+
+    def summary(self) -> str:
+        """The chosen drops and the parameters' predicted standard errors, as text."""
+        from droptower.design.outputs import condition_table, wide_floats
+
+        with wide_floats():
+            errors = self.parameters.to_string(index=False)
+        return "\n".join([f"{self.n_tests} drops that identify {self.model} best (D-optimal) on rig {self.rig_name} "
+                          f"with {self.coupling_name}:", condition_table(self.conditions),
+                          "predicted standard errors (sensor noise of the rig, white):", errors])
+
+    def __repr__(self) -> str:
+        return f"<IdentificationDesign: {self.n_tests} drops that identify {self.model} best (D-optimal)>"
+
+    def _repr_html_(self) -> str:
+        return f"<p>{repr(self).strip('<>')}</p>" + self.parameters.to_html(index=False)
 
 
 def _decays(rig: RigConfig, cands: pd.DataFrame) -> list[DropDecay]:
@@ -164,7 +212,7 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
         values = family.guess()
     else:
         fit = identify_drops(model, measured, settings=settings, options=opts)
-        family, values = fit.family, fit.values
+        family, values = fit.family_model, fit.params.vector()
     problem = DropProblem(family, measured, settings)
     free = np.array([p.name != "p" for p in family.parameters])
     info = fisher_per_drop(problem, values, free, rig, measured)

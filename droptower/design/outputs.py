@@ -1,6 +1,7 @@
 """What a designed campaign hands to the lab: a test-plan TOML and a randomised run sheet."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -8,8 +9,11 @@ import numpy as np
 import pandas as pd
 import tomli_w
 
-from droptower.design.choose import Design
 from droptower.io.droptower_log import atomic_write
+
+#: Columns of a design's printed condition table (all are in its ``to_dict()``).
+TABLE_COLUMNS = ["case", "drop_mass_kg", "drop_height_m", "preload_nm", "repeats", "amplitude_deg",
+                 "frequency_hz", "damping_ratio", "peak_torque_nm", "min_clearance_mm"]
 
 #: Columns of the lab's run sheet, in order.
 SHEET_COLUMNS = ["run", "block", "case", "inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm", "repeat",
@@ -36,9 +40,9 @@ def doe_document(conditions: pd.DataFrame, name: str, description: str, base_see
             "group": groups}
 
 
-def coverage_description(design: Design) -> str:
-    """The plan file's description of a design: its target (deg x Hz), conditions, tests and the
-    share of the target the realised tests cover."""
+def coverage_description(design: Any) -> str:
+    """The plan file's description of a design (:class:`~droptower.design.choose.Design`): its
+    target (deg x Hz), conditions, tests and the share of the target the realised tests cover."""
     t = design.target
     return (f"designed by droptower design for {t.amplitude_deg[0]:g}-{t.amplitude_deg[1]:g} deg x "
             f"{t.frequency_hz[0]:g}-{t.frequency_hz[1]:g} Hz: {design.n_conditions} conditions, "
@@ -79,3 +83,49 @@ def run_sheet(conditions: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     sheet = pd.DataFrame(rows)
     sheet.insert(0, "run", np.arange(1, len(sheet) + 1))
     return sheet[SHEET_COLUMNS]
+
+
+def condition_records(table: pd.DataFrame) -> list[dict[str, Any]]:
+    """Designed conditions as JSON-ready rows (the printed columns, inertia and warnings; NaN as None)."""
+    cols = [*TABLE_COLUMNS, "inertia_kgm2", "warnings"]
+    return [{k: (None if isinstance(v, float) and not math.isfinite(v) else _plain(v)) for k, v in r.items()}
+            for r in table[cols].to_dict(orient="records")]
+
+
+def _plain(value: Any) -> Any:
+    return value.item() if hasattr(value, "item") else value
+
+
+def wide_floats():
+    """A pandas option context: wide lines, four significant digits."""
+    return pd.option_context("display.width", 200, "display.float_format", "{:.4g}".format)
+
+
+def condition_table(table: pd.DataFrame) -> str:
+    """The printed columns of designed conditions as fixed-width text."""
+    with wide_floats():
+        return table[TABLE_COLUMNS].to_string(index=False)
+
+
+def check_plan_paths(out: str | Path, sheet: str | Path | None = None) -> None:
+    """A one-line error unless ``out`` names a TOML file and ``sheet`` (if given) a table format."""
+    from droptower.errors import DroptowerError
+    from droptower.io.tables import check_table_path
+
+    if Path(out).suffix.lower() != ".toml":
+        raise DroptowerError("the test plan is a TOML file: give a name ending in .toml", file=out, where="out")
+    if sheet:
+        check_table_path(sheet, "sheet")
+
+
+def write_plan(design: Any, out: str | Path, description: str, sheet: str | Path | None = None,
+               seed: int = 0) -> Path:
+    """Write a design's plan TOML (``.toml``) and, if given, its run sheet; record both in the design."""
+    from droptower.io.tables import write_table
+
+    check_plan_paths(out, sheet)
+    plan_file = write_doe(design.conditions, out, description, base_seed=seed)
+    if sheet:
+        write_table(run_sheet(design.conditions, seed), sheet, "sheet")
+    design.plan_file, design.sheet_file = str(plan_file), (str(sheet) if sheet else None)
+    return plan_file

@@ -80,6 +80,23 @@ class Comparison:
         verdict = self.ranking.loc[self.ranking["model"] == self.best, "verdict"].iloc[0]
         return EXIT_POOR_FIT if verdict == POOR and not accept_poor else 0
 
+    def to_frame(self) -> pd.DataFrame:
+        """The ranking, one row per fitted family, best first."""
+        return self.ranking.copy()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready (:meth:`as_dict`)."""
+        return self.as_dict()
+
+    def __repr__(self) -> str:
+        return (f"<Comparison of {len(self.ranking)} famil{'ies' if len(self.ranking) != 1 else 'y'} on "
+                f"{'drop tests' if self.drops else 'servo records'}: best {self.best}"
+                + (f"; skipped {', '.join(self.skipped)}" if self.skipped else "")
+                + (f"; not converged {', '.join(self.not_converged)}" if self.not_converged else "") + ">")
+
+    def _repr_html_(self) -> str:
+        return f"<p>{repr(self).strip('<>')}</p>" + self.ranking.to_html()
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: the rule, the ranking (and per-record table) as lists of rows, the skipped
         and non-converged families with their reasons, the budget."""
@@ -102,31 +119,34 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
 
     Parameters
     ----------
-    data
+    data : list of Segment or list of DropDecay
         Servo records (:class:`~droptower.identify.data.Segment`) or drop-test decays
         (:class:`~droptower.identify.droplogs.DropDecay`), not mixed.
-    kinds
+    kinds : list of str
         Family names; they are fitted in the order of their number of parameters (the cheaper
         first, ties in the order given), so a budget runs out on the costliest.
-    holdout
+    holdout : list of Segment, optional
         Servo records kept out of every fit (their error is reported, the ranking stays on the
         fitting data).
-    budget_s
+    budget_s : float or dict, optional
         Wall-time budget of each family's fit in s (None: unbounded), or family -> its budget
         (a family not named gets :data:`DEFAULT_BUDGET_S`). A family over its budget is listed
         "not converged" and ranked last.
-    total_budget_s
+    total_budget_s : float, optional
         Wall-time budget of all the fits together in s (None: unbounded): each family gets at
         most an equal share of what is left of it when its fit starts (what a cheaper family
         leaves unused goes to the later ones), so the table is complete within it (plus at
         most one core call per family).
-    excluded, settings
-        Drop tests: the tests left out when reading (reported) and the fit settings
-        (:class:`~droptower.identify.dropfit.DropFitSettings`).
-    options
+    excluded : list of dict, optional
+        Drop tests: the tests left out when reading (reported).
+    settings : DropFitSettings, optional
+        Drop tests: the fit settings (:class:`~droptower.identify.dropfit.DropFitSettings`).
+    options : dict, optional
         Family -> its options (e.g. ``{"template": {"template": "rapp2022_nr60"}}``).
-    on_family, on_skip
-        Called with a family's name before its fit; with its name and the reason when skipped.
+    on_family : callable, optional
+        Called with a family's name before its fit.
+    on_skip : callable, optional
+        Called with a family's name and the reason when it is skipped.
 
     Returns
     -------

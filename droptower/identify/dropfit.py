@@ -32,7 +32,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -46,6 +46,7 @@ from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
 from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
 from droptower.identify.lever import at_times, free_decay
+from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
 from droptower.identify.search import basin_hops, global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.jsonsafe import json_safe
@@ -259,62 +260,40 @@ def holdout_split(decays: list[DropDecay], fraction: float) -> tuple[list[int], 
     return [i for i in range(n) if i not in hold], hold
 
 
-@dataclass
-class DropIdentification:
-    """The result of fitting a family to drop-test decays (its JSON keys: see :meth:`as_dict`)."""
-
-    model: str
-    family: Family
-    values: np.ndarray
-    std_error: np.ndarray
-    at_bounds: list[str]
-    non_identifiable: list[dict[str, float]]
-    converged: bool
-    message: str
-    fit_error: dict[str, Any]
-    holdout_error: dict[str, Any] | None
-    tests_used: list[str]
-    tests_held_out: list[str]
-    tests_excluded: list[dict[str, str]]
-    evaluations: int
-    nfev: int
-    wall_s: float
-    coupling_file: str | None = None
-    verdict: Verdict | None = None
-    search: dict[str, Any] = field(default_factory=dict)
-    angle_rss_rad2: float = math.nan
-    angle_samples: int = 0
-
-    @property
-    def parameters(self) -> dict[str, float]:
-        return dict(zip(self.family.names, map(float, self.values)))
-
-    def coupling(self, description: str = "") -> Coupling:
-        return self.family.coupling(self.values, description=description)
-
-    def as_dict(self) -> dict[str, Any]:
-        return json_safe({
-            "converged": self.converged, "model": self.model, "message": self.message,
-            "parameters": {n: {"value": v, "std_error": s, "at_bound": n in self.at_bounds}
-                           for n, v, s in zip(self.family.names, self.values, self.std_error)},
-            "derived": self.family.derived(self.values), "at_bounds": self.at_bounds,
-            "non_identifiable": self.non_identifiable, "fit_error": self.fit_error,
-            "holdout_error": self.holdout_error, "tests_used": self.tests_used,
-            "tests_held_out": self.tests_held_out, "tests_excluded": self.tests_excluded,
-            "evaluations": self.evaluations, "nfev": self.nfev, "wall_s": self.wall_s,
-            "coupling_file": self.coupling_file, **(self.verdict.as_dict() if self.verdict else {}),
-            "search": self.search})
-
-
 @one_blas_thread
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
-                   settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | None = None,
+                   settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | Parameters | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
-                   options: dict[str, Any] | None = None) -> DropIdentification:
-    """Fit family ``kind`` (:data:`DROP_KINDS`; options as for ``identify``, e.g. ``template``)
-    to the free decays ``decays``; ``init`` / ``bounds``: starting values and bounds by
-    parameter name."""
+                   options: dict[str, Any] | None = None) -> Identification:
+    """Fit family ``kind`` (:data:`DROP_KINDS`) to the free decays ``decays``.
+
+    Parameters
+    ----------
+    kind : str
+        The model family.
+    decays : list of DropDecay
+        The drop tests' free decays (:func:`~droptower.identify.droplogs.read_decays`).
+    excluded : list of dict, optional
+        The tests left out when reading (reported with the result).
+    settings : DropFitSettings
+        How the decays are re-simulated and fitted.
+    init : dict or Parameters, optional
+        Parameter name -> value held fixed, or :class:`~droptower.identify.result.Parameters`
+        (``vary=False``: held; finite ``min`` / ``max``: bounds; a varying one's value: the
+        first guess).
+    bounds : dict, optional
+        Parameter name -> (lower, upper).
+    options : dict, optional
+        The family's options, as for :func:`~droptower.identify.identify` (e.g. ``template``).
+
+    Returns
+    -------
+    Identification
+        With ``data`` :data:`~droptower.identify.result.DROPS`: ``fit`` / ``holdout`` the angle
+        errors (fractions of each test's amplitude) over the fitting / held-out tests.
+    """
     start = time.perf_counter()
+    init, bounds, guesses = split_given(init, bounds)
     if kind not in DROP_KINDS:
         raise DroptowerError(f"model {kind!r} cannot be identified from drop tests (kinds: {', '.join(DROP_KINDS)})")
     if len(decays) < 2:
@@ -327,6 +306,9 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     params, x0, given = family.parameters, s.x0, s.given
     if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
         x0 = family.guess_from_readings(*first_cycle_readings([decays[i] for i in fit_idx]), x0, given)
+    place_guesses(kind, family.names, x0, guesses)  # the user's first guesses over the closed form's
+    if guesses:
+        x0 = np.where(given, x0, clip_to_bounds(params, x0))
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
@@ -381,11 +363,14 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if hold_idx:
         hold = DropProblem(family, [decays[i] for i in hold_idx], settings)
         hold_err = summarise(per_test_errors(hold, sol.values))
-    return DropIdentification(
-        kind, family, sol.values, std, sol.at_bounds, sol.non_identifiable, sol.converged, sol.message, fit_err,
-        hold_err, [decays[i].name for i in fit_idx], [decays[i].name for i in hold_idx], list(excluded or []),
-        problem.counter.evaluations, sol.nfev, time.perf_counter() - start, verdict=verdict, search=search,
-        angle_rss_rad2=rss, angle_samples=n_samples)
+    return Identification(
+        kind, fitted_parameters(params, sol.values, std, ~given), list(sol.at_bounds), fit_err,
+        family.coupling(sol.values), data=DROPS, holdout=hold_err, derived=family.derived(sol.values),
+        time_s=time.perf_counter() - start, verdict=verdict, family_model=family, message=sol.message,
+        non_identifiable=sol.non_identifiable, tests_used=[decays[i].name for i in fit_idx],
+        tests_held_out=[decays[i].name for i in hold_idx], tests_excluded=list(excluded or []), search=search,
+        angle_rss_rad2=rss, angle_samples=n_samples, _converged=bool(sol.converged),
+        _evaluations=problem.counter.evaluations, _nfev=sol.nfev)
 
 
 def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.ndarray, settings: DropFitSettings,

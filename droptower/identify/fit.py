@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Callable, Protocol
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -23,6 +23,7 @@ from threadpoolctl import threadpool_limits
 from droptower.errors import DroptowerError
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import Segment
+from droptower.identify.result import Identification, Metrics, metrics  # noqa: F401 (what the families build and use)
 from droptower.rheology import Coupling
 
 
@@ -140,45 +141,6 @@ def simulate(model: Model, values: np.ndarray, segments: list[Segment], counter:
     # one evaluation = one parameter set over all the data
     flat = simulate_rows(model, np.repeat(values, s, axis=0), segments, np.tile(np.arange(s), m), counter, m)
     return [flat[i * s:(i + 1) * s] for i in range(m)]
-
-
-@dataclass(frozen=True)
-class Metrics:
-    """Torque error of a model on some data.
-
-    rmse_nm: root mean square of (model - measured) over the compared samples;
-    nrmse: rmse_nm / max |measured torque| (the zero-dimensional model paper's measure, a fraction, not percent);
-    residual_lag1: lag-1 autocorrelation of the residual (near 0: white, the model explains
-    all structure; near 1: systematic misfit or strongly coloured noise); n_samples.
-    """
-
-    rmse_nm: float
-    nrmse: float
-    residual_lag1: float
-    n_samples: int
-    max_torque_nm: float
-
-    def as_dict(self) -> dict[str, float]:
-        return {"rmse_nm": self.rmse_nm, "nrmse": self.nrmse, "nrmse_percent": 100.0 * self.nrmse,
-                "residual_lag1": self.residual_lag1, "n_samples": self.n_samples,
-                "max_torque_nm": self.max_torque_nm}
-
-
-def metrics(segments: list[Segment], predictions: list[np.ndarray]) -> Metrics:
-    """Error of ``predictions`` (one (N_s,) array per segment) against the segments' torque."""
-    sq = 0.0
-    num = 0.0
-    n = 0
-    peak = 0.0
-    for seg, pred in zip(segments, predictions):
-        ok = seg.compared
-        r = np.where(ok, pred - np.where(ok, seg.torque_nm, 0.0), 0.0)
-        sq += float(np.sum(r ** 2))
-        num += float(np.sum((r[:-1] * r[1:])[ok[:-1] & ok[1:]]))
-        n += int(ok.sum())
-        peak = max(peak, float(np.max(np.abs(seg.torque_nm[ok]))))
-    rmse = float(np.sqrt(sq / max(n, 1)))
-    return Metrics(rmse, rmse / peak if peak > 0 else float("nan"), num / sq if sq > 0 else 0.0, n, peak)
 
 
 @dataclass
@@ -446,56 +408,3 @@ def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
 
 
 Predictor = Callable[[list[Segment]], list[np.ndarray]]
-
-
-@dataclass
-class Identification:
-    """The result of identifying one model family.
-
-    family: the family's name; parameters: the identified values (name with unit -> value);
-    std_error: their standard errors (NaN where not estimated); derived: quantities computed
-    from them (e.g. dashpot coefficients from relaxation times); at_bounds: parameters on a
-    bound; stages: one :class:`FitResult` summary per stage; fit / holdout: :class:`Metrics`;
-    coupling: the single coupling that stands for the fit (the one written out); coupling_note: what that coupling
-    represents when the model's parameters depend on amplitude or frequency; extra: the
-    family's report (analytic identification, parameter functions, ...); converged: every
-    least-squares stage converged; predict: the model's torque on other segments; verdict:
-    the fit against the data's noise floor (:class:`~droptower.identify.verdict.Verdict`).
-    """
-
-    family: str
-    parameters: dict[str, float]
-    std_error: dict[str, float]
-    at_bounds: list[str]
-    stages: list[FitResult]
-    fit: Metrics
-    coupling: Coupling
-    predict: Predictor = field(repr=False)
-    derived: dict[str, float] = field(default_factory=dict)
-    coupling_note: str = ""
-    extra: dict = field(default_factory=dict)
-    holdout: Metrics | None = None
-    time_s: float = 0.0
-    verdict: Any = None
-
-    @property
-    def converged(self) -> bool:
-        return all(s.converged for s in self.stages)
-
-    @property
-    def n_parameters(self) -> int:
-        return len(self.parameters)
-
-    @property
-    def evaluations(self) -> int:
-        # the start another family's identification gave, where it ran for this one (zerodim20's zerodim6)
-        start = int(self.extra.get("start", {}).get("evaluations", 0))
-        return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0)) + start
-
-    @property
-    def nfev(self) -> int:
-        return sum(s.nfev for s in self.stages)
-
-    def evaluate_holdout(self, segments: list[Segment]) -> Metrics:
-        self.holdout = metrics(segments, self.predict(segments))
-        return self.holdout

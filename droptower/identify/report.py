@@ -17,6 +17,7 @@ import pandas as pd
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
 from droptower.identify.fit import Identification, metrics
+from droptower.identify.result import SERVO, register_format
 from droptower.io.droptower_log import save_figure
 from droptower.io.fields import field_name, translate_fields
 from droptower.jsonsafe import json_safe
@@ -101,6 +102,9 @@ def result_text(ident: Identification) -> str:
     return "\n".join(lines)
 
 
+register_format(SERVO, result_dict, result_text)
+
+
 def _brief(value: Any) -> str:
     if isinstance(value, dict):
         return "; ".join(f"{k} {_brief(v)}" for k, v in value.items())
@@ -137,8 +141,8 @@ def ranking_table(results: dict[str, Identification], segments: list[Segment]) -
 
 
 def drop_ranking_table(results: dict[str, Any]) -> pd.DataFrame:
-    """Families fitted to one drop-test campaign (:class:`~droptower.identify.dropfit.DropIdentification`
-    each, the same fitting tests), ranked like :func:`ranking_table`: the likelihood term on the
+    """Families fitted to one drop-test campaign (:class:`~droptower.identify.result.Identification`
+    from drop tests each, the same fitting tests), ranked like :func:`ranking_table`: the likelihood term on the
     angle error over the same compared samples, the noise model the logs' pre-trigger noise
     with the re-simulation's accuracy in quadrature (the verdict's allowance), the sensor noise
     white (n_eff = n)."""
@@ -150,11 +154,11 @@ def drop_ranking_table(results: dict[str, Any]) -> pd.DataFrame:
     for kind, r in results.items():
         if r.angle_samples != n:
             raise ValueError("drop-test fits ranked together must share their fitting tests")
-        rows.append({"model": kind, "n_parameters": len(r.family.names),
-                     "fit_angle_nrmse_percent": 100 * r.fit_error["angle_nrmse"],
-                     "holdout_angle_nrmse_percent": 100 * r.holdout_error["angle_nrmse"] if r.holdout_error else np.nan,
-                     "bic": bic(r.angle_rss_rad2, n, float(n), sigma, len(r.family.names)),
-                     "verdict": r.verdict.verdict, "fit_time_s": r.wall_s, "evaluations": r.evaluations,
+        rows.append({"model": kind, "n_parameters": r.n_parameters,
+                     "fit_angle_nrmse_percent": 100 * r.fit["angle_nrmse"],
+                     "holdout_angle_nrmse_percent": 100 * r.holdout["angle_nrmse"] if r.holdout else np.nan,
+                     "bic": bic(r.angle_rss_rad2, n, float(n), sigma, r.n_parameters),
+                     "verdict": r.verdict.verdict, "fit_time_s": r.time_s, "evaluations": r.evaluations,
                      "converged": r.converged})
     return ranked(pd.DataFrame(rows), {"noise_allowance_rad": sigma, "n_eff": float(n)})
 

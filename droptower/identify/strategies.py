@@ -19,6 +19,7 @@ from droptower.identify.families.base import COMMON_OPTIONS
 from droptower.identify.families.stages import Setup, result_of, setup
 from droptower.identify.fit import Identification, Parameter, least_squares_fit, one_blas_thread, simulate
 from droptower.identify.noise import NoiseFloor, servo_noise
+from droptower.identify.result import Parameters, servo_given
 from droptower.identify.search import global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.io.fields import torsional_fields
@@ -42,14 +43,17 @@ SEARCH_THROUGH = {"zerodim20": "zerodim6"}
 
 @one_blas_thread
 @expects(kind="builtins.str", segments=["droptower.identify.data.Segment"])
-def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | None = None,
+def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Parameters | None = None,
              bounds: dict[str, tuple[float, float]] | None = None, options: dict[str, Any] | None = None,
              holdout: list[Segment] | None = None, previous: dict[str, Identification] | None = None,
              file: str | None = None, search: str = "auto", seed: int = 0) -> Identification:
     """Identify model family ``kind`` from ``segments``.
 
-    init, bounds, options: parameter name -> initial value; name -> [lower, upper]; family
-    options (the tables of an init TOML file); holdout: data for the hold-out RMSE;
+    init, bounds, options: parameter name -> initial value (the strategy starts from it instead
+    of its own estimate; the fit refines it), or :class:`~droptower.identify.result.Parameters`
+    (a value: the initial value; finite ``min`` / ``max``: the bounds; ``vary=False`` is refused:
+    the servo strategies fit every parameter); name -> [lower, upper]; family options (the
+    tables of an init TOML file); holdout: data for the hold-out RMSE;
     previous: results of other families on the same data (zerodim20 starts from zerodim6's,
     identified here where not given).
     Translational records (``Segment.units``) may name parameters and options for their units
@@ -63,6 +67,7 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Non
     if not segments:
         raise DroptowerError("no data to identify from")
     units = common_units(segments + list(holdout or []), "fitting and hold-out records")
+    init, bounds = servo_given(init, bounds)
     init, bounds, options = (torsional_fields(given or {}, units) for given in (init, bounds, options))
     s = setup(family_class(kind), segments, init, bounds, options, file)
     if search not in SEARCH_MODES:

@@ -282,6 +282,19 @@ class MapFit:
         path = readable_file(path)
         return cls.from_dict(read_json_object(path, "a map file"), path)
 
+    def to_frame(self) -> "pd.DataFrame":
+        """The coefficients as a table (:meth:`coefficient_table`)."""
+        return self.coefficient_table()
+
+    def __repr__(self) -> str:
+        s, r = self.stats, self.range
+        return (f"<MapFit {self.form.name}: {s.n_tests} tests, stiffness rms {s.stiffness_rms_error_pct:.2f} %, "
+                f"damping ratio rms {s.damping_ratio_rms_error_pct:.2f} %; {r.amplitude_deg_min:.3g}-"
+                f"{r.amplitude_deg_max:.3g} deg, {r.frequency_hz_min:.4g}-{r.frequency_hz_max:.4g} Hz>")
+
+    def _repr_html_(self) -> str:
+        return f"<p>{repr(self).strip('<>')}</p>" + self.coefficient_table().to_html(index=False)
+
     # ---- text summary ------------------------------------------------------------------
     def summary(self) -> str:
         """Human-readable summary: coefficients ± uncertainty, errors, range, exclusions."""

@@ -15,11 +15,15 @@ all tests; the errors that choose among them never see the held-out group.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from droptower.maps.forms import AUTO_RATIO_TERMS, AUTO_STIFFNESS_TERMS
 from droptower.maps.select import _candidates, _rms, fit_equation, identifiable, polish
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 INNER_FOLDS = 5
 
@@ -109,4 +113,19 @@ def chosen_summary(result: NestedCV) -> str:
                      for (s, r), n in sorted(counts.items(), key=lambda kv: -kv[1]))
 
 
-__all__ = ["NestedCV", "chosen_summary", "nested_cv"]
+def nested_summary(table: "pd.DataFrame", source: object = None) -> dict:
+    """The nested cross-validation of ``form="auto"`` on the usable tests of a results table,
+    as plain data (units in the keys): ``outer`` (how the folds were formed), ``inner_folds``,
+    ``stiffness_rms_error_pct``, ``damping_ratio_rms_error_pct`` (%), ``chosen``."""
+    from droptower.maps.results import REQUIRED, select_tests
+    from droptower.maps.select import cv_groups
+
+    usable = select_tests(table, source)[0]
+    a, f, c, d = (usable[col].to_numpy(float) for col in REQUIRED)
+    groups, method = cv_groups(usable)
+    result = nested_cv(a, f, c, d, groups)
+    return {"outer": method, "inner_folds": INNER_FOLDS, "stiffness_rms_error_pct": result.stiffness_rms_pct,
+            "damping_ratio_rms_error_pct": result.damping_ratio_rms_pct, "chosen": chosen_summary(result)}
+
+
+__all__ = ["NestedCV", "chosen_summary", "nested_cv", "nested_summary"]

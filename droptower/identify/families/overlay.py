@@ -17,6 +17,7 @@ from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, steady_blocks
 from droptower.identify.fit import FitResult, Identification, Parameter, metrics
+from droptower.identify.result import Parameters
 
 class OverlayFamily(Family):
     """Rapp et al.'s (2022) characteristic map as a model: a linear Kelvin-Voigt coupling (spring k,
@@ -115,10 +116,11 @@ def identify_overlay(s: Setup, segments: list[Segment], start: float, **_) -> Id
                       time.perf_counter() - start, True, "map fitted")
     names = [f"{k}_{u}" for k, u in zip(fitted.coefficients, _map_units())]
     result = Identification(
-        fam.kind, dict(zip(names, fitted.coefficients.values())), dict(zip(names, fitted.uncertainties.values())),
-        [f"{k}_{u}" for k, u in zip(fitted.coefficients, _map_units()) if k in fitted.at_bounds], [stage],
+        fam.kind, Parameters.estimates(dict(zip(names, fitted.coefficients.values())),
+                                       dict(zip(names, fitted.uncertainties.values()))),
+        [f"{k}_{u}" for k, u in zip(fitted.coefficients, _map_units()) if k in fitted.at_bounds],
         fit_metrics, fam.coupling(v_out, description=f"{fam.title}; Kelvin-Voigt at {amp_out:.4g} deg, {f_out:.4g} Hz"),
-        predict, derived={"k_nm_per_rad": k_out, "c_nms_per_rad": c_out},
+        stages=[stage], predict=predict, derived={"k_nm_per_rad": k_out, "c_nms_per_rad": c_out},
         coupling_note=(f"a Kelvin-Voigt coupling with the map's stiffness and damping at amplitude {amp_out:.4g} deg "
                        f"and frequency {f_out:.4g} Hz (map range {fitted.range.amplitude_deg_min:.3g}-"
                        f"{fitted.range.amplitude_deg_max:.3g} deg, {fitted.range.frequency_hz_min:.3g}-"

@@ -21,6 +21,7 @@ from droptower.identify.data import DataScale, Segment, characteristic_frequency
 from droptower.identify.families.base import Family
 from droptower.identify.fit import (FitResult, Identification, Metrics, Parameter, check_in_bounds, clip_to_bounds,
                                     least_squares_fit, simulate)
+from droptower.identify.result import fitted_parameters
 from droptower.io.fields import field_name
 
 #: Records whose characteristic frequency is below this count as quasi-static ramps (Hz).
@@ -116,10 +117,9 @@ def result_of(s: Setup, segments: list[Segment], x: np.ndarray, stages: list[Fit
     def predict(segs: list[Segment]) -> list[np.ndarray]:
         return simulate(fam, x[None, :], segs)[0]
 
-    return Identification(fam.kind, dict(zip(fam.names, map(float, x))),
-                          dict(zip(fam.names, map(float, final.std_error))), final.at_bounds, stages,
-                          fit or final.metrics, fam.coupling(x), predict,
-                          derived=fam.derived(x), time_s=time.perf_counter() - start, **kw)
+    return Identification(fam.kind, fitted_parameters(fam.parameters, x, final.std_error, final.free), final.at_bounds,
+                          fit or final.metrics, fam.coupling(x), stages=stages, predict=predict,
+                          derived=fam.derived(x), time_s=time.perf_counter() - start, family_model=fam, **kw)
 
 
 # ---------------------------------------------------------------------------- helpers
