@@ -49,7 +49,6 @@ from droptower.identify.lever import at_times, free_decay
 from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
 from droptower.identify.search import basin_hops, global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
-from droptower.jsonsafe import json_safe
 from droptower.rates import SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.preload import hold_at

@@ -21,9 +21,9 @@ from droptower.identify.result import DROPS, Identification, register_format
 
 def drop_result_dict(result: Identification) -> dict[str, Any]:
     """A drop-test identification, JSON-ready (what ``droptower identify --from-drop-tests --json`` prints)."""
-    from droptower.identify.report import _clean
+    from droptower.jsonsafe import json_safe
 
-    return _clean({
+    return json_safe({
         "converged": result.converged, "model": result.family, "message": result.message,
         "parameters": {n: {"value": p.value, "std_error": p.stderr, "at_bound": n in result.at_bounds}
                        for n, p in result.params.items()},
