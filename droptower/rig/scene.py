@@ -31,6 +31,9 @@ Physics choices (the reasons are the rig's accuracy targets):
   impact-force sensor samples (:func:`droptower.rig.sensors.force_pulses`).
 - Scenes sit 1 m apart along x: they never touch and share no body but the static one, so a
   scene in a batch moves as it would alone (up to rounding of its coordinates).
+- A scene is in the space only around its contacts: between them its two bodies move
+  independently and :mod:`.flight` takes the same steps compiled (:meth:`DropTowerScenes.run`),
+  so pymunk steps only the scenes that are about to touch, touch, or have just separated.
 """
 from __future__ import annotations
 
