@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from droptower.rheology import load_coupling
@@ -42,7 +42,8 @@ test_case = st.builds(DropTest, st.sampled_from([0.1557, 0.359, 0.5233]), st.sam
                       st.floats(0.05, 6.0), st.sampled_from([0.0, 500.0, 1000.0]))
 
 
-@settings(max_examples=6, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow],
+          phases=[Phase.explicit, Phase.generate])  # an example takes seconds: no shrinking
 @given(tests=st.lists(test_case, min_size=1, max_size=10), name=st.sampled_from(["linear", "rapp2022_nr60"]))
 def test_flight_between_contacts_equals_pymunk_all_along(rig, couplings, tests, name):
     """Random batches (few: the property path; many: the batch API), 60 ms records with second

@@ -31,6 +31,9 @@ Physics choices (the reasons are the rig's accuracy targets):
   impact-force sensor samples (:func:`droptower.rig.sensors.force_pulses`).
 - Scenes sit 1 m apart along x: they never touch and share no body but the static one, so a
   scene in a batch moves as it would alone (up to rounding of its coordinates).
+- A scene is in the space only around its contacts: between them its two bodies move
+  independently and :mod:`.flight` takes the same steps compiled (:meth:`DropTowerScenes.run`),
+  so pymunk steps only the scenes that are about to touch, touch, or have just separated.
 """
 from __future__ import annotations
 
@@ -50,7 +53,7 @@ LEVER_BODY_MASS_KG = 10.0  # translational mass of the lever; the pivot holds it
 TIP_MARGIN_M = 0.02      # lever line continues this far beyond the impact point
 COLLISION_SLOP_M = 1e-9
 MASS_TYPE, LEVER_TYPE = 1, 2
-LEAVE_SAMPLES = 4        # a scene leaves the space when it stays clear of the lever for this many samples
+LEAVE_SAMPLES = 3        # a scene leaves the space when it stays clear of the lever this many samples (> flight.ENTER_SAMPLES)
 FEW_SCENES = 8           # up to this many, body properties are read one by one (the batch API's fixed cost is higher)
 
 
@@ -549,6 +552,9 @@ class DropTowerScenes:
                         leaving = members[np.array(clear)]
                         regroup(leaving, np.empty(0, int))
                         fly(leaving, n)
+                        back = leaving[stop[leaving] == n]  # not clear for the flight's own horizon after all
+                        if back.size:
+                            regroup(np.empty(0, int), back)
                         if not members.size:
                             break
                         lever_angle, lever_rate, mass_y, mass_v = (np.asarray(a) for a in bodies.state())
