@@ -37,6 +37,7 @@ def fresh(tmp_path_factory) -> list[dict]:
     return _regenerate_module().campaign_values(tmp_path_factory.mktemp("reference") / "campaign", workers=1)
 
 
+@pytest.mark.slow  # a 36-test campaign: ~14 s of CPU
 def test_every_result_agrees_with_the_reference_within_the_extractions_reproducibility(fresh):
     stored = json.loads((HERE / "results.json").read_text())["tests"]
     assert [t["test_id"] for t in fresh] == [t["test_id"] for t in stored] == list(range(36))

@@ -101,14 +101,17 @@ def test_the_command_line_reports_the_library_error_with_its_flags(tmp_path, cap
     assert "give --inertia-kgm2" in err and "`" not in err, err
 
 
-@pytest.mark.slow  # predicts the planner's grid twice
-def test_the_planner_page_speaks_python_unless_the_command_line_writes_it(tmp_path):
+@pytest.mark.slow  # predicts the planner's grid
+def test_the_planner_page_speaks_python_unless_the_command_line_writes_it(tmp_path, monkeypatch):
     from droptower.cli.planner_cmd import RUN_HINT as SHELL_HINT
-    from droptower.planner import write_planner
+    from droptower.planner import page, write_planner
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_rig
 
     rig, coupling = load_rig("rapp2022"), load_coupling("rapp2022_nr60")
+    # the grid does not depend on the run hint: predicted once, for both pages
+    data = page.planner_data(rig, coupling, (0.0,))
+    monkeypatch.setattr(page, "planner_data", lambda *args: data)
     python_page = write_planner(rig, coupling, (0.0,), tmp_path / "python.html").read_text(encoding="utf-8")
     shell_page = write_planner(rig, coupling, (0.0,), tmp_path / "shell.html", run_hint=SHELL_HINT).read_text(encoding="utf-8")
     assert "run_campaign(" in python_page and "--doe" not in python_page
