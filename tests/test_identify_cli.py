@@ -123,9 +123,9 @@ def test_bad_data(logs, tmp_path, capsys):
 
 
 def test_compare_models_ranking_and_fig8_table(logs, tmp_path, capsys):
-    # --budget-s: not what this test checks (a loaded machine stretches wall time several-fold)
+    # --budget-s, --total-budget-s: not what this test checks (a loaded machine stretches wall time several-fold)
     code = main(["compare-models", *_fit_files(logs), "--holdout", str(logs["random"]), "--budget-s", "3600",
-                 "--models", "zerodim6,pfeffer,overlay", "--plot", str(tmp_path / "cmp")])
+                 "--total-budget-s", "3600", "--models", "zerodim6,pfeffer,overlay", "--plot", str(tmp_path / "cmp")])
     captured = capsys.readouterr()
     assert code == 0  # overlay cannot build a map from these records: skipped with the reason, the rest ranked
     assert "skipped 1 family (data requirement not met): overlay: model overlay needs steady sine blocks" in captured.err
@@ -137,7 +137,7 @@ def test_compare_models_ranking_and_fig8_table(logs, tmp_path, capsys):
 
     out = tmp_path / "ranking.xlsx"
     assert main(["compare-models", *_fit_files(logs), "--models", "pfeffer,zerodim6", "--json", "--out", str(out),
-                 "--budget-s", "3600"]) == 0
+                 "--budget-s", "3600", "--total-budget-s", "3600"]) == 0
     tables = json.loads(capsys.readouterr().out)
     assert [r["model"] for r in tables["ranking"]] == ["zerodim6", "pfeffer"]
     written = pd.read_excel(out, engine="openpyxl")

@@ -213,13 +213,24 @@ def test_masing_moves_keep_the_full_slip_torque_and_leave_the_fits_own_exponent(
         assert moves.shape == (0, len(v))
         return
     expected = [a for a in fam.MOVE_ALPHAS if abs(a - alpha) >= fam.MOVE_ALPHA_GAP]
-    assert moves[:, ia].tolist() == expected and len(expected) >= len(fam.MOVE_ALPHAS) - 2
+    assert moves[:, ia].tolist() == expected * 2 and len(expected) >= len(fam.MOVE_ALPHAS) - 2
     eta = np.arange(7) / 6.0
     slip = moves[:, ir] * np.exp(np.outer(moves[:, ia], eta - 1.0)).sum(axis=1)
     assert np.allclose(slip, r * np.exp(alpha * (eta - 1.0)).sum(), rtol=1e-12)
+    spread, slowed = moves[:len(expected)], moves[len(expected):]
     others = np.ones(len(v), bool)
     others[[ia, ir]] = False
-    assert np.array_equal(moves[:, others], np.repeat(v[None, others], len(moves), axis=0))
+    assert np.array_equal(spread[:, others], np.repeat(v[None, others], len(spread), axis=0))
+    # the faster branch (guess: branch 2) moved to omega tau = 30, its stiffness kept; b gives
+    # up the storage stiffness it gains at omega (closed form c (w tau)^2 / (1 + (w tau)^2))
+    w = 2 * np.pi * SCALE.frequency_hz
+    ib, ic, it = fam.names.index("b_nm_per_rad"), fam.names.index("c2_nm_per_rad"), fam.names.index("tau2_s")
+    assert v[it] < v[fam.names.index("tau1_s")]
+    assert np.allclose(slowed[:, it] * w, fam.MOVE_SLOW_OMEGA_TAU) and np.all(slowed[:, ic] == v[ic])
+    gain = v[ic] * (900.0 / 901.0 - (w * v[it]) ** 2 / (1.0 + (w * v[it]) ** 2))
+    assert np.allclose(slowed[:, ib], max(v[ib] - gain, 0.0), rtol=1e-12)
+    others[[ib, it]] = False
+    assert np.array_equal(slowed[:, others], np.repeat(v[None, others], len(slowed), axis=0))
 
 
 def test_basin_hops_leave_a_local_minimum_a_local_fit_stays_in():

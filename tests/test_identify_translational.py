@@ -166,7 +166,8 @@ def test_compare_models_on_translational_records(case, capsys):
     preset, family, twin, exports = case
     files = exports["in"]
     code = main(["compare-models", *[str(files[k]) for k in files if k != "random"], "--holdout", str(files["random"]),
-                 "--models", f"zerodim6,{family}", "--json", "--accept-poor", "--budget-s", "3600"])  # not checked here
+                 "--models", f"zerodim6,{family}", "--json", "--accept-poor", "--budget-s", "3600",
+                 "--total-budget-s", "3600"])  # not checked here
     tables = json.loads(capsys.readouterr().out)
     assert code == 0
     ranking = {row["model"]: row for row in tables["ranking"]}

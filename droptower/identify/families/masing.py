@@ -84,34 +84,54 @@ class MasingFamily(Family):
     MOVE_ALPHAS = (1.0, 2.0, 3.5, 5.0, 6.5, 8.5, 11.0)
     #: Moves closer than this to the fit's own exponent are left out (its own basin).
     MOVE_ALPHA_GAP = 0.75
+    #: omega tau of the slow relaxation the faster Maxwell branch is moved to (:meth:`basin_moves`),
+    #: omega the data's typical angular frequency: a branch that acts almost as a spring.
+    MOVE_SLOW_OMEGA_TAU = 30.0
 
     def basin_moves(self, v: np.ndarray, free: np.ndarray) -> np.ndarray:
         """Parameter sets (rows) near the fit ``v`` in other basins: the spread exponent moved to
         each of :data:`MOVE_ALPHAS` (not within :data:`MOVE_ALPHA_GAP` of its own), R rescaled so
-        that the bank's full-slip torque sum_i R_i (docs/theory.md#masing) stays; the rest as fitted.
+        that the bank's full-slip torque sum_i R_i (docs/theory.md#masing) stays; and each of
+        these with the faster Maxwell branch moved to a slow relaxation
+        (:data:`MOVE_SLOW_OMEGA_TAU`, its stiffness kept), the cubic spring's b giving up the
+        storage stiffness that branch gains at the data's frequency. The rest as fitted.
 
         Why: with n discrete elements, the cost along alpha has a local minimum wherever a
-        yield limit passes one of the tests' amplitudes; a fit of a broad spread (alpha 2-8)
-        measured ending in a neighbouring one at 2-9 x the noise allowance (the truth at 0.2 x),
-        with a spurious Maxwell branch making up the missing loss; a local fit from the
-        exponent moved by 2-3 reaches the truth's cost. Empty when alpha or R is not free."""
+        yield limit passes one of the tests' amplitudes, and a branch relaxing far slower than
+        the decays (omega tau >> 1) acts almost as a spring, which b takes over, its last loss
+        then mimicked by a spurious fast branch and another spread. Fits of broad spreads
+        (alpha 2-8) were measured ending in such a basin at 2-9 x the noise allowance (the truth
+        at 0.2 x), which no local step leaves; local fits from these moves reach the truth's
+        cost. Empty when alpha or R is not free; no branch moves unless its c, tau are free."""
         v = np.asarray(v, float)
-        ia, ir = self.names.index("alpha"), self.names.index("r_nm")
+        ia, ir, ib = self.names.index("alpha"), self.names.index("r_nm"), self.names.index("b_nm_per_rad")
         if not (free[ia] and free[ir]):
             return np.empty((0, v.size))
         eta = np.arange(int(self.options["n"])) / max(int(self.options["n"]) - 1, 1)
+        w = 2 * np.pi * max(self.scale.frequency_hz, 1e-3)
+        nm = self.n_masing
+        ic = nm if v[nm + 1] <= v[nm + 3] else nm + 2  # the faster branch's stiffness (its tau next)
 
         def full_slip(r: float, alpha: float) -> float:  # sum_i R e^(alpha (eta_i - 1)) (N*m)
             return r * float(np.sum(np.exp(alpha * (eta - 1.0))))
 
-        rows = []
+        def storage(c: float, tau: float) -> float:  # a Maxwell branch's K' at omega (N*m/rad)
+            return c * (w * tau) ** 2 / (1.0 + (w * tau) ** 2)
+
+        spread, slowed = [], []
         for alpha in self.MOVE_ALPHAS:
             if abs(alpha - v[ia]) < self.MOVE_ALPHA_GAP:
                 continue
             row = v.copy()
             row[ia], row[ir] = alpha, full_slip(v[ir], v[ia]) / full_slip(1.0, alpha)
-            rows.append(row)
-        return np.array(rows).reshape(-1, v.size)
+            spread.append(row)
+            if free[ic] and free[ic + 1]:
+                slow = row.copy()
+                slow[ic + 1] = self.MOVE_SLOW_OMEGA_TAU / w
+                if free[ib]:
+                    slow[ib] = max(v[ib] + storage(v[ic], v[ic + 1]) - storage(v[ic], slow[ic + 1]), 0.0)
+                slowed.append(slow)
+        return np.array(spread + slowed).reshape(-1, v.size)
 
 
 def fit_function(x: np.ndarray, y: np.ndarray, std: np.ndarray | None = None, form: str = "auto") -> dict[str, Any]:
