@@ -188,8 +188,8 @@ def test_killed_campaign_resumes_to_the_same_results(inputs, reference, tmp_path
     for attempt in range(3):
         out = tmp_path / f"killed{attempt}"
         cmd = [sys.executable, "-m", "droptower.cli.main", "campaign", "--coupling", str(inputs["coupling"]),
-               "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "3",
-               "--workers", "1"]
+               "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "1",
+               "--workers", "1"]  # a chunk a test: seven chunks still to run when the first record lands
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
             deadline = time.monotonic() + 60
@@ -220,8 +220,8 @@ def test_ctrl_c_says_what_is_kept_and_how_to_resume(inputs, tmp_path):
     for attempt in range(3):
         out = tmp_path / f"interrupted{attempt}"
         cmd = [sys.executable, "-m", "droptower.cli.main", "campaign", "--coupling", str(inputs["coupling"]),
-               "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "3",
-               "--workers", "1"]
+               "--doe", str(inputs["doe"]), "--out", str(out), "--duration-s", "0.07", "--chunk-size", "1",
+               "--workers", "1"]  # a chunk a test: seven chunks still to run when the first record lands
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 60
         while not list((out / "records").glob("*.json")) and proc.poll() is None and time.monotonic() < deadline:
@@ -341,3 +341,17 @@ def test_holds_a_campaign_counts_the_records_on_disk(inputs, reference, tmp_path
     (out / "manifest.json").write_text(json.dumps(manifest))
     assert _cli(inputs, out) == 2
     assert "(8 of 8 tests finished)" in capsys.readouterr().err
+
+
+def test_the_library_writes_the_per_condition_summary_and_names_every_output(reference):
+    """``run_campaign`` itself writes what the command reports (the command only prints
+    ``run.outputs``): the results tables, the logs and the per-condition summary, whose rows
+    are the plan's conditions with their usable tests counted."""
+    from droptower.maps.summary import condition_summary
+
+    written = {path.name: what for path, what in reference.outputs}
+    assert {"results.parquet", "results.csv", "logs", "summary.csv"} <= set(written)
+    assert all(path.exists() for path, _ in reference.outputs)
+    summary, expected = pd.read_csv(reference.root / "summary.csv"), condition_summary(reference.results)
+    assert len(summary) == len(expected) > 0
+    assert summary["n_tests"].tolist() == expected["n_tests"].tolist()

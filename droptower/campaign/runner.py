@@ -43,7 +43,9 @@ class CampaignRun:
     chunks that crashed with an unexpected error in this run (their tests stay pending and are
     retried with ``resume=True``); pending: tests still unfinished; ran_tests: tests written in this
     run; executor: where the chunks ran; CPU time per phase summed over the workers (s), the
-    wall time (s); peak memory (MB) of this process and of the largest worker.
+    wall time (s); peak memory (MB) of this process and of the largest worker; outputs: (path,
+    what) of every file and folder the run wrote (the results tables, the logs, ``summary.csv``
+    and Fig. 11 of Rapp et al. 2022 when the plan varies the preload).
     """
 
     spec: CampaignSpec
@@ -61,6 +63,7 @@ class CampaignRun:
     peak_rss_main_mb: float = 0.0
     peak_rss_worker_mb: float = 0.0
     warnings: list[str] = field(default_factory=list)
+    outputs: list[tuple[Path, str]] = field(default_factory=list)
 
     @property
     def done(self) -> int:
@@ -236,6 +239,11 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
 
     run.results = assemble_batches(finished_batches(layout, spec))
     write_results(run.results, layout.results_parquet, layout.results_csv)
+    run.outputs = [(layout.results_parquet, f"{len(run.results)} test(s), one row each"),
+                   (layout.results_csv, f"{len(run.results)} test(s), one row each"),
+                   (layout.logs, "a log per simulated test")]
+    if run.done:
+        run.outputs += write_condition_summary(run)
     failed = run.results[run.results["status"] == "failed"]
     run.failed = [(int(i), str(e or "")) for i, e in zip(failed["test_id"], failed["error"])]
     run.pending = len(spec.tests) - len(run.results)
@@ -243,3 +251,17 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
     run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, peak_rss_mb(resource.RUSAGE_CHILDREN))
     run.wall_s = time.perf_counter() - t_start
     return run
+
+
+def write_condition_summary(run: CampaignRun) -> list[tuple[Path, str]]:
+    """``summary.csv`` in the campaign folder (per condition: mean and std over repeats), and
+    Rapp et al. 2022, Fig. 11 when the plan varies the preload. Returns (path, what) of each."""
+    from droptower.io.tables import write_table
+    from droptower.maps.summary import FIG11, condition_summary, plot_preload_effect
+
+    summary = condition_summary(run.results)
+    written = [(write_table(summary, run.root / "summary.csv"), f"{len(summary)} condition(s), mean and std over repeats")]
+    if summary["preload_nm"].nunique() > 1:
+        title = f"{run.spec.coupling.name} on {run.spec.rig.name}, plan {run.spec.doe.name}"
+        written.append((plot_preload_effect(summary, run.root / FIG11, title), "preload effect (Rapp et al. 2022, Fig. 11)"))
+    return written

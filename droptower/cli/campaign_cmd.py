@@ -95,22 +95,10 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
         raise click.exceptions.Exit(130) from None
     for line in run.warnings:
         click.echo(f"droptower: warning: {line}", err=True)
-    n, done = len(run.spec.tests), run.done
+    n = len(run.spec.tests)
     click.echo(run.summary())
-    for name in ("results.parquet", "results.csv"):
-        options.wrote(run.root / name, f"{len(run.results)} test(s), one row each")
-    options.wrote(run.root / "logs", "a log per simulated test")
-    if done:  # per condition over repeats, and Fig. 11 when the plan varies the preload
-        from droptower.io.tables import write_table
-        from droptower.maps.summary import FIG11, condition_summary, plot_preload_effect
-
-        summary = condition_summary(run.results)
-        options.wrote(write_table(summary, run.root / "summary.csv"),
-                      f"{len(summary)} condition(s), mean and std over repeats")
-        if summary["preload_nm"].nunique() > 1:
-            options.wrote(plot_preload_effect(summary, run.root / FIG11, f"{run.spec.coupling.name} on "
-                                              f"{run.spec.rig.name}, plan {run.spec.doe.name}"),
-                          "preload effect (Rapp et al. 2022, Fig. 11)")
+    for path, what in run.outputs:
+        options.wrote(path, what)
     if run.failed:
         click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
         for test_id, error in run.failed:
