@@ -317,25 +317,33 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
     s = setup_family(family, init, bounds)
     params, x0, given = family.parameters, s.x0, s.given
-    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
-        x0 = family.guess_from_readings(*first_cycle_readings([decays[i] for i in fit_idx]), x0, given)
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
+    # a family's deferred parameters (a part it switches off first): held off in the first
+    # search, freed in the wider one after a poor verdict
+    deferred = np.isin(family.names, getattr(family, "DEFERRED", ())) & free
+    x_off = family.branch_off(x0) if deferred.any() else x0
+    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
+        readings = first_cycle_readings([decays[i] for i in fit_idx])
+        x0 = family.guess_from_readings(*readings, x0, given)
+        x_off = family.guess_from_readings(*readings, x_off, given | deferred) if deferred.any() else x0
     choose_p = "p" in family.names and not given[family.names.index("p")]
-    sol, search = drop_search(problem, family, x0, free, settings, choose_p)
+    first = (x_off, free & ~deferred)
+    sol, search = drop_search(problem, family, *first, settings, choose_p)
     sol = problem.without_prior(sol)
     fine = problem.simulate(sol.values[None], 2 * settings.substeps)
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
         # the error is many times the noise: search again, wider (more candidates, more local
-        # fits, other draws), and keep the better fit
+        # fits, other draws, the deferred parameters free), and keep the better fit
         wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True, incumbent=sol.values)
         if wider is not None:
             wider = problem.without_prior(wider)
         if wider is not None and float(wider.residual @ wider.residual) < float(sol.residual @ sol.residual):
             sol, search = wider, more
             fine = problem.simulate(sol.values[None], 2 * settings.substeps)
-        search = {**search, "escalated": True}
+        search = {**search, "escalated": True, **({"deferred_freed": [n for n, d in zip(family.names, deferred) if d]}
+                                                  if deferred.any() else {})}
         if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
             # still poor: the prior toward each start, which pins what the data do not determine,
             # may hold a direction they determine only weakly away from the optimum (measured on
