@@ -329,10 +329,19 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         x0 = family.guess_from_readings(*readings, x0, given)
         x_off = family.guess_from_readings(*readings, x_off, given | deferred) if deferred.any() else x0
     choose_p = "p" in family.names and not given[family.names.index("p")]
-    first = (x_off, free & ~deferred)
-    sol, search = drop_search(problem, family, *first, settings, choose_p)
+    # the first search on the family without the deferred part (where it has one): a good fit
+    # keeps that structure, a poor one searches again with the whole family
+    whole = (family, problem)
+    if deferred.any():
+        family = family.without_branch()
+        problem = DropProblem(family, problem.decays, settings)
+    sol, search = drop_search(problem, family, x_off, free & ~deferred, settings, choose_p)
     sol = problem.without_prior(sol)
     fine = problem.simulate(sol.values[None], 2 * settings.substeps)
+    if deferred.any() and drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
+        whole[1].counter.evaluations += problem.counter.evaluations
+        family, problem = whole
+        fine = problem.simulate(sol.values[None], 2 * settings.substeps)
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
         # the error is many times the noise: search again, wider (more candidates, more local
         # fits, other draws, the deferred parameters free), and keep the better fit
