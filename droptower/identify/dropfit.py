@@ -327,7 +327,9 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
         readings = first_cycle_readings([decays[i] for i in fit_idx])
         x0 = family.guess_from_readings(*readings, x0, given)
-        x_off = family.guess_from_readings(*readings, x_off, given | deferred) if deferred.any() else x0
+        # the first search's guess from the closed form without the deferred part
+        x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
+                 if deferred.any() else x0)
     choose_p = "p" in family.names and not given[family.names.index("p")]
     # the first search on the family without the deferred part (where it has one): a good fit
     # keeps that structure, a poor one searches again with the whole family
