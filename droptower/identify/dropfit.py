@@ -303,24 +303,44 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
     s = setup_family(family, init, bounds)
     params, x0, given = family.parameters, s.x0, s.given
-    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
-        x0 = family.guess_from_readings(*first_cycle_readings([decays[i] for i in fit_idx]), x0, given)
-    place_guesses(kind, family.names, x0, guesses)  # the user's first guesses over the closed form's
-    if guesses:
-        x0 = np.where(given, x0, clip_to_bounds(params, x0))
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
+    # a family's deferred parameters (a part it switches off first): held off in the first
+    # search, freed in the wider one after a poor verdict
+    deferred = np.isin(family.names, getattr(family, "DEFERRED", ())) & free
+    x_off = family.branch_off(x0) if deferred.any() else x0
+    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
+        readings = first_cycle_readings([decays[i] for i in fit_idx])
+        x0 = family.guess_from_readings(*readings, x0, given)
+        # the first search's guess from the closed form without the deferred part
+        x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
+                 if deferred.any() else x0)
+    if guesses:  # the user's first guesses over the closed form's, in both starts
+        for x in (x0, x_off):
+            place_guesses(kind, family.names, x, guesses)
+        x0 = np.where(given, x0, clip_to_bounds(params, x0))
+        x_off = np.where(given | deferred, x_off, clip_to_bounds(params, x_off)) if deferred.any() else x0
     choose_p = "p" in family.names and not given[family.names.index("p")]
-    sol, search = drop_search(problem, family, x0, free, settings, choose_p)
+    # the first search on the family without the deferred part (where it has one): a good fit
+    # keeps that structure, a poor one searches again with the whole family
+    whole = (family, problem)
+    if deferred.any():
+        family = family.without_branch()
+        problem = DropProblem(family, problem.decays, settings)
+    sol, search = drop_search(problem, family, x_off, free & ~deferred, settings, choose_p)
     sol = problem.without_prior(sol)
     fine = problem.simulate(sol.values[None], 2 * settings.substeps)
     # a fit above the allowance, but not tens of times: first the family's own moves into the
     # basins beside the fit (cheaper than a wider search, and aimed where its fits are stuck)
     sol, fine, search = _hops(problem, family, sol, fine, free, settings, search)
+    if deferred.any() and drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
+        whole[1].counter.evaluations += problem.counter.evaluations
+        family, problem = whole
+        fine = problem.simulate(sol.values[None], 2 * settings.substeps)
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
         # the error is many times the noise: search again, wider (more candidates, more local
-        # fits, other draws), and keep the better fit
+        # fits, other draws, the deferred parameters free), and keep the better fit
         wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True, incumbent=sol.values)
         if wider is not None:
             wider = problem.without_prior(wider)
@@ -328,7 +348,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
             sol, search = wider, {**more, **{k: search[k] for k in ("hops",) if k in search}}
             fine = problem.simulate(sol.values[None], 2 * settings.substeps)
             sol, fine, search = _hops(problem, family, sol, fine, free, settings, search)
-        search = {**search, "escalated": True}
+        search = {**search, "escalated": True, **({"deferred_freed": [n for n, d in zip(family.names, deferred) if d]}
+                                                  if deferred.any() else {})}
         if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
             # still poor: the prior toward each start, which pins what the data do not determine,
             # may hold a direction they determine only weakly away from the optimum (measured on

@@ -75,7 +75,8 @@ class FilledRubberFamily(Family):
     title = "filled elastomer: spring (cubic) + filler network (Payne/Mullins) + power-law branch"
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
-    OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12}
+    OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
+               "stiffening_branch": True}
 
     def _parameters(self) -> list[Parameter]:
         s = self.scale
@@ -102,6 +103,23 @@ class FilledRubberFamily(Family):
                           scale=s.stiffness_nm_per_rad / amp),
                 Parameter("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))]
 
+    #: The stiffening Maxwell branch's parameters: a drop-test fit searches first with the branch
+    #: off (:meth:`branch_off`) and frees them in its wider search after a poor verdict, so a
+    #: coupling the other three parts represent pays no search over three more dimensions.
+    DEFERRED = ("kv_nm_per_rad", "kv_gain_nm_per_rad2", "tau_v_s")
+
+    def without_branch(self) -> "FilledRubberFamily":
+        """The same family (the same parameters) whose couplings leave the stiffening Maxwell branch
+        out: a nonlinear branch makes every step of the core iterate, even at a negligible stiffness."""
+        return type(self)(self.scale, {**self.options, "stiffening_branch": False})
+
+    def branch_off(self, v: np.ndarray) -> np.ndarray:
+        """``v`` with the stiffening Maxwell branch off: its spring at its lower bound (1e-4 of the
+        data's stiffness), no gain; its relaxation time kept."""
+        out = np.array(v, float)
+        out[10], out[11] = self.parameters[10].lower, 0.0
+        return out
+
     @property
     def reference_frequency_hz(self) -> float:
         """The power-law branch's reference frequency: the data's characteristic frequency (Hz)."""
@@ -123,9 +141,9 @@ class FilledRubberFamily(Family):
                 {"kind": "power_law", "name": "matrix", "storage_stiffness": kp, "loss_factor": eta,
                  "reference_frequency": self.reference_frequency_hz, "min_frequency": f_min,
                  "max_frequency": f_min * 10.0 ** decades,
-                 "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)},
-                {"kind": "variable_maxwell", "name": "amplitude_viscous", "stiffness": kv, "stiffness_gain": gain,
-                 "damping": kv * tau_v}]
+                 "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)}] + (
+                [{"kind": "variable_maxwell", "name": "amplitude_viscous", "stiffness": kv, "stiffness_gain": gain,
+                  "damping": kv * tau_v}] if self.options["stiffening_branch"] else [])
 
     def derived(self, v: np.ndarray) -> dict[str, float]:
         eta, f_min, decades = float(v[7]), float(v[8]), float(v[9])
@@ -142,11 +160,13 @@ class FilledRubberFamily(Family):
         Maxwell branch linearised on its first harmonic (:func:`stiffening_maxwell_stiffness`)."""
         network, matrix = (el for el in self._specs(v))
         amp, freq = np.asarray(amplitude_rad, float), np.asarray(frequency_hz, float)
+        viscous = (stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq)
+                   if self.options["stiffening_branch"] else 0.0)
         return (v[0] + 0.75 * v[1] * amp ** 2 + network.complex_stiffness(amp) + matrix.complex_stiffness(freq)
-                + stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq))
+                + viscous)
 
     def _specs(self, v: np.ndarray) -> tuple[FillerNetwork, PowerLaw]:
-        _, network, matrix, _ = self.elements(v)
+        _, network, matrix, *_ = self.elements(v)
         return FillerNetwork(**network), PowerLaw(**matrix)
 
     def guess_from_readings(self, amplitude_rad: np.ndarray, frequency_hz: np.ndarray, stiffness: np.ndarray,
