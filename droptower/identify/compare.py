@@ -26,7 +26,7 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.identify.budget import BudgetExceeded, time_budget
 from droptower.identify.criterion import RULE
 
@@ -109,6 +109,7 @@ class Comparison:
         return out
 
 
+@expects(data=[("droptower.identify.data.Segment", "droptower.identify.droplogs.DropDecay")], kinds=["builtins.str"])
 def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
                    budget_s: float | dict[str, float | None] | None = DEFAULT_BUDGET_S,
                    total_budget_s: float | None = DEFAULT_TOTAL_BUDGET_S, excluded: list[dict[str, str]] | None = None,
