@@ -53,7 +53,7 @@ def test_identify_writes_a_coupling_the_rig_reads(logs, tmp_path, capsys):
     truth = load_coupling(TRUTH)
     assert [e.kind for e in c.elements] == [e.kind for e in truth.elements]
     assert c.elements[0].stiffness == pytest.approx(truth.elements[0].stiffness, rel=0.01)
-    assert "Identified by droptower identify --model zerodim6" in c.description
+    assert "Identified by droptower from servo records as zerodim6" in c.description
     assert len(list((tmp_path / "plots").glob("*.png"))) == 6
 
 

@@ -1,4 +1,4 @@
-"""Time and disk of a campaign before it runs (``droptower campaign --estimate``).
+"""Time and disk of a campaign before it runs (:func:`~droptower.campaign.estimate_campaign`, which the ``campaign`` command also offers).
 
 The first chunk of the plan is run for real (simulated, logged, read back and extracted) in a
 temporary folder; its CPU per test and the bytes it wrote per test (log and record) are scaled

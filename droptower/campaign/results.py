@@ -1,7 +1,7 @@
 """The results table of a campaign, assembled from its per-test records.
 
 Columns, in order: the plan (:data:`~droptower.campaign.spec.PLAN_COLUMNS`), the extracted
-values under the names ``droptower extract --json`` prints (``frequency_hz``,
+values under the names of :class:`~droptower.extract.result.ExtractionResult`'s fields (``frequency_hz``,
 ``amplitude_deg``, ``stiffness_nm_per_deg``, ``damping_ratio``, ..., ``*_std``,
 ``double_impact``), then ``flags`` (``;``-separated), ``log_file`` (relative to the campaign
 folder), ``status`` (``done`` or ``failed``), ``error`` and ``simulation_warnings`` (what the

@@ -1,4 +1,4 @@
-"""The files ``droptower validate --out DIR`` writes (also used by ``analysis/run_study.py``).
+"""The files a validation writes into its output folder (:func:`write_validation`; the ``validate`` command's) (also used by ``analysis/run_study.py``).
 
 - ``validation.csv`` (or the table format asked for): one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
 - ``validation_summary.json``: RMS / max deviations inside and outside the range, definitions;

@@ -26,8 +26,8 @@ Measured results (CSV or Parquet), accepted columns (units in the names):
 - optional ``sweep`` (``frequency`` or ``amplitude``); without it each point goes to the sweep
   with more points through it (its amplitude's frequencies vs. its frequency's amplitudes).
 
-``droptower servo --json`` output saved as a table, and the ``servo_results.csv`` that
-``droptower validate --out`` writes, are accepted as they are. Results of a translational
+The servo bench's JSON saved as a table, and the ``servo_results.csv`` that
+:func:`~droptower.compare.files.write_validation` writes, are accepted as they are. Results of a translational
 servo test (``amplitude_mm``, ``storage_stiffness_n_per_m``, ...: a mount, bushing or damper)
 are recognised and refused with the reason: the map is the torsional drop tower's, and no
 lever turns a displacement into its angle.

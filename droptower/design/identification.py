@@ -68,7 +68,7 @@ class IdentificationDesign:
         :meth:`~droptower.design.choose.Design.write`); returns the plan's path."""
         from droptower.design.outputs import write_plan
 
-        return write_plan(self, out, f"designed by droptower design --for-identification {self.model}: "
+        return write_plan(self, out, f"designed by droptower for identifying {self.model}: "
                                      f"{self.n_tests} drops (D-optimal)", sheet, seed)
 
     def to_frame(self) -> pd.DataFrame:

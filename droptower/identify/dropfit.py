@@ -1,4 +1,4 @@
-"""A coupling model fitted to drop-test decays (``droptower identify --from-drop-tests``).
+"""A coupling model fitted to drop-test decays (:func:`identify_drops`; the ``identify`` command wraps it for drop tests).
 
 Every test is re-simulated from its impact (:mod:`.lever`): the lever (inertia J) starts at
 rest position with the rate the impact gave it (:mod:`.droplogs`) and decays freely on the

@@ -20,7 +20,7 @@ from droptower.identify.result import DROPS, Identification, register_format
 
 
 def drop_result_dict(result: Identification) -> dict[str, Any]:
-    """A drop-test identification, JSON-ready (what ``droptower identify --from-drop-tests --json`` prints)."""
+    """A drop-test identification, JSON-ready (also what the ``identify`` command prints as JSON for drop tests)."""
     from droptower.jsonsafe import json_safe
 
     return json_safe({

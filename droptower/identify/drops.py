@@ -5,7 +5,7 @@ the settings a fit needs (the rig's lever, sensor radius, inertia and preload co
 a rig is named); :func:`identify_from_drop_tests` fits a family to them
 (:func:`~droptower.identify.dropfit.identify_drops`) and returns the
 :class:`~droptower.identify.result.Identification` (whose
-:meth:`~droptower.identify.result.Identification.write_coupling` writes the fitted coupling). ``droptower identify --from-drop-tests`` is a thin layer over these.
+:meth:`~droptower.identify.result.Identification.write_coupling` writes the fitted coupling). The ``identify`` command is a thin layer over these for drop tests.
 """
 from __future__ import annotations
 

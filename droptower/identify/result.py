@@ -422,13 +422,12 @@ class Identification:
             quality = f"angle nRMSE {100 * self.fit['angle_nrmse']:.2f} % on {len(self.tests_used)} drop tests"
             if self.holdout:
                 quality += f", {100 * self.holdout['angle_nrmse']:.2f} % on {self.holdout['tests']} held out"
-            c.description = (f"{c.description}. Identified by droptower identify --from-drop-tests --model "
-                             f"{self.family} ({quality}).")
+            c.description = f"{c.description}. Identified by droptower from drop tests as {self.family} ({quality})."
         else:
             quality = f"nRMSE {100 * self.fit.nrmse:.2f} % on the fitting data"
             if self.holdout:
                 quality += f", {100 * self.holdout.nrmse:.2f} % on hold-out data"
-            c.description = (f"{c.description}. Identified by droptower identify --model {self.family} ({quality}). "
+            c.description = (f"{c.description}. Identified by droptower from servo records as {self.family} ({quality}). "
                              f"{self.coupling_note}").strip()
         if sources:
             c.source = f"{c.source}; identified from {', '.join(sources)}"
@@ -441,7 +440,7 @@ class Identification:
 
     # ------------------------------------------------------------------ conversions
     def to_dict(self) -> dict[str, Any]:
-        """Everything it reports, JSON-ready (what ``droptower identify --json`` prints)."""
+        """Everything it reports, JSON-ready (also what the ``identify`` command prints as JSON)."""
         return FORMATS[self.data][0](self)
 
     def to_frame(self) -> "pd.DataFrame":

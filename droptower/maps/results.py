@@ -1,6 +1,6 @@
 """Read a results table and pick the tests a map may be fitted to.
 
-A results table is what ``droptower extract --out`` and ``droptower campaign`` write (CSV,
+A results table is what the extractor's tables and :func:`~droptower.campaign.run_campaign` write (CSV,
 Parquet, Excel, JSON; one row per test, the extractor's column names), or the paper's Table 4
 (``rapp2022_table4_map.csv``), or a lab's own table (read like logs: any delimiter, decimal
 comma, units in a row or in brackets, :mod:`droptower.io.table_reader`). The map needs amplitude, frequency, stiffness and damping ratio;
@@ -42,7 +42,7 @@ def read_results(path: str | Path) -> pd.DataFrame:
     Parameters
     ----------
     path : str or Path
-        A ``.csv`` or ``.parquet`` table (``droptower extract --out``), a campaign folder
+        A ``.csv`` or ``.parquet`` table (the extractor's results table), a campaign folder
         holding ``results.parquet``, or ``"rapp2022_table4"``: the paper's Table 4, shipped
         with the package.
 
