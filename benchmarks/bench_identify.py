@@ -70,6 +70,11 @@ A generic filled-elastomer family (``--filled-rubber [--campaign DIR]``; docs/th
    factors, a six-parameter form with a friction bank; K' and loss factor against the truth on
    the 4 x 3 servo grid inside the tested range (targets: <= 5 % and <= 10 % RMS), and the
    seeds' presets (the same, or an honest "poor fit"); baseline: the rig simulating the tests.
+   A draw that misses gets its diagnosis (:func:`steady_twin`): the family's closed form fitted
+   to the truth's own steady K*(A, f), its bench agreement and its decays over the noise. A twin
+   that predicts the bench but misses the decays: the family holds the truth's steady sines or
+   its decays, not both (the ``payne`` structure, docs/theory.md#payne-decay); a twin that fits
+   the decays: a search miss.
 
 Randomised acceptance (``--random [--n N] [--families a,b]``; N = 30 per family by default):
 
