@@ -1,14 +1,13 @@
 """Why the filled_rubber family cannot follow a ``payne``-element coupling's drop tests and its
-servo bench at once (docs/theory.md#payne, #filled-rubber; benchmarks/bench_identify.py
---filled-rubber measures the resulting fits on 12-drop campaigns).
+servo bench at once (docs/theory.md#payne-decay; benchmarks/bench_identify.py --filled-rubber
+measures the resulting fits on 12-drop campaigns).
 
 The ``payne`` element reads the amplitude and the frequency off the motion and is a linear
-spring-dashpot within each half cycle. So its free decay is its own steady K*(A, f) replayed
-half cycle by half cycle (the half periods to 0.3 %), with a first half cycle from rest that
-loads as stiff as its steady loops at that amplitude. A friction network with Masing's rules
-(the family's filler network) loads from rest along its backbone, whose secant at A lies below
-its loops' K'(A): a coupling of the family with the payne coupling's steady K*(A, f) (within
-1 %) swings further on its first half cycle and decays otherwise, far beyond the sensors' noise.
+spring-dashpot within each half cycle, set at the zero crossing before. In a free decay it so
+lags its own steady K*(A, f): its later half cycles last longer and lose more than a linear
+oscillator with that K* at their amplitude. The family's friction network (Masing's rules)
+decays otherwise: a coupling of the family with the payne coupling's steady K*(A, f) (within
+1 % and 2.5 %) swings further on its first half cycle and its decays lie far beyond the noise.
 """
 from __future__ import annotations
 
@@ -53,13 +52,19 @@ def decay(coupling: Coupling, inertia: float, rate0: float) -> np.ndarray:
 
 
 def half_cycles(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(zero crossings s, peak |angle| of each half cycle rad) of a decay from the impact at t = 0."""
+    """(instants s, |angle| rad) of the peaks of a decay from the impact at t = 0, one per half
+    cycle between zero crossings, each refined by a parabola through its three samples."""
     t = np.arange(angle.size) * STEP_S
     i = np.flatnonzero((np.sign(angle[1:]) != np.sign(angle[:-1])) & (np.arange(1, angle.size) > 2))
-    crossings = t[i] - angle[i] * STEP_S / (angle[i + 1] - angle[i])
-    edges = np.r_[0.0, crossings]
-    peaks = np.array([np.max(np.abs(angle[(t >= a) & (t <= b)])) for a, b in zip(edges[:-1], edges[1:])])
-    return crossings, peaks
+    edges = np.r_[0, i + 1]
+    times, peaks = [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        j = a + int(np.argmax(np.abs(angle[a:b])))
+        y0, y1, y2 = np.abs(angle[j - 1:j + 2])
+        shift = 0.5 * (y0 - y2) / (y0 - 2.0 * y1 + y2)
+        times.append(t[j] + shift * STEP_S)
+        peaks.append(y1 - 0.25 * (y0 - y2) * shift)
+    return np.array(times), np.array(peaks)
 
 
 def quasi_steady(stiffness, inertia: float, amplitude: float, frequency: float) -> tuple[float, float]:
@@ -76,50 +81,52 @@ def quasi_steady(stiffness, inertia: float, amplitude: float, frequency: float) 
 
 
 def against_steady(angle: np.ndarray, stiffness, inertia: float, half_cycles_: int = 5) -> np.ndarray:
-    """Per half cycle n = 0.. (from peak n to peak n + 1): (half period, log decrement) of the
-    decay over those of its steady K*(A, f) at the half cycle's amplitude (the peaks' geometric
-    mean) and frequency: rows (period ratio, decrement ratio)."""
-    crossings, peaks = half_cycles(angle)
+    """Per half cycle n = 0.. from peak n to peak n + 1 (peak 0: the first, reached from rest):
+    its duration and log decrement over those of the linear oscillator with the steady K*(A, f)
+    at its amplitude (the two peaks' geometric mean): rows (period ratio, decrement ratio)."""
+    times, peaks = half_cycles(angle)
     rows = []
-    for n in range(min(half_cycles_, peaks.size - 1, crossings.size - 1)):
-        period = crossings[n + 1] - crossings[n]
+    for n in range(min(half_cycles_, peaks.size - 1)):
+        period = times[n + 1] - times[n]
         t_qs, dec_qs = quasi_steady(stiffness, inertia, math.sqrt(peaks[n] * peaks[n + 1]), 0.5 / period)
         rows.append((period / t_qs, math.log(peaks[n] / peaks[n + 1]) / dec_qs))
     return np.array(rows)
 
 
 @pytest.mark.parametrize("draw", range(4))
-def test_payne_decay_is_its_steady_stiffness_replayed_per_half_cycle(draw: int) -> None:
-    """Seeded draws of the payne structure, four drops of the 12-drop plan each: every half
-    period of the free decay is that of a linear oscillator with the element's own steady
-    K*(A, f) at the half cycle's amplitude (within 1 %; measured <= 0.75 %), the first half
-    cycle from rest loses what that oscillator loses (within 10 %; measured 0.95-1.08), and the
-    later ones lose more (the mean of half cycles 1-4 >= 4 % more log decrement; measured
-    8-40 %): the stiffness the element sets anew at every zero crossing (the decay's
-    excess vanishes with a K' independent of the amplitude, see the next test)."""
+def test_payne_decay_lags_its_steady_stiffness(draw: int) -> None:
+    """Seeded draws of the payne structure, four drops of the 12-drop plan each, each half cycle
+    of the free decay (peak to peak) against the linear oscillator with the element's own steady
+    K*(A, f) at its amplitude: the first one, from the first peak, is that oscillator's (period
+    within 2 %, log decrement within 10 %; measured on draws 0-5: 0.998-1.014 and 0.95-1.08);
+    the later ones last longer (> 0.2 %; measured 0.5-7 %) and lose more (mean log decrement of
+    half cycles 1-4 >= 5 % above; measured 8-39 %): the element sets its spring and dashpot at
+    each zero crossing from the amplitude it reads there (the velocity over the last half
+    cycle's frequency), which in a decay is larger than the half cycle's (docs/theory.md#payne-decay)."""
     data = payne_draw(draw)
     coupling, stiffness = parse_coupling(data), payne_stiffness(data)
     for inertia, rate0 in DROPS:
         rows = against_steady(decay(coupling, inertia, rate0), stiffness, inertia)
         assert rows.shape == (5, 2)
-        assert np.all(np.abs(rows[:, 0] - 1.0) < 0.01), (inertia, rate0, rows)
-        assert abs(rows[0, 1] - 1.0) < 0.10, (inertia, rate0, rows)
-        assert rows[1:, 1].mean() >= 1.04, (inertia, rate0, rows)
+        assert abs(rows[0, 0] - 1.0) < 0.02 and abs(rows[0, 1] - 1.0) < 0.10, (inertia, rate0, rows)
+        assert np.all(rows[1:, 0] > 1.002) and np.all(rows[1:, 0] < 1.10), (inertia, rate0, rows)
+        assert rows[1:, 1].mean() >= 1.05, (inertia, rate0, rows)
 
 
-def test_payne_decay_without_amplitude_dependent_stiffness_is_its_steady_decay() -> None:
-    """The closed form's control: with the critical angle far above the motion (K' independent
-    of the amplitude, K''(A) kept) the payne coupling is a linear oscillator with a
-    rate-independent loss, and its free decay loses per half cycle what its steady K*(A, f)
-    gives (within 4 %; the 4-40 % excess of the test above is the amplitude-dependent K')."""
+def test_payne_decay_without_amplitude_dependence_is_its_steady_decay() -> None:
+    """The control, against a closed form: with the critical angle far above the motion and a
+    constant K'' (K' and K'' independent of the amplitude) the payne coupling is a linear
+    oscillator with a rate-independent loss, and every half cycle of its decay is the steady
+    oscillator's (period within 0.5 %, log decrement within 2.5 %; measured 0.15 % and 1.5 %):
+    the lag of the test above comes with the amplitude dependence."""
     data = payne_draw(2)
     data["element"][1]["critical_angle"] = 10.0  # rad: u = (A / A_c)^m < 0.1 for A <= 3.3 deg
-    data["element"][1]["loss_peak_stiffness"] *= 0.0
+    data["element"][1]["loss_peak_stiffness"] = 0.0
     data["element"][1]["loss_stiffness"] = 1800.0  # N*m/rad: draw 2's K'' at the tested amplitudes
     coupling, stiffness = parse_coupling(data), payne_stiffness(data)
     for inertia, rate0 in DROPS:
         rows = against_steady(decay(coupling, inertia, rate0), stiffness, inertia)
-        assert np.all(np.abs(rows - 1.0) < 0.04), (inertia, rate0, rows)
+        assert np.all(np.abs(rows[:, 0] - 1.0) < 0.005) and np.all(np.abs(rows[:, 1] - 1.0) < 0.025), (inertia, rate0, rows)
 
 
 #: The tested range of draw 2's 12-drop campaign (first-cycle amplitudes rad, frequencies Hz).
@@ -145,11 +152,10 @@ def steady_twin(data: dict) -> tuple[FilledRubberFamily, np.ndarray]:
 def test_family_twin_of_payne_steady_sines_decays_otherwise() -> None:
     """Draw 2 (the one ``bench_identify.py --filled-rubber`` misses): a coupling of the family
     whose steady K*(A, f) is the payne coupling's within 1 % (K') and 2.5 % (loss factor) RMS over
-    the tested range swings further on its first half cycle from rest (its friction network
-    loads along a backbone whose secant lies below its loops' K'; the payne element loads as
-    stiff as its loops), by >= 1.5 % on drops of 1 deg and more, and its decays differ from the
-    payne coupling's by >= 1 % of the amplitude RMS (the rig's noise and re-simulation accuracy
-    are <= 0.1 %; the stored bench reads 31 x the noise allowance)."""
+    the tested range (measured 0.7 % and 1.7 %) swings further on its first half cycle from rest,
+    by >= 1.5 % on the drops of 1 deg and more (measured 3.3-3.6 %), and its decays lie >= 1 % of
+    the amplitude RMS from the payne coupling's (measured 2-8 %; the rig's noise and the
+    re-simulation's accuracy are <= 0.1 %; on the campaign 31 x the noise allowance)."""
     data = payne_draw(2)
     family, values = steady_twin(data)
     amp, freq = np.meshgrid(np.geomspace(*TESTED_AMPLITUDES_RAD, 5), np.geomspace(*TESTED_FREQUENCIES_HZ, 3))
