@@ -38,9 +38,29 @@ def shipped():
 
 
 @pytest.fixture(scope="module")
-def page(tmp_path_factory) -> Path:
+def page(tmp_path_factory, shipped) -> Path:
+    """The page `droptower planner` writes for the shipped rig and coupling. Its design candidates
+    are the same call as ``shipped``'s (the rig, coupling and preloads compared, else computed
+    anew), so that call is made once per module."""
+    from droptower.design import choose
+    from droptower.rheology import coupling_to_toml
+
+    rig, coupling, cands = shipped
+    computed = choose.predict_candidates
+    shared = []
+
+    def predict_candidates(r, c, preloads_nm, *args, **kwargs):
+        if (not args and not kwargs and r == rig and coupling_to_toml(c) == coupling_to_toml(coupling)
+                and tuple(map(float, preloads_nm)) == PRELOADS):
+            shared.append(True)
+            return cands.copy()
+        return computed(r, c, preloads_nm, *args, **kwargs)
+
     out = tmp_path_factory.mktemp("planner") / "planner.html"
-    assert main(["planner", "--out", str(out), "--preloads-nm", "0,500", "--quiet"]) == 0
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(choose, "predict_candidates", predict_candidates)
+        assert main(["planner", "--out", str(out), "--preloads-nm", "0,500", "--quiet"]) == 0
+    assert shared == [True]  # the page's rig, coupling and preloads are those of `shipped`
     return out
 
 

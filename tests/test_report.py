@@ -41,10 +41,21 @@ drop_mass_kg = 2.0
 """
 
 
+#: the campaign below, built once per process: test_report_decays and test_report_scale import the
+#: fixture and only read the folder (each writes its pages elsewhere)
+_CAMPAIGN: list[Path] = []
+
+
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory) -> Path:
     """A campaign on the calibrated coupling, then one test marked failed and one flagged in its
     results (as an extraction error and a second impact would leave them)."""
+    if not _CAMPAIGN:
+        _CAMPAIGN.append(_report_campaign(tmp_path_factory))
+    return _CAMPAIGN[0]
+
+
+def _report_campaign(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("report")
     (root / "plan.toml").write_text(PLAN)
     out = root / "campaign"
