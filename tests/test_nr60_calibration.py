@@ -167,12 +167,10 @@ def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
 @pytest.mark.slow
 def test_calibration_is_reproducible(calibration):
     """Two fits from the same start give the same values to the last bit (fixed start, fixed
-    finite-difference steps, no random draw), and a short fit leaves the shipped preset alone.
-    (The model without its matrix branch: five parameters instead of seven, fewer simulations
-    per finite-difference step; what makes the fit reproducible does not depend on the count.)"""
+    finite-difference steps, no random draw), and a short fit leaves the shipped preset alone."""
     table = pd.read_csv(calibration.table4_path())
     start = {p[0]: p[3] for p in calibration.PARAMETERS}
-    weights = calibration.Weights(servo_stiffness=None, servo_damping=None, matrix=False)
+    weights = calibration.Weights(servo_stiffness=None, servo_damping=None)
     preset = (ROOT / "rig_configs" / "couplings" / "rapp2022_nr60.toml").read_text()
     first, _ = calibration.fit(start, weights, table, None, 2)
     second, _ = calibration.fit(start, weights, table, None, 2)
