@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from droptower.cli.main import COMMANDS
+from droptower.cli.main import COMMANDS, main
 
 
 def _console_script() -> list[str]:
@@ -81,7 +81,9 @@ def test_run_servo():
     assert len(rows) == 1 and rows[0]["storage_stiffness_nm_per_deg"] > 0
 
 
-def test_run_simulate_channels_extract(folder):
+def test_run_simulate_channels_extract(folder, capsys):
+    """simulate and channels as installed; extract in this process (the installed extract runs in
+    test_hardening.py::test_installed_extract_ends_with_its_own_exit_code, with its exit codes)."""
     log = folder / "t.csv"
     s = json.loads(_ok("simulate", "--coupling", str(folder / "linear.toml"), "--inertia-kgm2", "0.359",
                        "--drop-mass-kg", "2", "--height-m", "0.5", "--duration-s", "0.06", "--out", str(log),
@@ -89,7 +91,9 @@ def test_run_simulate_channels_extract(folder):
     assert s["contacts"] >= 1 and s["energy_balance_error_fraction"] < 0.01
     channels = json.loads(_ok("channels", str(log), "--json").stdout)
     assert {c["name"] for c in channels} >= {"angle_rad", "torque_nm"}
-    rows = json.loads(_ok("extract", str(log), "--json").stdout)
+    capsys.readouterr()
+    assert main(["extract", str(log), "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
     # Kelvin-Voigt coupling: c = J (omega^2 + delta^2) = k (Rapp et al. 2022, eq. 15)
     assert rows[0]["stiffness_nm_per_rad"] == pytest.approx(14000.0, rel=0.01)
 

@@ -13,7 +13,8 @@ from droptower.data import read_table4
 from droptower.errors import DroptowerError
 from droptower.maps import MapFit, fit_map, model
 from droptower.maps.forms import PAPER, VELOCITY, Equation, MapForm
-from droptower.maps.select import cv_groups
+from droptower.maps.results import REQUIRED
+from droptower.maps.select import cv_groups, fit_form
 
 
 def _rms(x: np.ndarray) -> float:
@@ -60,19 +61,25 @@ def test_auto_meets_the_targets_on_table4(table4: pd.DataFrame, auto_map: MapFit
     assert "exp_velocity" in m.form.ratio.terms
 
 
-@pytest.mark.slow
 def test_cross_validated_error_is_what_refitting_without_each_test_gives(table4: pd.DataFrame,
                                                                          auto_map: MapFit) -> None:
-    """The reported cross-validated errors, recomputed the slow way: the chosen form fitted from
-    scratch (full multi-start search) to the table without each row, predicting that row."""
+    """The reported cross-validated errors are the RMS of one error per left-out test, and each
+    is what the slow way gives: the chosen form fitted from scratch (full multi-start search) to
+    the table without that row, predicting it. The slow way is taken for the first, the last and
+    8 more rows drawn (seeded) of the 30, each within the 0.05 % the RMS was once compared to
+    (measured: 7e-6 at most over all 30)."""
     form = auto_map.form
-    err_c, err_d = np.empty(len(table4)), np.empty(len(table4))
-    for i in range(len(table4)):
+    a, f, c, d = (table4[col].to_numpy(float) for col in REQUIRED)
+    groups, method = cv_groups(table4)
+    folds = fit_form(form, a, f, c, d, groups, method)
+    assert _rms(folds.stiffness_cv_errors) * 100 == pytest.approx(auto_map.stats.stiffness_cv_rms_error_pct, rel=1e-12)
+    assert _rms(folds.damping_cv_errors) * 100 == pytest.approx(auto_map.stats.damping_ratio_cv_rms_error_pct, rel=1e-12)
+    rows = [0, len(table4) - 1, *np.random.default_rng(29).choice(np.arange(1, len(table4) - 1), 8, replace=False)]
+    for i in rows:
         m = fit_map(table4.drop(index=i), form=form)
-        c, d = _errors(m, table4.iloc[[i]])
-        err_c[i], err_d[i] = c[0], d[0]
-    assert _rms(err_c) * 100 == pytest.approx(auto_map.stats.stiffness_cv_rms_error_pct, abs=0.05)
-    assert _rms(err_d) * 100 == pytest.approx(auto_map.stats.damping_ratio_cv_rms_error_pct, abs=0.05)
+        err_c, err_d = _errors(m, table4.iloc[[i]])
+        assert err_c[0] == pytest.approx(folds.stiffness_cv_errors[i], abs=5e-4), i
+        assert err_d[0] == pytest.approx(folds.damping_cv_errors[i], abs=5e-4), i
 
 
 def test_paper_form_stays_the_default_reference(table4: pd.DataFrame) -> None:

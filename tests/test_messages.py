@@ -174,10 +174,13 @@ def test_output_places_are_blamed_not_inputs(log, tmp_path, capsys) -> None:
 def test_every_file_written_gets_one_summary_line(log, tmp_path, capsys) -> None:
     """``droptower: wrote PATH (what)`` on stderr for each file or folder written (stdout keeps
     the results); --quiet silences it."""
+    # a plan of two conditions (the default is Table 2's 90: the same lines, 90 predictions more)
+    (tmp_path / "two.toml").write_text('name = "two"\nheights_m = [0.2, 1.0]\n[[group]]\n'
+                                       'inertia_kgm2 = 0.359\ndrop_mass_kg = 2.0\n')
     runs = [
         (["simulate", *SIMULATE, "--duration-s", "0.05", "--out", "T/t.csv", "--plot", "T/t.png"], ["T/t.csv", "T/t.png"]),
         (["extract", str(log), "--out", "T/r.csv", "--plot", "T/fits"], ["T/r.csv", "T/fits"]),
-        (["plan", "--out", "T/plan.csv", "--plot", "T/plan.png"], ["T/plan.csv", "T/plan.png"]),
+        (["plan", "--doe", "T/two.toml", "--out", "T/plan.csv", "--plot", "T/plan.png"], ["T/plan.csv", "T/plan.png"]),
         (["servo", "rapp2022_nr60", "--amplitude-deg", "1", "--frequency-hz", "10", "--plot", "T/l.png"], ["T/l.png"]),
         (["map", "rapp2022_table4", "--out", "T/m.csv", "--plot", "T/figs"], ["T/m.csv", "T/figs"]),
     ]

@@ -18,7 +18,7 @@ from droptower.campaign import run_campaign
 from droptower.cli.main import main
 from droptower.compare.model_map import PAPER_ROUTE, ModelMap
 from droptower.rheology import coupling_to_toml, parse_coupling
-from test_report import PLAN, _chrome
+from test_report import PLAN, shared_chrome
 
 K, K_M, TAU = 20000.0, 6000.0, 1 / (2 * math.pi * 3.0)
 ROUTE = "model-based map, template"
@@ -118,19 +118,16 @@ def test_report_shows_both_routes_named(report):
 def test_two_routes_in_headless_chromium(report):
     from selenium.webdriver.support.ui import WebDriverWait
 
-    chrome = _chrome()
-    try:
-        chrome.get(report.as_uri() + "#extra0")
-        wait = WebDriverWait(chrome, 30)
-        wait.until(lambda d: d.execute_script("return document.querySelector('#extra0 .main-svg') !== null"))
-        names = chrome.execute_script("return [...document.querySelectorAll('#extra0 .legendtext')].map(e => e.textContent)")
-        assert any(n.startswith(ROUTE) for n in names) and any(n.startswith(PAPER_ROUTE) for n in names)
-        rows = chrome.execute_script("return document.querySelectorAll('#routes-table tbody tr').length")
-        assert rows == 6
-        severe = [e for e in chrome.get_log("browser") if e["level"] in ("SEVERE", "ERROR")]
-        assert severe == [], severe
-    finally:
-        chrome.quit()
+    chrome = shared_chrome()
+    chrome.get(report.as_uri() + "#extra0")
+    wait = WebDriverWait(chrome, 30)
+    wait.until(lambda d: d.execute_script("return document.querySelector('#extra0 .main-svg') !== null"))
+    names = chrome.execute_script("return [...document.querySelectorAll('#extra0 .legendtext')].map(e => e.textContent)")
+    assert any(n.startswith(ROUTE) for n in names) and any(n.startswith(PAPER_ROUTE) for n in names)
+    rows = chrome.execute_script("return document.querySelectorAll('#routes-table tbody tr').length")
+    assert rows == 6
+    severe = [e for e in chrome.get_log("browser") if e["level"] in ("SEVERE", "ERROR")]
+    assert severe == [], severe
 
 
 @pytest.mark.slow

@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 import time
 import tomllib
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -37,10 +38,37 @@ def shipped():
     return rig, coupling, predict_candidates(rig, coupling, PRELOADS)
 
 
+@contextmanager
+def shipped_candidates(shipped):
+    """``choose.predict_candidates`` answering the call ``shipped`` made (the rig, coupling and
+    preloads compared) with its candidates, any other call computed anew: the page and design
+    commands below predict the same candidates once per module. Yields the calls answered."""
+    from droptower.design import choose
+    from droptower.rheology import coupling_to_toml
+
+    rig, coupling, cands = shipped
+    computed = choose.predict_candidates
+    answered = []
+
+    def predict_candidates(r, c, preloads_nm, *args, **kwargs):
+        if (not args and not kwargs and r == rig and coupling_to_toml(c) == coupling_to_toml(coupling)
+                and tuple(map(float, preloads_nm)) == PRELOADS):
+            answered.append(True)
+            return cands.copy()
+        return computed(r, c, preloads_nm, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(choose, "predict_candidates", predict_candidates)
+        yield answered
+
+
 @pytest.fixture(scope="module")
-def page(tmp_path_factory) -> Path:
+def page(tmp_path_factory, shipped) -> Path:
+    """The page `droptower planner` writes for the shipped rig and coupling."""
     out = tmp_path_factory.mktemp("planner") / "planner.html"
-    assert main(["planner", "--out", str(out), "--preloads-nm", "0,500", "--quiet"]) == 0
+    with shipped_candidates(shipped) as answered:
+        assert main(["planner", "--out", str(out), "--preloads-nm", "0,500", "--quiet"]) == 0
+    assert answered == [True]  # the page's rig, coupling and preloads are those of `shipped`
     return out
 
 
@@ -206,7 +234,7 @@ def test_the_controls_change_the_prediction(chrome) -> None:
 
 
 @pytest.mark.slow
-def test_drag_a_target_and_download_the_plan_that_design_writes(chrome, tmp_path: Path) -> None:
+def test_drag_a_target_and_download_the_plan_that_design_writes(chrome, shipped, tmp_path: Path) -> None:
     """A box dragged on the plot becomes the target; the small target typed then designs a plan
     whose download equals `droptower design --out` (text and parsed) and runs with `campaign --doe`."""
     from selenium.webdriver.common.action_chains import ActionChains
@@ -231,8 +259,10 @@ def test_drag_a_target_and_download_the_plan_that_design_writes(chrome, tmp_path
     assert _severe(chrome) == []
 
     expected = tmp_path / "plan.toml"
-    assert main(["design", "--amplitude-deg", "0.5:0.7", "--frequency-hz", "44:47", "--preloads-nm", "0,500",
-                 "--repeats", "1", "--out", str(expected), "--quiet"]) == 0
+    with shipped_candidates(shipped) as answered:
+        assert main(["design", "--amplitude-deg", "0.5:0.7", "--frequency-hz", "44:47", "--preloads-nm", "0,500",
+                     "--repeats", "1", "--out", str(expected), "--quiet"]) == 0
+    assert answered == [True]
     assert tomllib.loads(text) == tomllib.loads(expected.read_text())
     assert text == expected.read_text()
     plan_toml = tmp_path / "downloaded.toml"

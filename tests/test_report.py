@@ -5,6 +5,7 @@ the fit the table reports; and in headless Chromium: no console errors, the tabl
 test's link draws its decay fit, and a screenshot at 1280 px."""
 from __future__ import annotations
 
+import atexit
 import base64
 import json
 import re
@@ -41,10 +42,21 @@ drop_mass_kg = 2.0
 """
 
 
+#: the campaign below, built once per process: test_report_decays and test_report_scale import the
+#: fixture and only read the folder (each writes its pages elsewhere)
+_CAMPAIGN: list[Path] = []
+
+
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory) -> Path:
     """A campaign on the calibrated coupling, then one test marked failed and one flagged in its
     results (as an extraction error and a second impact would leave them)."""
+    if not _CAMPAIGN:
+        _CAMPAIGN.append(_report_campaign(tmp_path_factory))
+    return _CAMPAIGN[0]
+
+
+def _report_campaign(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("report")
     (root / "plan.toml").write_text(PLAN)
     out = root / "campaign"
@@ -180,12 +192,31 @@ def _chrome():
     return webdriver.Chrome(service=Service(driver), options=options)
 
 
+#: one browser per process for the pages that are only loaded and read (the report, the split
+#: report, the two routes): a start of Chromium costs more than most of these tests
+_SHARED: list = []
+
+
+def shared_chrome():
+    """The process's Chromium (:func:`_chrome`, quit at exit), back at 1280 x 1000 px with the
+    log of earlier pages read away, so a test sees its own page's messages only."""
+    if not _SHARED:
+        browser = _chrome()
+        atexit.register(browser.quit)
+        _SHARED.append(browser)
+    browser = _SHARED[0]
+    browser.set_window_size(1280, 1000)
+    browser.get("about:blank")
+    browser.get_log("browser")
+    return browser
+
+
 @pytest.mark.slow
 def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    chrome = _chrome()
+    chrome = shared_chrome()
     try:
         chrome.get(report.as_uri())
         wait = WebDriverWait(chrome, 30)
@@ -237,4 +268,4 @@ def test_report_in_headless_chromium(report: Path, tmp_path: Path) -> None:
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") == 1280
         print(f"\nscreenshot: {shot}")
     finally:
-        chrome.quit()
+        chrome.set_window_size(1280, 1000)

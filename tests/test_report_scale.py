@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from droptower.report import write_report
-from test_report import _chrome, _fits, campaign  # noqa: F401  (the 12-test campaign fixture)
+from test_report import _fits, campaign, shared_chrome  # noqa: F401  (the 12-test campaign fixture)
 
 
 @pytest.fixture(scope="module")
@@ -64,22 +64,19 @@ def test_split_report_in_headless_chromium(split: Path) -> None:
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    chrome = _chrome()
-    try:
-        chrome.get(split.as_uri())
-        wait = WebDriverWait(chrome, 30)
-        rows = "return document.querySelectorAll('#tests-table tbody tr').length"
-        wait.until(lambda d: d.execute_script(rows) == 12)
-        title = "return (document.querySelector('#decay .gtitle') || {}).textContent || ''"
-        wait.until(lambda d: d.execute_script(title).startswith("f = "))  # the first test, from the first file
-        assert chrome.find_element(By.ID, "decay-title").text == "test_00000"
-        chrome.find_element(By.LINK_TEXT, "test_00011").click()  # in the third side file
-        wait.until(lambda d: d.find_element(By.ID, "decay-title").text == "test_00011")
-        wait.until(lambda d: d.execute_script(title).startswith("f = ") and
-                   d.execute_script("return document.getElementById('decay-message').textContent") == "")
-        loaded = chrome.execute_script("return [...document.querySelectorAll('head script[src]')].map(s => s.src)")
-        assert [src.rsplit("/", 1)[1] for src in loaded] == ["fits_0000.js", "fits_0002.js"]  # on demand only
-        severe = [e for e in chrome.get_log("browser") if e["level"] in ("SEVERE", "ERROR")]
-        assert severe == [], severe
-    finally:
-        chrome.quit()
+    chrome = shared_chrome()
+    chrome.get(split.as_uri())
+    wait = WebDriverWait(chrome, 30)
+    rows = "return document.querySelectorAll('#tests-table tbody tr').length"
+    wait.until(lambda d: d.execute_script(rows) == 12)
+    title = "return (document.querySelector('#decay .gtitle') || {}).textContent || ''"
+    wait.until(lambda d: d.execute_script(title).startswith("f = "))  # the first test, from the first file
+    assert chrome.find_element(By.ID, "decay-title").text == "test_00000"
+    chrome.find_element(By.LINK_TEXT, "test_00011").click()  # in the third side file
+    wait.until(lambda d: d.find_element(By.ID, "decay-title").text == "test_00011")
+    wait.until(lambda d: d.execute_script(title).startswith("f = ") and
+               d.execute_script("return document.getElementById('decay-message').textContent") == "")
+    loaded = chrome.execute_script("return [...document.querySelectorAll('head script[src]')].map(s => s.src)")
+    assert [src.rsplit("/", 1)[1] for src in loaded] == ["fits_0000.js", "fits_0002.js"]  # on demand only
+    severe = [e for e in chrome.get_log("browser") if e["level"] in ("SEVERE", "ERROR")]
+    assert severe == [], severe
