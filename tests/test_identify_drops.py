@@ -18,6 +18,7 @@ from droptower.identify.lever import at_times, free_decay
 from droptower.rig.config import load_rig
 from droptower.rig.impact import linear_free_decay
 from droptower.rig.simulate import DropTest, simulate
+from shared_fits import share_fits
 
 RIG = load_rig("rapp2022")
 CASES = [(0.1557, 1.0), (0.359, 2.0), (0.5233, 2.0)]
@@ -31,6 +32,14 @@ def _campaign(coupling, folder, heights=(0.2, 3.0), duration_s=0.1):
              for k, h in enumerate(heights)]
     folder.mkdir(parents=True, exist_ok=True)
     return [r.write_log(folder / f"test_{r.test.seed}.parquet") for r in simulate(RIG, coupling, tests, duration_s)]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): the command line's runs
+    of a fit a test already made (same family, logs and settings) report that fit."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,15 @@ from droptower.identify.noise import servo_noise
 from droptower.identify.report import ranking_table
 from droptower.identify.search import candidates, exchangeable_branches, global_fit, order_branches
 from droptower.identify.verdict import GOOD, NOISE_RATIO, POOR, bound_hits, judge
+from shared_fits import share_fits
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): the first zerodim6 draw's fit is
+    ranked in one test and followed by zerodim20 in another."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 
 def test_criterion_is_unit_free_and_penalises_parameters():
