@@ -51,6 +51,21 @@ def _previous_start(kind: str, previous: dict[str, Any] | None) -> Any:
             "global_search" in first.extra)
 
 
+def _given_options(kind: str, segments: list, options: dict[str, Any] | None) -> Any:
+    """``options`` less those equal to the family's defaults (a family that starts from the one
+    it contains passes it the defaults of the options they share: the same fit as none)."""
+    from droptower.identify.data import DataScale
+    from droptower.identify.families import family_class
+
+    if not options:
+        return fingerprint({})
+    try:
+        defaults = family_class(kind)(DataScale.of(segments)).options
+    except Exception:  # noqa: BLE001 - an unknown kind or bad data: the fit itself says so
+        defaults = {}
+    return fingerprint({k: v for k, v in options.items() if k not in defaults or defaults[k] != v})
+
+
 class FitCache:
     """Memoised :func:`~droptower.identify.strategies.identify` and
     :func:`~droptower.identify.dropfit.identify_drops`; ``calls`` / ``fits`` count them."""
@@ -70,7 +85,7 @@ class FitCache:
     def servo(self, kind: str, segments: list, *, init=None, bounds=None, options=None, holdout=None, previous=None,
               file=None, search: str = "auto", seed: int = 0) -> Any:
         key = ("servo", kind, fingerprint(segments), fingerprint(init or None), fingerprint(bounds or None),
-               fingerprint(options or {}), fingerprint(holdout), _previous_start(kind, previous), file, search, seed)
+               _given_options(kind, segments, options), fingerprint(holdout), _previous_start(kind, previous), file, search, seed)
         return self._get(key, lambda: self._servo(kind, segments, init=init, bounds=bounds, options=options,
                                                   holdout=holdout, previous=previous, file=file, search=search,
                                                   seed=seed))

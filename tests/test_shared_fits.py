@@ -43,12 +43,13 @@ def test_the_cache_fits_anew_when_any_argument_differs():
     other = [records[0]] + records[2:]
     cache.servo("pfeffer", records)
     assert cache.servo("pfeffer", list(records), options={}, init=None) == {"kind": "pfeffer"}  # the same call
-    for kw in ({"options": {"x": 1}}, {"holdout": records[:1]}, {"seed": 1}, {"search": "always"},
+    cache.servo("pfeffer", records, options={"max_nfev": 0, "substeps": 1})  # the defaults: the same call too
+    for kw in ({"options": {"x": 1}}, {"options": {"max_nfev": 5}}, {"holdout": records[:1]}, {"seed": 1}, {"search": "always"},
                {"init": {"k1_nm_per_rad": 1.0}}):
         cache.servo("pfeffer", records, **kw)
     cache.servo("pfeffer", other)
     cache.servo("zerodim6", records)
-    assert cache.calls == 9 and cache.fits == len(calls) == 8
+    assert cache.calls == 11 and cache.fits == len(calls) == 9
     first = cache.servo("pfeffer", records)
     first["kind"] = "changed"  # a caller's copy: the next caller gets the fit as made
     assert cache.servo("pfeffer", records) == {"kind": "pfeffer"}
