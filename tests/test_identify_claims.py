@@ -17,6 +17,15 @@ from droptower.rheology.elements import Pfeffer
 from droptower.servo import run_grid
 
 from test_identify_helpers import coupling, fitting_histories, random_history, records
+from shared_fits import share_fits
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): the command line's run with
+    --accept-poor writes the fit its run without it refused."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 
 @pytest.mark.slow

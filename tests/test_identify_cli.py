@@ -13,6 +13,15 @@ from droptower.cli.main import main
 from droptower.io import write_log
 
 from test_identify_helpers import fitting_histories, random_history
+from shared_fits import share_fits
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): compare-models ranks the fits
+    the single-family runs made (same family, records and options)."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 TRUTH = "seed000_six_parameter"
 

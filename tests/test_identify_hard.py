@@ -16,7 +16,7 @@ from droptower.identify.dropfit import DropFitSettings, DropProblem, drop_scale,
     servo_agreement
 from droptower.identify.droplogs import ReadSettings, read_decays
 from droptower.identify.families import ElastoslideFamily, MasingFamily, ZeroDim6, family_class
-from droptower.identify.fit import Parameter, fit_rows
+from droptower.identify.fit import FitVariable, fit_rows
 from droptower.identify.search import ACTS_FROM, ZERO_SHARE, basin_hops, candidates, global_fit, role_swaps, swap_roles
 from droptower.rheology import parse_coupling
 from droptower.rig.config import load_rig
@@ -93,9 +93,9 @@ def _relaxation_problem(rng):
     def residuals(rows):
         return (model(rows) - model(truth)) / 1e3
 
-    params = [Parameter("k1_nm_per_rad", 1.0, 1e6), Parameter("k2_nm_per_rad", 1.0, 1e6), Parameter("tau2_s", 1e-6, 1e4),
-              Parameter("k3_nm_per_rad", 1.0, 1e6), Parameter("k3_gain_nm_per_rad2", 0.0, 1e3 * 5e5, log=False, scale=5e5),
-              Parameter("tau3_s", 1e-6, 1e4)]
+    params = [FitVariable("k1_nm_per_rad", 1.0, 1e6), FitVariable("k2_nm_per_rad", 1.0, 1e6), FitVariable("tau2_s", 1e-6, 1e4),
+              FitVariable("k3_nm_per_rad", 1.0, 1e6), FitVariable("k3_gain_nm_per_rad2", 0.0, 1e3 * 5e5, log=False, scale=5e5),
+              FitVariable("tau3_s", 1e-6, 1e4)]
     return params, truth, residuals
 
 
@@ -237,7 +237,7 @@ def test_basin_hops_leave_a_local_minimum_a_local_fit_stays_in():
     """A cost with one local minimum per integer of x (a washboard on a parabola around
     x = 7.3): a local fit from x = 3.1 stays near 3; the hops from moves to other integers
     reach the global minimum."""
-    params = [Parameter("x", 0.0, 30.0, log=False), Parameter("y_nm", 1e-3, 1e3)]
+    params = [FitVariable("x", 0.0, 30.0, log=False), FitVariable("y_nm", 1e-3, 1e3)]
 
     def residuals(rows):
         rows = np.atleast_2d(rows)

@@ -10,11 +10,20 @@ import pytest
 
 from droptower.identify.criterion import TIE, bic, order
 from droptower.identify.data import make_segment
-from droptower.identify.fit import Metrics, Parameter, fit_rows
+from droptower.identify.fit import FitVariable, Metrics, fit_rows
 from droptower.identify.noise import servo_noise
 from droptower.identify.report import ranking_table
 from droptower.identify.search import candidates, exchangeable_branches, global_fit, order_branches
 from droptower.identify.verdict import GOOD, NOISE_RATIO, POOR, bound_hits, judge
+from shared_fits import share_fits
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): the first zerodim6 draw's fit is
+    ranked in one test and followed by zerodim20 in another."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 
 def test_criterion_is_unit_free_and_penalises_parameters():
@@ -84,7 +93,7 @@ def test_a_systematic_misfit_does_not_win_by_its_correlated_residual():
 
 
 def test_latin_hypercube_fills_every_stratum_of_the_bounds():
-    params = [Parameter("k_nm_per_rad", 1e-2, 1e6), Parameter("beta", 0.0, 10.0, log=False, scale=2.0)]
+    params = [FitVariable("k_nm_per_rad", 1e-2, 1e6), FitVariable("beta", 0.0, 10.0, log=False, scale=2.0)]
     rows = candidates(params, np.array([1.0, 1.0]), np.array([True, True]), 101, seed=4)
     assert np.allclose(rows[0], [1.0, 1.0])  # the first guess is a candidate
     z = np.log(rows[1:, 0])
@@ -94,14 +103,14 @@ def test_latin_hypercube_fills_every_stratum_of_the_bounds():
 
 
 def test_exchangeable_branches_are_ordered_by_relaxation_time():
-    params = [Parameter("a_nm_per_rad", 1, 10), Parameter("c1_nm_per_rad", 1, 1e4), Parameter("tau1_s", 1e-6, 1e3),
-              Parameter("c2_nm_per_rad", 1, 1e4), Parameter("tau2_s", 1e-6, 1e3)]
+    params = [FitVariable("a_nm_per_rad", 1, 10), FitVariable("c1_nm_per_rad", 1, 1e4), FitVariable("tau1_s", 1e-6, 1e3),
+              FitVariable("c2_nm_per_rad", 1, 1e4), FitVariable("tau2_s", 1e-6, 1e3)]
     assert exchangeable_branches(params) == [[2, 1], [4, 3]]
     rows = np.array([[5.0, 100.0, 1.0, 200.0, 0.01], [5.0, 300.0, 0.001, 400.0, 0.1]])
     out = order_branches(params, rows)
     assert np.allclose(out, [[5.0, 200.0, 0.01, 100.0, 1.0], [5.0, 300.0, 0.001, 400.0, 0.1]])
     # branches that differ (another partner, other bounds) are not exchangeable
-    other = params[:4] + [Parameter("tau2_s", 1e-6, 1.0)]
+    other = params[:4] + [FitVariable("tau2_s", 1e-6, 1.0)]
     assert exchangeable_branches(other) == []
 
 
@@ -118,7 +127,7 @@ def test_global_fit_finds_an_oscillation_a_local_fit_misses(seed):
         rows = np.atleast_2d(rows)
         return rows[:, [0]] * np.sin(2 * np.pi * rows[:, [1]] * t) - truth[0] * np.sin(2 * np.pi * truth[1] * t)
 
-    params = [Parameter("c_nm_per_rad", 1e-2, 1e2), Parameter("f_hz", 1.0, 300.0)]
+    params = [FitVariable("c_nm_per_rad", 1e-2, 1e2), FitVariable("f_hz", 1.0, 300.0)]
     x0, free = np.array([1.0, 200.0]), np.ones(2, bool)
     local = fit_rows(params, x0, residuals, free=free, max_nfev=200)
     best, summary = global_fit(params, x0, residuals, free=free, n_candidates=256, seed=seed, max_nfev=200)
@@ -138,7 +147,7 @@ def test_verdict_against_the_noise_floor_and_bounds():
     assert at.verdict == POOR and "tau2_s" in at.reasons[0]
     assert judge(1.0, 1.0, "nm", [], converged=False).verdict == POOR
     assert set(judge(1.0, 1.0, "nm", []).as_dict()) >= {"verdict", "reasons", "noise_floor_nm", "error_over_noise"}
-    params = [Parameter("k3_gain_nm_per_rad2", 0.0, 10.0, log=False), Parameter("tau2_s", 0.1, 10.0)]
+    params = [FitVariable("k3_gain_nm_per_rad2", 0.0, 10.0, log=False), FitVariable("tau2_s", 0.1, 10.0)]
     assert bound_hits(params, ["k3_gain_nm_per_rad2", "tau2_s"]) == ["tau2_s"]
 
 

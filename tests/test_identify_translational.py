@@ -18,6 +18,15 @@ from droptower.identify import identify, make_segment, segments_from_files
 from droptower.identify.report import result_dict
 from droptower.rheology import parse_coupling
 from droptower.servo import histories as H
+from shared_fits import share_fits
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): the command line's and
+    compare-models' fits of the exports the library calls fitted already are those fits."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 FS = 512.0
 UREG = pint.UnitRegistry()

@@ -40,8 +40,10 @@ one_blas_thread = threadpool_limits.wrap(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True)
-class Parameter:
-    """One model parameter: name (with its unit as suffix), bounds, and how it is optimised.
+class FitVariable:
+    """One variable of the optimiser: a model parameter's name (with its unit as suffix), its
+    bounds, and how it is optimised. (The result's parameters, with values and standard
+    errors, are :class:`droptower.identify.result.Parameter`.)
 
     log: optimised as ln(value) (positive parameters spanning decades; lower > 0); otherwise
     as value / scale (parameters that may be 0).
@@ -69,7 +71,7 @@ class Parameter:
 class Model(Protocol):
     """What the fitting engine needs of a model family."""
 
-    parameters: list[Parameter]
+    parameters: list[FitVariable]
 
     def batch(self, values: np.ndarray) -> Coupling:
         """One coupling whose parameter sets are the rows of ``values`` (M, n)."""
@@ -185,7 +187,7 @@ class FitResult:
                 "message": self.message, "non_identifiable": self.non_identifiable}
 
 
-def check_in_bounds(parameters: list[Parameter], values: np.ndarray, file: str | None = None) -> None:
+def check_in_bounds(parameters: list[FitVariable], values: np.ndarray, file: str | None = None) -> None:
     """A one-line error for the first value outside its parameter's bounds."""
     for p, v in zip(parameters, values):
         if not (np.isfinite(v) and p.lower <= v <= p.upper):
@@ -193,7 +195,7 @@ def check_in_bounds(parameters: list[Parameter], values: np.ndarray, file: str |
                                  file=file)
 
 
-def clip_to_bounds(parameters: list[Parameter], values: np.ndarray) -> np.ndarray:
+def clip_to_bounds(parameters: list[FitVariable], values: np.ndarray) -> np.ndarray:
     """Data-driven guesses pulled strictly inside the bounds (TRF starts from an interior point)."""
     out = np.array(values, dtype=float)
     for i, p in enumerate(parameters):
@@ -204,7 +206,7 @@ def clip_to_bounds(parameters: list[Parameter], values: np.ndarray) -> np.ndarra
     return out
 
 
-def at_bounds(parameters: list[Parameter], values: np.ndarray, rel: float = 1e-6) -> list[str]:
+def at_bounds(parameters: list[FitVariable], values: np.ndarray, rel: float = 1e-6) -> list[str]:
     """Names of the parameters whose value lies on (within ``rel`` of the range from) a bound."""
     out = []
     for p, v in zip(parameters, values):
@@ -273,7 +275,7 @@ class RowsFit:
     """The solution of :func:`fit_rows`: values (all parameters, physical), the optimiser's
     word, the residual r and its Jacobian in the optimised variables (columns: free parameters)."""
 
-    parameters: list[Parameter]
+    parameters: list[FitVariable]
     values: np.ndarray
     free: np.ndarray
     residual: np.ndarray
@@ -344,7 +346,7 @@ NON_IDENTIFIABLE = 1e-4
 
 
 @one_blas_thread
-def fit_rows(parameters: list[Parameter], initial: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
              free: np.ndarray | None = None, max_nfev: int | None = None, tol: float = 1e-7) -> RowsFit:
     """Bounded trust-region-reflective least squares on ``residuals``.
 

@@ -233,7 +233,7 @@ class Parameters(dict):
 def fitted_parameters(specs: list[Any], values: np.ndarray, stderr: np.ndarray | None = None,
                       vary: np.ndarray | None = None) -> Parameters:
     """:class:`Parameters` of a fit: the optimiser's parameter specs
-    (:class:`~droptower.identify.fit.Parameter`: name, lower, upper), the values, their
+    (:class:`~droptower.identify.fit.FitVariable`: name, lower, upper), the values, their
     standard errors (NaN where not estimated) and which were fitted (default: all)."""
     n = len(specs)
     stderr = np.full(n, np.nan) if stderr is None else np.asarray(stderr, float)

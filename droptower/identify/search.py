@@ -38,7 +38,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy.stats import qmc
 
-from droptower.identify.fit import Parameter, clip_to_bounds, fit_rows
+from droptower.identify.fit import FitVariable, clip_to_bounds, fit_rows
 
 #: Candidates evaluated per batch (one call of the residual function each).
 BATCH = 64
@@ -61,7 +61,7 @@ ACTS_FROM = 1e-3
 DECADES_FROM = 100.0
 
 
-def exchangeable_branches(parameters: list[Parameter]) -> list[list[int]]:
+def exchangeable_branches(parameters: list[FitVariable]) -> list[list[int]]:
     """Index groups, one per branch (its relaxation time first), of branches that differ only
     by their number: same parameter names apart from it and the same bounds."""
     names = [p.name for p in parameters]
@@ -93,7 +93,7 @@ def _branches(names: list[str]) -> dict[str, list[int]]:
     return out
 
 
-def role_swaps(parameters: list[Parameter]) -> list[list[tuple[int, int]]]:
+def role_swaps(parameters: list[FitVariable]) -> list[list[tuple[int, int]]]:
     """Pairs of branches that are not exchangeable (other partners, e.g. a fixed and a variable
     Maxwell branch) but whose relaxation times share their bounds: per pair, the index pairs
     whose values swap to exchange their roles (the relaxation times, and the partners of the
@@ -125,7 +125,7 @@ def swap_roles(rows: np.ndarray, swap: list[tuple[int, int]]) -> np.ndarray:
     return rows
 
 
-def order_branches(parameters: list[Parameter], rows: np.ndarray) -> np.ndarray:
+def order_branches(parameters: list[FitVariable], rows: np.ndarray) -> np.ndarray:
     """``rows`` with every set of exchangeable branches sorted by relaxation time (ascending)."""
     groups = exchangeable_branches(parameters)
     if not groups:
@@ -143,7 +143,7 @@ def order_branches(parameters: list[Parameter], rows: np.ndarray) -> np.ndarray:
     return rows
 
 
-def candidates(parameters: list[Parameter], x0: np.ndarray, free: np.ndarray, n: int, seed: int = 0,
+def candidates(parameters: list[FitVariable], x0: np.ndarray, free: np.ndarray, n: int, seed: int = 0,
                choices: dict[int, list[float]] | None = None, near: int = 0) -> np.ndarray:
     """``n`` parameter sets (rows, physical values): ``x0`` first, then ``near`` Latin-hypercube
     points within +-:data:`NEAR` of it (clipped to the bounds), then a Latin hypercube over the
@@ -203,7 +203,7 @@ def costs(residuals: Callable[[np.ndarray], np.ndarray], rows: np.ndarray, batch
     return np.concatenate(out)
 
 
-def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray, keep: int,
+def best_starts(parameters: list[FitVariable], rows: np.ndarray, cost: np.ndarray, keep: int,
                 min_distance: float = 0.05) -> np.ndarray:
     """The ``keep`` lowest-cost rows that differ from each other by more than ``min_distance``
     of the box (in the optimised variables, largest coordinate)."""
@@ -219,7 +219,7 @@ def best_starts(parameters: list[Parameter], rows: np.ndarray, cost: np.ndarray,
     return rows[chosen]
 
 
-def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+def global_fit(parameters: list[FitVariable], x0: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
                free: np.ndarray, n_candidates: int, keep: int = 3, seed: int = 0, max_nfev: int | None = None,
                tol: float = 1e-7, choices: dict[int, list[float]] | None = None, near: int = 0,
                local: Callable[[np.ndarray, float], Any] | None = None,
@@ -272,7 +272,7 @@ def global_fit(parameters: list[Parameter], x0: np.ndarray, residuals: Callable[
                   "local_fits": len(fits), "local_costs": local_costs, "role_swapped_costs": swapped_costs}
 
 
-def basin_hops(parameters: list[Parameter], moves: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
+def basin_hops(parameters: list[FitVariable], moves: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
                keep: int, local: Callable[[np.ndarray, float], Any],
                cost_of: Callable[[Any], float] = lambda f: float(f.residual @ f.residual),
                refine: Callable[[np.ndarray, float], Any] | None = None, tol: float = 1e-7) -> tuple[Any, dict]:

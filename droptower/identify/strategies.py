@@ -17,7 +17,7 @@ from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.base import COMMON_OPTIONS
 from droptower.identify.families.stages import Setup, result_of, setup
-from droptower.identify.fit import Identification, Parameter, least_squares_fit, one_blas_thread, simulate
+from droptower.identify.fit import FitVariable, Identification, least_squares_fit, one_blas_thread, simulate
 from droptower.identify.noise import NoiseFloor, servo_noise
 from droptower.identify.result import Parameters, servo_given
 from droptower.identify.search import global_fit
@@ -104,7 +104,7 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
     return result
 
 
-def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Parameter]) -> Verdict:
+def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[FitVariable]) -> Verdict:
     """The fit's RMS torque error against the records' noise floor (N*m), with the model's
     discretisation error at the sample step (the last stage's) added in quadrature."""
     step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0

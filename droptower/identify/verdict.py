@@ -28,7 +28,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from droptower.identify.fit import Parameter
+from droptower.identify.fit import FitVariable
 from droptower.units import printed_unit
 
 #: A fit error above this multiple of the noise allowance is a poor fit.
@@ -66,7 +66,7 @@ class Verdict:
         return head + "".join(f"\n  - {r}" for r in self.reasons)
 
 
-def bound_hits(parameters: list[Parameter], at_bounds: list[str]) -> list[str]:
+def bound_hits(parameters: list[FitVariable], at_bounds: list[str]) -> list[str]:
     """Parameters on a bound that count against a fit (not a linear term switched off at 0)."""
     by_name = {p.name: p for p in parameters}
     out = []

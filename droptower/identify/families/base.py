@@ -14,7 +14,7 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 from droptower.identify.data import DataScale
-from droptower.identify.fit import Parameter, clip_to_bounds
+from droptower.identify.fit import FitVariable, clip_to_bounds
 from droptower.rheology import Coupling, parse_coupling
 
 
@@ -39,10 +39,10 @@ class Family:
             raise DroptowerError(f"unknown option(s) {', '.join(sorted(unknown))} for model {self.kind} "
                                  f"(known: {', '.join(known)})")
         self.options = {**COMMON_OPTIONS, **self.OPTIONS, **options}
-        self.parameters: list[Parameter] = self._parameters()
+        self.parameters: list[FitVariable] = self._parameters()
 
     # -------------------------------------------------------------- per family
-    def _parameters(self) -> list[Parameter]:  # pragma: no cover - abstract
+    def _parameters(self) -> list[FitVariable]:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def guess(self) -> np.ndarray:  # pragma: no cover - abstract
@@ -92,5 +92,5 @@ class Family:
 COMMON_OPTIONS: dict[str, Any] = {"max_nfev": 0, "skip_s": 0.0, "substeps": 1}
 
 
-def stiffness_parameter(name: str, s: DataScale, lo: float = 1e-4, hi: float = 1e3) -> Parameter:
-    return Parameter(name, lo * s.stiffness_nm_per_rad, hi * s.stiffness_nm_per_rad)
+def stiffness_parameter(name: str, s: DataScale, lo: float = 1e-4, hi: float = 1e3) -> FitVariable:
+    return FitVariable(name, lo * s.stiffness_nm_per_rad, hi * s.stiffness_nm_per_rad)

@@ -17,7 +17,7 @@ from droptower.identify.cycles import turning_points
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
-from droptower.identify.fit import Counter, FitResult, Identification, Parameter, batch_search, clip_to_bounds
+from droptower.identify.fit import Counter, FitResult, FitVariable, Identification, batch_search, clip_to_bounds
 
 class ElastoslideFamily(Family):
     """The elastoslide paper's distributed rate-dependent elastoslide model: phi0, k, k0, v_r, p; with
@@ -42,10 +42,10 @@ class ElastoslideFamily(Family):
             raise DroptowerError(f"option maxwell_terms must be 0, 1 or 2, got {self.options['maxwell_terms']}")
         maxwell = []
         for i in range(self.n_maxwell):
-            maxwell += [stiffness_parameter(f"c{i + 1}_nm_per_rad", s, 1e-6, 1e2), Parameter(f"tau{i + 1}_s", 1e-6, 1e3)]
-        return [Parameter("phi0_per_nm", 1e-4 / s.torque_nm, 1e4 / s.torque_nm),
+            maxwell += [stiffness_parameter(f"c{i + 1}_nm_per_rad", s, 1e-6, 1e2), FitVariable(f"tau{i + 1}_s", 1e-6, 1e3)]
+        return [FitVariable("phi0_per_nm", 1e-4 / s.torque_nm, 1e4 / s.torque_nm),
                 stiffness_parameter("k_nm_per_rad", s, 1e-3, 1e4), stiffness_parameter("k0_nm_per_rad", s, 1e-6, 1e2),
-                Parameter("v_r_rad_per_s", 1e-8, 1e4), Parameter("p", 1.0, 99.0, log=False)] + maxwell
+                FitVariable("v_r_rad_per_s", 1e-8, 1e4), FitVariable("p", 1.0, 99.0, log=False)] + maxwell
 
     @property
     def n_maxwell(self) -> int:

@@ -28,7 +28,7 @@ from droptower.identify.cycles import evaluate_block
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
-from droptower.identify.fit import Identification, Parameter, clip_to_bounds
+from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
 from droptower.rheology.elements import FillerNetwork, PowerLaw
 
 #: Relative margin that keeps the power-law band's term count at the ``terms`` option exactly
@@ -78,7 +78,7 @@ class FilledRubberFamily(Family):
     OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
                "stiffening_branch": True}
 
-    def _parameters(self) -> list[Parameter]:
+    def _parameters(self) -> list[FitVariable]:
         s = self.scale
         amp, f = s.amplitude_rad, max(s.frequency_hz, 1e-3)
         if int(self.options["terms"]) < 2 or int(self.options["n"]) < 2:
@@ -89,19 +89,19 @@ class FilledRubberFamily(Family):
                 raise DroptowerError(f"option {key} of model {self.kind} must be > 0, got {self.options[key]}")
         cubic = s.torque_nm / amp ** 3
         return [stiffness_parameter("k_nm_per_rad", s, 1e-3, 10.0),
-                Parameter("a_nm_per_rad3", 0.0, 10.0 * cubic, log=False, scale=cubic),
+                FitVariable("a_nm_per_rad3", 0.0, 10.0 * cubic, log=False, scale=cubic),
                 stiffness_parameter("kf_nm_per_rad", s, 1e-3, 30.0),
-                Parameter("critical_angle_rad", 1e-4 * amp, 10.0 * amp),
-                Parameter("exponent", 0.1, 2.0),
-                Parameter("breakdown_angle_rad", 1e-3 * amp, 100.0 * amp),
+                FitVariable("critical_angle_rad", 1e-4 * amp, 10.0 * amp),
+                FitVariable("exponent", 0.1, 2.0),
+                FitVariable("breakdown_angle_rad", 1e-3 * amp, 100.0 * amp),
                 stiffness_parameter("kp_nm_per_rad", s, 1e-4, 10.0),
-                Parameter("matrix_loss_factor", 0.01, 5.0),
-                Parameter("min_frequency_hz", 1e-3 * f, 30.0 * f),
-                Parameter("band_decades", 0.3, 6.0),
+                FitVariable("matrix_loss_factor", 0.01, 5.0),
+                FitVariable("min_frequency_hz", 1e-3 * f, 30.0 * f),
+                FitVariable("band_decades", 0.3, 6.0),
                 stiffness_parameter("kv_nm_per_rad", s, 1e-4, 10.0),
-                Parameter("kv_gain_nm_per_rad2", 0.0, 10.0 * s.stiffness_nm_per_rad / amp, log=False,
+                FitVariable("kv_gain_nm_per_rad2", 0.0, 10.0 * s.stiffness_nm_per_rad / amp, log=False,
                           scale=s.stiffness_nm_per_rad / amp),
-                Parameter("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))]
+                FitVariable("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))]
 
     #: The stiffening Maxwell branch's parameters: a drop-test fit searches first with the branch
     #: off (:meth:`branch_off`) and frees them in its wider search after a poor verdict, so a

@@ -17,7 +17,7 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, levels, result_of, steady_blocks
-from droptower.identify.fit import (Identification, Parameter, at_bounds, clip_to_bounds, metrics, simulate,
+from droptower.identify.fit import (FitVariable, Identification, at_bounds, clip_to_bounds, metrics, simulate,
                                     simulate_rows)
 
 class MasingFamily(Family):
@@ -40,16 +40,16 @@ class MasingFamily(Family):
     def _parameters(self):
         s = self.scale
         k = s.stiffness_nm_per_rad
-        out = [Parameter("a_nm_per_rad3", 0.0, 1e3 * s.torque_nm / s.amplitude_rad ** 3, log=False,
+        out = [FitVariable("a_nm_per_rad3", 0.0, 1e3 * s.torque_nm / s.amplitude_rad ** 3, log=False,
                          scale=s.torque_nm / s.amplitude_rad ** 3),
-               Parameter("b_nm_per_rad", 0.0, 1e3 * k, log=False, scale=k),
-               stiffness_parameter("k_nm_per_rad", s, 1e-4, 1e4), Parameter("r_nm", 1e-6 * s.torque_nm, 1e3 * s.torque_nm),
-               Parameter("alpha", 0.0, 30.0, log=False)]
+               FitVariable("b_nm_per_rad", 0.0, 1e3 * k, log=False, scale=k),
+               stiffness_parameter("k_nm_per_rad", s, 1e-4, 1e4), FitVariable("r_nm", 1e-6 * s.torque_nm, 1e3 * s.torque_nm),
+               FitVariable("alpha", 0.0, 30.0, log=False)]
         if self.options["constriction"]:
-            out += [Parameter("p_c_per_rad", 1e-3 / s.amplitude_rad, 1e4 / s.amplitude_rad),
-                    Parameter("k_c", 0.0, 1e3, log=False)]
-        out += [stiffness_parameter("c1_nm_per_rad", s), Parameter("tau1_s", 1e-6, 1e3),
-                stiffness_parameter("c2_nm_per_rad", s), Parameter("tau2_s", 1e-6, 1e3)]
+            out += [FitVariable("p_c_per_rad", 1e-3 / s.amplitude_rad, 1e4 / s.amplitude_rad),
+                    FitVariable("k_c", 0.0, 1e3, log=False)]
+        out += [stiffness_parameter("c1_nm_per_rad", s), FitVariable("tau1_s", 1e-6, 1e3),
+                stiffness_parameter("c2_nm_per_rad", s), FitVariable("tau2_s", 1e-6, 1e3)]
         return out
 
     @property

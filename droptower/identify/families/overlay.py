@@ -16,7 +16,7 @@ from droptower.identify.cycles import evaluate_block, local_amplitude_frequency
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, steady_blocks
-from droptower.identify.fit import FitResult, Identification, Parameter, metrics
+from droptower.identify.fit import FitResult, FitVariable, Identification, metrics
 from droptower.identify.result import Parameters
 
 class OverlayFamily(Family):
@@ -33,7 +33,7 @@ class OverlayFamily(Family):
 
     def _parameters(self):
         s = self.scale
-        return [stiffness_parameter("k_nm_per_rad", s), Parameter("c_nms_per_rad", 1e-9 * s.stiffness_nm_per_rad,
+        return [stiffness_parameter("k_nm_per_rad", s), FitVariable("c_nms_per_rad", 1e-9 * s.stiffness_nm_per_rad,
                                                          1e3 * s.stiffness_nm_per_rad)]
 
     def guess(self):

@@ -16,7 +16,7 @@ from droptower.identify.cycles import evaluate_block
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, split_by_speed, static_stiffness, steady_blocks
-from droptower.identify.fit import Identification, Parameter, clip_to_bounds, metrics, simulate
+from droptower.identify.fit import FitVariable, Identification, clip_to_bounds, metrics, simulate
 from droptower.rheology.elements import Pfeffer
 
 class PfefferFamily(Family):
@@ -29,8 +29,8 @@ class PfefferFamily(Family):
     OPTIONS = {"layout_frequency_hz": 0.0, "peak_frequency_hz": 0.0}
 
     def _parameters(self):
-        return [stiffness_parameter("k1_nm_per_rad", self.scale), Parameter("alpha", 1e-4, 1e3),
-                Parameter("beta", 0.0, 1e3, log=False), Parameter("gamma_s", 1e-7, 1e3)]
+        return [stiffness_parameter("k1_nm_per_rad", self.scale), FitVariable("alpha", 1e-4, 1e3),
+                FitVariable("beta", 0.0, 1e3, log=False), FitVariable("gamma_s", 1e-7, 1e3)]
 
     def guess(self):
         s = self.scale

@@ -19,7 +19,7 @@ from droptower.errors import DroptowerError
 from droptower.identify.cycles import Block, blocks, cycles
 from droptower.identify.data import DataScale, Segment, characteristic_frequency
 from droptower.identify.families.base import Family
-from droptower.identify.fit import (FitResult, Identification, Metrics, Parameter, check_in_bounds, clip_to_bounds,
+from droptower.identify.fit import (FitResult, FitVariable, Identification, Metrics, check_in_bounds, clip_to_bounds,
                                     least_squares_fit, simulate)
 from droptower.identify.result import fitted_parameters
 from droptower.io.fields import field_name
@@ -98,7 +98,7 @@ def setup_family(family: Family, init: dict[str, float] | None = None,
         if not (lo < hi) or (p.log and lo <= 0):
             raise DroptowerError(f"bounds of {name} must satisfy {'0 < ' if p.log else ''}lower < upper, "
                                  f"got [{lo:g}, {hi:g}]", file=file)
-        family.parameters[i] = Parameter(p.name, float(lo), float(hi), p.log, p.scale)
+        family.parameters[i] = FitVariable(p.name, float(lo), float(hi), p.log, p.scale)
     x0 = family.initial()
     given = np.zeros(len(names), bool)
     for name, value in (init or {}).items():

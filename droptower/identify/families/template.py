@@ -21,7 +21,7 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import Setup, result_of
-from droptower.identify.fit import Identification, Parameter
+from droptower.identify.fit import FitVariable, Identification
 from droptower.rheology import Coupling, load_coupling, parse_coupling
 
 
@@ -37,7 +37,7 @@ class TemplateFamily(Family):
     source = "droptower identify (template family)"
     OPTIONS = {"template": "rapp2022_nr60", "factor_range": 30.0}
 
-    def _parameters(self) -> list[Parameter]:
+    def _parameters(self) -> list[FitVariable]:
         template = self.options["template"]
         if not isinstance(template, (str, Coupling)):
             raise DroptowerError(f"option template must be a coupling preset name or file, got {template!r}")
@@ -67,7 +67,7 @@ class TemplateFamily(Family):
                 names.append(f"{label}_{key}_factor")
         if not self.fields:
             raise DroptowerError(f"the template {self.template.name} has no real numbers to fit")
-        return [Parameter(n, 1.0 / r, r) for n in names]
+        return [FitVariable(n, 1.0 / r, r) for n in names]
 
     def guess(self) -> np.ndarray:
         return np.ones(len(self.fields))

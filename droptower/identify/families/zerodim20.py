@@ -13,7 +13,7 @@ from droptower.identify.data import DataScale, Segment
 from droptower.identify.families.base import COMMON_OPTIONS, Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, setup
 from droptower.identify.families.zerodim6 import ZeroDim6, staged_fit
-from droptower.identify.fit import FitResult, Identification, Parameter, clip_to_bounds
+from droptower.identify.fit import FitResult, FitVariable, Identification, clip_to_bounds
 from droptower.rheology import parse_coupling
 
 #: A lookup-table value may move by this factor from the six-parameter start.
@@ -57,10 +57,10 @@ class ZeroDim20(Family):
         excess = ([f"k3_excess_to_minus_e{m}" for m in range(half, 0, -1)]
                   + [f"k3_excess_to_e{m}" for m in range(1, half + 1)])
         return ([stiffness_parameter("k_slow_nm_per_rad", s), stiffness_parameter("k_fast_minus_slow_nm_per_rad", s),
-                 Parameter("tau_mullins_s", 1e-3, 1e4), stiffness_parameter("k3_at_0_nm_per_rad", s)]
-                + [Parameter(n, 1e-6, 1e3) for n in excess]
-                + [Parameter("c3_at_0_nms_per_rad", 1e-9 * c_hi, c_hi)]
-                + [Parameter(f"c3_excess_to_v{i}", 1e-6, 1e3) for i in range(1, self.N_DAMP)])
+                 FitVariable("tau_mullins_s", 1e-3, 1e4), stiffness_parameter("k3_at_0_nm_per_rad", s)]
+                + [FitVariable(n, 1e-6, 1e3) for n in excess]
+                + [FitVariable("c3_at_0_nms_per_rad", 1e-9 * c_hi, c_hi)]
+                + [FitVariable(f"c3_excess_to_v{i}", 1e-6, 1e3) for i in range(1, self.N_DAMP)])
 
     def set_breakpoints(self, deformation_max_rad: float, rate_max_rad_per_s: float) -> None:
         """Table breakpoints: stiffness over +-deformation_max (the branch spring's own
@@ -172,7 +172,7 @@ def identify_zerodim20(s: Setup, segments: list[Segment], start: float, previous
                 # breakpoints) stays within a factor of TABLE_RANGE of the six-parameter start, so
                 # a breakpoint the data hardly reach cannot run off (and spoil the model just
                 # beyond the fitting data)
-                fam.parameters[i] = Parameter(p.name, max(p.lower, x[i] / TABLE_RANGE), min(p.upper, x[i] * TABLE_RANGE),
+                fam.parameters[i] = FitVariable(p.name, max(p.lower, x[i] / TABLE_RANGE), min(p.upper, x[i] * TABLE_RANGE),
                                               p.log, p.scale)
                 x[i] = clip_to_bounds([fam.parameters[i]], [x[i]])[0]
     r = s.fit(segments, x, None, "joint (20 parameters)")

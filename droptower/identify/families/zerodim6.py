@@ -13,7 +13,7 @@ import numpy as np
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import STAGE_TOL, Setup, result_of, split_by_speed, static_stiffness, sweeps
-from droptower.identify.fit import FitResult, Identification, Parameter, batch_search
+from droptower.identify.fit import FitResult, FitVariable, Identification, batch_search
 
 class ZeroDim6(Family):
     """The zero-dimensional model paper's six-parameter model: spring K1 || Maxwell(K2, C2) || Maxwell(K3(e), C3).
@@ -34,10 +34,10 @@ class ZeroDim6(Family):
         s, split = self.scale, float(self.options["tau_split_s"])
         slow, fast = ((split, 1e4), (1e-6, split)) if split > 0 else ((1e-6, 1e4), (1e-6, 1e4))
         return [stiffness_parameter("k1_nm_per_rad", s), stiffness_parameter("k2_nm_per_rad", s),
-                Parameter("tau2_s", *slow), stiffness_parameter("k3_nm_per_rad", s),
-                Parameter("k3_gain_nm_per_rad2", 0.0, 1e3 * s.stiffness_nm_per_rad / s.amplitude_rad, log=False,
+                FitVariable("tau2_s", *slow), stiffness_parameter("k3_nm_per_rad", s),
+                FitVariable("k3_gain_nm_per_rad2", 0.0, 1e3 * s.stiffness_nm_per_rad / s.amplitude_rad, log=False,
                           scale=s.stiffness_nm_per_rad / s.amplitude_rad),
-                Parameter("tau3_s", *fast)]
+                FitVariable("tau3_s", *fast)]
 
     def guess(self):
         s = self.scale
