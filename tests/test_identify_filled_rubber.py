@@ -164,7 +164,6 @@ def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled
             assert table["delta_bic"].iloc[1] > 10
 
 
-@pytest.mark.slow
 def test_translational_records_name_parameters_in_metres_and_newtons(monkeypatch):
     """A bushing of the family's structure read as m / N: the same identification as its
     torsional twin (the same numbers out of every stage: the scale and bounds, the first guess
