@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from droptower.cli.main import main
-from droptower.identify import identify
+from droptower.identify import Identification, identify
 from droptower.identify.data import DataScale
 from droptower.identify.families import FAMILIES, FilledRubberFamily
 from droptower.identify.report import ranking_table
@@ -117,55 +117,81 @@ def test_first_guess_reproduces_the_readings_of_its_own_closed_form(seed):
                                                        np.zeros(len(x0), bool)) is x0
 
 
+@pytest.fixture(scope="module")
+def servo_case():
+    """``servo_case(seed)``: a seeded random coupling of the family's structure (not the family's
+    discretisation of the band), its test-type records (0.5 % noise), a hold-out record and the
+    identification with it; made once per module (the ranking reuses seed 1's)."""
+    made: dict[int, tuple] = {}
+
+    def case(seed: int) -> tuple[list, Identification]:
+        if seed not in made:
+            truth = parse_coupling(random_truth("filled_rubber", np.random.default_rng(30_000 + seed)))
+            data = servo_records(truth, seed)
+            made[seed] = data, identify("filled_rubber", data, holdout=servo_records(truth, 50 + seed)[-1:])
+        return made[seed]
+
+    return case
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(2))
-def test_servo_records_of_random_filled_rubber_are_recovered(seed):
+def test_servo_records_of_random_filled_rubber_are_recovered(seed, servo_case):
     """Seeded random couplings of the family's structure (not the family's discretisation of the
     band): the test-type records (0.5 % noise) identified to a good fit, the hold-out within 1 %."""
-    truth = parse_coupling(random_truth("filled_rubber", np.random.default_rng(30_000 + seed)))
-    data = servo_records(truth, seed)
-    held = servo_records(truth, 50 + seed)[-1:]
-    result = identify("filled_rubber", data, holdout=held)
+    _, result = servo_case(seed)
     assert result.converged and not result.verdict.poor
     assert result.holdout.nrmse < 0.01
 
 
 @pytest.mark.slow
-def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled_rubber():
+def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled_rubber(servo_case):
     """On a filled-rubber-like coupling's records filled_rubber beats every other servo family
     with one parameter set by far (BIC); on the six-parameter model's own records (a simpler family
-    exact) it does not rank first."""
-    filled = servo_records(parse_coupling(random_truth("filled_rubber", np.random.default_rng(30_005))), 1)
+    exact) it does not rank first. The filled-rubber records and their fit are the recovery
+    test's seed 1 (the same data and call: ``previous`` and the hold-out do not change a
+    filled_rubber fit or its BIC)."""
+    filled, fitted = servo_case(1)
     six = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 2)
     for data, first, kinds in ((filled, "filled_rubber", ("zerodim6", "elastoslide", "masing", "pfeffer", "filled_rubber")),
                                (six, "zerodim6", ("zerodim6", "filled_rubber"))):
         results = {}
         for kind in kinds:
-            results[kind] = identify(kind, data, previous=results)
+            results[kind] = fitted if data is filled and kind == "filled_rubber" else identify(kind, data, previous=results)
         table = ranking_table(results, data)
         assert table["model"].iloc[0] == first, table[["model", "bic", "verdict"]]
         if first == "filled_rubber":
             assert table["delta_bic"].iloc[1] > 10
 
 
-@pytest.mark.slow
-def test_translational_records_name_parameters_in_metres_and_newtons(tmp_path):
-    """A bushing of the family's structure read as mm / N: the same identification as its
-    torsional twin, parameters named for the records' units, the coupling translational."""
+def test_translational_records_name_parameters_in_metres_and_newtons(monkeypatch):
+    """A bushing of the family's structure read as m / N: the same identification as its
+    torsional twin (the same numbers out of every stage: the scale and bounds, the first guess
+    from the harmonic readings, the joint least squares), parameters named for the records'
+    units, the coupling translational. Sameness needs no converged fit: both run with one
+    start of the first guess's fit and a few evaluations of the joint fit, where a units slip
+    anywhere on that path already changes the numbers."""
+    from droptower.identify.families import filled_rubber as module
     from droptower.identify.report import result_dict
     from droptower.identify.data import make_segment
+    from droptower.io.fields import field_name
 
+    monkeypatch.setattr(module, "GUESS_STARTS", 1)
     data = random_truth("filled_rubber", np.random.default_rng(30_002))
     twin = parse_coupling(data)
     records = servo_records(twin, 3)
     trans = [make_segment(s.measured_angle * 0 + np.arange(s.measured_angle.size) * s.dt_s, s.measured_angle,
                           s.measured_torque, name=s.name, units="translational") for s in records]
-    got = identify("filled_rubber", trans)
-    ref = identify("filled_rubber", records)
-    assert got.coupling.units == "translational"
+    budget = {"max_nfev": 4}
+    got = identify("filled_rubber", trans, options=budget, search="never")
+    ref = identify("filled_rubber", records, options=budget, search="never")
+    assert got.coupling.units == "translational" and ref.coupling.units == "torsional"
+    assert got.extra["readings"] == ref.extra["readings"] >= 3  # the first guess read the sine blocks
     assert got.fit.nrmse == pytest.approx(ref.fit.nrmse, rel=1e-6)
     names = result_dict(got)["parameters"]
     assert {"k_n_per_m", "a_n_per_m3", "critical_displacement_m", "breakdown_displacement_m"} <= set(names)
+    for name, entry in result_dict(ref)["parameters"].items():
+        assert names[field_name(name, "translational")]["value"] == pytest.approx(entry["value"], rel=1e-6), name
 
 
 def test_export_fmu_writes_an_identified_filled_rubber_coupling(tmp_path):
@@ -201,20 +227,28 @@ def test_design_and_compare_models_offer_the_family(capsys):
 @pytest.mark.slow
 def test_design_for_identification_of_filled_rubber(tmp_path, capsys):
     """``design --for-identification filled_rubber``: the family fitted to the predicted decays,
-    a plan of the budget with the predicted standard errors of its free parameters."""
+    a plan of the budget with the predicted standard errors of its free parameters (drops chosen
+    from part of the rig's range: fewer predicted decays to fit, the same route)."""
     import json
 
     out = tmp_path / "ident.toml"
-    assert main(["design", "--for-identification", "filled_rubber", "--max-tests", "8", "--out", str(out),
-                 "--json"]) == 0
+    assert main(["design", "--for-identification", "filled_rubber", "--max-tests", "4", "--amplitude-deg", "0.5:2",
+                 "--frequency-hz", "20:45", "--out", str(out), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["tests"] == 8 and doc["model"] == "filled_rubber"
+    assert doc["tests"] == 4 and doc["model"] == "filled_rubber"
     assert set(doc["predicted_std_errors"]) == set(FilledRubberFamily(SCALE).names)
 
 
-def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int):
-    """Nine noisy rig logs of ``truth`` over the three inertias (noise seeds from ``seed``)
-    identified with filled_rubber: (the fit, its bench agreement over the tested range)."""
+#: The drop tests' family: a network of 8 Jenkins elements instead of 32 (a coarser discretisation of
+#: the same yield distribution; each test's core steps cost a fraction). The family's defaults on
+#: 12-drop campaigns are measured by ``benchmarks/bench_identify.py --filled-rubber`` (items 10-11).
+DROP_OPTIONS = {"n": 8}
+
+
+def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int, heights: tuple[float, ...] = (0.2, 1.0, 3.0)):
+    """Noisy rig logs of ``truth``, the drop ``heights`` (m) on each of the three inertias (noise
+    seeds from ``seed``), identified with filled_rubber (:data:`DROP_OPTIONS`): (the fit, its
+    bench agreement over the tested range)."""
     from droptower.identify.dropfit import DropFitSettings, identify_drops, servo_agreement
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.rig.config import load_rig
@@ -223,12 +257,13 @@ def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int):
 
     tests = [DropTest(j, m, h, 0.0, 0, seed + 10 * i + k) for i, (j, m) in enumerate([(0.1557, 1.0), (0.359, 2.0),
                                                                                       (0.5233, 2.0)])
-             for k, h in enumerate((0.2, 1.0, 3.0))]
+             for k, h in enumerate(heights)]
     paths = [r.write_log(tmp_path / f"test_{k}.parquet")
              for k, r in enumerate(rig_simulate(load_rig("rapp2022"), truth, tests, 0.25))]
     decays, excluded = read_decays(paths, ReadSettings())
     assert not excluded
-    result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0))
+    result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0),
+                            options=DROP_OPTIONS)
     return result, servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
 
 
@@ -236,10 +271,14 @@ def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int):
 @pytest.mark.parametrize("seed", [0])
 def test_drop_tests_of_a_random_filled_rubber_coupling_predict_its_bench(seed, tmp_path):
     """A seeded random coupling of the family's structure (its own band discretisation, numbers
-    no preset has), nine noisy rig logs over the three inertias: the identified coupling's bench
-    K' within 3 % and loss factor within 10 % RMS over the tested range."""
-    truth = parse_coupling(random_truth("filled_rubber", np.random.default_rng(31_000 + seed)))
-    result, agree = _drop_fit_agreement(truth, tmp_path, 2000)
+    no preset has; its network of the family's :data:`DROP_OPTIONS` elements), nine noisy rig logs
+    over the three inertias: the identified coupling's bench K' within 3 % and loss factor within
+    10 % RMS over the tested range (measured 0.01 % and 0.15 %, as with 32 elements in both), a
+    good fit (0.46 x the noise; six logs leave it at 2.2 x). The issue's 12-drop figures:
+    ``benchmarks/bench_identify.py --filled-rubber``."""
+    data = random_truth("filled_rubber", np.random.default_rng(31_000 + seed))
+    data["element"][1]["n"] = DROP_OPTIONS["n"]  # the family's network (a finer one is not the family's structure)
+    result, agree = _drop_fit_agreement(parse_coupling(data), tmp_path, 2000)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10, agree
     assert not result.verdict.poor
 
@@ -249,16 +288,17 @@ def test_drop_tests_of_a_coupling_whose_viscous_loss_grows_with_the_amplitude_pr
     """A seeded six-parameter form with a friction bank (random_couplings' zerodim6_friction: its
     Maxwell branch stiffens with its deformation, so its loss factor at 30 Hz rises by half from
     0.4 to 2.6 deg, which only the family's stiffening Maxwell branch represents; the first search,
-    without it, is poor, the wider one frees it), nine noisy rig logs over the three inertias: the
+    without it, is poor, the wider one frees it), six noisy rig logs over the three inertias: the
     identified coupling's bench K' within 5 % and loss factor within 10 % RMS over the tested range
-    (the issue's bounds for other structures), the decays within 4 x the noise (measured 2.2: the
-    truth's Prandtl bank, a Masing yield distribution, is not the family's Iwan network, so the
-    verdict's limit of 2 is not demanded)."""
+    (the issue's bounds for other structures; measured 0.26 % and 0.97 %), the decays within 4 x
+    the noise (measured 2.2: the truth's Prandtl bank, a Masing yield distribution, is not the
+    family's Iwan network, so the verdict's limit of 2 is not demanded). Three draws of this
+    structure on 12-drop campaigns: ``benchmarks/bench_identify.py --filled-rubber``."""
     truth = parse_coupling(random_truth("zerodim6_friction", np.random.default_rng(32_004)))
     eta = run_grid(truth, np.radians([0.4, 2.6]), [30.0], cycles=2, run_in_cycles=3,
                    simulation_rate_hz=9600.0)["loss_factor"].to_numpy()
     assert eta[1] > 1.3 * eta[0]  # the draw has the mechanism under test
-    result, agree = _drop_fit_agreement(truth, tmp_path, 2100)
+    result, agree = _drop_fit_agreement(truth, tmp_path, 2100, heights=(0.2, 3.0))
     assert agree["storage_stiffness_rms"] <= 0.05 and agree["loss_factor_rms"] <= 0.10, agree
     assert result.verdict.error_over_noise < 4.0, result.verdict
     assert "kv_gain_nm_per_rad2" in result.search.get("deferred_freed", [])  # the first search, without it, was poor
