@@ -82,6 +82,27 @@ def test_stiffening_maxwell_closed_form_is_the_benchs_first_harmonic(seed):
     assert abs(eta[-1] / eta[0] - 1) > 0.05
 
 
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.floats(-2.0, 6.0), st.floats(-3.0, 4.0), st.floats(-3.0, 4.0), st.floats(-6.0, 0.0), st.floats(-3.0, 3.5))
+def test_stiffening_maxwell_elongation_solves_its_equation(log_k0, log_gain_ratio, log_relaxation_hz, log_amp, log_f):
+    """The branch's elongation amplitude E (Newton's method on a convex quartic) is the root of
+    E = A omega c / |k(E) + i omega c| that a bracketing root finder gives, to 1e-12 relative, from
+    springs of 0.01 to 1e6 N*m/rad, stiffening from 1e-3 to 1e4 times over a radian, relaxing at
+    1e-3 to 1e4 Hz, at amplitudes of 1e-6 to 1 rad and 1e-3 to 3000 Hz."""
+    from scipy.optimize import brentq
+
+    from droptower.identify.families.filled_rubber import _ABS_SIN_HARMONIC, stiffening_maxwell_stiffness
+
+    k0, amp, f = 10.0 ** log_k0, 10.0 ** log_amp, 10.0 ** log_f
+    gain, damping = k0 * 10.0 ** log_gain_ratio, k0 / (2 * math.pi * 10.0 ** log_relaxation_hz)
+    wc = 2 * math.pi * f * damping
+    e = brentq(lambda x: x - amp * wc / abs(k0 + gain * _ABS_SIN_HARMONIC * x + 1j * wc), 0.0, amp,
+               xtol=1e-300, rtol=4 * np.finfo(float).eps)
+    k = k0 + gain * _ABS_SIN_HARMONIC * e
+    got = stiffening_maxwell_stiffness(k0, gain, damping, np.array([amp]), np.array([f]))[0]
+    assert abs(got - k * 1j * wc / (k + 1j * wc)) <= 1e-12 * abs(k * 1j * wc / (k + 1j * wc))
+
+
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(st.floats(1e-3, 900.0), st.floats(0.3, 6.0), st.integers(2, 40))
 def test_the_band_has_the_same_number_of_terms_whatever_its_width(f_min, decades, terms):

@@ -40,26 +40,41 @@ GUESS_STARTS = 12
 _BAND = (8, 9)
 #: First harmonic of |sin| sin: the stiffening spring (k0 + g |e|) e at e = E sin is k0 + g 8/(3 pi) E.
 _ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
+#: Relative Newton step below which :func:`stiffening_maxwell_stiffness` stops (converged to rounding).
+_NEWTON_TOLERANCE = 1e-10
 
 
 def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitude_rad: np.ndarray,
-                                 frequency_hz: np.ndarray, iterations: int = 48) -> np.ndarray:
+                                 frequency_hz: np.ndarray, iterations: int = 60) -> np.ndarray:
     """K' + i K'' (N*m/rad) of a Maxwell branch whose spring force is (k0 + g |e|) e (spring
     ``k0`` N*m/rad, ``gain`` g N*m/rad^2, dashpot ``damping`` c N*m*s/rad) in a steady harmonic
     motion of amplitude A (rad) at f (Hz), on the first harmonic (equivalent linearisation): the
     spring's elongation amplitude E and its secant k(E) = k0 + g 8/(3 pi) E solve
-    E = A omega c / |k(E) + i omega c| (bisection: the left side rises with E, the right falls),
-    and the branch is a linear Maxwell k(E) || omega c: K* = k(E) i omega c / (k(E) + i omega c)."""
+    E = A omega c / |k(E) + i omega c|, and the branch is a linear Maxwell k(E) || omega c:
+    K* = k(E) i omega c / (k(E) + i omega c).
+
+    E is the root of q(E) = E^2 (k(E)^2 + (omega c)^2) - (A omega c)^2, a quartic whose
+    coefficients are all >= 0: increasing and convex for E > 0. Newton's method started at the
+    linear branch's E_0 = A omega c / |k0 + i omega c| (>= the root, as k(E) >= k0) therefore
+    falls monotonically onto it; it stops once every step is below 1e-10 of E (the next one,
+    quadratically smaller, would be below the double's resolution; ``iterations`` is a cap that
+    convergence never nears). With g = 0 E_0 is the root.
+    """
     amp = np.asarray(amplitude_rad, float)
     wc = 2.0 * math.pi * np.asarray(frequency_hz, float) * damping
     amp, wc = np.broadcast_arrays(amp, wc)
-    lo, hi = np.zeros(amp.shape), amp.copy()
-    for _ in range(iterations):
-        e = 0.5 * (lo + hi)
-        k = k0 + gain * _ABS_SIN_HARMONIC * e
-        above = e > amp * wc / np.abs(k + 1j * wc)
-        hi, lo = np.where(above, e, hi), np.where(above, lo, e)
-    k = k0 + gain * _ABS_SIN_HARMONIC * 0.5 * (lo + hi)
+    g = gain * _ABS_SIN_HARMONIC
+    e = amp * wc / np.hypot(k0, wc)
+    if g > 0.0:
+        target = (amp * wc) ** 2
+        for _ in range(iterations):
+            k = k0 + g * e
+            slope = 2.0 * e * (k * k + wc * wc) + 2.0 * g * k * e * e
+            step = np.divide(e * e * (k * k + wc * wc) - target, slope, out=np.zeros_like(e), where=slope > 0.0)
+            e = np.maximum(e - step, 0.0)
+            if not np.any(step > _NEWTON_TOLERANCE * e):  # quadratic convergence: the next step would be ~0
+                break
+    k = k0 + g * e
     return k * 1j * wc / (k + 1j * wc)
 
 
