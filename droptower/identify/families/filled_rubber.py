@@ -20,6 +20,7 @@ import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
@@ -30,6 +31,7 @@ from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
 from droptower.rheology.elements import FillerNetwork, PowerLaw
+from droptower.rheology.numba_cache import cache_available
 
 #: Relative margin that keeps the power-law band's term count at the ``terms`` option exactly
 #: (PowerLaw rounds the terms per decade times the decades up).
@@ -63,19 +65,31 @@ def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitu
     amp = np.asarray(amplitude_rad, float)
     wc = 2.0 * math.pi * np.asarray(frequency_hz, float) * damping
     amp, wc = np.broadcast_arrays(amp, wc)
-    g = gain * _ABS_SIN_HARMONIC
-    e = amp * wc / np.hypot(k0, wc)
-    if g > 0.0:
-        target = (amp * wc) ** 2
-        for _ in range(iterations):
-            k = k0 + g * e
-            slope = 2.0 * e * (k * k + wc * wc) + 2.0 * g * k * e * e
-            step = np.divide(e * e * (k * k + wc * wc) - target, slope, out=np.zeros_like(e), where=slope > 0.0)
-            e = np.maximum(e - step, 0.0)
-            if not np.any(step > _NEWTON_TOLERANCE * e):  # quadratic convergence: the next step would be ~0
-                break
-    k = k0 + g * e
+    k = _stiffening_secant(float(k0), float(gain) * _ABS_SIN_HARMONIC, np.ravel(amp), np.ravel(wc),
+                           int(iterations)).reshape(amp.shape)
     return k * 1j * wc / (k + 1j * wc)
+
+
+@njit(cache=cache_available(), nogil=True, error_model="numpy")
+def _stiffening_secant(k0, g, amp, wc, iterations):  # pragma: no cover - compiled
+    """Secant k(E) = k0 + g E at each elongation root of :func:`stiffening_maxwell_stiffness`
+    (compiled: the first guess evaluates the closed form some ten thousand times per fit)."""
+    out = np.empty(amp.size)
+    for i in range(amp.size):
+        e = amp[i] * wc[i] / math.hypot(k0, wc[i])
+        if g > 0.0:
+            target = (amp[i] * wc[i]) ** 2
+            for _ in range(iterations):
+                k = k0 + g * e
+                slope = 2.0 * e * (k * k + wc[i] * wc[i]) + 2.0 * g * k * e * e
+                if not slope > 0.0:
+                    break
+                step = (e * e * (k * k + wc[i] * wc[i]) - target) / slope
+                e = max(e - step, 0.0)
+                if not step > _NEWTON_TOLERANCE * e:  # quadratic convergence: the next step would be ~0
+                    break
+        out[i] = k0 + g * e
+    return out
 
 
 class FilledRubberFamily(Family):
