@@ -55,14 +55,15 @@ def analyse(events: list[dict]) -> dict:
     for e in events:
         by_worker[e["worker"]].append(e)
     control = by_worker.pop("controller", []) if len(by_worker) > 1 else []  # without -n it runs the tests
-    starts = [e["t"] for e in events if e["event"] == "process_start"]
-    t0 = min((e["process_start"] or e["t"]) for e in events if e["event"] == "process_start") if starts else events[0]["t"]
+    starts = [e["t"] if e.get("process_start") is None else e["process_start"] for e in events if e["event"] == "process_start"]
+    t0 = min(starts, default=events[0]["t"])
     t_end = max(e["t"] for e in (control or events))
     workers, tests = {}, []
     compiled_by: dict[str, set[str]] = defaultdict(set)
     for name, evs in sorted(by_worker.items()):
         first = {e["event"]: e for e in reversed(evs)}
-        begun = next((e["process_start"] for e in evs if e["event"] == "process_start"), None) or evs[0]["t"]
+        begun = next((e["process_start"] for e in evs if e["event"] == "process_start"), None)
+        begun = evs[0]["t"] if begun is None else begun
         collected = first.get("collection_finish", evs[0])["t"]
         runs, open_test, open_compile = [], {}, {}
         compiles = []
