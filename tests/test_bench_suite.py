@@ -73,3 +73,29 @@ def test_the_plugin_records_collection_tests_and_numba_compilations(tmp_path: Pa
     (worker,) = figures["workers"].values()
     assert worker["tests"] == 1 and [c["function"] for c in worker["compiles"]] == ["test_one.test_compiles.<locals>.<lambda>"]
     assert 0 < worker["compiles"][0]["wall_s"] <= worker["in_tests_s"] <= figures["wall_s"]
+
+
+def test_the_schedule_simulation_runs_every_test_once_on_xdists_schedulers() -> None:
+    """``benchmarks/suite_schedule.py`` on random test times: each test runs once (the workers'
+    time in tests adds up to the sum), no run ends before the balanced time or the longest test,
+    and the slow-files-first order keeps each file's tests together and in their order."""
+    import itertools
+    import random
+
+    import suite_schedule
+
+    rng = random.Random(3)
+    order = [f"tests/test_{f}.py::test_{i}" for f in "abcdefgh" for i in range(rng.randint(1, 40))]
+    seconds = {test: rng.expovariate(1.0) * (20.0 if rng.random() < 0.05 else 1.0) for test in order}
+    slow = {test for test in order if seconds[test] > 5.0}
+    first = suite_schedule.heavy_files_first(order, slow)
+    files = [test.split("::")[0] for test in first]
+    blocks = [f for f, _ in itertools.groupby(files)]
+    assert sorted(first) == sorted(order) and len(blocks) == len(set(blocks))  # one block per file
+    assert [t for t in first if t.startswith("tests/test_a.py")] == [t for t in order if t.startswith("tests/test_a.py")]
+    total = sum(seconds.values())
+    for kind in ("load", "worksteal"):
+        for case in (order, first):
+            per_worker = suite_schedule.Simulation(kind, case, seconds, 2).run()
+            assert sum(busy for busy, _ in per_worker.values()) == pytest.approx(total)
+            assert max(end for _, end in per_worker.values()) >= max(total / 2, max(seconds.values())) - 1e-9
