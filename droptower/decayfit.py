@@ -26,7 +26,7 @@ from numba import njit
 from scipy.optimize import least_squares
 
 from droptower.errors import DroptowerError
-from droptower.rheology.numba_cache import cache_available
+from droptower.rheology.numba_cache import cache_available, compile_once_across_processes
 
 _JIT = dict(cache=cache_available(), nogil=True, fastmath=False, error_model="numpy")
 
@@ -265,3 +265,5 @@ def fit_torque(t: np.ndarray, y: np.ndarray, delta: float, omega: float) -> Torq
     r = basis @ params - y
     cov = _residual_variance(r, 3) * _normal_inverse(basis)
     return TorqueFit(params, cov, float(np.sqrt(np.mean(r**2))), delta, omega)
+
+compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time

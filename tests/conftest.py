@@ -4,6 +4,8 @@ tests over the limit are listed at the end of the run, so the marker stays true;
 while editing is ``pytest -m "not slow"``. (Machine-dependent, so it is reported, not failed.)"""
 from __future__ import annotations
 
+from collections import Counter
+
 import pytest
 
 from regression import Regression
@@ -36,8 +38,25 @@ def regression(request: pytest.FixtureRequest) -> Regression:
     return Regression(request.node, request.config.getoption("--regenerate"))
 
 
+@pytest.hookimpl(trylast=True)  # after pytest's own ordering by fixture scope, which this keeps
 def pytest_collection_modifyitems(config, items) -> None:
-    """Tests that store figures are marked ``regression`` (what ``tests/regenerate.py`` selects)."""
+    """Tests that store figures are marked ``regression`` (what ``tests/regenerate.py`` selects);
+    the files with the most ``slow`` tests run first (:func:`heavy_files_first`)."""
     for item in items:
         if "regression" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.regression)
+    if not (config.getoption("failedfirst", False) or config.getoption("newfirst", False)):
+        heavy_files_first(items)
+
+
+def heavy_files_first(items: list[pytest.Item]) -> None:
+    """Reorder ``items`` in place: test files by their number of ``slow`` tests, most first, each
+    file's tests together and in their own order (module fixtures are set up once per worker).
+
+    Under ``--dist worksteal`` (pyproject's addopts) a worker that runs out of tests takes the
+    second half of the other's queue, from its end: the long tests start first and the short ones
+    fill the tail, so no worker waits at the end on a long test that started late
+    (docs/conventions.md#test-suite-timeline).
+    """
+    slow = Counter(item.path for item in items if item.get_closest_marker("slow"))
+    items.sort(key=lambda item: -slow[item.path])  # stable: collection order among equals

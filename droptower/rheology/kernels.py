@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from droptower.rheology.numba_cache import cache_available, parallel_twin, prefer_fork_safe_threads
+from droptower.rheology.numba_cache import (cache_available, compile_once_across_processes, parallel_twin,
+                                            prefer_fork_safe_threads)
 
 # kernel codes
 LINEAR_SPRING = 0
@@ -1045,3 +1046,5 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
 step_batch = njit(**JIT)(_step_batch)
 run_history = njit(**JIT)(_run_history)
 run_history_parallel = njit(parallel=True, **JIT)(parallel_twin(_run_history))  # its own cache entry
+
+compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time

@@ -8,6 +8,7 @@ at every start (a few seconds more, the same code).
 """
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
 from collections.abc import Callable
@@ -76,3 +77,107 @@ def parallel_twin(func: Callable) -> Callable:
     twin.__qualname__ = f"{func.__qualname__}_parallel"
     twin.__doc__ = func.__doc__
     return twin
+
+
+#: how long a process waits for another one's compilation of the same kernel before compiling it
+#: itself (a process that dies releases its lock at once; this bounds a hung one)
+COMPILE_WAIT_S = 900.0
+
+
+def compile_once_across_processes(namespace: dict) -> None:
+    """Give every cached numba dispatcher in ``namespace`` (a module's ``globals()``) a cache that
+    lets one process at a time compile it: a process that finds no cached build waits while
+    another process compiles the same function, then loads that build from the cache.
+
+    numba writes its cache only after compiling, so processes started together (the test suite's
+    workers, a campaign's) that reach a kernel no cache holds yet each compiled it in full,
+    ~10 s of CPU per large kernel. The lock is an advisory lock on a file beside the cache index
+    (``fcntl.flock``: released when its holder exits); where there is no ``fcntl`` (Windows) or
+    no writable cache, nothing changes. The compiled code is numba's, unchanged.
+    """
+    try:
+        import fcntl  # noqa: F401  (POSIX only)
+    except ImportError:
+        return
+    from numba.core.caching import FunctionCache
+    from numba.core.registry import CPUDispatcher
+
+    for value in namespace.values():
+        if isinstance(value, CPUDispatcher) and type(getattr(value, "_cache", None)) is FunctionCache:
+            value._cache = _compile_once_cache_class()(value.py_func)
+
+
+@functools.cache
+def _compile_once_cache_class() -> type:
+    """The cache class (it subclasses numba's, so it is built when first used: importing this
+    module imports no numba)."""
+    import fcntl
+    import time
+
+    from numba.core import event as numba_event
+    from numba.core.caching import FunctionCache
+
+    class CompileOnceCache(FunctionCache):
+        """numba's per-function cache; a miss takes the function's compile lock (until the build is
+        saved) and looks again once it has it."""
+
+        _lock_file = None
+
+        def load_overload(self, sig, target_context):
+            data = super().load_overload(sig, target_context)
+            if data is not None or not self._enabled:
+                return data
+            self._release()  # a compilation of this process that failed before saving
+            if not self._acquire():
+                return None
+            data = super().load_overload(sig, target_context)  # saved by the process we waited for
+            if data is not None:
+                self._release()
+            return data
+
+        def save_overload(self, sig, data):
+            try:
+                super().save_overload(sig, data)
+            finally:
+                self._release()
+
+        def _acquire(self) -> bool:
+            try:
+                self._impl.locator.ensure_cache_path()
+                handle = open(os.path.join(self.cache_path, self._impl.filename_base + ".lock"), "a")
+            except OSError:
+                return False
+            deadline = time.monotonic() + COMPILE_WAIT_S
+            while True:
+                try:
+                    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    self._lock_file = handle
+                    return True
+                except OSError:
+                    if time.monotonic() > deadline:
+                        handle.close()
+                        return False
+                    time.sleep(0.05)
+
+        def _release(self) -> None:
+            if self._lock_file is not None:
+                self._lock_file.close()  # closing the file releases its flock
+                self._lock_file = None
+
+    class ReleaseOnFailure(numba_event.Listener):
+        """A compilation that raises (a signature that does not type) saves nothing: release its lock
+        there, or another process needing the function would wait for it."""
+
+        def on_start(self, event: numba_event.Event) -> None:
+            pass
+
+        def on_end(self, event: numba_event.Event) -> None:
+            dispatcher = event.data.get("dispatcher")
+            cache = getattr(dispatcher, "_cache", None)
+            # failed: no build for the signature (numba's own Event.is_failed reads the wrong way round)
+            if isinstance(cache, CompileOnceCache) and tuple(event.data.get("args", ())) not in dispatcher.overloads:
+                cache._release()
+
+    numba_event.register("numba:compile", ReleaseOnFailure())
+    return CompileOnceCache
+

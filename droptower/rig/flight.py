@@ -23,6 +23,7 @@ import math
 from numba import njit
 
 from droptower.rheology import kernels as K
+from droptower.rheology.numba_cache import compile_once_across_processes
 
 #: The gap (m) a scene in free flight keeps from a possible contact. Integrating the same steps,
 #: flight and pymunk differ by rounding (1e-15 m); but pymunk must hold the pair a little before
@@ -107,3 +108,5 @@ def fly(codes, p_off, s_off, params, state, state_angle, state_torque, rows, sta
         state_angle[b] = x0 + p
         state_torque[b] = t
         stop[j] = n
+
+compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time

@@ -27,7 +27,7 @@ from numba import njit, prange
 from droptower.rheology import Coupling, CouplingState
 from droptower.rheology import kernels as K
 from droptower.rheology.coupling import PARALLEL_BATCH
-from droptower.rheology.numba_cache import parallel_twin
+from droptower.rheology.numba_cache import compile_once_across_processes, parallel_twin
 
 SYMPLECTIC_EULER = 0
 VERLET = 1
@@ -104,3 +104,5 @@ class LeverDecay:
             s.angle_rad[...] = self.x_rest + self.phi
             s.torque_nm[...] = torque[:, -1]
         return angle, torque
+
+compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time
