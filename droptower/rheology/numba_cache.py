@@ -145,8 +145,8 @@ def _compile_once_cache_class() -> type:
             try:
                 self._impl.locator.ensure_cache_path()
                 handle = open(os.path.join(self.cache_path, self._impl.filename_base + ".lock"), "a")
-            except OSError:
-                return False
+            except (OSError, AttributeError):  # AttributeError: a numba whose cache is built otherwise
+                return False  # compile as numba does by itself
             deadline = time.monotonic() + COMPILE_WAIT_S
             while True:
                 try:
