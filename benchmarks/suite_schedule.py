@@ -19,12 +19,16 @@ import heapq
 import random
 import re
 import statistics
+import sys
 from collections import Counter, deque
 from pathlib import Path
 from types import SimpleNamespace
 
 from xdist.scheduler.load import LoadScheduling
 from xdist.scheduler.worksteal import WorkStealingScheduling
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from conftest import heavy_files_first  # noqa: E402  (the suite's own order, not a copy)
 
 _SHUTDOWN = object()
 
@@ -102,12 +106,6 @@ class Simulation:
             self._advance(events)
         assert all(w.done for w in self.workers) and not self.scheduler.has_pending
         return {w.name: (w.busy_s, w.last_end_s) for w in self.workers}
-
-
-def heavy_files_first(order: list[str], slow: set[str]) -> list[str]:
-    """``tests/conftest.py``'s order: files by their number of slow tests, most first (stable)."""
-    count = Counter(test.split("::")[0] for test in order if test in slow)
-    return sorted(order, key=lambda test: -count[test.split("::")[0]])
 
 
 def read_durations(path: Path) -> dict[str, float]:

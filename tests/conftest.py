@@ -4,6 +4,7 @@ tests over the limit are listed at the end of the run, so the marker stays true;
 while editing is ``pytest -m "not slow"``. (Machine-dependent, so it is reported, not failed.)"""
 from __future__ import annotations
 
+import os
 from collections import Counter
 
 import pytest
@@ -41,16 +42,21 @@ def regression(request: pytest.FixtureRequest) -> Regression:
 @pytest.hookimpl(trylast=True)  # after pytest's own ordering by fixture scope, which this keeps
 def pytest_collection_modifyitems(config, items) -> None:
     """Tests that store figures are marked ``regression`` (what ``tests/regenerate.py`` selects);
-    the files with the most ``slow`` tests run first (:func:`heavy_files_first`)."""
+    under xdist the files with the most ``slow`` tests run first (:func:`heavy_files_first`)."""
     for item in items:
         if "regression" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.regression)
-    if not (config.getoption("failedfirst", False) or config.getoption("newfirst", False)):
-        heavy_files_first(items)
+    # only xdist's workers collect to run in parallel: one process gains nothing from the order,
+    # and ``pytest --collect-only`` keeps the files' own order (benchmarks/suite_schedule.py reads it)
+    if "PYTEST_XDIST_WORKER" in os.environ and not (config.getoption("failedfirst", False)
+                                                    or config.getoption("newfirst", False)):
+        slow = {item.nodeid for item in items if item.get_closest_marker("slow")}
+        position = {node: k for k, node in enumerate(heavy_files_first([item.nodeid for item in items], slow))}
+        items.sort(key=lambda item: position[item.nodeid])
 
 
-def heavy_files_first(items: list[pytest.Item]) -> None:
-    """Reorder ``items`` in place: test files by their number of ``slow`` tests, most first, each
+def heavy_files_first(node_ids: list[str], slow: set[str]) -> list[str]:
+    """``node_ids`` with their test files by their number of ``slow`` tests, most first, each
     file's tests together and in their own order (module fixtures are set up once per worker).
 
     Under ``--dist worksteal`` (pyproject's addopts) a worker that runs out of tests takes the
@@ -58,5 +64,5 @@ def heavy_files_first(items: list[pytest.Item]) -> None:
     fill the tail, so no worker waits at the end on a long test that started late
     (docs/conventions.md#test-suite-timeline).
     """
-    slow = Counter(item.path for item in items if item.get_closest_marker("slow"))
-    items.sort(key=lambda item: -slow[item.path])  # stable: collection order among equals
+    count = Counter(node.split("::")[0] for node in node_ids if node in slow)
+    return sorted(node_ids, key=lambda node: -count[node.split("::")[0]])  # stable: their order among equals
