@@ -150,12 +150,12 @@ def steady_twin(data: dict) -> tuple[FilledRubberFamily, np.ndarray]:
 
 @pytest.mark.slow
 def test_family_twin_of_payne_steady_sines_decays_otherwise() -> None:
-    """Draw 2 (the one ``bench_identify.py --filled-rubber`` missed on the tree of 45ea9ab): a coupling of the family
-    whose steady K*(A, f) is the payne coupling's within 1 % (K') and 2.5 % (loss factor) RMS over
-    the tested range (measured 0.7 % and 1.7 %) swings further on its first half cycle from rest,
-    by >= 1.5 % on the drops of 1 deg and more (measured 3.3-3.6 %), and its decays lie >= 1 % of
-    the amplitude RMS from the payne coupling's (measured 2-8 %; the rig's noise and the
-    re-simulation's accuracy are <= 0.1 %; on the campaign 31 x the noise allowance)."""
+    """Draw 2 (the one ``bench_identify.py --filled-rubber`` missed on the tree of 45ea9ab): a
+    coupling of the family whose steady K*(A, f) is the payne coupling's within 1 % (K') and 2.5 %
+    (loss factor) RMS over the tested range (measured 0.7 % and 1.7 %) swings further on its first
+    half cycle from rest, by >= 1.5 % on the drops of 1 deg and more (measured 3.3-3.6 %), and its
+    decays lie >= 1 % of the amplitude RMS from the payne coupling's (measured 2-8 %; the rig's
+    noise and the re-simulation's accuracy are <= 0.1 %; on the campaign 31 x the noise allowance)."""
     data = payne_draw(2)
     family, values = steady_twin(data)
     amp, freq = np.meshgrid(np.geomspace(*TESTED_AMPLITUDES_RAD, 5), np.geomspace(*TESTED_FREQUENCIES_HZ, 3))
