@@ -179,6 +179,37 @@ def _normal_equations(p, t, y, a, g):
     return cost
 
 
+def _solve_in_place(m, b):
+    """Solve m x = b (n x n, n small) by Gaussian elimination with partial pivoting, the method of
+    LAPACK's ``gesv`` (``np.linalg.solve``): m is overwritten, x is left in b. False where a pivot is
+    zero (m singular). Written out because numba's binding of ``np.linalg.solve`` costs seconds of
+    compilation for a 4 x 4 system."""
+    n = b.size
+    for k in range(n):
+        pivot = k
+        largest = abs(m[k, k])
+        for i in range(k + 1, n):
+            if abs(m[i, k]) > largest:
+                pivot, largest = i, abs(m[i, k])
+        if not largest > 0.0:
+            return False
+        if pivot != k:
+            for j in range(n):
+                m[k, j], m[pivot, j] = m[pivot, j], m[k, j]
+            b[k], b[pivot] = b[pivot], b[k]
+        for i in range(k + 1, n):
+            f = m[i, k] / m[k, k]
+            for j in range(k + 1, n):
+                m[i, j] -= f * m[k, j]
+            b[i] -= f * b[k]
+    for k in range(n - 1, -1, -1):
+        x = b[k]
+        for j in range(k + 1, n):
+            x -= m[k, j] * b[j]
+        b[k] = x / m[k, k]
+    return True
+
+
 def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
     """The least-squares decay parameters from x0: Gauss-Newton steps, damped by Marquardt's
     (scaled) diagonal only where a step would raise the sum of squares. Returns (params, True)
@@ -189,6 +220,8 @@ def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
     g = np.empty(4)
     a_trial = np.empty((4, 4))
     g_trial = np.empty(4)
+    m = np.empty((4, 4))
+    step = np.empty(4)
     cost = _normal_equations(p, t, y, a, g)
     lam = 0.0
     for _ in range(max_iterations):
@@ -198,7 +231,13 @@ def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
         a_scaled = a / np.outer(d, d)
         g_scaled = g / d
         while True:
-            step = -np.linalg.solve(a_scaled + lam * np.eye(4), g_scaled) / d
+            m[:] = a_scaled
+            for j in range(4):
+                m[j, j] += lam
+                step[j] = -g_scaled[j]
+            if not _solve_in_place(m, step):  # singular: MINPACK takes over
+                return x0, False
+            step /= d
             small = np.all(np.abs(step) <= tolerance * scale)
             trial = p + step
             cost_trial = _normal_equations(trial, t, y, a_trial, g_trial)
@@ -220,6 +259,7 @@ def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
 
 
 _normal_equations = njit(**_JIT)(_normal_equations)
+_solve_in_place = njit(**_JIT)(_solve_in_place)
 _levenberg_marquardt = njit(**_JIT)(_levenberg_marquardt)
 
 

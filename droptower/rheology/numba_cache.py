@@ -51,32 +51,16 @@ def prefer_fork_safe_threads() -> None:
     """Let numba's parallel regions use a fork-safe threading layer (TBB where installed, else its
     own work queue) unless the user chose one (``NUMBA_THREADING_LAYER``).
 
-    Campaigns fork worker processes after the parent ran parallel regions (the preload of a
-    batch); GNU OpenMP, numba's default where TBB is missing, is not fork-safe: a forked worker
-    that enters a parallel region aborts.
+    The package's own kernels run no parallel region (large batches run on Python threads,
+    :mod:`droptower.rheology.threads`), but campaign workers set numba's thread count, which
+    launches its threading layer, and user code may run parallel regions before forking; GNU
+    OpenMP, numba's default where TBB is missing, is not fork-safe: a forked worker that enters a
+    parallel region aborts.
     """
     from numba.core import config
 
     if "NUMBA_THREADING_LAYER" not in os.environ:
         config.THREADING_LAYER = "forksafe"
-
-
-def parallel_twin(func: Callable) -> Callable:
-    """A copy of ``func`` under the name ``<name>_parallel``, to be compiled with
-    ``parallel=True`` beside a serial build of ``func``.
-
-    numba's cache files are named after the function's qualified name and first line and do
-    not tell a parallel build from a serial one of the same function (its cache key leaves the
-    ``parallel`` flag out): whichever was compiled first was loaded for both, so the parallel build ran serially (or a
-    serial caller ran the parallel one). The twin has its own name, hence its own cache entry.
-    """
-    import types
-
-    twin = types.FunctionType(func.__code__, func.__globals__, f"{func.__name__}_parallel",
-                              func.__defaults__, func.__closure__)
-    twin.__qualname__ = f"{func.__qualname__}_parallel"
-    twin.__doc__ = func.__doc__
-    return twin
 
 
 #: how long a process waits for another one's compilation of the same kernel before compiling it
