@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from droptower.rheology.numba_cache import cache_available, compile_once_across_processes, prefer_fork_safe_threads
+from droptower.rheology.numba_cache import (cache_available, compile_once_across_processes, prefer_fork_safe_threads,
+                                            row_loop_options)
 
 # kernel codes
 LINEAR_SPRING = 0
@@ -1040,9 +1041,9 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
             dissipated[b, n] = d_sum
 
 
-# One serial build each: a large batch's history is spread over the cores by running chunks of its
-# rows on threads (droptower.rheology.threads), not by a second, parallel build of the kernel.
+# One build each: a large batch's history is spread over the cores by running chunks of its rows on
+# threads (droptower.rheology.threads), not by a second, parallel build of the kernel.
 step_batch = njit(**JIT)(_step_batch)
-run_history = njit(**JIT)(_run_history)
+run_history = njit(**row_loop_options(__file__), **JIT)(_run_history)
 
 compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time

@@ -26,7 +26,7 @@ from numba import njit
 
 from droptower.rheology import Coupling, CouplingState
 from droptower.rheology import kernels as K
-from droptower.rheology.numba_cache import compile_once_across_processes
+from droptower.rheology.numba_cache import compile_once_across_processes, row_loop_options
 from droptower.rheology.threads import run_rows
 
 SYMPLECTIC_EULER = 0
@@ -68,7 +68,7 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
 
 # one serial build: a large batch (the candidates of an identification) runs in chunks of rows on
 # threads (droptower.rheology.threads)
-_decay_steps = njit(**K.JIT)(_decay_steps)
+_decay_steps = njit(**row_loop_options(__file__), **K.JIT)(_decay_steps)
 
 
 class LeverDecay:
