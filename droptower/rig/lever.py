@@ -48,13 +48,15 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
         a = acc[b]
         x0 = x_rest[b]
         for k in range(nk):
+            # one call of the (inlined, large) coupling step for both schemes: it is compiled once
             if scheme == SYMPLECTIC_EULER:
                 p1 = p + h * v
-                t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
-                v += (rest[b] - t) / inertia[b] * h
             else:
                 p1 = p + h * v + 0.5 * h * h * a
-                t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
+            t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
+            if scheme == SYMPLECTIC_EULER:
+                v += (rest[b] - t) / inertia[b] * h
+            else:
                 a_new = (rest[b] - t) / inertia[b]
                 v += 0.5 * h * (a + a_new)
                 a = a_new
