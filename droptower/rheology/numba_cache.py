@@ -52,10 +52,11 @@ def prefer_fork_safe_threads() -> None:
     own work queue) unless the user chose one (``NUMBA_THREADING_LAYER``).
 
     The package's own kernels run no parallel region (large batches run on Python threads,
-    :mod:`droptower.rheology.threads`), but campaign workers set numba's thread count, which
-    launches its threading layer, and user code may run parallel regions before forking; GNU
-    OpenMP, numba's default where TBB is missing, is not fork-safe: a forked worker that enters a
-    parallel region aborts.
+    :mod:`droptower.rheology.threads`), but numba launches its threading layer where a kernel built
+    with ``parallel=True`` (:func:`row_loop_options`) is loaded from the cache, and where a campaign
+    worker sets its thread count; user code may run parallel regions before forking. GNU OpenMP,
+    numba's default where TBB is missing, is not fork-safe: a forked worker that enters a parallel
+    region aborts.
     """
     from numba.core import config
 
@@ -69,7 +70,7 @@ def row_loop_options(path: str) -> dict:
 
     numba's parallel pipeline finds no loop to parallelise there (no ``prange``: no parallel
     region, no second build), but its passes simplify the typed IR (copy propagation, dead code
-    removal) before lowering: the kernels ran ~25 % faster per row than from the default pipeline
+    removal) before lowering: the kernels ran ~23 % faster per row than from the default pipeline
     (measured single-threaded, bit-identical results) for ~0.7 s more compilation each. numba's
     warning that nothing was parallelised is silenced for the kernels of ``path`` (a module's
     ``__file__``) only.
