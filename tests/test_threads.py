@@ -149,3 +149,39 @@ def test_a_forked_process_makes_its_own_threads_and_a_campaign_worker_stays_on_o
         assert pool.submit(_calls_in_child, 16).result(timeout=120) == (2, 2, True)
     with ProcessPoolExecutor(1, mp_context=fork, initializer=_one_thread) as pool:
         assert pool.submit(_calls_in_child, 16).result(timeout=120) == (1, 1, True)
+
+
+ROW_LOOP = '''
+import numpy as np
+from numba import njit
+{options}
+
+@njit({kwargs})
+def rows(x):
+    out = np.empty_like(x)
+    for b in range(x.shape[0]):
+        out[b] = 2.0 * x[b]
+    return out
+'''
+
+
+def test_numba_says_nothing_about_row_loops_on_its_parallel_pipeline(tmp_path, monkeypatch):
+    """A row loop built with row_loop_options (parallel=True over a plain range) compiles without
+    numba's "no transformation for parallel execution" warning even where every warning is shown;
+    a function of another file built with parallel=True alone still gets it."""
+    import importlib
+    import warnings
+
+    from numba.core.errors import NumbaPerformanceWarning
+
+    (tmp_path / "quiet_rows.py").write_text(ROW_LOOP.format(
+        options="from droptower.rheology.numba_cache import row_loop_options", kwargs="**row_loop_options(__file__)"))
+    (tmp_path / "loud_rows.py").write_text(ROW_LOOP.format(options="", kwargs="parallel=True"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    seen = {}
+    for name in ("quiet_rows", "loud_rows"):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert np.array_equal(importlib.import_module(name).rows(np.arange(4.0)), 2.0 * np.arange(4.0))
+        seen[name] = [w for w in caught if issubclass(w.category, NumbaPerformanceWarning)]
+    assert seen["quiet_rows"] == [] and len(seen["loud_rows"]) == 1

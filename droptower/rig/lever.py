@@ -68,7 +68,7 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
         acc[b] = a
 
 
-# one serial build: a large batch (the candidates of an identification) runs in chunks of rows on
+# one build: a large batch (the candidates of an identification) runs in chunks of rows on
 # threads (droptower.rheology.threads)
 _decay_steps = njit(**row_loop_options(__file__), **K.JIT)(_decay_steps)
 
