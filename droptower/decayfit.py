@@ -179,28 +179,80 @@ def _normal_equations(p, t, y, a, g):
     return cost
 
 
+def _solve_in_place(m, b):
+    """Solve m x = b (n x n, n small) by Gaussian elimination with partial pivoting, the method of
+    LAPACK's ``gesv`` (``np.linalg.solve``): m is overwritten, x is left in b. False where a pivot is
+    zero (m singular). Written out because numba's binding of ``np.linalg.solve`` costs seconds of
+    compilation for a 4 x 4 system."""
+    n = b.size
+    for k in range(n):
+        pivot = k
+        largest = abs(m[k, k])
+        for i in range(k + 1, n):
+            if abs(m[i, k]) > largest:
+                pivot, largest = i, abs(m[i, k])
+        if not largest > 0.0:
+            return False
+        if pivot != k:
+            for j in range(n):
+                m[k, j], m[pivot, j] = m[pivot, j], m[k, j]
+            b[k], b[pivot] = b[pivot], b[k]
+        for i in range(k + 1, n):
+            f = m[i, k] / m[k, k]
+            for j in range(k + 1, n):
+                m[i, j] -= f * m[k, j]
+            b[i] -= f * b[k]
+    for k in range(n - 1, -1, -1):
+        x = b[k]
+        for j in range(k + 1, n):
+            x -= m[k, j] * b[j]
+        b[k] = x / m[k, k]
+    return True
+
+
 def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
     """The least-squares decay parameters from x0: Gauss-Newton steps, damped by Marquardt's
     (scaled) diagonal only where a step would raise the sum of squares. Returns (params, True)
     once no parameter moves by more than ``tolerance`` of its ``scale``, (x0, False) if that
-    does not happen."""
+    does not happen. (Element by element in loops: numba compiles numpy's array expressions
+    for seconds, the loops in a fraction of that, with the same arithmetic.)"""
     p = x0.copy()
     a = np.empty((4, 4))
     g = np.empty(4)
     a_trial = np.empty((4, 4))
     g_trial = np.empty(4)
+    a_scaled = np.empty((4, 4))
+    g_scaled = np.empty(4)
+    d = np.empty(4)
+    m = np.empty((4, 4))
+    step = np.empty(4)
+    trial = np.empty(4)
     cost = _normal_equations(p, t, y, a, g)
     lam = 0.0
     for _ in range(max_iterations):
-        d = np.sqrt(np.diag(a))
-        if not np.all(d > 0.0) or not math.isfinite(cost):
+        if not math.isfinite(cost):
             return x0, False
-        a_scaled = a / np.outer(d, d)
-        g_scaled = g / d
+        for j in range(4):
+            d[j] = math.sqrt(a[j, j])
+            if not d[j] > 0.0:
+                return x0, False
+        for j in range(4):
+            for k in range(4):
+                a_scaled[j, k] = a[j, k] / (d[j] * d[k])
+            g_scaled[j] = g[j] / d[j]
         while True:
-            step = -np.linalg.solve(a_scaled + lam * np.eye(4), g_scaled) / d
-            small = np.all(np.abs(step) <= tolerance * scale)
-            trial = p + step
+            for j in range(4):
+                for k in range(4):
+                    m[j, k] = a_scaled[j, k]
+                m[j, j] += lam
+                step[j] = -g_scaled[j]
+            if not _solve_in_place(m, step):  # singular: MINPACK takes over
+                return x0, False
+            small = True
+            for j in range(4):
+                step[j] /= d[j]
+                small = small and abs(step[j]) <= tolerance * scale[j]
+                trial[j] = p[j] + step[j]
             cost_trial = _normal_equations(trial, t, y, a_trial, g_trial)
             if cost_trial <= cost:
                 break
@@ -209,10 +261,12 @@ def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
             lam = max(10.0 * lam, 1e-3)
             if lam > 1e10:
                 return x0, False
-        p = trial
+        for j in range(4):
+            p[j] = trial[j]
+            g[j] = g_trial[j]
+            for k in range(4):
+                a[j, k] = a_trial[j, k]
         cost = cost_trial
-        a[:] = a_trial
-        g[:] = g_trial
         lam = 0.1 * lam if lam > 1e-6 else 0.0
         if small:
             return p, True
@@ -220,6 +274,7 @@ def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
 
 
 _normal_equations = njit(**_JIT)(_normal_equations)
+_solve_in_place = njit(**_JIT)(_solve_in_place)
 _levenberg_marquardt = njit(**_JIT)(_levenberg_marquardt)
 
 

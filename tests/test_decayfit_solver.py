@@ -42,3 +42,33 @@ def test_minpack_takes_over_where_it_does_not_converge():
     assert not converged
     fit = D.fit_decay(t, y, 500.0, 0.0)
     assert np.all(np.isfinite(fit.params))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(n=st.integers(1, 6), seed=st.integers(0, 2**32 - 1), lam=st.floats(0.0, 1e3), permute=st.booleans())
+def test_small_solve_equals_lapack(n, seed, lam, permute):
+    """The hand-written solve of the Marquardt step: random scaled normal matrices plus lam I
+    (symmetric positive definite, as in the fit) and, permuted, matrices that need row pivoting
+    (zero on the diagonal): the solution of np.linalg.solve (LAPACK gesv) to rounding."""
+    rng = np.random.default_rng(seed)
+    jac = rng.normal(size=(3 * n, n)) * 10.0 ** rng.uniform(-3, 3, n)
+    a = jac.T @ jac
+    d = np.sqrt(np.diag(a))
+    m = a / np.outer(d, d) + lam * np.eye(n)
+    if permute and n > 1:
+        m = np.roll(m, 1, axis=0)
+        m[np.arange(n), np.arange(n)] = 0.0
+    b = rng.normal(size=n)
+    x, mm = b.copy(), m.copy()
+    assert D._solve_in_place(mm, x)
+    ref = np.linalg.solve(m, b)
+    cond = np.linalg.cond(m)
+    assert np.allclose(x, ref, rtol=0.0, atol=1e-14 * cond * np.max(np.abs(ref)))
+
+
+def test_small_solve_reports_a_singular_matrix():
+    """A zero pivot (a column of zeros, or a row equal to another) is reported, not divided by."""
+    m = np.array([[1.0, 0.0, 2.0], [3.0, 0.0, 1.0], [0.5, 0.0, 4.0]])
+    assert not D._solve_in_place(m.copy(), np.ones(3))
+    m = np.array([[1.0, 2.0], [1.0, 2.0]])
+    assert not D._solve_in_place(m.copy(), np.ones(2))

@@ -176,11 +176,11 @@ def test_kind_through_every_consumer(kind, seed):
     ref_angle, ref_torque = _symplectic_euler(lever, rest.copy(), inertia, rate0, n, h)
     assert np.array_equal(euler_angle, ref_angle) and np.array_equal(euler_torque, ref_torque)
 
-    # batching: stacked parameter sets (serial and parallel runner) equal single runs
+    # batching: stacked parameter sets (one call, and chunks of rows on threads) equal single runs
     others = [Coupling([_element(kind, s)]) for s in (seed, seed + 10)]
     if not all(np.array_equal(o.p_off, others[0].p_off) for o in others):
         others = others[:1]
-    stacked = Coupling.stack(others * 4)  # batch of >= 4 rows; 8 rows take the parallel runner
+    stacked = Coupling.stack(others * 4)  # batch of >= 4 rows; 8 rows run on threads
     rows = np.stack([_history(seed + i, h=h) for i in range(stacked.n_sets)])
     batch = stacked.simulate(rows, h).torque_nm
     for i, single in enumerate(others * 4):
@@ -226,7 +226,7 @@ def _symplectic_euler(coupling: Coupling, state, inertia, rate0, n, h):
 
 
 def test_lever_batches_equal_single_rows():
-    """A batch large enough for the parallel integrator decays row by row as each row alone."""
+    """A batch large enough to run on threads decays row by row as each row alone."""
     coupling = Coupling.stack([Coupling([_element("spring", s), _element("payne", s)]) for s in range(8)])
     inertia, rate0 = np.linspace(0.15, 0.5, 8), np.linspace(-3.0, 3.0, 8)
     for scheme in (SYMPLECTIC_EULER, VERLET):

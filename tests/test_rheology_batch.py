@@ -162,37 +162,3 @@ def test_toml_round_trip(path, tmp_path):
     x = amplitude * np.sin(2 * np.pi * frequency * t)
     assert np.array_equal(again.respond(x, t[0]), coupling.respond(x, t[0]))
     assert tomllib.loads(text)["element"]
-
-
-PARALLEL_SCRIPT = """
-import numba, numpy as np
-from droptower.rheology import load_coupling
-from droptower.rheology.coupling import PARALLEL_BATCH
-from droptower.rig.planner import free_decay
-from droptower.rig.preload import Pretwist
-coupling, dt, b = load_coupling("rapp2022_nr60"), 1 / 38400, PARALLEL_BATCH
-if "{what}" == "coupling":
-    x = np.radians(0.5) * np.sin(np.linspace(0.0, 20.0, 2000))
-    coupling.respond(x, dt)  # the serial build first: compiled, or loaded from the cache
-    coupling.simulate(np.tile(x, (b, 1)), dt, state=coupling.new_state(b), record_energy=False)
-else:
-    for n in (1, b):  # the serial lever first, then a batch large enough for the parallel one
-        free_decay(coupling, np.full(n, 0.359), np.full(n, 3.0),
-                   Pretwist(np.zeros(n), np.zeros(n), coupling.new_state(n)), dt, 0.01)
-print(numba.threading_layer())
-"""
-
-
-@pytest.mark.parametrize("what", ["coupling", "lever"])
-def test_large_batches_run_in_parallel_after_a_serial_build(what):
-    """A batch of PARALLEL_BATCH histories (coupling) or free decays (lever) runs numba's parallel
-    build even when the serial build of the same function was compiled or cached first (numba's
-    cache names both alike: the parallel build has its own name, rheology/numba_cache.py), on a
-    fork-safe threading layer (campaigns fork workers after parallel preloads)."""
-    import subprocess
-    import sys
-
-    run = subprocess.run([sys.executable, "-c", PARALLEL_SCRIPT.format(what=what)], capture_output=True, text=True,
-                         timeout=300)
-    assert run.returncode == 0, run.stderr  # numba.threading_layer() raises where no parallel region ran
-    assert run.stdout.split()[-1] in ("tbb", "workqueue")

@@ -5,7 +5,7 @@ parameter is optimised in a normalised variable (its logarithm, or its value ove
 so that one trust region suits them all. The Jacobian is a forward difference whose columns
 are all simulated in ONE call of the core: the perturbed parameter sets are stacked on the
 core's batch axis (:meth:`Coupling.stack`), together with every segment of the data, and the
-core's parallel loop runs them at once.
+core runs them at once, its rows spread over the cores (:mod:`droptower.rheology.threads`).
 
 Quality is reported as the zero-dimensional model paper does: the RMSE of the torque normalised by the largest
 measured |torque| (``nrmse``), on the fitting data and on held-out data.

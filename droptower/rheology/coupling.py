@@ -20,6 +20,7 @@ from droptower.limits import MAX_COUPLING_STATE
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ElementSpec, KernelElement
 from droptower.rheology.kinds import DISSIPATED, STORED, Motion, kind_of
+from droptower.rheology.threads import run_rows
 
 
 @dataclass
@@ -200,9 +201,10 @@ class Coupling:
         torque = np.empty_like(x2)
         stored = np.empty_like(x2) if record_energy else np.empty((0, 0))
         dissipated = np.empty_like(x2) if record_energy else np.empty((0, 0))
-        run = K.run_history_parallel if state.batch >= PARALLEL_BATCH else K.run_history
-        run(self.codes, self.p_off, self.s_off, self.params, state.values, state.angle_rad.copy(),
-                      x2, float(dt_s), torque, stored, dissipated, record_energy)
+        # the arguments at positions 3-6 and 8-10 have one row per row of the batch (params unless shared)
+        run_rows(K.run_history, (self.codes, self.p_off, self.s_off, self.params, state.values, state.angle_rad.copy(),
+                                 x2, float(dt_s), torque, stored, dissipated, record_energy),
+                 (3, 4, 5, 6, 8, 9, 10), state.batch)
         if x2.shape[1]:
             state.angle_rad[...] = x2[:, -1]
             state.torque_nm[...] = torque[:, -1]
@@ -257,11 +259,6 @@ class Coupling:
     def __repr__(self) -> str:
         kinds = ", ".join(e.kind for e in self.elements)
         return f"Coupling({self.name!r}: {kinds}; {self.n_sets} parameter set(s))"
-
-
-#: Histories of batches at least this large are spread over the cores. (Single steps are not:
-#: a step is too little work to pay for waking a thread pool.)
-PARALLEL_BATCH = 8
 
 
 def _check_dt(dt_s: float) -> None:

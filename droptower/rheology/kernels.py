@@ -23,10 +23,10 @@ exactly, step by step; for the nonlinear springs it holds to O(h^3) per step.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from droptower.rheology.numba_cache import (cache_available, compile_once_across_processes, parallel_twin,
-                                            prefer_fork_safe_threads)
+from droptower.rheology.numba_cache import (cache_available, compile_once_across_processes, prefer_fork_safe_threads,
+                                            row_loop_options)
 
 # kernel codes
 LINEAR_SPRING = 0
@@ -1007,7 +1007,7 @@ def _step_batch(codes, p_off, s_off, params, state, x0, x1, h, torque):
     """One step of a batch: params (B, P) or (1, P), state (B, S), x0, x1, torque (B,)."""
     nb = state.shape[0]
     shared = params.shape[0] == 1
-    for b in prange(nb):
+    for b in range(nb):
         pb = params[0] if shared else params[b]
         torque[b] = step_instance(codes, p_off, s_off, pb, state[b], x0[b], x1[b], h)
 
@@ -1022,7 +1022,7 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
     nb, nt = angles.shape
     shared = params.shape[0] == 1
     n_el = codes.size
-    for b in prange(nb):
+    for b in range(nb):
         pb = params[0] if shared else params[b]
         sb = state[b]
         x0 = x_start[b]
@@ -1041,10 +1041,9 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
             dissipated[b, n] = d_sum
 
 
-# Serial versions for single steps and small batches (a thread pool costs more than it gives
-# there) and a parallel history runner that spreads a large batch over the cores.
+# One build each: a large batch's history is spread over the cores by running chunks of its rows on
+# threads (droptower.rheology.threads), not by a second, parallel build of the kernel.
 step_batch = njit(**JIT)(_step_batch)
-run_history = njit(**JIT)(_run_history)
-run_history_parallel = njit(parallel=True, **JIT)(parallel_twin(_run_history))  # its own cache entry
+run_history = njit(**row_loop_options(__file__), **JIT)(_run_history)
 
 compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time

@@ -3,7 +3,7 @@
 After the impact the lever (inertia J about the pivot) swings with the coupling torque T as
 its only torque but the screw's constant T_rest, the torque the coupling carried at rest (the
 preload; 0 without one). phi is the rotation from the rest angle. The coupling's state advances
-with the lever, one element step per time step for every row of a batch (rows in parallel),
+with the lever, one element step per time step for every row of a batch (rows on several threads),
 compiled with the kernels (:func:`droptower.rheology.kernels.step_instance`).
 
 Two schemes, both explicit and far inside their stability limit (dt sqrt(K_max/J) ~ 0.02 at
@@ -22,12 +22,12 @@ tested against it (``tests/test_rig_scene.py``, ``tests/test_rig_planner.py``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from droptower.rheology import Coupling, CouplingState
 from droptower.rheology import kernels as K
-from droptower.rheology.coupling import PARALLEL_BATCH
-from droptower.rheology.numba_cache import compile_once_across_processes, parallel_twin
+from droptower.rheology.numba_cache import compile_once_across_processes, row_loop_options
+from droptower.rheology.threads import run_rows
 
 SYMPLECTIC_EULER = 0
 VERLET = 1
@@ -40,7 +40,7 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
     at the end of each step."""
     nb, nk = angle_out.shape
     shared = params.shape[0] == 1
-    for b in prange(nb):
+    for b in range(nb):
         pb = params[0] if shared else params[b]
         sb = state[b]
         p = phi[b]
@@ -48,13 +48,15 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
         a = acc[b]
         x0 = x_rest[b]
         for k in range(nk):
+            # one call of the (inlined, large) coupling step for both schemes: it is compiled once
             if scheme == SYMPLECTIC_EULER:
                 p1 = p + h * v
-                t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
-                v += (rest[b] - t) / inertia[b] * h
             else:
                 p1 = p + h * v + 0.5 * h * h * a
-                t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
+            t = K.step_instance(codes, p_off, s_off, pb, sb, x0 + p, x0 + p1, h)
+            if scheme == SYMPLECTIC_EULER:
+                v += (rest[b] - t) / inertia[b] * h
+            else:
                 a_new = (rest[b] - t) / inertia[b]
                 v += 0.5 * h * (a + a_new)
                 a = a_new
@@ -66,10 +68,9 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
         acc[b] = a
 
 
-# serial for small batches (a plan's few conditions: cheaper to compile, and a thread pool costs
-# more than it gives there), parallel for large ones (the candidates of an identification)
-_decay_steps_serial = njit(**K.JIT)(_decay_steps)
-_decay_steps_parallel = njit(parallel=True, **K.JIT)(parallel_twin(_decay_steps))  # its own cache entry
+# one build: a large batch (the candidates of an identification) runs in chunks of rows on
+# threads (droptower.rheology.threads)
+_decay_steps = njit(**row_loop_options(__file__), **K.JIT)(_decay_steps)
 
 
 class LeverDecay:
@@ -97,9 +98,10 @@ class LeverDecay:
         c, s = self.coupling, self.state
         angle = np.empty((s.batch, n_steps))
         torque = np.empty((s.batch, n_steps))
-        run = _decay_steps_parallel if s.batch >= PARALLEL_BATCH else _decay_steps_serial
-        run(c.codes, c.p_off, c.s_off, c.params, s.values, self.x_rest, self.rest, self.inertia,
-                              self.phi, self.rate, self.acc, self.step_s, self.scheme, angle, torque)
+        # the arguments at positions 3-10 and 13-14 have one row per row of the batch (params unless shared)
+        run_rows(_decay_steps, (c.codes, c.p_off, c.s_off, c.params, s.values, self.x_rest, self.rest, self.inertia,
+                                self.phi, self.rate, self.acc, self.step_s, self.scheme, angle, torque),
+                 (3, 4, 5, 6, 7, 8, 9, 10, 13, 14), s.batch)
         if n_steps:
             s.angle_rad[...] = self.x_rest + self.phi
             s.torque_nm[...] = torque[:, -1]

@@ -271,8 +271,8 @@ def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.
     if workers <= 1 or len(tests) < 2:
         return _run_batch(rig, coupling, tests, duration_s, twist)
     chunks = np.array_split(np.arange(len(tests)), min(workers, len(tests)))
-    # forked workers only step the coupling (serial kernels): everything that may run a numba
-    # parallel region (the preload) ran above, so no OpenMP pool is entered after the fork
+    # forked workers only step the coupling (serial kernels, one thread): the preload, which may
+    # spread a large batch over threads, ran above (a forked process makes its own threads if needed)
     with ProcessPoolExecutor(max_workers=len(chunks), mp_context=multiprocessing.get_context("fork")) as pool:
         parts = pool.map(_run_batch, [rig] * len(chunks), [coupling] * len(chunks),
                          [[tests[i] for i in c] for c in chunks], [duration_s] * len(chunks),
