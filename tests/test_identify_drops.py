@@ -10,12 +10,14 @@ import shutil
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.cli.main import main
 from droptower.identify.dropfit import SERVO_GRID, DropFitSettings, identify_drops, servo_agreement
 from droptower.identify.droplogs import ReadSettings, read_decays
-from droptower.identify.lever import at_times, free_decay
+from droptower.identify.lever import at_times, free_decay, with_params
 from droptower.rig.config import load_rig
 from droptower.rig.impact import linear_free_decay
 from droptower.rig.simulate import DropTest, simulate
@@ -63,6 +65,39 @@ def test_free_decay_matches_the_linear_closed_form(damping, order):
         errors.append(np.max(np.abs(angle[0] - exact)) / np.max(np.abs(exact)))
     assert errors[1] < 1.5e-3
     assert errors[0] / errors[1] == pytest.approx(2 ** order, rel=0.15)
+
+
+@given(kind=st.sampled_from(["zerodim6", "elastoslide", "masing"]), seed=st.integers(0, 2 ** 16),
+       steps=st.lists(st.integers(0, 300), min_size=1, max_size=10))
+@settings(max_examples=30, deadline=None, derandomize=True)
+def test_rows_of_their_own_lengths_equal_runs_of_that_length_alone(kind, seed, steps):
+    """A step count per row (a test re-simulated only up to its last compared sample): each row's
+    angle, torque and final coupling state equal, to the bit, a call of its own length for it
+    alone, from a conditioned state (random parameter sets around the family's guess, random
+    inertias and rates); past its end a row holds its last values."""
+    from droptower.identify.data import DataScale
+    from droptower.identify.families import family_class
+    from droptower.identify.fit import clip_to_bounds
+    from droptower.rheology import CouplingState
+    from droptower.rig.preload import hold_at
+
+    rng = np.random.default_rng(seed)
+    fam = family_class(kind)(DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0))
+    b, step = len(steps), 1 / 38400
+    factors = np.where([n == "p" for n in fam.names], 1.0, np.exp(rng.uniform(-0.5, 0.5, (b, len(fam.names)))))
+    coupling = fam.batch(np.array([clip_to_bounds(fam.parameters, fam.initial() * f) for f in factors]))
+    inertia, rate0 = rng.uniform(0.15, 0.55, b), rng.uniform(0.5, 5.0, b) * rng.choice([-1.0, 1.0], b)
+    start = hold_at(coupling, np.zeros(b), 2.0, 30.0)
+    state = start.copy()
+    angle, torque = free_decay(coupling, inertia, rate0, np.array(steps), step, state)
+    assert angle.shape == torque.shape == (b, max(steps) + 1)
+    for i, n in enumerate(steps):
+        alone = CouplingState(start.values[[i]], start.angle_rad[[i]], start.torque_nm[[i]])
+        a, q = free_decay(with_params(coupling, coupling.params[[i]]), inertia[[i]], rate0[[i]], n, step, alone)
+        assert np.array_equal(angle[i, :n + 1], a[0]) and np.array_equal(torque[i, :n + 1], q[0])
+        assert np.all(angle[i, n:] == a[0, -1]) and np.all(torque[i, n:] == q[0, -1])
+        assert np.array_equal(state.values[i], alone.values[0]) and state.angle_rad[i] == alone.angle_rad[0]
+        assert state.torque_nm[i] == alone.torque_nm[0]
 
 
 def test_resimulation_matches_the_rig(tmp_path):
