@@ -154,7 +154,7 @@ def test_template_family_follows_any_coupling_file(logs, tmp_path):
     path = tmp_path / "template.toml"
     path.write_text(coupling_to_toml(parse_coupling(data)))
     decays, _ = read_decays(logs["zerodim6"], ReadSettings())
-    result = identify_drops("template", decays, settings=DropFitSettings(holdout_fraction=0.0),
+    result = identify_drops("template", decays, settings=DropFitSettings(),
                             options={"template": str(path)})
     assert result.converged
     agree = servo_agreement(result.coupling, parse_coupling(TRUTHS["zerodim6"]), decays, 3, 2)
@@ -268,7 +268,7 @@ def test_template_of_the_reference_coupling_recovers_another_coupling_of_its_str
     truth = parse_coupling(data)
     decays, excluded = read_decays(_campaign(truth, tmp_path, heights=(0.2, 1.0, 3.0)), ReadSettings())
     assert not excluded
-    result = identify_drops("template", decays, settings=DropFitSettings(holdout_fraction=0.0),
+    result = identify_drops("template", decays, settings=DropFitSettings(),
                             options={"template": "rapp2022_nr60"})
     agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
@@ -289,7 +289,7 @@ def test_two_branches_in_the_test_band_are_found_and_judged(seed, tmp_path):
         {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": k2, "damping": k2 * tau2},
         {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": rng.uniform(0, 50) * k3, "damping": k3 * tau3}]})
     decays, excluded = read_decays(_campaign(truth, tmp_path), ReadSettings())
-    result = identify_drops("zerodim6", decays, settings=DropFitSettings(holdout_fraction=0.0))
+    result = identify_drops("zerodim6", decays, settings=DropFitSettings())
     agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
     assert result.verdict.verdict == "good fit" and not result.at_bounds
