@@ -17,7 +17,8 @@ from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.cli.main import main
 from droptower.identify.dropfit import SERVO_GRID, DropFitSettings, identify_drops, servo_agreement
 from droptower.identify.droplogs import ReadSettings, read_decays
-from droptower.identify.lever import at_times, free_decay, with_params
+from droptower.identify.fit import with_params
+from droptower.identify.lever import at_times, free_decay
 from droptower.rig.config import load_rig
 from droptower.rig.impact import linear_free_decay
 from droptower.rig.simulate import DropTest, simulate

@@ -44,8 +44,8 @@ from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
-from droptower.identify.lever import at_times, free_decay, with_params
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread, with_params
+from droptower.identify.lever import at_times, free_decay
 from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
 from droptower.identify.search import basin_hops, global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge

@@ -17,20 +17,11 @@ the next), so a row's history is the one a single call of its own length gives.
 """
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
+from droptower.identify.fit import with_params
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.lever import VERLET, LeverDecay
-
-
-def with_params(coupling: Coupling, params: np.ndarray) -> Coupling:
-    """``coupling``'s compiled structure with other parameter rows ``params`` (n_sets, P): no
-    re-compilation of its elements (what building a :class:`Coupling` anew costs per call)."""
-    out = copy.copy(coupling)
-    out.params = np.ascontiguousarray(params, dtype=np.float64)
-    return out
 
 
 def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int | np.ndarray,
