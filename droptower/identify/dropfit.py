@@ -44,7 +44,7 @@ from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread, with_params
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
 from droptower.identify.search import basin_hops, global_fit
@@ -127,6 +127,8 @@ class DropProblem:
         self.torque = np.array([np.pad(d.torque_nm, (0, n - d.time_s.size)) if d.torque_nm is not None
                                 else np.zeros(n) for d in decays])
         self.has_torque = np.array([d.torque_nm is not None for d in decays])
+        self.inertia = np.array([d.inertia_kgm2 for d in decays], dtype=float)
+        self.rate0 = np.array([d.rate0_rad_per_s for d in decays], dtype=float)
         counts = self.mask.sum(axis=1)
         self.w_angle = 1.0 / (np.array([d.amplitude_rad for d in decays]) * np.sqrt(counts))
         t_amp = np.array([d.torque_amplitude_nm if d.torque_nm is not None else 1.0 for d in decays])
@@ -171,10 +173,12 @@ class DropProblem:
             cond = hold_at(coupling, np.zeros(m), *self.settings.conditioning)
             which = np.repeat(np.arange(m), t)
             state = CouplingState(cond.values[which], cond.angle_rad[which], cond.torque_nm[which])
-        batch = Coupling(coupling.elements, name=coupling.name, params=np.repeat(coupling.params, t, axis=0))
-        inertia = np.tile([d.inertia_kgm2 for d in self.decays], m)
-        rate0 = np.tile([d.rate0_rad_per_s for d in self.decays], m)
-        n_steps = int(math.ceil(float(times.max()) / h)) + 1
+        batch = with_params(coupling, np.repeat(coupling.params, t, axis=0))
+        inertia = np.tile(self.inertia, m)
+        rate0 = np.tile(self.rate0, m)
+        # each test only up to its last compared sample (a light lever's decay ends in about
+        # half the heavy one's time): the steps beyond it would change none of its samples
+        n_steps = np.tile(np.ceil(times.max(axis=1) / h).astype(np.int64) + 1, m)
         angle, torque = free_decay(batch, inertia, rate0, n_steps, h, state)
         grid = np.tile(times, (m, 1))
         a = at_times(angle, h, grid).reshape(m, t, -1)

@@ -7,30 +7,84 @@ tests of all candidate parameter sets decay in one call. The integrator is the r
 order where the core's rate-dependent elements see the step's mean rate: 0.1 % of the peak at
 38.4 kHz, tested); the rig's pymunk scene integrates the same equation with symplectic Euler at
 the same step, and the two agree far below the fit errors that matter (tested).
+
+Each row runs only as many steps as it asks for (``n_steps`` per row): a campaign's decays end
+at a few periods of their own, and the light lever's period is about half the heavy one's, so
+running every row to the longest end spends a quarter of the steps on samples nobody compares.
+The rows are advanced together up to the first end, the rows still running on to the next,
+and so on (the rig's integrator carries each row's lever and coupling state from one call to
+the next), so a row's history is the one a single call of its own length gives.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from droptower.identify.fit import with_params
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.lever import VERLET, LeverDecay
 
 
-def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int,
+def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int | np.ndarray,
                step_s: float, state: CouplingState | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Angle (rad) and coupling torque (N*m) of the free decay on the grid k * step_s, k = 0..n_steps.
 
     coupling: one parameter set, or one per row (``coupling.n_sets == B``); inertia_kgm2,
-    rate0_rad_per_s: (B,); state: the coupling's state at rest before the impact (default
-    virgin), advanced in place. Angle and torque are changes from that rest (the screw holding
-    a preload keeps its torque, so the lever feels T - T_rest). Returns two (B, n_steps + 1) arrays.
+    rate0_rad_per_s: (B,); n_steps: the steps of every row, or of each row (B,); state: the
+    coupling's state at rest before the impact (default virgin), advanced in place (each row to
+    its own end). Angle and torque are changes from that rest (the screw holding a preload
+    keeps its torque, so the lever feels T - T_rest). Returns two (B, max(n_steps) + 1) arrays;
+    a row that ends earlier holds its last values.
     """
     rate0 = np.asarray(rate0_rad_per_s, dtype=float)
-    state = coupling.new_state(rate0.size) if state is None else state
+    b = rate0.size
+    state = coupling.new_state(b) if state is None else state
+    steps = np.broadcast_to(np.asarray(n_steps, dtype=np.int64), (b,))
+    if b and steps.min() < 0:
+        raise ValueError("n_steps must be >= 0")
+    total = int(steps.max()) if b else 0
+    angle = np.zeros((b, total + 1))
+    torque = np.zeros((b, total + 1))
+    if b == 0:
+        return angle, torque
+    running = np.arange(b)  # the rows the lever advances (all, then those not ended yet)
     lever = LeverDecay(coupling, state, inertia_kgm2, rate0, step_s, VERLET)
-    angle, torque = lever.advance(n_steps)
-    zero = np.zeros((rate0.size, 1))
-    return np.hstack([zero, angle]), np.hstack([zero, torque - lever.rest[:, None]])
+    done = 0
+    for end in map(int, np.unique(steps)):
+        if end > done:
+            a, q = lever.advance(end - done)
+            angle[running, done + 1:end + 1] = a
+            torque[running, done + 1:end + 1] = q - lever.rest[:, None]
+            done = end
+        ended = steps[running] == end
+        rows = running[ended]
+        angle[rows, end + 1:] = angle[rows, end][:, None]
+        torque[rows, end + 1:] = torque[rows, end][:, None]
+        if lever.state is not state:  # a subset's copy: its rows' states back into the caller's
+            _store(state, running, lever.state)
+        running = running[~ended]
+        if not running.size:
+            break
+        if ended.any():
+            lever = _rows_of(lever, ~ended)
+    return angle, torque
+
+
+def _store(state: CouplingState, rows: np.ndarray, sub: CouplingState) -> None:
+    """The rows ``rows`` of ``state`` set to ``sub``'s (one row each)."""
+    state.values[rows] = sub.values
+    state.angle_rad[rows] = sub.angle_rad
+    state.torque_nm[rows] = sub.torque_nm
+
+
+def _rows_of(lever: LeverDecay, keep: np.ndarray) -> LeverDecay:
+    """The levers ``keep`` (a mask) of ``lever``, to be advanced on from where they are: their
+    coupling rows, state, rest and carried rate, angle and acceleration (copies)."""
+    c, s = lever.coupling, lever.state
+    coupling = with_params(c, c.params[keep]) if c.n_sets > 1 else c
+    sub = LeverDecay(coupling, CouplingState(s.values[keep], s.angle_rad[keep], s.torque_nm[keep]), lever.inertia[keep],
+                     lever.rate[keep], lever.step_s, lever.scheme, rest_torque_nm=lever.rest[keep])
+    sub.x_rest, sub.phi, sub.acc = lever.x_rest[keep], lever.phi[keep], lever.acc[keep]
+    return sub
 
 
 def at_times(history: np.ndarray, step_s: float, times_s: np.ndarray) -> np.ndarray:
