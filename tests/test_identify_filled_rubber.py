@@ -103,6 +103,51 @@ def test_stiffening_maxwell_elongation_solves_its_equation(log_k0, log_gain_rati
     assert abs(got - k * 1j * wc / (k + 1j * wc)) <= 1e-12 * abs(k * 1j * wc / (k + 1j * wc))
 
 
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(st.lists(st.floats(0.0, 1.0), min_size=13, max_size=13), st.integers(2, 40), st.integers(2, 40),
+       st.booleans(), st.lists(st.tuples(st.floats(-7.0, 0.5), st.floats(-2.0, 3.5)), min_size=1, max_size=12))
+def test_closed_form_on_numbers_is_the_element_specs(position, n, terms, branch, readings):
+    """The closed form evaluated on the numbers (the elements' pure functions, no spec built)
+    equals, to rounding (1e-13 of |K*|), the validated element specs' own methods
+    (FillerNetwork.complex_stiffness, PowerLaw.complex_stiffness) plus the spring's first
+    harmonic and the stiffening branch, at random parameter sets anywhere in the bounds (each
+    at a random position in its optimised variable), networks of 2-40 elements, bands of 2-40
+    terms, random amplitudes (1e-7 to 3 rad) and frequencies (0.01 Hz to 3 kHz)."""
+    from droptower.identify.families.filled_rubber import stiffening_maxwell_stiffness
+    from droptower.rheology.elements import FillerNetwork, PowerLaw
+
+    fam = FilledRubberFamily(SCALE, {"n": n, "terms": terms, "stiffening_branch": branch})
+    v = np.array([p.to_value(p.to_z(p.lower) + u * (p.to_z(p.upper) - p.to_z(p.lower)))
+                  for p, u in zip(fam.parameters, position)])
+    amp, freq = 10.0 ** np.array(readings).T
+    _, network, matrix, *_ = fam.elements(v)
+    want = (v[0] + 0.75 * v[1] * amp ** 2 + FillerNetwork(**network).complex_stiffness(amp)
+            + PowerLaw(**matrix).complex_stiffness(freq)
+            + (stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq) if branch else 0.0))
+    got = fam.harmonic_stiffness(v, amp, freq)
+    assert got.shape == amp.shape
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * float(np.max(np.abs(want))))
+
+
+def test_closed_form_refuses_what_the_element_specs_refuse():
+    """A parameter set an element spec refuses (a non-positive or non-finite field the closed
+    form reads, a band of negative width) is refused by the closed form with a one-line error naming the
+    field, as the first guess's fit expects of a start the element refuses."""
+    from droptower.errors import DroptowerError
+
+    fam = FilledRubberFamily(SCALE)
+    for index, field in ((2, "stiffness"), (3, "critical_angle"), (6, "storage_stiffness"), (7, "loss_factor")):
+        for bad in (0.0, -1.0, math.nan):
+            v = fam.initial()
+            v[index] = bad
+            with pytest.raises(DroptowerError, match=f"field {field} of element"):
+                fam.harmonic_stiffness(v, np.radians([1.0]), np.array([30.0]))
+    v = fam.initial()
+    v[9] = -1.0
+    with pytest.raises(DroptowerError, match="(band_decades|max_frequency|terms_per_decade)"):
+        fam.harmonic_stiffness(v, np.radians([1.0]), np.array([30.0]))
+
+
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(st.floats(1e-3, 900.0), st.floats(0.3, 6.0), st.integers(2, 40))
 def test_the_band_has_the_same_number_of_terms_whatever_its_width(f_min, decades, terms):
