@@ -11,6 +11,7 @@ bank of rate-dependent sliders, ``mullins`` a spring (or static table) and a Max
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Annotated, ClassVar, Literal, Union
 
 import numpy as np
@@ -225,25 +226,55 @@ class PowerLaw(ElementSpec):
 
     def terms(self) -> np.ndarray:
         """(n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term."""
-        alpha = self.alpha
-        k0 = self.storage_stiffness / np.cos(alpha * np.pi / 2)  # K0 (i w tau0)^alpha has K' = K0 cos(alpha pi/2) at w tau0 = 1
-        tau0 = 1 / (2 * np.pi * self.reference_frequency)
-        lo, hi = np.log(1 / (2 * np.pi * self.max_frequency)), np.log(1 / (2 * np.pi * self.min_frequency))
-        n = int(np.ceil((hi - lo) / np.log(10) * self.terms_per_decade)) + 1
-        log_tau = np.linspace(lo, hi, n)
-        tau = np.exp(log_tau)
-        weight = k0 * np.sin(alpha * np.pi) / np.pi * (tau0 / tau) ** alpha * (log_tau[1] - log_tau[0])
-        return np.column_stack([weight, tau])
+        return power_law_terms(self.storage_stiffness, self.loss_factor, self.reference_frequency,
+                               self.min_frequency, self.max_frequency, self.terms_per_decade)
 
     def compile(self):
         k, tau = self.terms().T
         return [KernelElement(K.MAXWELL_BANK, np.concatenate([[k.size], k, k * tau]))]
 
     def complex_stiffness(self, frequency_hz: ArrayLike) -> np.ndarray:
-        """K*(f) (N*m/rad) of the Prony series as compiled."""
-        s = 2j * np.pi * np.asarray(frequency_hz, float)[..., None]
-        k, tau = self.terms().T
-        return np.sum(k * s * tau / (1 + s * tau), axis=-1)
+        """K*(f) (N*m/rad) of the Prony series as compiled (:func:`power_law_complex_stiffness`)."""
+        return power_law_complex_stiffness(self.storage_stiffness, self.loss_factor, self.reference_frequency,
+                                           self.min_frequency, self.max_frequency, self.terms_per_decade,
+                                           frequency_hz)
+
+
+@lru_cache(maxsize=64)
+def _log_tau_grid(min_frequency: float, max_frequency: float, terms_per_decade: float) -> tuple[np.ndarray, np.ndarray]:
+    """(ln tau, tau) of a power-law band's terms (read-only, cached: a fit varies the level and
+    the exponent far more often than the band)."""
+    lo, hi = np.log(1 / (2 * np.pi * max_frequency)), np.log(1 / (2 * np.pi * min_frequency))
+    n = int(np.ceil((hi - lo) / np.log(10) * terms_per_decade)) + 1
+    log_tau = np.linspace(lo, hi, n)
+    tau = np.exp(log_tau)
+    log_tau.flags.writeable = tau.flags.writeable = False
+    return log_tau, tau
+
+
+def power_law_terms(storage_stiffness: float, loss_factor: float, reference_frequency: float, min_frequency: float,
+                    max_frequency: float, terms_per_decade: float) -> np.ndarray:
+    """(n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term of a
+    :class:`PowerLaw` branch (its fields, SI; not validated): the springpot's relaxation
+    spectrum over the band by the midpoint rule in ln tau."""
+    alpha = float(2 / np.pi * np.arctan(loss_factor))
+    k0 = storage_stiffness / np.cos(alpha * np.pi / 2)  # K0 (i w tau0)^alpha has K' = K0 cos(alpha pi/2) at w tau0 = 1
+    tau0 = 1 / (2 * np.pi * reference_frequency)
+    log_tau, tau = _log_tau_grid(float(min_frequency), float(max_frequency), float(terms_per_decade))
+    weight = k0 * np.sin(alpha * np.pi) / np.pi * (tau0 / tau) ** alpha * (log_tau[1] - log_tau[0])
+    return np.column_stack([weight, tau])
+
+
+def power_law_complex_stiffness(storage_stiffness: float, loss_factor: float, reference_frequency: float,
+                                min_frequency: float, max_frequency: float, terms_per_decade: float,
+                                frequency_hz: ArrayLike) -> np.ndarray:
+    """K*(f) (N*m/rad) at frequencies f (Hz) of a :class:`PowerLaw` branch's Prony series as
+    compiled (its fields, SI; not validated): a pure function of numbers, which the first guess
+    of a fit evaluates some ten thousand times."""
+    s = 2j * np.pi * np.asarray(frequency_hz, float)[..., None]
+    k, tau = power_law_terms(storage_stiffness, loss_factor, reference_frequency, min_frequency, max_frequency,
+                             terms_per_decade).T
+    return np.sum(k * s * tau / (1 + s * tau), axis=-1)
 
 
 # ------------------------------------------------------------------ friction
@@ -648,11 +679,45 @@ def log_logistic_bins(median: float, exponent: float, n: int, tail: float = 1e-3
     Returns (weights summing to 1, points a_i): each point carries the probability of the cell
     between the midpoints to its neighbours; the first and last carry the tails beyond them.
     """
+    z, weights = _logit_cells(int(n), float(tail))
+    return weights.copy(), median * np.exp(z / (2.0 * exponent))
+
+
+@lru_cache(maxsize=64)
+def _logit_cells(n: int, tail: float) -> tuple[np.ndarray, np.ndarray]:
+    """(logits z_i, cell probabilities) of :func:`log_logistic_bins`, which depend on n and the
+    tail only (read-only, cached)."""
     z_max = np.log((1.0 - tail) / tail)  # the logit of the upper quantile; ln(a/median) = z / (2 exponent)
     z = np.linspace(-z_max, z_max, n) if n > 1 else np.zeros(1)
     edges = np.r_[-np.inf, 0.5 * (z[1:] + z[:-1]), np.inf]
     cdf = 1.0 / (1.0 + np.exp(-edges))
-    return np.diff(cdf), median * np.exp(z / (2.0 * exponent))
+    weights = np.diff(cdf)
+    z.flags.writeable = weights.flags.writeable = False
+    return z, weights
+
+
+def filler_network_complex_stiffness(stiffness: float, critical_angle: float, exponent: float,
+                                     breakdown_angle: float, n: int, amplitude_rad: ArrayLike) -> np.ndarray:
+    """K'(A) + i K''(A) (N*m/rad) of a :class:`FillerNetwork` (its fields, SI; not validated) in
+    a harmonic motion of amplitude A (rad) about the centre, once the network has broken down to
+    g_eq(A) (recovery within a cycle and the centre's motion left out): Jenkins loops in closed
+    form, sticking springs elastic. A pure function of numbers, which the first guess of a fit
+    evaluates some ten thousand times (docs/theory.md#filler-network)."""
+    amp = np.asarray(amplitude_rad, float)[..., None]
+    weights, a = log_logistic_bins(critical_angle, exponent, n)
+    k = stiffness * weights
+    ratio = np.minimum(a / amp, 1.0)
+    theta = np.arccos(1.0 - 2.0 * ratio)  # the part of the half cycle an element sticks
+    storage = k / np.pi * (theta - 0.5 * np.sin(2.0 * theta))
+    loss = 4.0 * k * ratio * (1.0 - ratio) / np.pi
+    return filler_network_intact_fraction(breakdown_angle, exponent, amp[..., 0]) * np.sum(storage + 1j * loss,
+                                                                                           axis=-1)
+
+
+def filler_network_intact_fraction(breakdown_angle: float, exponent: float, amplitude_rad: ArrayLike) -> np.ndarray:
+    """g_eq(A) = 1 / (1 + (A / breakdown_angle)^(2 exponent)): a :class:`FillerNetwork`'s intact
+    fraction after a motion of amplitude A (rad) about its centre."""
+    return 1.0 / (1.0 + (np.asarray(amplitude_rad, float) / breakdown_angle) ** (2 * exponent))
 
 
 class FillerNetwork(ElementSpec):
@@ -697,19 +762,13 @@ class FillerNetwork(ElementSpec):
 
     def intact_fraction(self, amplitude_rad: ArrayLike) -> np.ndarray:
         """g_eq(A): the network's intact fraction after a motion of amplitude A about its centre."""
-        return 1.0 / (1.0 + (np.asarray(amplitude_rad, float) / self.breakdown_angle) ** (2 * self.exponent))
+        return filler_network_intact_fraction(self.breakdown_angle, self.exponent, amplitude_rad)
 
     def complex_stiffness(self, amplitude_rad: ArrayLike) -> np.ndarray:
         """K'(A) + i K''(A) (N*m/rad) in a harmonic motion of amplitude A (rad) about the
-        centre, once the network has broken down to g_eq(A) (recovery within a cycle and the
-        centre's motion left out): Jenkins loops in closed form, sticking springs elastic."""
-        amp = np.asarray(amplitude_rad, float)[..., None]
-        k, a = self.sliders()
-        ratio = np.minimum(a / amp, 1.0)
-        theta = np.arccos(1.0 - 2.0 * ratio)  # the part of the half cycle an element sticks
-        storage = k / np.pi * (theta - 0.5 * np.sin(2.0 * theta))
-        loss = 4.0 * k * ratio * (1.0 - ratio) / np.pi
-        return self.intact_fraction(amp[..., 0]) * np.sum(storage + 1j * loss, axis=-1)
+        centre (:func:`filler_network_complex_stiffness`)."""
+        return filler_network_complex_stiffness(self.stiffness, self.critical_angle, self.exponent,
+                                                self.breakdown_angle, self.n, amplitude_rad)
 
 ElementUnion = Annotated[
     Union[Spring, SpringTable, CubicSpring, Dashpot, Maxwell, Prony, Prandtl, Masing, Elastoslide,

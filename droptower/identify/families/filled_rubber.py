@@ -30,7 +30,7 @@ from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
-from droptower.rheology.elements import FillerNetwork, PowerLaw
+from droptower.rheology.elements import filler_network_complex_stiffness, power_law_complex_stiffness
 from droptower.rheology.numba_cache import cache_available
 
 #: Relative margin that keeps the power-law band's term count at the ``terms`` option exactly
@@ -90,6 +90,20 @@ def _stiffening_secant(k0, g, amp, wc, iterations):  # pragma: no cover - compil
                     break
         out[i] = k0 + g * e
     return out
+
+
+def _closed_form_fields(element: dict[str, Any], positive: tuple[str, ...]) -> dict[str, Any]:
+    """``element`` (a spec's fields, as :meth:`FilledRubberFamily.elements` writes them) after the
+    checks its spec makes on the fields its closed form reads (finite and > 0, a band of positive
+    width), without building the spec: :class:`DroptowerError` where the spec would refuse."""
+    for key in positive:
+        if not (element[key] > 0 and math.isfinite(element[key])):
+            raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be finite "
+                                 f"and > 0, got {element[key]}")
+    if "max_frequency" in element and not element["max_frequency"] > element["min_frequency"]:
+        raise DroptowerError(f"element {element['name']} of model filled_rubber: max_frequency must exceed "
+                             f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
+    return element
 
 
 class FilledRubberFamily(Family):
@@ -184,19 +198,24 @@ class FilledRubberFamily(Family):
     def harmonic_stiffness(self, v: np.ndarray, amplitude_rad: np.ndarray, frequency_hz: np.ndarray) -> np.ndarray:
         """K' + i K'' (N*m/rad) of parameter set ``v`` in a steady harmonic motion of amplitude A
         (rad) at frequency f (Hz): the cubic spring's first harmonic b + 3/4 a A^2, the network
-        broken down to its equilibrium at A (:meth:`FillerNetwork.complex_stiffness`), the
-        power-law band's Prony series (:meth:`PowerLaw.complex_stiffness`) and the stiffening
-        Maxwell branch linearised on its first harmonic (:func:`stiffening_maxwell_stiffness`)."""
-        network, matrix = (el for el in self._specs(v))
+        broken down to its equilibrium at A (:func:`~droptower.rheology.elements.filler_network_complex_stiffness`),
+        the power-law band's Prony series (:func:`~droptower.rheology.elements.power_law_complex_stiffness`)
+        and the stiffening Maxwell branch linearised on its first harmonic
+        (:func:`stiffening_maxwell_stiffness`). The elements' closed forms are called on the
+        numbers :meth:`elements` writes, after the checks their specs make (the first guess
+        evaluates this some ten thousand times per fit: building the specs would dominate)."""
+        _, network, matrix, *_ = self.elements(v)
+        net = _closed_form_fields(network, ("stiffness", "critical_angle", "exponent", "breakdown_angle"))
+        mat = _closed_form_fields(matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
+                                           "terms_per_decade"))
         amp, freq = np.asarray(amplitude_rad, float), np.asarray(frequency_hz, float)
+        k_network = filler_network_complex_stiffness(net["stiffness"], net["critical_angle"], net["exponent"],
+                                                     net["breakdown_angle"], net["n"], amp)
+        k_matrix = power_law_complex_stiffness(mat["storage_stiffness"], mat["loss_factor"], mat["reference_frequency"],
+                                               mat["min_frequency"], mat["max_frequency"], mat["terms_per_decade"], freq)
         viscous = (stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq)
                    if self.options["stiffening_branch"] else 0.0)
-        return (v[0] + 0.75 * v[1] * amp ** 2 + network.complex_stiffness(amp) + matrix.complex_stiffness(freq)
-                + viscous)
-
-    def _specs(self, v: np.ndarray) -> tuple[FillerNetwork, PowerLaw]:
-        _, network, matrix, *_ = self.elements(v)
-        return FillerNetwork(**network), PowerLaw(**matrix)
+        return v[0] + 0.75 * v[1] * amp ** 2 + k_network + k_matrix + viscous
 
     def guess_from_readings(self, amplitude_rad: np.ndarray, frequency_hz: np.ndarray, stiffness: np.ndarray,
                             x0: np.ndarray, given: np.ndarray, seed: int = 0) -> np.ndarray:
