@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from droptower.campaign import run_campaign
+from droptower.campaign import CampaignRun, run_campaign
 from droptower.campaign.spec import PLAN_COLUMNS
 from droptower.cli.main import main
 from droptower.io import read_any
@@ -193,10 +193,16 @@ SIGNALLED_SETTINGS = dict(duration_s=0.07, chunk_size=1, progress=False)
 
 
 @pytest.fixture(scope="module")
-def signalled_doe(inputs) -> Path:
-    path = inputs["doe"].with_name("signalled.toml")
-    path.write_text(SIGNALLED_PLAN)
-    return path
+def signalled(inputs, tmp_path_factory) -> tuple[Path, CampaignRun]:
+    """The signal tests' plan, and its campaign run without a stop in this process, first: every
+    kernel the campaign calls is then in numba's cache, so a signalled process's first record
+    never waits on a compilation (on a cold cache and a loaded machine that took minutes)."""
+    doe = inputs["doe"].with_name("signalled.toml")
+    doe.write_text(SIGNALLED_PLAN)
+    whole = run_campaign(tmp_path_factory.mktemp("signalled") / "campaign", coupling=inputs["coupling"], doe=doe,
+                         workers=1, **SIGNALLED_SETTINGS)
+    assert whole.pending == 0 and len(whole.results) == N_SIGNALLED
+    return doe, whole
 
 
 # ``python -m droptower.cli.main`` with Ctrl-C raising KeyboardInterrupt, as in a terminal. A process
@@ -215,11 +221,11 @@ def _signal_after_the_first_record(inputs, doe: Path, out: Path, sig: int) -> tu
            "--chunk-size", str(SIGNALLED_SETTINGS["chunk_size"]), "--workers", "1"]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + 600  # a hung process's limit, not a timing: it starts in seconds
         while not list((out / "records").glob("*.json")) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.005)
         proc.send_signal(sig)
-        _, err = proc.communicate(timeout=120)
+        _, err = proc.communicate(timeout=600)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -230,10 +236,11 @@ def _signal_after_the_first_record(inputs, doe: Path, out: Path, sig: int) -> tu
 
 
 @pytest.mark.slow
-def test_killed_campaign_resumes_to_the_same_results(inputs, signalled_doe, tmp_path):
+def test_killed_campaign_resumes_to_the_same_results(inputs, signalled, tmp_path):
     """SIGKILL a running ``droptower campaign`` as soon as its first test is finished: every
     record and log under a final name is whole, and the resume runs exactly the rest, to the
-    results of the campaign run without a stop (in this process; 100 short tests, ~1 s)."""
+    results of the campaign run without a stop."""
+    signalled_doe, whole = signalled
     out = tmp_path / "killed"
     proc, _, done = _signal_after_the_first_record(inputs, signalled_doe, out, signal.SIGKILL)
     assert proc.returncode == -signal.SIGKILL
@@ -243,18 +250,15 @@ def test_killed_campaign_resumes_to_the_same_results(inputs, signalled_doe, tmp_
         assert read_any(path).channels["angle_rad"].values.size > 0
     run = run_campaign(out, coupling=inputs["coupling"], doe=signalled_doe, resume=True, workers=1, progress=False)
     assert run.ran_tests == N_SIGNALLED - done
-    whole = run_campaign(tmp_path / "whole", coupling=inputs["coupling"], doe=signalled_doe, workers=1,
-                         **SIGNALLED_SETTINGS)
-    assert whole.pending == 0 and len(whole.results) == N_SIGNALLED
     pd.testing.assert_frame_equal(run.results, whole.results, check_exact=True)
 
 
 @pytest.mark.slow
-def test_ctrl_c_says_what_is_kept_and_how_to_resume(inputs, signalled_doe, tmp_path):
+def test_ctrl_c_says_what_is_kept_and_how_to_resume(inputs, signalled, tmp_path):
     """SIGINT (Ctrl-C) once the first test is finished: exit 130, the count of finished tests
     is the count of records on disk, and the resume runs exactly the rest."""
     out = tmp_path / "interrupted"
-    proc, err, done = _signal_after_the_first_record(inputs, signalled_doe, out, signal.SIGINT)
+    proc, err, done = _signal_after_the_first_record(inputs, signalled[0], out, signal.SIGINT)
     assert proc.returncode == 130 and "Traceback" not in err
     assert f"interrupted; {done} test(s) of the campaign are finished and kept" in err and "--resume" in err
     run = run_campaign(out, resume=True, workers=1, progress=False)  # inputs from the manifest
