@@ -23,8 +23,6 @@ from droptower.campaign.executors import WINDOW_PER_WORKER, LocalPool
 from test_campaign import LINEAR
 from test_campaign import PLAN as SMALL_PLAN
 
-distributed = pytest.importorskip("distributed")
-
 # the plan of test_campaign with 4 repeats: 16 tests in 8 chunks of 2, enough chunks in flight on
 # both workers when one is killed
 PLAN = SMALL_PLAN.replace("repeats = 2", "repeats = 4", 1).replace("base_seed = 100", "base_seed = 280", 1)
@@ -50,6 +48,9 @@ def reference(inputs, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def cluster():
+    # imported here, not at the module's top: every xdist worker collects this file, and Dask's
+    # import (~1 s) is then paid only by the worker that runs a test on the cluster
+    distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
         yield c
 
@@ -70,7 +71,9 @@ def test_worker_killed_mid_run_loses_no_test(inputs, reference, cluster, tmp_pat
         except BaseException as exc:  # reported by the assertion below
             result["error"] = exc
 
-    with distributed.Client(cluster.scheduler_address, set_as_default=False) as client:
+    from distributed import Client
+
+    with Client(cluster.scheduler_address, set_as_default=False) as client:
         pids = client.run(os.getpid)
         thread = threading.Thread(target=campaign)
         thread.start()

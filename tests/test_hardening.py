@@ -288,7 +288,8 @@ def test_os_errors_outside_the_atomic_writer_are_one_line(tmp_path, capsys, monk
     def refuse(*args, **kwargs):
         raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path / "plan.csv"))
     monkeypatch.setattr(tables, "write_table", refuse)
-    assert main(["plan", "--out", str(tmp_path / "plan.csv")]) == 2
+    # a small plan: the shipped one predicts 90 conditions (the batch-parallel kernel) before the write
+    assert main(["plan", "--doe", str(_plan(tmp_path, SMALL_PLAN)), "--out", str(tmp_path / "plan.csv")]) == 2
     one_line_error(capsys, "plan.csv: Permission denied")
 
 

@@ -98,23 +98,3 @@ def test_the_command_line_reports_the_library_error_with_its_flags(tmp_path, cap
     assert main(["extract", str(log)]) == 2
     err = capsys.readouterr().err
     assert "give --inertia-kgm2" in err and "`" not in err, err
-
-
-def test_the_planner_page_speaks_python_unless_the_command_line_writes_it(tmp_path, monkeypatch):
-    from droptower.cli.planner_cmd import RUN_HINT as SHELL_HINT
-    from droptower.planner import page, write_planner
-    from droptower.rheology import load_coupling
-    from droptower.rig.config import load_rig
-
-    # the hint is text around the grid: one lever and one drop mass of the rig predict a page
-    # as well as all of them (the full page is test_planner's)
-    rig = load_rig("rapp2022")
-    rig = rig.model_copy(update={"inertias_kgm2": rig.inertias_kgm2[:1], "drop_masses_kg": rig.drop_masses_kg[:1]})
-    coupling = load_coupling("rapp2022_nr60")
-    # the grid does not depend on the run hint: predicted once, for both pages
-    data = page.planner_data(rig, coupling, (0.0,))
-    monkeypatch.setattr(page, "planner_data", lambda *args: data)
-    python_page = write_planner(rig, coupling, (0.0,), tmp_path / "python.html").read_text(encoding="utf-8")
-    shell_page = write_planner(rig, coupling, (0.0,), tmp_path / "shell.html", run_hint=SHELL_HINT).read_text(encoding="utf-8")
-    assert "run_campaign(" in python_page and "--doe" not in python_page
-    assert "droptower campaign --doe plan.toml" in shell_page

@@ -79,6 +79,28 @@ def test_page_is_self_contained(page: Path) -> None:
     assert "function chooseDrops" in text and str(page.parent) not in text
 
 
+def test_the_page_speaks_python_unless_the_command_line_writes_it(page: Path, shipped, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """The library's page tells its reader the Python call that runs a saved plan; the page the
+    command writes tells the shell command, and differs in nothing else (the hint is text around
+    the grid: the library's page is written here from the grid the command predicted)."""
+    import html
+    import json
+
+    from droptower.cli.planner_cmd import RUN_HINT as SHELL_HINT
+    from droptower.planner import page as planner_page
+    from droptower.planner import write_planner
+
+    shell_page = page.read_text(encoding="utf-8")
+    found = re.search(r"<script type='application/json' id='planner-data'>(.*?)</script>", shell_page, re.S)
+    data = json.loads(found.group(1))
+    monkeypatch.setattr(planner_page, "planner_data", lambda *args: data)
+    python_page = write_planner(*shipped[:2], PRELOADS, tmp_path / "python.html").read_text(encoding="utf-8")
+    assert "run_campaign(" in python_page and "--doe" not in python_page
+    assert "droptower campaign --doe plan.toml" in shell_page and "run_campaign(" not in shell_page
+    assert python_page == shell_page.replace(html.escape(SHELL_HINT), html.escape(planner_page.RUN_HINT))
+
+
 def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["planner", "--out", str(tmp_path / "p.txt")]) == 2
     err = capsys.readouterr().err
