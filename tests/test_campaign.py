@@ -210,6 +210,7 @@ def signalled(inputs, tmp_path_factory) -> tuple[Path, CampaignRun]:
 # SIGINT *ignored*, and Python then installs no handler: the campaign never saw the signal and ran to
 # its end, which failed the Ctrl-C test in every suite run started that way.
 AS_FROM_A_TERMINAL = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                      "signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT}); "
                       "runpy.run_module('droptower.cli.main', run_name='__main__', alter_sys=True)")
 
 
@@ -224,6 +225,10 @@ def _signal_after_the_first_record(inputs, doe: Path, out: Path, sig: int) -> tu
         deadline = time.monotonic() + 600  # a hung process's limit, not a timing: it starts in seconds
         while not list((out / "records").glob("*.json")) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.005)
+        at_signal = len(list((out / "records").glob("*.json")))
+        status = Path(f"/proc/{proc.pid}/status")  # the child's signal masks, should it miss the signal (Linux)
+        masks = " ".join(line for line in (status.read_text().splitlines() if status.exists() else [])
+                         if line.startswith(("SigBlk", "SigIgn", "SigCgt")))
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=600)
     finally:
@@ -231,7 +236,8 @@ def _signal_after_the_first_record(inputs, doe: Path, out: Path, sig: int) -> tu
             proc.kill()
             proc.wait()
     done = len(list((out / "records").glob("*.json")))
-    assert 1 <= done < N_SIGNALLED, f"{done} of {N_SIGNALLED} records at the signal; stderr: {err[-500:]}"
+    assert 1 <= done < N_SIGNALLED, (f"{at_signal} of {N_SIGNALLED} records when the signal was sent, {done} when "
+                                     f"the process ended; its signal masks then: {masks}; stderr: {err[-500:]}")
     return proc, err, done
 
 
