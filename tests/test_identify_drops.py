@@ -17,7 +17,6 @@ from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.cli.main import main
 from droptower.identify.dropfit import SERVO_GRID, DropFitSettings, identify_drops, servo_agreement
 from droptower.identify.droplogs import ReadSettings, read_decays
-from droptower.identify.fit import with_params
 from droptower.identify.lever import at_times, free_decay
 from droptower.rig.config import load_rig
 from droptower.rig.impact import linear_free_decay
@@ -94,7 +93,7 @@ def test_rows_of_their_own_lengths_equal_runs_of_that_length_alone(kind, seed, s
     assert angle.shape == torque.shape == (b, max(steps) + 1)
     for i, n in enumerate(steps):
         alone = CouplingState(start.values[[i]], start.angle_rad[[i]], start.torque_nm[[i]])
-        a, q = free_decay(with_params(coupling, coupling.params[[i]]), inertia[[i]], rate0[[i]], n, step, alone)
+        a, q = free_decay(coupling.with_params(coupling.params[[i]]), inertia[[i]], rate0[[i]], n, step, alone)
         assert np.array_equal(angle[i, :n + 1], a[0]) and np.array_equal(torque[i, :n + 1], q[0])
         assert np.all(angle[i, n:] == a[0, -1]) and np.all(torque[i, n:] == q[0, -1])
         assert np.array_equal(state.values[i], alone.values[0]) and state.angle_rad[i] == alone.angle_rad[0]

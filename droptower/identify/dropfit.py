@@ -44,7 +44,7 @@ from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import setup_family
-from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread, with_params
+from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
 from droptower.identify.lever import at_times, free_decay
 from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
 from droptower.identify.search import basin_hops, global_fit
@@ -173,7 +173,7 @@ class DropProblem:
             cond = hold_at(coupling, np.zeros(m), *self.settings.conditioning)
             which = np.repeat(np.arange(m), t)
             state = CouplingState(cond.values[which], cond.angle_rad[which], cond.torque_nm[which])
-        batch = with_params(coupling, np.repeat(coupling.params, t, axis=0))
+        batch = coupling.with_params(np.repeat(coupling.params, t, axis=0))
         inertia = np.tile(self.inertia, m)
         rate0 = np.tile(self.rate0, m)
         # each test only up to its last compared sample (a light lever's decay ends in about

@@ -12,7 +12,6 @@ measured |torque| (``nrmse``), on the fitting data and on held-out data.
 """
 from __future__ import annotations
 
-import copy
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
@@ -86,14 +85,6 @@ class Counter:
     core_calls: int = 0
 
 
-def with_params(coupling: Coupling, params: np.ndarray) -> Coupling:
-    """``coupling``'s compiled structure with other parameter rows ``params`` (n_sets, P): no
-    re-compilation of its elements (what building a :class:`Coupling` anew costs per call)."""
-    out = copy.copy(coupling)
-    out.params = np.ascontiguousarray(params, dtype=np.float64)
-    return out
-
-
 def simulate_rows(model: Model, values: np.ndarray, segments: list[Segment], which: np.ndarray,
                   counter: Counter | None = None, evaluations: int | None = None,
                   substeps: int | None = None) -> list[np.ndarray]:
@@ -133,7 +124,7 @@ def simulate_rows(model: Model, values: np.ndarray, segments: list[Segment], whi
                 fine = np.arange(1, n_max * substeps + 1) / substeps - 1.0
                 angles = np.array([np.interp(fine, np.arange(n_max), row, left=0.0) for row in angles])
             check_budget()  # a fit stops within one core call of its time budget (.budget)
-            batch = with_params(coupling, params[group])
+            batch = coupling.with_params(params[group])
             torque = batch.simulate(angles, dt / substeps).torque_nm[:, substeps - 1::substeps]
             for i, r in enumerate(group):
                 out[r] = torque[i, :lengths[r]]

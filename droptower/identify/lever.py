@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from droptower.identify.fit import with_params
 from droptower.rheology import Coupling, CouplingState
 from droptower.rig.lever import VERLET, LeverDecay
 
@@ -65,7 +64,7 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
         if not running.size:
             break
         if ended.any():
-            lever = _rows_of(lever, ~ended)
+            lever = lever.rows(~ended)
     return angle, torque
 
 
@@ -74,17 +73,6 @@ def _store(state: CouplingState, rows: np.ndarray, sub: CouplingState) -> None:
     state.values[rows] = sub.values
     state.angle_rad[rows] = sub.angle_rad
     state.torque_nm[rows] = sub.torque_nm
-
-
-def _rows_of(lever: LeverDecay, keep: np.ndarray) -> LeverDecay:
-    """The levers ``keep`` (a mask) of ``lever``, to be advanced on from where they are: their
-    coupling rows, state, rest and carried rate, angle and acceleration (copies)."""
-    c, s = lever.coupling, lever.state
-    coupling = with_params(c, c.params[keep]) if c.n_sets > 1 else c
-    sub = LeverDecay(coupling, CouplingState(s.values[keep], s.angle_rad[keep], s.torque_nm[keep]), lever.inertia[keep],
-                     lever.rate[keep], lever.step_s, lever.scheme, rest_torque_nm=lever.rest[keep])
-    sub.x_rest, sub.phi, sub.acc = lever.x_rest[keep], lever.phi[keep], lever.acc[keep]
-    return sub
 
 
 def at_times(history: np.ndarray, step_s: float, times_s: np.ndarray) -> np.ndarray:

@@ -10,6 +10,8 @@ in one call.
 """
 from __future__ import annotations
 
+import copy
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,6 +122,16 @@ class Coupling:
     def n_sets(self) -> int:
         """Number of parameter sets (rows of ``params``); 1 means shared by the whole batch."""
         return self.params.shape[0]
+
+    def with_params(self, params: np.ndarray) -> "Coupling":
+        """This coupling's compiled structure with other parameter rows ``params`` (n_sets, P): no
+        re-compilation of its elements (what building a :class:`Coupling` anew costs per call)."""
+        params = np.ascontiguousarray(params, dtype=np.float64)
+        if params.ndim != 2 or params.shape[1] != self.params.shape[1]:
+            raise ValueError("params must have shape (n_sets, %d)" % self.params.shape[1])
+        out = copy.copy(self)
+        out.params = params
+        return out
 
     @staticmethod
     def stack(couplings: list["Coupling"]) -> "Coupling":

@@ -93,6 +93,16 @@ class LeverDecay:
         self.phi = np.zeros(state.batch)
         self.acc = np.zeros(state.batch)
 
+    def rows(self, keep: np.ndarray) -> "LeverDecay":
+        """The levers ``keep`` (a boolean mask of the batch), to be advanced on from where they are:
+        their coupling rows, state, rest torque and carried angle, rate and acceleration (copies)."""
+        c, s = self.coupling, self.state
+        coupling = c.with_params(c.params[keep]) if c.n_sets > 1 else c
+        sub = LeverDecay(coupling, CouplingState(s.values[keep], s.angle_rad[keep], s.torque_nm[keep]),
+                         self.inertia[keep], self.rate[keep], self.step_s, self.scheme, rest_torque_nm=self.rest[keep])
+        sub.x_rest, sub.phi, sub.acc = self.x_rest[keep], self.phi[keep], self.acc[keep]
+        return sub
+
     def advance(self, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
         """The next ``n_steps`` steps: rotation from rest (rad) and coupling torque (N*m), each (B, n_steps)."""
         c, s = self.coupling, self.state
