@@ -221,8 +221,8 @@ class PowerLaw(ElementSpec):
 
     @property
     def alpha(self) -> float:
-        """The power-law exponent (2/pi) atan(loss_factor)."""
-        return float(2 / np.pi * np.arctan(self.loss_factor))
+        """The power-law exponent (:func:`power_law_exponent`)."""
+        return power_law_exponent(self.loss_factor)
 
     def terms(self) -> np.ndarray:
         """(n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term."""
@@ -238,6 +238,12 @@ class PowerLaw(ElementSpec):
         return power_law_complex_stiffness(self.storage_stiffness, self.loss_factor, self.reference_frequency,
                                            self.min_frequency, self.max_frequency, self.terms_per_decade,
                                            frequency_hz)
+
+
+def power_law_exponent(loss_factor: float) -> float:
+    """The exponent alpha = (2/pi) atan(eta) of a power law whose loss factor is eta at every
+    frequency (Bagley & Torvik 1983)."""
+    return float(2 / np.pi * np.arctan(loss_factor))
 
 
 @lru_cache(maxsize=64)
@@ -257,7 +263,7 @@ def power_law_terms(storage_stiffness: float, loss_factor: float, reference_freq
     """(n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term of a
     :class:`PowerLaw` branch (its fields, SI; not validated): the springpot's relaxation
     spectrum over the band by the midpoint rule in ln tau."""
-    alpha = float(2 / np.pi * np.arctan(loss_factor))
+    alpha = power_law_exponent(loss_factor)
     k0 = storage_stiffness / np.cos(alpha * np.pi / 2)  # K0 (i w tau0)^alpha has K' = K0 cos(alpha pi/2) at w tau0 = 1
     tau0 = 1 / (2 * np.pi * reference_frequency)
     log_tau, tau = _log_tau_grid(float(min_frequency), float(max_frequency), float(terms_per_decade))

@@ -30,7 +30,8 @@ from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
-from droptower.rheology.elements import filler_network_complex_stiffness, power_law_complex_stiffness
+from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,
+                                         power_law_exponent)
 from droptower.rheology.numba_cache import cache_available
 
 #: Relative margin that keeps the power-law band's term count at the ``terms`` option exactly
@@ -190,7 +191,7 @@ class FilledRubberFamily(Family):
 
     def derived(self, v: np.ndarray) -> dict[str, float]:
         eta, f_min, decades = float(v[7]), float(v[8]), float(v[9])
-        return {"max_frequency_hz": f_min * 10.0 ** decades, "matrix_exponent": 2.0 / math.pi * math.atan(eta),
+        return {"max_frequency_hz": f_min * 10.0 ** decades, "matrix_exponent": power_law_exponent(eta),
                 "reference_frequency_hz": self.reference_frequency_hz,
                 "cv_nms_per_rad": float(v[10]) * float(v[12])}
 
