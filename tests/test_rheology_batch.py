@@ -92,8 +92,8 @@ def test_step_per_sample_equals_simulate():
 
 def test_every_way_of_stepping_reaches_one_compiled_step():
     """A scalar angle (on one instance a read-only broadcast view), a read-only array, a plain
-    array, a trial and a batch reach the step kernel with one argument type: numba compiles the
-    kernel (every element kind inlined, seconds) once per process, not once per caller."""
+    array, a trial, a batch and a history reach the history kernel with one argument type: numba
+    compiles the kernel (every element kind inlined, seconds) once per process, not once per caller."""
     from droptower.rheology import kernels as K
 
     coupling, dt = _variant(1.0), 1 / 38400
@@ -105,7 +105,8 @@ def test_every_way_of_stepping_reaches_one_compiled_step():
     coupling.trial(state, 0.004, dt)
     stacked = Coupling.stack([_variant(s) for s in (1.0, 0.7)])
     stacked.step(stacked.new_state(2), 0.001, dt)
-    assert len(K.step_batch.signatures) == 1, K.step_batch.signatures
+    coupling.simulate(np.array([0.001, 0.002]), dt)  # a history: the same build
+    assert len(K.run_history.signatures) == 1, K.run_history.signatures
 
 
 def test_simulate_continues_from_a_state():

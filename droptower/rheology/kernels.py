@@ -1021,15 +1021,6 @@ def step_instance(codes, p_off, s_off, params, state, x0, x1, h):
     return torque
 
 
-def _step_batch(codes, p_off, s_off, params, state, x0, x1, h, torque):
-    """One step of a batch: params (B, P) or (1, P), state (B, S), x0, x1, torque (B,)."""
-    nb = state.shape[0]
-    shared = params.shape[0] == 1
-    for b in range(nb):
-        pb = params[0] if shared else params[b]
-        torque[b] = step_instance(codes, p_off, s_off, pb, state[b], x0[b], x1[b], h)
-
-
 def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque, stored, dissipated,
                  record_energy):
     """Drive a batch through angle histories.
@@ -1059,9 +1050,19 @@ def _run_history(codes, p_off, s_off, params, state, x_start, angles, h, torque,
             dissipated[b, n] = d_sum
 
 
-# One build each: a large batch's history is spread over the cores by running chunks of its rows on
+# One build: a large batch's history is spread over the cores by running chunks of its rows on
 # threads (droptower.rheology.threads), not by a second, parallel build of the kernel.
-step_batch = njit(**JIT)(_step_batch)
 run_history = njit(**row_loop_options(__file__), **JIT)(_run_history)
+
+#: the energy records a step leaves empty
+_NO_ENERGY = np.empty((0, 0))
+
+
+def step_batch(codes, p_off, s_off, params, state, x0, x1, h, torque):
+    """One step of a batch: params (B, P) or (1, P), state (B, S), x0, x1, torque (B,) (C-contiguous,
+    writeable; torque is filled). A history of one sample: the one build of :func:`run_history`,
+    as every kernel inlining the whole coupling step costs seconds of compilation per build."""
+    run_history(codes, p_off, s_off, params, state, x0, x1.reshape(-1, 1), h, torque.reshape(-1, 1), _NO_ENERGY,
+                _NO_ENERGY, False)
 
 compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time
