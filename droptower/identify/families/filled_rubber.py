@@ -68,10 +68,10 @@ def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitu
     """
     wc = 2.0 * math.pi * np.asarray(frequency_hz, float) * np.asarray(damping, float)
     args = (k0, np.asarray(gain, float) * _ABS_SIN_HARMONIC, amplitude_rad, wc)
-    flat = np.empty((4,) + np.broadcast_shapes(*(np.shape(x) for x in args)))  # contiguous, writeable: one signature
+    flat = np.empty((4,) + np.broadcast(*args).shape)  # contiguous, writeable: the kernel's one signature
     for row, x in zip(flat, args):
         row[...] = x
-    k = _stiffening_secant(*(row.ravel() for row in flat), int(iterations)).reshape(flat.shape[1:])
+    k = _stiffening_secant(*flat.reshape(4, -1), int(iterations)).reshape(flat.shape[1:])
     wc = flat[3]
     return k * 1j * wc / (k + 1j * wc)
 
@@ -99,25 +99,26 @@ def _stiffening_secant(k0, g, amp, wc, iterations):  # pragma: no cover - compil
     return out
 
 
-def _closed_form_fields(element: dict[str, Any], positive: tuple[str, ...]) -> dict[str, Any]:
-    """``element`` (a spec's fields, as :meth:`FilledRubberFamily.elements` writes them, numbers or
-    columns of parameter sets) after the checks its spec makes on the fields its closed form
-    reads (finite and > 0, a band of positive width), without building the spec:
-    :class:`DroptowerError` where the spec would refuse, naming a refused set's value."""
-    fields = [np.ravel(element[key]) for key in positive]
-    numbers = np.concatenate(fields)
-    ok = (numbers > 0) & (numbers < math.inf)  # finite and > 0 (NaN fails both)
+def _closed_form_fields(*checks: tuple[dict[str, Any], tuple[str, ...]]) -> None:
+    """The checks the specs make on the fields their closed forms read (finite and > 0, a band of
+    positive width), without building the specs: ``checks`` are (element, fields) pairs, each
+    element a spec's fields as :meth:`FilledRubberFamily.elements` writes them (numbers, or
+    columns of parameter sets); :class:`DroptowerError` where a spec would refuse, naming the
+    first refused field and the value of a set it refuses."""
+    numbers = np.concatenate([element[key] for element, keys in checks for key in keys], axis=None)
+    ok = (numbers > 0) & (numbers < math.inf)  # finite and > 0 (a NaN fails both)
     if not ok.all():
         first = int(np.argmin(ok))
-        for key, field in zip(positive, fields):  # the field and set of the first refused number
-            if first < field.size:
-                raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be "
-                                     f"finite and > 0, got {float(field[first])}")
-            first -= field.size
-    if "max_frequency" in element and not element["max_frequency"] > element["min_frequency"]:
-        raise DroptowerError(f"element {element['name']} of model filled_rubber: max_frequency must exceed "
-                             f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
-    return element
+        for element, keys in checks:
+            for key in keys:
+                if first < np.size(element[key]):
+                    raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be "
+                                         f"finite and > 0, got {float(np.ravel(element[key])[first])}")
+                first -= np.size(element[key])
+    for element, _ in checks:
+        if "max_frequency" in element and not element["max_frequency"] > element["min_frequency"]:
+            raise DroptowerError(f"element {element['name']} of model filled_rubber: max_frequency must exceed "
+                                 f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
 
 
 def _band_groups(band: np.ndarray) -> list[np.ndarray]:
@@ -247,8 +248,8 @@ class FilledRubberFamily(Family):
         evaluates this some ten thousand times per fit: building the specs would dominate)."""
         rows = np.asarray(rows, float)
         amp, freq = np.asarray(amplitude_rad, float), np.asarray(frequency_hz, float)
-        band = rows[:, list(_BAND)]
-        if (band == band[0]).all():  # the first guess's case: one band
+        band = rows[:, _BAND[0]:_BAND[1] + 1]
+        if len(rows) == 1 or (band == band[0]).all():  # the first guess's case: one band
             return self._closed_form(rows, amp, freq)
         out = np.empty((len(rows),) + np.broadcast_shapes(amp.shape, freq.shape), complex)
         for sel in _band_groups(band):
@@ -260,13 +261,14 @@ class FilledRubberFamily(Family):
         columns = np.ascontiguousarray(rows.T).reshape(rows.shape[::-1] + (1,) * max(amp.ndim, freq.ndim))
         band = [float(rows[0, i]) for i in _BAND]
         spring, network, matrix, *viscous = self._element_fields(*columns[:_BAND[0]], *band, *columns[_BAND[1] + 1:])
-        net = _closed_form_fields(network, ("stiffness", "critical_angle", "exponent", "breakdown_angle"))
-        mat = _closed_form_fields(matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
-                                           "terms_per_decade"))
-        k_network = filler_network_complex_stiffness(net["stiffness"], net["critical_angle"], net["exponent"],
-                                                     net["breakdown_angle"], net["n"], amp)
-        k_matrix = power_law_complex_stiffness(mat["storage_stiffness"], mat["loss_factor"], mat["reference_frequency"],
-                                               mat["min_frequency"], mat["max_frequency"], mat["terms_per_decade"], freq)
+        _closed_form_fields((network, ("stiffness", "critical_angle", "exponent", "breakdown_angle")),
+                            (matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
+                                      "terms_per_decade")))
+        k_network = filler_network_complex_stiffness(network["stiffness"], network["critical_angle"], network["exponent"],
+                                                     network["breakdown_angle"], network["n"], amp)
+        k_matrix = power_law_complex_stiffness(matrix["storage_stiffness"], matrix["loss_factor"],
+                                               matrix["reference_frequency"], matrix["min_frequency"],
+                                               matrix["max_frequency"], matrix["terms_per_decade"], freq)
         k_viscous = (stiffening_maxwell_stiffness(viscous[0]["stiffness"], viscous[0]["stiffness_gain"],
                                                   viscous[0]["damping"], amp, freq) if viscous else 0.0)
         return spring["b"] + 0.75 * spring["a"] * amp ** 2 + k_network + k_matrix + k_viscous
