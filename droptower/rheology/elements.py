@@ -732,7 +732,7 @@ def filler_network_complex_stiffness(stiffness: ArrayLike, critical_angle: Array
                                                                                            axis=-1)
 
 
-def filler_network_intact_fraction(breakdown_angle: float, exponent: float, amplitude_rad: ArrayLike) -> np.ndarray:
+def filler_network_intact_fraction(breakdown_angle: ArrayLike, exponent: ArrayLike, amplitude_rad: ArrayLike) -> np.ndarray:
     """g_eq(A) = 1 / (1 + (A / breakdown_angle)^(2 exponent)): a :class:`FillerNetwork`'s intact
     fraction after a motion of amplitude A (rad) about its centre (all three broadcast together)."""
     return 1.0 / (1.0 + (np.asarray(amplitude_rad, float) / breakdown_angle) ** (2 * exponent))

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
@@ -47,8 +48,8 @@ _ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
 _NEWTON_TOLERANCE = 1e-10
 
 
-def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitude_rad: np.ndarray,
-                                 frequency_hz: np.ndarray, iterations: int = 60) -> np.ndarray:
+def stiffening_maxwell_stiffness(k0: ArrayLike, gain: ArrayLike, damping: ArrayLike, amplitude_rad: ArrayLike,
+                                 frequency_hz: ArrayLike, iterations: int = 60) -> np.ndarray:
     """K' + i K'' (N*m/rad) of a Maxwell branch whose spring force is (k0 + g |e|) e (spring
     ``k0`` N*m/rad, ``gain`` g N*m/rad^2, dashpot ``damping`` c N*m*s/rad) in a steady harmonic
     motion of amplitude A (rad) at f (Hz), on the first harmonic (equivalent linearisation): the
@@ -279,7 +280,9 @@ class FilledRubberFamily(Family):
         fitted by least squares to K' and K'' at each reading's amplitude (rad) and frequency
         (Hz) (``stiffness`` complex, N*m/rad), from :data:`GUESS_STARTS` Latin-hypercube starts
         and ``x0``; the band stays at ``x0``'s (the readings span too narrow a band to place it),
-        and so do the ``given`` parameters. ``x0`` where fewer than three readings."""
+        and so do the ``given`` parameters. ``x0`` where fewer than three readings. The
+        forward-difference Jacobian's shifted points go to :meth:`harmonic_stiffness_rows` in one
+        call (least_squares' ``workers``), its steps and differences SciPy's own."""
         amp, freq, k_obs = (np.asarray(a) for a in (amplitude_rad, frequency_hz, stiffness))
         ok = np.isfinite(amp) & np.isfinite(freq) & np.isfinite(k_obs) & (amp > 0)
         amp, freq, k_obs = amp[ok], freq[ok], k_obs[ok]
