@@ -103,6 +103,26 @@ def test_stiffening_maxwell_elongation_solves_its_equation(log_k0, log_gain_rati
     assert abs(got - k * 1j * wc / (k + 1j * wc)) <= 1e-12 * abs(k * 1j * wc / (k + 1j * wc))
 
 
+def _at_positions(fam: FilledRubberFamily, position) -> np.ndarray:
+    """The parameter set at ``position`` (13 numbers in [0, 1]) along each optimised variable's bounds."""
+    return np.array([p.to_value(p.to_z(p.lower) + u * (p.to_z(p.upper) - p.to_z(p.lower)))
+                     for p, u in zip(fam.parameters, position)])
+
+
+def _closed_form_of_the_specs(fam: FilledRubberFamily, v: np.ndarray, amp: np.ndarray, freq: np.ndarray) -> np.ndarray:
+    """K* of parameter set ``v`` from the validated element specs' own methods
+    (FillerNetwork.complex_stiffness, PowerLaw.complex_stiffness), the spring's first harmonic
+    and the stiffening branch."""
+    from droptower.identify.families.filled_rubber import stiffening_maxwell_stiffness
+    from droptower.rheology.elements import FillerNetwork, PowerLaw
+
+    _, network, matrix, *_ = fam.elements(v)
+    return (v[0] + 0.75 * v[1] * amp ** 2 + FillerNetwork(**network).complex_stiffness(amp)
+            + PowerLaw(**matrix).complex_stiffness(freq)
+            + (stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq)
+               if fam.options["stiffening_branch"] else 0.0))
+
+
 @settings(max_examples=150, deadline=None, derandomize=True)
 @given(st.lists(st.floats(0.0, 1.0), min_size=13, max_size=13), st.integers(2, 40), st.integers(2, 40),
        st.booleans(), st.lists(st.tuples(st.floats(-7.0, 0.5), st.floats(-2.0, 3.5)), min_size=1, max_size=12))
@@ -113,17 +133,10 @@ def test_closed_form_on_numbers_is_the_element_specs(position, n, terms, branch,
     harmonic and the stiffening branch, at random parameter sets anywhere in the bounds (each
     at a random position in its optimised variable), networks of 2-40 elements, bands of 2-40
     terms, random amplitudes (1e-7 to 3 rad) and frequencies (0.01 Hz to 3 kHz)."""
-    from droptower.identify.families.filled_rubber import stiffening_maxwell_stiffness
-    from droptower.rheology.elements import FillerNetwork, PowerLaw
-
     fam = FilledRubberFamily(SCALE, {"n": n, "terms": terms, "stiffening_branch": branch})
-    v = np.array([p.to_value(p.to_z(p.lower) + u * (p.to_z(p.upper) - p.to_z(p.lower)))
-                  for p, u in zip(fam.parameters, position)])
+    v = _at_positions(fam, position)
     amp, freq = 10.0 ** np.array(readings).T
-    _, network, matrix, *_ = fam.elements(v)
-    want = (v[0] + 0.75 * v[1] * amp ** 2 + FillerNetwork(**network).complex_stiffness(amp)
-            + PowerLaw(**matrix).complex_stiffness(freq)
-            + (stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq) if branch else 0.0))
+    want = _closed_form_of_the_specs(fam, v, amp, freq)
     got = fam.harmonic_stiffness(v, amp, freq)
     assert got.shape == amp.shape
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * float(np.max(np.abs(want))))
@@ -146,6 +159,88 @@ def test_closed_form_refuses_what_the_element_specs_refuse():
     v[9] = -1.0
     with pytest.raises(DroptowerError, match="(band_decades|max_frequency|terms_per_decade)"):
         fam.harmonic_stiffness(v, np.radians([1.0]), np.array([30.0]))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.lists(st.floats(0.0, 1.0), min_size=13, max_size=13), st.integers(0, 5)), min_size=1,
+                max_size=6),
+       st.integers(2, 40), st.integers(2, 40), st.booleans(),
+       st.lists(st.tuples(st.floats(-7.0, 0.5), st.floats(-2.0, 3.5)), min_size=1, max_size=12))
+def test_closed_form_of_a_batch_is_each_sets_own(sets, n, terms, branch, readings):
+    """The closed form of M parameter sets at once (the first guess's Jacobian: one call for all
+    its shifted points) equals, row by row, to rounding (1e-13 of |K*|), the single set's closed
+    form and the validated element specs' own methods, at 1-6 random sets anywhere in the bounds,
+    some sharing a power-law band (one call of the elements' closed forms per band), some not,
+    networks of 2-40 elements, bands of 2-40 terms and random readings."""
+    fam = FilledRubberFamily(SCALE, {"n": n, "terms": terms, "stiffening_branch": branch})
+    rows = np.array([_at_positions(fam, position) for position, _ in sets])
+    for r, (_, band_of) in enumerate(sets):
+        rows[r, 8:10] = rows[band_of % (r + 1), 8:10]  # the band of an earlier set (or its own)
+    amp, freq = 10.0 ** np.array(readings).T
+    got = fam.harmonic_stiffness_rows(rows, amp, freq)
+    assert got.shape == (len(rows), amp.size)
+    for v, row in zip(rows, got):
+        want = _closed_form_of_the_specs(fam, v, amp, freq)
+        scale = 1e-13 * float(np.max(np.abs(want)))
+        np.testing.assert_allclose(row, fam.harmonic_stiffness(v, amp, freq), rtol=0, atol=scale)
+        np.testing.assert_allclose(row, want, rtol=0, atol=scale)
+
+
+@pytest.mark.parametrize("shared_band", [True, False])
+def test_a_refused_set_in_a_batch_is_refused_as_alone(shared_band):
+    """A parameter set the element specs refuse (a non-positive or non-finite field, a band of
+    negative width) among valid ones, first, inside or last in the batch: the batch's closed form
+    raises the one-line error the set raises alone."""
+    from droptower.errors import DroptowerError
+
+    fam = FilledRubberFamily(SCALE)
+    rng = np.random.default_rng(17)
+    amp, freq = np.radians([0.3, 1.0, 2.0]), np.array([10.0, 30.0, 60.0])
+    for index, bad in ((2, 0.0), (3, -1.0), (4, math.nan), (5, math.inf), (6, -2.0), (7, math.nan), (8, -1.0),
+                       (9, -1.0), (9, math.nan)):
+        good = np.array([_random_values(fam, rng) for _ in range(4)])
+        if shared_band:
+            good[:, 8:10] = good[0, 8:10]
+        v = good[1].copy()
+        v[index] = bad
+        with pytest.raises(DroptowerError) as alone:
+            fam.harmonic_stiffness(v, amp, freq)
+        for position in (0, 2, 4):
+            with pytest.raises(DroptowerError) as batch:
+                fam.harmonic_stiffness_rows(np.insert(good, position, v, axis=0), amp, freq)
+            assert str(batch.value) == str(alone.value)
+            assert "\n" not in str(batch.value)
+
+
+def test_first_guess_with_the_batched_jacobian_is_scipys_per_point_one(monkeypatch):
+    """The first guess's forward-difference Jacobian evaluates its shifted points in one call of
+    the batched closed form (least_squares' ``workers``); scipy's default, one call per point,
+    gives the same guess (to 1e-10; the same steps and differences) on a seeded noisy case."""
+    from scipy.optimize import least_squares
+
+    import droptower.identify.families.filled_rubber as module
+
+    fam = FilledRubberFamily(SCALE, {"stiffening_branch": False})
+    rng = np.random.default_rng(23)
+    truth = _random_values(fam, rng)
+    a, f = (x.ravel() for x in np.meshgrid(np.radians([0.3, 1.0, 2.5]), [20.0, 45.0]))
+    k_obs = fam.harmonic_stiffness(truth, a, f) * (1 + 0.01 * rng.standard_normal(a.size))
+    x0 = fam.initial()
+    x0[8:10] = truth[8:10]
+    given = np.zeros(len(x0), bool)
+    given[10:] = True  # the branch, off here
+    sizes: list[int] = []
+    rows_of = fam.harmonic_stiffness_rows
+    monkeypatch.setattr(fam, "harmonic_stiffness_rows", lambda rows, *args: sizes.append(len(rows)) or rows_of(rows, *args))
+    batched = fam.guess_from_readings(a, f, k_obs, x0, given)
+    assert max(sizes) == 8 and sizes.count(8) > 13  # every Jacobian: its 8 shifted points at once
+    monkeypatch.setattr(module, "least_squares", lambda *args, workers=None, **kw: least_squares(*args, **kw))
+    sizes.clear()
+    per_point = fam.guess_from_readings(a, f, k_obs, x0, given)
+    assert max(sizes) == 1
+    np.testing.assert_allclose(batched, per_point, rtol=1e-10, atol=0)
+    misfit = [np.max(np.abs(fam.harmonic_stiffness(v, a, f) / k_obs - 1)) for v in (x0, batched)]
+    assert misfit[1] < 0.03 < misfit[0]  # the guess moved from the start onto the readings
 
 
 @settings(max_examples=40, deadline=None, derandomize=True)

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from droptower.rheology import parse_coupling
-from droptower.rheology.elements import FillerNetwork, log_logistic_bins
+from droptower.rheology.elements import FillerNetwork, filler_network_complex_stiffness, log_logistic_bins
 from droptower.servo.steady import steady_state
 from test_rheology_support import band_limited, changes_smoothly, projection, ramp_hold, trapezoid_work
 
@@ -42,6 +42,29 @@ def test_yield_distribution_is_log_logistic():
         above = weights[angles > a].sum()
         exact = 1 / (1 + (a / 0.01) ** 1.2)
         assert abs(above - exact) < 0.08  # the bins' resolution: 24 cells over 5 decades
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(st.lists(st.tuples(st.floats(2.0, 5.0), st.floats(-4.0, -1.0), st.floats(0.1, 2.0), st.floats(-3.0, 0.0)),
+                min_size=1, max_size=5),
+       st.lists(st.floats(-6.0, 0.0), min_size=1, max_size=8), st.integers(2, 40))
+def test_closed_form_of_many_networks_at_once_is_each_ones_own(networks, log_amplitudes, n):
+    """The pure closed form and the yield bins broadcast over parameter sets ((M, 1) columns
+    against (N,) amplitudes: the first guess's batch) and give each network's own
+    FillerNetwork.complex_stiffness and sliders, to 1e-13 of |K*|, at 1-5 random networks,
+    amplitudes of 1e-6 to 1 rad and 2-40 elements."""
+    amp = 10.0 ** np.array(log_amplitudes)
+    columns = (10.0 ** np.array(networks)[:, [0, 1, 3]]).T[:, :, None]
+    columns = [columns[0], columns[1], np.array(networks)[:, 2:3], columns[2]]  # stiffness, A_c, m, breakdown
+    specs = [FillerNetwork(**{**NETWORK, "stiffness": a, "critical_angle": b, "exponent": c, "breakdown_angle": d,
+                              "n": n}) for a, b, c, d in zip(*(x[:, 0] for x in columns))]
+    got = filler_network_complex_stiffness(*columns, n, amp)
+    _, angles = log_logistic_bins(columns[1], columns[2], n)
+    assert got.shape == (len(specs), amp.size) and angles.shape == (len(specs), 1, n)
+    for spec, row, row_angles in zip(specs, got, angles):
+        want = spec.complex_stiffness(amp)
+        np.testing.assert_allclose(row, want, rtol=0, atol=1e-13 * float(np.max(np.abs(want))))
+        np.testing.assert_allclose(row_angles[0], spec.sliders()[1], rtol=1e-14)
 
 
 # ------------------------------------------------------------------ steady state

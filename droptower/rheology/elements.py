@@ -240,10 +240,11 @@ class PowerLaw(ElementSpec):
                                            frequency_hz)
 
 
-def power_law_exponent(loss_factor: float) -> float:
+def power_law_exponent(loss_factor: ArrayLike) -> float | np.ndarray:
     """The exponent alpha = (2/pi) atan(eta) of a power law whose loss factor is eta at every
-    frequency (Bagley & Torvik 1983)."""
-    return float(2 / np.pi * np.arctan(loss_factor))
+    frequency (Bagley & Torvik 1983): a float for a number, an array of the shape of an array."""
+    alpha = 2 / np.pi * np.arctan(loss_factor)
+    return float(alpha) if np.ndim(alpha) == 0 else alpha
 
 
 @lru_cache(maxsize=64)
@@ -258,28 +259,35 @@ def _log_tau_grid(min_frequency: float, max_frequency: float, terms_per_decade: 
     return log_tau, tau
 
 
-def power_law_terms(storage_stiffness: float, loss_factor: float, reference_frequency: float, min_frequency: float,
-                    max_frequency: float, terms_per_decade: float) -> np.ndarray:
-    """(n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term of a
+def power_law_terms(storage_stiffness: ArrayLike, loss_factor: ArrayLike, reference_frequency: ArrayLike,
+                    min_frequency: float, max_frequency: float, terms_per_decade: float) -> np.ndarray:
+    """(..., n, 2): stiffness (N*m/rad) and relaxation time (s) of each Maxwell term of a
     :class:`PowerLaw` branch (its fields, SI; not validated): the springpot's relaxation
-    spectrum over the band by the midpoint rule in ln tau."""
-    alpha = power_law_exponent(loss_factor)
-    k0 = storage_stiffness / np.cos(alpha * np.pi / 2)  # K0 (i w tau0)^alpha has K' = K0 cos(alpha pi/2) at w tau0 = 1
-    tau0 = 1 / (2 * np.pi * reference_frequency)
+    spectrum over the band by the midpoint rule in ln tau. Numbers give (n, 2); the level, loss
+    factor and reference frequency may be arrays of parameter sets (broadcast together, their
+    shape before the terms' axis), the band is one number each (it sets n)."""
+    alpha = np.asarray(power_law_exponent(loss_factor))[..., None]  # the terms' axis last
+    k0 = np.asarray(storage_stiffness, float)[..., None] / np.cos(alpha * np.pi / 2)  # K0 (i w tau0)^alpha has K' = K0 cos(alpha pi/2) at w tau0 = 1
+    tau0 = 1 / (2 * np.pi * np.asarray(reference_frequency, float)[..., None])
     log_tau, tau = _log_tau_grid(float(min_frequency), float(max_frequency), float(terms_per_decade))
     weight = k0 * np.sin(alpha * np.pi) / np.pi * (tau0 / tau) ** alpha * (log_tau[1] - log_tau[0])
-    return np.column_stack([weight, tau])
+    out = np.empty(weight.shape + (2,))
+    out[..., 0], out[..., 1] = weight, tau
+    return out
 
 
-def power_law_complex_stiffness(storage_stiffness: float, loss_factor: float, reference_frequency: float,
+def power_law_complex_stiffness(storage_stiffness: ArrayLike, loss_factor: ArrayLike, reference_frequency: ArrayLike,
                                 min_frequency: float, max_frequency: float, terms_per_decade: float,
                                 frequency_hz: ArrayLike) -> np.ndarray:
     """K*(f) (N*m/rad) at frequencies f (Hz) of a :class:`PowerLaw` branch's Prony series as
     compiled (its fields, SI; not validated): a pure function of numbers, which the first guess
-    of a fit evaluates some ten thousand times."""
+    of a fit evaluates some ten thousand times. The level, loss factor and reference frequency
+    may be arrays of parameter sets that broadcast with the frequencies (e.g. (M, 1) against
+    (N,) gives (M, N)); the band is one for all (:func:`power_law_terms`)."""
     s = 2j * np.pi * np.asarray(frequency_hz, float)[..., None]
-    k, tau = power_law_terms(storage_stiffness, loss_factor, reference_frequency, min_frequency, max_frequency,
-                             terms_per_decade).T
+    terms = power_law_terms(storage_stiffness, loss_factor, reference_frequency, min_frequency, max_frequency,
+                            terms_per_decade)
+    k, tau = terms[..., 0], terms[..., 1]
     return np.sum(k * s * tau / (1 + s * tau), axis=-1)
 
 
@@ -678,15 +686,17 @@ class Payne(ElementSpec):
 
 
 # ------------------------------------------------------------------ filler network (Payne effect)
-def log_logistic_bins(median: float, exponent: float, n: int, tail: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+def log_logistic_bins(median: ArrayLike, exponent: ArrayLike, n: int, tail: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
     """Discretise the log-logistic distribution F(a) = u^2 / (1 + u^2), u = (a / median)^exponent,
     into n points evenly spaced in ln a between the quantiles ``tail`` and 1 - ``tail``.
 
     Returns (weights summing to 1, points a_i): each point carries the probability of the cell
     between the midpoints to its neighbours; the first and last carry the tails beyond them.
+    The points are (n,) for numbers; ``median`` and ``exponent`` may be arrays of distributions
+    (broadcast together), whose shape then comes before the points' axis.
     """
     z, weights = _logit_cells(int(n), float(tail))
-    return weights.copy(), median * np.exp(z / (2.0 * exponent))
+    return weights.copy(), np.asarray(median, float)[..., None] * np.exp(z / (2.0 * np.asarray(exponent, float)[..., None]))
 
 
 @lru_cache(maxsize=64)
@@ -702,16 +712,18 @@ def _logit_cells(n: int, tail: float) -> tuple[np.ndarray, np.ndarray]:
     return z, weights
 
 
-def filler_network_complex_stiffness(stiffness: float, critical_angle: float, exponent: float,
-                                     breakdown_angle: float, n: int, amplitude_rad: ArrayLike) -> np.ndarray:
+def filler_network_complex_stiffness(stiffness: ArrayLike, critical_angle: ArrayLike, exponent: ArrayLike,
+                                     breakdown_angle: ArrayLike, n: int, amplitude_rad: ArrayLike) -> np.ndarray:
     """K'(A) + i K''(A) (N*m/rad) of a :class:`FillerNetwork` (its fields, SI; not validated) in
     a harmonic motion of amplitude A (rad) about the centre, once the network has broken down to
     g_eq(A) (recovery within a cycle and the centre's motion left out): Jenkins loops in closed
     form, sticking springs elastic. A pure function of numbers, which the first guess of a fit
-    evaluates some ten thousand times (docs/theory.md#filler-network)."""
+    evaluates some ten thousand times (docs/theory.md#filler-network). The four numbers may be
+    arrays of parameter sets that broadcast with the amplitudes (e.g. (M, 1) against (N,) gives
+    (M, N)); ``n`` is one for all."""
     amp = np.asarray(amplitude_rad, float)[..., None]
     weights, a = log_logistic_bins(critical_angle, exponent, n)
-    k = stiffness * weights
+    k = np.asarray(stiffness, float)[..., None] * weights
     ratio = np.minimum(a / amp, 1.0)
     theta = np.arccos(1.0 - 2.0 * ratio)  # the part of the half cycle an element sticks
     storage = k / np.pi * (theta - 0.5 * np.sin(2.0 * theta))
@@ -720,9 +732,9 @@ def filler_network_complex_stiffness(stiffness: float, critical_angle: float, ex
                                                                                            axis=-1)
 
 
-def filler_network_intact_fraction(breakdown_angle: float, exponent: float, amplitude_rad: ArrayLike) -> np.ndarray:
+def filler_network_intact_fraction(breakdown_angle: ArrayLike, exponent: ArrayLike, amplitude_rad: ArrayLike) -> np.ndarray:
     """g_eq(A) = 1 / (1 + (A / breakdown_angle)^(2 exponent)): a :class:`FillerNetwork`'s intact
-    fraction after a motion of amplitude A (rad) about its centre."""
+    fraction after a motion of amplitude A (rad) about its centre (all three broadcast together)."""
     return 1.0 / (1.0 + (np.asarray(amplitude_rad, float) / breakdown_angle) ** (2 * exponent))
 
 

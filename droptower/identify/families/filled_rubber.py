@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
@@ -47,8 +48,8 @@ _ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
 _NEWTON_TOLERANCE = 1e-10
 
 
-def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitude_rad: np.ndarray,
-                                 frequency_hz: np.ndarray, iterations: int = 60) -> np.ndarray:
+def stiffening_maxwell_stiffness(k0: ArrayLike, gain: ArrayLike, damping: ArrayLike, amplitude_rad: ArrayLike,
+                                 frequency_hz: ArrayLike, iterations: int = 60) -> np.ndarray:
     """K' + i K'' (N*m/rad) of a Maxwell branch whose spring force is (k0 + g |e|) e (spring
     ``k0`` N*m/rad, ``gain`` g N*m/rad^2, dashpot ``damping`` c N*m*s/rad) in a steady harmonic
     motion of amplitude A (rad) at f (Hz), on the first harmonic (equivalent linearisation): the
@@ -62,49 +63,76 @@ def stiffening_maxwell_stiffness(k0: float, gain: float, damping: float, amplitu
     falls monotonically onto it; it stops once every step is below 1e-10 of E (the next one,
     quadratically smaller, would be below the double's resolution; ``iterations`` is a cap that
     convergence never nears). With g = 0 E_0 is the root.
+
+    ``k0``, ``gain`` and ``damping`` may be arrays of parameter sets that broadcast with the
+    amplitudes and frequencies (e.g. (M, 1) against (N,) gives (M, N)).
     """
-    amp = np.asarray(amplitude_rad, float)
-    wc = 2.0 * math.pi * np.asarray(frequency_hz, float) * damping
-    amp, wc = np.broadcast_arrays(amp, wc)
-    k = _stiffening_secant(float(k0), float(gain) * _ABS_SIN_HARMONIC, np.ravel(amp), np.ravel(wc),
-                           int(iterations)).reshape(amp.shape)
+    wc = 2.0 * math.pi * np.asarray(frequency_hz, float) * np.asarray(damping, float)
+    args = (k0, np.asarray(gain, float) * _ABS_SIN_HARMONIC, amplitude_rad, wc)
+    flat = np.empty((4,) + np.broadcast(*args).shape)  # contiguous, writeable: the kernel's one signature
+    for row, x in zip(flat, args):
+        row[...] = x
+    k = _stiffening_secant(*flat.reshape(4, -1), int(iterations)).reshape(flat.shape[1:])
+    wc = flat[3]
     return k * 1j * wc / (k + 1j * wc)
 
 
 @njit(cache=cache_available(), nogil=True, error_model="numpy")
 def _stiffening_secant(k0, g, amp, wc, iterations):  # pragma: no cover - compiled
-    """Secant k(E) = k0 + g E at each elongation root of :func:`stiffening_maxwell_stiffness`
-    (compiled: the first guess evaluates the closed form some ten thousand times per fit)."""
+    """Secant k(E) = k0 + g E at each elongation root of :func:`stiffening_maxwell_stiffness`,
+    elementwise over equal-length arrays (compiled: the first guess evaluates the closed form
+    some ten thousand times per fit)."""
     out = np.empty(amp.size)
     for i in range(amp.size):
-        e = amp[i] * wc[i] / math.hypot(k0, wc[i])
-        if g > 0.0:
+        e = amp[i] * wc[i] / math.hypot(k0[i], wc[i])
+        if g[i] > 0.0:
             target = (amp[i] * wc[i]) ** 2
             for _ in range(iterations):
-                k = k0 + g * e
-                slope = 2.0 * e * (k * k + wc[i] * wc[i]) + 2.0 * g * k * e * e
+                k = k0[i] + g[i] * e
+                slope = 2.0 * e * (k * k + wc[i] * wc[i]) + 2.0 * g[i] * k * e * e
                 if not slope > 0.0:
                     break
                 step = (e * e * (k * k + wc[i] * wc[i]) - target) / slope
                 e = max(e - step, 0.0)
                 if not step > _NEWTON_TOLERANCE * e:  # quadratic convergence: the next step would be ~0
                     break
-        out[i] = k0 + g * e
+        out[i] = k0[i] + g[i] * e
     return out
 
 
-def _closed_form_fields(element: dict[str, Any], positive: tuple[str, ...]) -> dict[str, Any]:
-    """``element`` (a spec's fields, as :meth:`FilledRubberFamily.elements` writes them) after the
-    checks its spec makes on the fields its closed form reads (finite and > 0, a band of positive
-    width), without building the spec: :class:`DroptowerError` where the spec would refuse."""
-    for key in positive:
-        if not (element[key] > 0 and math.isfinite(element[key])):
-            raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be finite "
-                                 f"and > 0, got {element[key]}")
-    if "max_frequency" in element and not element["max_frequency"] > element["min_frequency"]:
-        raise DroptowerError(f"element {element['name']} of model filled_rubber: max_frequency must exceed "
-                             f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
-    return element
+def _closed_form_fields(*checks: tuple[dict[str, Any], tuple[str, ...]]) -> None:
+    """The checks the specs make on the fields their closed forms read (finite and > 0, a band of
+    positive width), without building the specs: ``checks`` are (element, fields) pairs, each
+    element a spec's fields as :meth:`FilledRubberFamily.elements` writes them (numbers, or
+    columns of parameter sets); :class:`DroptowerError` where a spec would refuse, naming the
+    first refused field and the value of a set it refuses."""
+    numbers = np.concatenate([element[key] for element, keys in checks for key in keys], axis=None)
+    ok = (numbers > 0) & (numbers < math.inf)  # finite and > 0 (a NaN fails both)
+    if not ok.all():
+        first = int(np.argmin(ok))
+        for element, keys in checks:
+            for key in keys:
+                if first < np.size(element[key]):
+                    raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be "
+                                         f"finite and > 0, got {float(np.ravel(element[key])[first])}")
+                first -= np.size(element[key])
+    for element, _ in checks:
+        if "max_frequency" in element and not element["max_frequency"] > element["min_frequency"]:
+            raise DroptowerError(f"element {element['name']} of model filled_rubber: max_frequency must exceed "
+                                 f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
+
+
+def _band_groups(band: np.ndarray) -> list[np.ndarray]:
+    """Masks of the rows of ``band`` (M, 2), the parameter sets' power-law bands
+    (``min_frequency_hz``, ``band_decades``), that share one, in order of first appearance."""
+    todo, groups = np.ones(len(band), bool), []
+    while todo.any():
+        first = int(np.argmax(todo))
+        sel = todo & np.all(band == band[first], axis=1)
+        sel[first] = True  # a NaN band is its own group (and refused by the checks)
+        todo &= ~sel
+        groups.append(sel)
+    return groups
 
 
 class FilledRubberFamily(Family):
@@ -176,7 +204,13 @@ class FilledRubberFamily(Family):
                          0.05 * k, 0.0, 1.0 / (2 * math.pi * f)])
 
     def elements(self, v: np.ndarray) -> list[dict[str, Any]]:
-        k, a, kf, ac, m, ab, kp, eta, f_min, decades, kv, gain, tau_v = (float(x) for x in v)
+        return self._element_fields(*(float(x) for x in v))
+
+    def _element_fields(self, k: Any, a: Any, kf: Any, ac: Any, m: Any, ab: Any, kp: Any, eta: Any, f_min: float,
+                        decades: float, kv: Any, gain: Any, tau_v: Any) -> list[dict[str, Any]]:
+        """:meth:`elements` of the parameters: numbers, or (the closed form's batch) columns of
+        parameter sets, all but the band (``f_min``, ``decades``: numbers, the band sets the
+        power law's terms)."""
         terms = int(self.options["terms"])
         return [{"kind": "cubic_spring", "name": "equilibrium", "a": a, "b": k},
                 {"kind": "filler_network", "name": "filler_network", "stiffness": kf, "critical_angle": ac,
@@ -198,25 +232,47 @@ class FilledRubberFamily(Family):
     # ------------------------------------------------------------------ closed form
     def harmonic_stiffness(self, v: np.ndarray, amplitude_rad: np.ndarray, frequency_hz: np.ndarray) -> np.ndarray:
         """K' + i K'' (N*m/rad) of parameter set ``v`` in a steady harmonic motion of amplitude A
-        (rad) at frequency f (Hz): the cubic spring's first harmonic b + 3/4 a A^2, the network
-        broken down to its equilibrium at A (:func:`~droptower.rheology.elements.filler_network_complex_stiffness`),
+        (rad) at frequency f (Hz): :meth:`harmonic_stiffness_rows` of the one set."""
+        return self.harmonic_stiffness_rows(np.asarray(v, float)[None, :], amplitude_rad, frequency_hz)[0]
+
+    def harmonic_stiffness_rows(self, rows: np.ndarray, amplitude_rad: np.ndarray,
+                                frequency_hz: np.ndarray) -> np.ndarray:
+        """K' + i K'' (N*m/rad), shape (M,) + the readings' shape, of each parameter set (row of
+        ``rows``, (M, 13)) in a steady harmonic motion of amplitude A (rad) at frequency f (Hz):
+        the cubic spring's first harmonic b + 3/4 a A^2, the network broken down to its
+        equilibrium at A (:func:`~droptower.rheology.elements.filler_network_complex_stiffness`),
         the power-law band's Prony series (:func:`~droptower.rheology.elements.power_law_complex_stiffness`)
         and the stiffening Maxwell branch linearised on its first harmonic
-        (:func:`stiffening_maxwell_stiffness`). The elements' closed forms are called on the
-        numbers :meth:`elements` writes, after the checks their specs make (the first guess
+        (:func:`stiffening_maxwell_stiffness`). The elements' closed forms are called once per
+        distinct band (it sets the power law's terms) on the columns of the numbers
+        :meth:`elements` writes, after the checks their specs make on every row (the first guess
         evaluates this some ten thousand times per fit: building the specs would dominate)."""
-        _, network, matrix, *_ = self.elements(v)
-        net = _closed_form_fields(network, ("stiffness", "critical_angle", "exponent", "breakdown_angle"))
-        mat = _closed_form_fields(matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
-                                           "terms_per_decade"))
+        rows = np.asarray(rows, float)
         amp, freq = np.asarray(amplitude_rad, float), np.asarray(frequency_hz, float)
-        k_network = filler_network_complex_stiffness(net["stiffness"], net["critical_angle"], net["exponent"],
-                                                     net["breakdown_angle"], net["n"], amp)
-        k_matrix = power_law_complex_stiffness(mat["storage_stiffness"], mat["loss_factor"], mat["reference_frequency"],
-                                               mat["min_frequency"], mat["max_frequency"], mat["terms_per_decade"], freq)
-        viscous = (stiffening_maxwell_stiffness(v[10], v[11], v[10] * v[12], amp, freq)
-                   if self.options["stiffening_branch"] else 0.0)
-        return v[0] + 0.75 * v[1] * amp ** 2 + k_network + k_matrix + viscous
+        band = rows[:, _BAND[0]:_BAND[1] + 1]
+        if len(rows) == 1 or (band == band[0]).all():  # the first guess's case: one band
+            return self._closed_form(rows, amp, freq)
+        out = np.empty((len(rows),) + np.broadcast_shapes(amp.shape, freq.shape), complex)
+        for sel in _band_groups(band):
+            out[sel] = self._closed_form(rows[sel], amp, freq)
+        return out
+
+    def _closed_form(self, rows: np.ndarray, amp: np.ndarray, freq: np.ndarray) -> np.ndarray:
+        """:meth:`harmonic_stiffness_rows` of parameter sets that share one band."""
+        columns = np.ascontiguousarray(rows.T).reshape(rows.shape[::-1] + (1,) * max(amp.ndim, freq.ndim))
+        band = [float(rows[0, i]) for i in _BAND]
+        spring, network, matrix, *viscous = self._element_fields(*columns[:_BAND[0]], *band, *columns[_BAND[1] + 1:])
+        _closed_form_fields((network, ("stiffness", "critical_angle", "exponent", "breakdown_angle")),
+                            (matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
+                                      "terms_per_decade")))
+        k_network = filler_network_complex_stiffness(network["stiffness"], network["critical_angle"], network["exponent"],
+                                                     network["breakdown_angle"], network["n"], amp)
+        k_matrix = power_law_complex_stiffness(matrix["storage_stiffness"], matrix["loss_factor"],
+                                               matrix["reference_frequency"], matrix["min_frequency"],
+                                               matrix["max_frequency"], matrix["terms_per_decade"], freq)
+        k_viscous = (stiffening_maxwell_stiffness(viscous[0]["stiffness"], viscous[0]["stiffness_gain"],
+                                                  viscous[0]["damping"], amp, freq) if viscous else 0.0)
+        return spring["b"] + 0.75 * spring["a"] * amp ** 2 + k_network + k_matrix + k_viscous
 
     def guess_from_readings(self, amplitude_rad: np.ndarray, frequency_hz: np.ndarray, stiffness: np.ndarray,
                             x0: np.ndarray, given: np.ndarray, seed: int = 0) -> np.ndarray:
@@ -224,7 +280,9 @@ class FilledRubberFamily(Family):
         fitted by least squares to K' and K'' at each reading's amplitude (rad) and frequency
         (Hz) (``stiffness`` complex, N*m/rad), from :data:`GUESS_STARTS` Latin-hypercube starts
         and ``x0``; the band stays at ``x0``'s (the readings span too narrow a band to place it),
-        and so do the ``given`` parameters. ``x0`` where fewer than three readings."""
+        and so do the ``given`` parameters. ``x0`` where fewer than three readings. The
+        forward-difference Jacobian's shifted points go to :meth:`harmonic_stiffness_rows` in one
+        call (least_squares' ``workers``), its steps and differences SciPy's own."""
         amp, freq, k_obs = (np.asarray(a) for a in (amplitude_rad, frequency_hz, stiffness))
         ok = np.isfinite(amp) & np.isfinite(freq) & np.isfinite(k_obs) & (amp > 0)
         amp, freq, k_obs = amp[ok], freq[ok], k_obs[ok]
@@ -242,16 +300,25 @@ class FilledRubberFamily(Family):
             v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z)]
             return v
 
+        def residuals(rows: np.ndarray) -> np.ndarray:
+            d = (self.harmonic_stiffness_rows(rows, amp, freq) - k_obs) * weight
+            return np.concatenate([d.real, d.imag], axis=-1)
+
         def resid(z: np.ndarray) -> np.ndarray:
-            d = (self.harmonic_stiffness(values(z), amp, freq) - k_obs) * weight
-            return np.concatenate([d.real, d.imag])
+            return residuals(values(z)[None, :])[0]
+
+        def jacobian_points(_fun: Any, points: Any) -> np.ndarray:
+            """scipy's map over the forward-difference Jacobian's shifted points (``workers``):
+            their residuals in one call of the batched closed form, not one call each."""
+            return residuals(np.array([values(z) for z in points]))
 
         z0 = np.clip([params[i].to_z(x0[i]) for i in idx], lo, hi)
         starts = [z0] + list(lo + qmc.LatinHypercube(d=len(idx), seed=seed).random(GUESS_STARTS) * (hi - lo))
         best, cost = x0, math.inf
         for z in starts:
             try:
-                r = least_squares(resid, z, bounds=(lo, hi), method="trf", max_nfev=40 * len(idx), xtol=1e-6)
+                r = least_squares(resid, z, bounds=(lo, hi), method="trf", max_nfev=40 * len(idx), xtol=1e-6,
+                                  workers=jacobian_points)
             except (ValueError, DroptowerError):  # a start the element refuses
                 continue
             if r.cost < cost:
