@@ -541,7 +541,8 @@ def variable_maxwell(p, po, s, so, x0, x1, h):
         # the six-parameter model's branch, (k0 + g|e|) e in series with c: backward Euler's
         # (k0 + g|e|) e = (c/h)(e0 + dx - e) is a quadratic in |e| whose root has the sign of
         # r = e0 + dx; its positive root, written without cancellation (g = 0: the linear
-        # Maxwell's e = (c/h) r / (k0 + c/h)), in place of the iteration below (20x cheaper a step)
+        # Maxwell's e = (c/h) r / (k0 + c/h)), in place of the iteration below (5.5x cheaper a
+        # step: benchmarks/bench_core.py)
         beta = pv[P_VARIABLE_MAXWELL_C0] / h
         r = e0 + dx
         a = pv[P_VARIABLE_MAXWELL_K0] + beta

@@ -122,19 +122,6 @@ def _closed_form_fields(*checks: tuple[dict[str, Any], tuple[str, ...]]) -> None
                                  f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
 
 
-def _band_groups(band: np.ndarray) -> list[np.ndarray]:
-    """Masks of the rows of ``band`` (M, 2), the parameter sets' power-law bands
-    (``min_frequency_hz``, ``band_decades``), that share one, in order of first appearance."""
-    todo, groups = np.ones(len(band), bool), []
-    while todo.any():
-        first = int(np.argmax(todo))
-        sel = todo & np.all(band == band[first], axis=1)
-        sel[first] = True  # a NaN band is its own group (and refused by the checks)
-        todo &= ~sel
-        groups.append(sel)
-    return groups
-
-
 class FilledRubberFamily(Family):
     """Equilibrium spring b x + a x^3 || filler network (Iwan, breakdown and recovery) || power-law branch.
 
@@ -253,7 +240,9 @@ class FilledRubberFamily(Family):
         if len(rows) == 1 or (band == band[0]).all():  # the first guess's case: one band
             return self._closed_form(rows, amp, freq)
         out = np.empty((len(rows),) + np.broadcast_shapes(amp.shape, freq.shape), complex)
-        for sel in _band_groups(band):
+        _, group = np.unique(band, axis=0, return_inverse=True)
+        for g in np.unique(group):
+            sel = group.ravel() == g
             out[sel] = self._closed_form(rows[sel], amp, freq)
         return out
 
