@@ -29,6 +29,8 @@ Physics choices (the reasons are the rig's accuracy targets):
   impulses are also booked on the output sample grid (``contact_impulse_ns``), each shared
   linearly between the two samples around the end of its step: the contact force history the
   impact-force sensor samples (:func:`droptower.rig.sensors.force_pulses`).
+- An exception raised in a callback (a defect, or Ctrl-C arriving there) is raised where the
+  step returns (:mod:`.callbacks`): cffi would print it and step on with the contact uncounted.
 - Scenes sit 1 m apart along x: they never touch and share no body but the static one, so a
   scene in a batch moves as it would alone (up to rounding of its coordinates).
 - A scene is in the space only around its contacts: between them its two bodies move
@@ -38,6 +40,7 @@ Physics choices (the reasons are the rig's accuracy targets):
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,6 +50,7 @@ import pymunk.batch
 from droptower.rheology import Coupling, CouplingState
 from droptower.rheology.kinds import DISSIPATED, STORED
 from droptower.rig import flight
+from droptower.rig.callbacks import raising_callback_errors
 
 SPACING_M = 1.0          # distance between neighbouring scenes along x
 LEVER_BODY_MASS_KG = 10.0  # translational mass of the lever; the pivot holds it, it never enters the result
@@ -447,6 +451,13 @@ class DropTowerScenes:
         ``fly_between_contacts=False`` keeps every scene in the space all along (the reference
         the flight is tested against).
         """
+        with raising_callback_errors() as check:  # a Ctrl-C or defect in a callback stops the run (.callbacks)
+            return self._run(coupling, state, pretwist_rad, screw_nm, n_samples, steps_per_sample, energy_every,
+                             fly_between_contacts, check)
+
+    def _run(self, coupling: Coupling, state: CouplingState, pretwist_rad: np.ndarray, screw_nm: np.ndarray,
+             n_samples: int, steps_per_sample: int, energy_every: int, fly_between_contacts: bool,
+             check: Callable[[], None]) -> SceneRecord:
         B, dt, sps = self.batch, self.dt, steps_per_sample
         n_energy = (n_samples - 1) // energy_every + 1
         angle = np.empty((B, n_samples))
@@ -576,6 +587,7 @@ class DropTowerScenes:
                 bodies.apply_torque(screw_arg, sub_torque)
                 self.time_s = self.t0 + (k + 1) * dt  # the end of this step: contacts are stamped with it
                 self.space.step(dt)
+                check()
                 if contacts.open:
                     contacts.query()
             n += 1
