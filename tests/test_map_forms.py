@@ -7,13 +7,16 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, seed, settings
+from hypothesis import strategies as st
 
 from droptower.cli.main import main
 from droptower.data import read_table4
 from droptower.errors import DroptowerError
 from droptower.maps import MapFit, fit_map, model
-from droptower.maps.forms import PAPER, VELOCITY, Equation, MapForm
+from droptower.maps.forms import AUTO_RATIO_TERMS, AUTO_STIFFNESS_TERMS, KINDS, PAPER, VELOCITY, Equation, MapForm
 from droptower.maps.results import REQUIRED
+from droptower.maps import select
 from droptower.maps.select import cv_groups, fit_form
 
 
@@ -180,3 +183,60 @@ def test_map_cli_form_auto(capsys) -> None:
     assert main(["map", "rapp2022_table4", "--form", "velocity"]) == 0
     out = capsys.readouterr().out
     assert "form velocity" in out and "cross-validated" in out and "k1*10^(-k2*a) + k3*sqrt(f) + k4*10^(-k5*a*f)" in out
+
+
+# ---- the search's shortcuts give what the plain evaluation gives, bit for bit -----------------
+_ANY_TERMS = st.lists(st.sampled_from(sorted(KINDS)), min_size=1, max_size=5).map(tuple)
+
+
+@seed(2030)
+@settings(max_examples=40, deadline=None)
+@given(terms=_ANY_TERMS, n=st.integers(1, 40), data=st.data())
+def test_basis_on_grid_and_value_and_jacobian_are_the_plain_evaluations(terms, n, data) -> None:
+    """basis_on_grid(ix) is basis(the grid's exponents at ix), and value_and_jacobian is value and
+    jacobian, bit for bit, on random equations, points, grids and parameters."""
+    eq = Equation(terms)
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    a, f = rng.uniform(0.05, 20.0, n), rng.uniform(1.0, 120.0, n)
+    grids = [np.geomspace(rng.uniform(1e-4, 1e-2), rng.uniform(1.0, 50.0), 16) for _ in eq.exponents]
+    at = eq.basis_on_grid(grids, a, f)
+    for _ in range(5):
+        ix = tuple(int(i) for i in rng.integers(0, 16, len(grids)))
+        np.testing.assert_array_equal(at(ix), eq.basis([g[i] for g, i in zip(grids, ix)], a, f), strict=True)
+    p = rng.uniform(0.0, 3.0, eq.size) * np.where(np.isin(np.arange(eq.size), eq.linear), 300.0, 0.2)
+    value, jac = eq.value_and_jacobian(p, a, f)
+    np.testing.assert_array_equal(value, eq.value(p, a, f), strict=True)
+    np.testing.assert_array_equal(jac, eq.jacobian(p, a, f), strict=True)
+
+
+@seed(2031)
+@settings(max_examples=3, deadline=None)
+@given(stiffness=st.booleans(), data=st.data())
+def test_the_search_on_the_grid_table_is_the_plain_search(table4: pd.DataFrame, stiffness: bool, data) -> None:
+    """One equation fitted to noisy Table 4 as fit_equation does it (grid columns computed once,
+    value and Jacobian from one basis) and with the plain evaluations: the same solutions, bit for bit."""
+    from droptower.maps import solve
+
+    library = AUTO_STIFFNESS_TERMS if stiffness else AUTO_RATIO_TERMS
+    eq = Equation(tuple(data.draw(st.lists(st.sampled_from(library), min_size=1, max_size=3))))
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    a, f = table4["amplitude_deg"].to_numpy(float), table4["frequency_hz"].to_numpy(float)
+    target = table4["stiffness_nm_per_deg" if stiffness else "damping_ratio"].to_numpy(float)
+    target = target * (1 + 0.03 * rng.standard_normal(target.size)) * (1.0 if stiffness else 1000.0)
+    points, grids = select._exponent_grids(eq, a, f)
+    exponents_at = lambda ix: tuple(g[i] for g, i in zip(grids, ix))  # noqa: E731
+    residuals, jacobian = solve.relative_residuals(eq, stiffness, a, f, target)
+    if stiffness:
+        plain_jacobian = lambda p: eq.jacobian(p, a, f) / target[:, None]  # noqa: E731
+    else:
+        plain_jacobian = lambda p: -(target / eq.value(p, a, f) ** 2)[:, None] * eq.jacobian(p, a, f)  # noqa: E731
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        fast = solve.variable_projection(points, exponents_at, eq.basis_on_grid(grids, a, f), target, eq.linear,
+                                         eq.exponents, residuals, jacobian)
+        plain = solve.variable_projection(points, exponents_at, lambda ix: eq.basis(exponents_at(ix), a, f), target,
+                                          eq.linear, eq.exponents, residuals, plain_jacobian)
+    assert len(fast) == len(plain) >= 1
+    for got, want in zip(fast, plain):
+        np.testing.assert_array_equal(got.params, want.params, strict=True)
+        np.testing.assert_array_equal(got.at_bound, want.at_bound, strict=True)
+        assert got.ssr == want.ssr

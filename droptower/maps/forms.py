@@ -23,6 +23,7 @@ then its exponent (if it has one): the paper's form gets exactly the paper's k1�
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -122,12 +123,33 @@ class Equation:
                 cols[..., j] = x
         return cols
 
+    def basis_on_grid(self, grids: list[np.ndarray], a: ArrayLike, f: ArrayLike) -> Callable[[tuple[int, ...]], np.ndarray]:
+        """The basis at grid points of the exponents: ``basis_on_grid(grids, a, f)(ix)`` is
+        ``basis([grids[k][ix[k]] ...], a, f)`` bit for bit, each exponent term's column at each
+        grid value computed once (a search evaluates the same columns at thousands of points)."""
+        a, f = _points(a, f)
+        fixed = self.basis(np.zeros(len(self.exponents)), a, f)  # the exponent columns are replaced
+        kinds = [(j, t) for j, t in enumerate(self.terms) if KINDS[t][1] is not None]
+        tables = [(j, np.stack([10.0 ** (-e * _variable(t, a, f)) for e in np.asarray(g, float)]))
+                  for (j, t), g in zip(kinds, grids)]
+
+        def at(ix: tuple[int, ...]) -> np.ndarray:
+            cols = fixed.copy()
+            for (j, table), i in zip(tables, ix):
+                cols[..., j] = table[i]
+            return cols
+        return at
+
     def value(self, params: ArrayLike, a: ArrayLike, f: ArrayLike) -> np.ndarray:
         p = np.asarray(params, float)
         return self.basis(p[list(self.exponents)], a, f) @ p[list(self.linear)]
 
     def jacobian(self, params: ArrayLike, a: ArrayLike, f: ArrayLike) -> np.ndarray:
         """∂value/∂params at each point: (N, size)."""
+        return self.value_and_jacobian(params, a, f)[1]
+
+    def value_and_jacobian(self, params: ArrayLike, a: ArrayLike, f: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`value` and :meth:`jacobian` (bit for bit) from one evaluation of the basis."""
         p = np.asarray(params, float)
         a, f = _points(a, f)
         columns = self.basis(p[list(self.exponents)], a, f)
@@ -138,7 +160,7 @@ class Equation:
             if KINDS[t][1] is not None:  # d/de of k·10^(−e·x)
                 out[..., i] = -p[i - 1] * LN10 * _variable(t, a, f) * columns[..., j]
                 i += 1
-        return out
+        return columns @ p[list(self.linear)], out
 
     def text(self, names: list[str]) -> str:
         """The equation with the given parameter names, e.g. ``k1*10^(-k2*a) + k3*sqrt(f)``."""

@@ -60,7 +60,7 @@ def fit_equation(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarray, ta
     residuals, jacobian = relative_residuals(eq, stiffness, a, f, target)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # far trial steps of the solver; their residual is inf, rejected
         solutions = variable_projection(
-            points, lambda ix: tuple(g[i] for g, i in zip(grids, ix)), lambda e: eq.basis(e, a, f), target,
+            points, lambda ix: tuple(g[i] for g, i in zip(grids, ix)), eq.basis_on_grid(grids, a, f), target,
             eq.linear, eq.exponents, residuals, jacobian)
     for s in solutions:  # terms of one kind by increasing exponent, so the names are unique
         s.permute(_canonical_order(eq, s.params))

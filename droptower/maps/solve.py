@@ -40,8 +40,11 @@ def relative_residuals(eq: Equation, stiffness: bool, a: np.ndarray, f: np.ndarr
     if stiffness:
         return (lambda p: eq.value(p, a, f) / target - 1.0,
                 lambda p: eq.jacobian(p, a, f) / target[:, None])
-    return (lambda p: target / eq.value(p, a, f) - 1.0,
-            lambda p: -(target / eq.value(p, a, f) ** 2)[:, None] * eq.jacobian(p, a, f))
+
+    def jacobian(p: np.ndarray) -> np.ndarray:
+        value, jac = eq.value_and_jacobian(p, a, f)
+        return -(target / value ** 2)[:, None] * jac
+    return lambda p: target / eq.value(p, a, f) - 1.0, jacobian
 
 
 @dataclass
@@ -57,18 +60,19 @@ class Solution:
 
 
 def variable_projection(grid: list[tuple[int, ...]], exponents_at: Callable[[tuple[int, ...]], tuple[float, ...]],
-                         basis: Callable[[tuple[float, ...]], np.ndarray], target: np.ndarray,
+                         basis: Callable[[tuple[int, ...]], np.ndarray], target: np.ndarray,
                          linear: tuple[int, ...], exponents: tuple[int, ...],
                          residuals: Callable[[np.ndarray], np.ndarray],
                          jacobian: Callable[[np.ndarray], np.ndarray]) -> list[Solution]:
     """Multi-start: NNLS for the linear coefficients at every grid point of the exponents
     (relative residual basis·x / target − 1); the best N_POLISH grid points that are at least
     two grid steps apart (different basins, not neighbours of one) are polished jointly.
+    ``basis(ix)`` is the basis at grid point ``ix`` (exponents ``exponents_at(ix)``).
     Returns the polished solutions, best first (on-bound parameters set exactly to 0)."""
     ones = np.ones_like(target)
     scored = []
     for ix in grid:
-        x, rnorm = nnls(basis(exponents_at(ix)) / target[:, None], ones)
+        x, rnorm = nnls(basis(ix) / target[:, None], ones)
         scored.append((rnorm, ix, x))
     scored.sort(key=lambda s: s[0])
     starts: list[tuple[tuple[int, ...], np.ndarray]] = []
