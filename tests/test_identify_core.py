@@ -109,9 +109,9 @@ def test_every_jacobian_is_one_batched_core_call(monkeypatch):
     calls = []
     original = Coupling.simulate
 
-    def spy(self, angle, dt, state=None):
+    def spy(self, angle, dt, state=None, **options):
         calls.append(self.params.shape[0])
-        return original(self, angle, dt, state)
+        return original(self, angle, dt, state, **options)
 
     monkeypatch.setattr(Coupling, "simulate", spy)
     r = least_squares_fit(family, segs, family.initial())
