@@ -16,8 +16,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-# cffi's message for an exception that left a callback (cffi's _cffi_backend, "From cffi callback"
-# before Python 3.8)
+# in cffi's message for an exception that left a callback ("Exception ignored from cffi callback ...")
 CFFI_CALLBACK = "cffi callback"
 
 _lock = threading.Lock()

@@ -106,17 +106,13 @@ def _closed_form_fields(*checks: tuple[dict[str, Any], tuple[str, ...]]) -> None
     element a spec's fields as :meth:`FilledRubberFamily.elements` writes them (numbers, or
     columns of parameter sets); :class:`DroptowerError` where a spec would refuse, naming the
     first refused field and the value of a set it refuses."""
-    numbers = np.concatenate([element[key] for element, keys in checks for key in keys], axis=None)
-    ok = (numbers > 0) & (numbers < math.inf)  # finite and > 0 (a NaN fails both)
-    if not ok.all():
-        first = int(np.argmin(ok))
-        for element, keys in checks:
-            for key in keys:
-                if first < np.size(element[key]):
-                    raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be "
-                                         f"finite and > 0, got {float(np.ravel(element[key])[first])}")
-                first -= np.size(element[key])
-    for element, _ in checks:
+    for element, keys in checks:
+        for key in keys:
+            x = np.asarray(element[key])
+            refused = ~((x > 0) & (x < math.inf))  # a NaN fails both
+            if refused.any():
+                raise DroptowerError(f"field {key} of element {element['name']} of model filled_rubber must be "
+                                     f"finite and > 0, got {float(x.flat[np.argmax(refused)])}")
         if "max_frequency" in element and not element["max_frequency"] > element["min_frequency"]:
             raise DroptowerError(f"element {element['name']} of model filled_rubber: max_frequency must exceed "
                                  f"min_frequency, got {element['max_frequency']} <= {element['min_frequency']}")
