@@ -6,8 +6,8 @@ Runs the suite (default arguments ``-n 2 -q``; anything after ``--`` replaces th
 ``benchmarks/suite_timeline.py`` and prints, per worker: start-up, collection, time in tests, idle
 gaps between tests, the tail (from its last test to the end of the run) and numba's compilations
 (wall and CPU, the heaviest named); then the last tests to start, and kernels compiled by more
-than one worker. ``--cold`` deletes numba's cache beside the package's sources first (as on a
-fresh clone or in CI).
+than one worker. ``--cold`` deletes the compiled kernels first (the package's cache folders,
+:func:`droptower.rheology.numba_cache.kernel_cache_root`; as on a fresh machine or in CI).
 
 Baseline, measured in the same run: the balanced test time, the sum of every test's wall time
 (setup, call, teardown) divided by the number of workers: what the run would take with no
@@ -19,6 +19,7 @@ import argparse
 import json
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -114,10 +115,18 @@ def analyse(events: list[dict]) -> dict:
 
 
 def delete_numba_cache() -> int:
-    """Delete numba's cache files beside the package's sources; returns how many."""
-    files = [*REPO.glob("droptower/**/__pycache__/*.nbi"), *REPO.glob("droptower/**/__pycache__/*.nbc")]
+    """Delete the compiled kernels: the package's cache folders (every version's) and numba's cache
+    files beside the sources (where a kernel falls back to them); returns how many files."""
+    sys.path.insert(0, str(REPO))
+    from droptower.rheology.numba_cache import kernel_cache_root
+
+    folders = [p for p in kernel_cache_root().glob("droptower.*") if p.is_dir()]
+    files = [*REPO.glob("droptower/**/__pycache__/*.nbi"), *REPO.glob("droptower/**/__pycache__/*.nbc"),
+             *(f for folder in folders for f in folder.glob("*.nb[ic]"))]
     for path in files:
         path.unlink()
+    for folder in folders:
+        shutil.rmtree(folder, ignore_errors=True)
     return len(files)
 
 
@@ -141,7 +150,7 @@ def report(figures: dict, cpu_s: float) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--cold", action="store_true", help="delete numba's cache beside the sources first")
+    parser.add_argument("--cold", action="store_true", help="delete the compiled kernels first (a cold cache, as on a fresh machine)")
     parser.add_argument("--keep", type=Path, default=None, metavar="DIR", help="write the timeline files here (kept)")
     json_option(parser)
     args, rest = parser.parse_known_args()

@@ -33,7 +33,7 @@ from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
 from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,
                                          power_law_exponent)
-from droptower.rheology.numba_cache import cache_available
+from droptower.rheology.numba_cache import cache_available, compile_once_across_processes
 
 #: Relative margin that keeps the power-law band's term count at the ``terms`` option exactly
 #: (PowerLaw rounds the terms per decade times the decades up).
@@ -340,3 +340,5 @@ def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_)
 
 FAMILY = FilledRubberFamily
 strategy = identify_filled_rubber
+
+compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time
