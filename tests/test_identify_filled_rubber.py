@@ -321,6 +321,9 @@ def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled
             results[kind] = fitted if data is filled and kind == "filled_rubber" else identify(kind, data, previous=results)
         table = ranking_table(results, data)
         assert table["model"].iloc[0] == first, table[["model", "bic", "verdict"]]
+        if "elastoslide" in results:  # its global search draws p among the odd candidates (it once sampled 1-99)
+            assert "global_search" in results["elastoslide"].extra
+            assert results["elastoslide"].parameters["p"] in (3, 5, 7, 9, 11)
         if first == "filled_rubber":
             assert table["delta_bic"].iloc[1] > 10
 

@@ -469,7 +469,7 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     is None): a family that cannot represent the coupling does not pay a second refinement."""
     params = family.parameters
     n_free = int(free.sum())
-    choices = {family.names.index("p"): [float(v) for v in family.options["p_candidates"]]} if choose_p else {}
+    choices = family.choices() if choose_p else {}
 
     def local_on(prob: DropProblem) -> Any:
         def local(start: np.ndarray, tol: float) -> Any:

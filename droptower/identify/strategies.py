@@ -139,8 +139,9 @@ def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0
                                  tol=tol)
 
     n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
+    choices = {i: values for i, values in fam.choices().items() if free[i]}  # the elastoslide's odd p
     best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
-                               cost_of=lambda f: f.metrics.rmse_nm, near=n // 4,
+                               cost_of=lambda f: f.metrics.rmse_nm, near=n // 4, choices=choices,
                                starts=None if staged is None else staged[None, :])
     return result_of(s, segments, best.values.copy(), [best], start,
                      extra={"global_search": summary, "search_evaluations": n})

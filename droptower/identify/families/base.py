@@ -57,6 +57,11 @@ class Family:
         """Quantities computed from the parameters, for reports."""
         return {}
 
+    def choices(self) -> dict[int, list[float]]:
+        """Parameters that take one of a few values (index -> the values): a global search draws
+        them among these instead of sampling their bounds (none by default)."""
+        return {}
+
     @property
     def substeps(self) -> int:
         """Integration steps per data sample (option ``substeps``)."""

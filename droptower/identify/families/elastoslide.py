@@ -68,6 +68,10 @@ class ElastoslideFamily(Family):
             out[f"d{i + 1}_nms_per_rad"] = float(v[5 + 2 * i] * v[6 + 2 * i])
         return out
 
+    def choices(self) -> dict[int, list[float]]:
+        """p among its odd candidates (the option ``p_candidates``)."""
+        return {self.names.index("p"): [float(v) for v in self.options["p_candidates"]]}
+
     def elements(self, v):
         phi0, k, k0, v_r, p = v[:5]
         out = [{"kind": "elastoslide", "phi0": phi0, "k": k, "k0": k0, "v_r": v_r, "p": int(round(p)),
