@@ -268,6 +268,8 @@ def _sources_locator_class() -> type:
             if key is None:
                 return None
             folder = kernel_cache_root() / f"{name}-{key[:16]}"
+            if not folder.is_absolute():  # no home to expand "~" to: numba's own places
+                return None
             new = not folder.exists()
             self = cls(py_func, folder, key)
             try:
