@@ -187,7 +187,7 @@ def sources_key(namespace: dict) -> str | None:
     name = str(namespace.get("__name__", ""))
     package = sys.modules.get(name.partition(".")[0])
     roots = getattr(package, "__path__", None)
-    if "." not in name or not roots:
+    if not roots:  # a module outside a package
         return None
     root = Path(list(roots)[0]).resolve()
     digest = hashlib.sha256()
