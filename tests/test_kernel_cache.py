@@ -118,3 +118,21 @@ def test_another_copy_of_the_package_loads_the_kernel_this_one_compiled(tmp_path
     here = _run(LOAD, str(REPO), cache=cache)
     assert Path(there["file"]).is_relative_to(copy) and Path(here["file"]).is_relative_to(REPO)
     assert there["misses"] == 1 and here == {**there, "file": here["file"], "hits": 1, "misses": 0}
+
+
+def test_kernel_modules_read_other_modules_constants_through_the_module() -> None:
+    """A kernel freezes the module-level constants it reads; a constant imported by value
+    (``from droptower.x import LIMIT``) names no module, so its file would be missing from the
+    kernel's key (:func:`~droptower.rheology.numba_cache.kernel_sources`) and an edit of it would
+    leave the build stale. The package's kernel modules import no constant so."""
+    import ast
+
+    offenders = []
+    for path in sorted((REPO / "droptower").rglob("*.py")):
+        text = path.read_text()
+        if "@njit" not in text:
+            continue
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("droptower"):
+                offenders += [f"{path.relative_to(REPO)}: {a.name}" for a in node.names if a.name.isupper()]
+    assert offenders == []
