@@ -121,13 +121,13 @@ def delete_numba_cache() -> int:
     from droptower.rheology.numba_cache import kernel_cache_root
 
     folders = [p for p in kernel_cache_root().glob("droptower.*") if p.is_dir()]
-    files = [*REPO.glob("droptower/**/__pycache__/*.nbi"), *REPO.glob("droptower/**/__pycache__/*.nbc"),
-             *(f for folder in folders for f in folder.glob("*.nb[ic]"))]
-    for path in files:
+    beside = [*REPO.glob("droptower/**/__pycache__/*.nbi"), *REPO.glob("droptower/**/__pycache__/*.nbc")]
+    count = len(beside) + sum(len(list(folder.glob("*.nb[ic]"))) for folder in folders)
+    for path in beside:
         path.unlink()
     for folder in folders:
         shutil.rmtree(folder, ignore_errors=True)
-    return len(files)
+    return count
 
 
 def report(figures: dict, cpu_s: float) -> None:

@@ -43,9 +43,11 @@ def no_leftover_spaces():
     test, freed by the garbage collector while this test has patched a callback, would call it
     outside this test's simulation. No collection runs during the test (a full one before it
     cost ~0.3 s per test in a worker that has run many)."""
+    enabled = gc.isenabled()
     gc.disable()
     yield
-    gc.enable()
+    if enabled:
+        gc.enable()
 
 
 @pytest.mark.parametrize("callback", ["begin", "separate"])

@@ -155,8 +155,10 @@ def kernel_sources(namespace: dict) -> list[Path]:
                 continue
             if _holds_kernels(module):
                 visit(vars(module))
-            elif getattr(module, "__file__", None):
-                files.add(Path(module.__file__).resolve())
+            else:  # many names of one module: looked at once
+                visited.add(module.__name__)
+                if getattr(module, "__file__", None):
+                    files.add(Path(module.__file__).resolve())
 
     visit(namespace)
     return sorted(files)
