@@ -58,8 +58,9 @@ class RecordBlock:
 
     index: 1-based, in the record's order; bounds_s: (n + 1,) times (s) of the upward
     crossings of the block's mean that bound its n whole cycles; amplitude_rad: the median
-    half swing of its cycles (m for a translational record); frequency_hz: n over the
-    duration of the n cycles; mean_rad: the mean of the motion over them.
+    half swing of its cycles (m for a translational record); frequency_hz: cycles over their
+    duration between the inner crossings (all of them for a block of two cycles); mean_rad:
+    the mean of the motion over its whole cycles.
     """
 
     index: int
@@ -142,10 +143,12 @@ def find_blocks(time_s: np.ndarray, motion: np.ndarray, *, tolerance: float = BL
         group = cyc[i:j]
         amplitude = float(np.median([c.amplitude_rad for c in group]))
         period = float(np.median([c.stop - c.start for c in group]))  # samples
-        # the half cycles on either side of the group's maxima may be whole cycles of the block too
+        # the crossings before the group's first maximum and after its last minimum bound whole
+        # cycles of the block too: search from the turning point before the first maximum to the
+        # second after the last (the cycle test below keeps the transitions out)
         k0, k1 = np.searchsorted(tp, group[0].start), np.searchsorted(tp, group[-1].stop)
         lo = int(tp[k0 - 1]) if k0 >= 1 else 0
-        hi = int(tp[k1 + 1]) + 1 if k1 + 1 < tp.size else x.size
+        hi = int(tp[k1 + 2]) + 1 if k1 + 2 < tp.size else x.size
         mean = float(np.mean(x[group[0].start:group[-1].stop]))
         up = _upward_crossings(x - mean, lo, hi, 0.5 * period)
         # whole cycles: crossing to crossing, of the block's amplitude and period, consecutive
@@ -164,7 +167,10 @@ def find_blocks(time_s: np.ndarray, motion: np.ndarray, *, tolerance: float = BL
             continue
         bounds = up[run[0]:run[-1] + 2]
         bounds_s = t[0] + bounds * dt
-        frequency = (bounds.size - 1) / (bounds_s[-1] - bounds_s[0])
+        # the frequency from the inner crossings: a crossing where the block meets the next (a kink
+        # in the motion between two samples) is interpolated off by up to a fraction of a sample
+        inner = bounds_s[1:-1] if bounds.size >= 4 else bounds_s
+        frequency = (inner.size - 1) / (inner[-1] - inner[0])
         out.append(RecordBlock(len(out) + 1, bounds_s, amplitude, float(frequency),
                                float(np.mean(x[int(bounds[0]):int(bounds[-1])]))))
     return out
