@@ -354,3 +354,28 @@ def test_validate_servo_records_in_one_go(tmp_path, capsys, map_file):
                                    "--servo-sample-interval-s", "0.005", "--servo-lever-arm-m", "0.25", "--json"])
     assert code == 0, err
     assert len(json.loads(out)["points"]) == 1
+
+
+def test_every_flag_of_servo_and_evaluate_servo_is_documented():
+    """docs/guide/servo.md names every flag of `servo` and `evaluate-servo` and validate's
+    servo-record flags (each in its table, in backticks), and no flag those commands lack."""
+    import re
+    from pathlib import Path
+
+    from droptower.cli.servo_cmd import servo
+    import click
+
+    from droptower.cli.servo_records_cmd import evaluate_servo, servo_record_options
+    from droptower.cli.validate_cmd import validate
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "servo.md").read_text(encoding="utf-8")
+    documented = set(re.findall(r"`(--[a-z][a-z0-9-]*)", page))
+    flags = set()
+    for command in (servo, evaluate_servo):
+        flags |= {opt for p in command.params for opt in p.opts if opt.startswith("--") and opt != "--help"}
+    servo_records_flags = {opt for p in click.command()(servo_record_options(lambda **kw: None)).params for opt in p.opts}
+    assert servo_records_flags <= {opt for p in validate.params for opt in p.opts}
+    missing = (flags | servo_records_flags) - documented
+    assert not missing, f"undocumented in docs/guide/servo.md: {sorted(missing)}"
+    known = flags | {opt for p in validate.params for opt in p.opts}
+    assert documented <= known, f"documented but no such flag: {sorted(documented - known)}"

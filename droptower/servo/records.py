@@ -43,7 +43,7 @@ import pandas as pd
 from droptower.errors import DroptowerError, check_positive, finite_values
 from droptower.servo.evaluate import MIN_SAMPLES_PER_CYCLE, evaluate_cycles, smoothing_window
 
-#: Cycles evaluated per block (the last ones), as the virtual bench evaluates 5 (``droptower servo --cycles``).
+#: Cycles evaluated per block (the last ones), as the virtual bench evaluates 5 (:func:`droptower.servo.run_grid`).
 CYCLES = 5
 #: Cycles at the start of every block that are never evaluated (the run-in after a change of amplitude).
 SETTLE_CYCLES = 1
