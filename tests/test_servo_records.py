@@ -379,3 +379,38 @@ def test_every_flag_of_servo_and_evaluate_servo_is_documented():
     assert not missing, f"undocumented in docs/guide/servo.md: {sorted(missing)}"
     known = flags | {opt for p in validate.params for opt in p.opts}
     assert documented <= known, f"documented but no such flag: {sorted(documented - known)}"
+
+
+def test_a_sample_rate_that_contradicts_the_time_channel_is_refused(tmp_path, capsys):
+    record = _write_csv(tmp_path / "timed.csv", _good_record())
+    code, _, err = _run(capsys, ["evaluate-servo", record, "--sample-rate-hz", "1000"])
+    assert code == 2 and "runs at 2048 Hz" in err and "--sample-rate-hz" in err
+    assert _run(capsys, ["evaluate-servo", record, "--sample-interval-s", repr(1 / FS), "--json"])[0] == 0
+    code, _, err = _run(capsys, ["evaluate-servo", record, "--sample-rate-hz", "1000", "--sample-interval-s", "0.001"])
+    assert code == 2 and "not both" in err
+    folder = tmp_path / "folder.csv"
+    folder.mkdir()
+    code, _, err = _run(capsys, ["evaluate-servo", str(folder)])
+    assert code == 2 and err.strip().endswith("folder.csv: not a file")
+
+
+def test_a_nonlinear_translational_record_from_rest_in_mm_and_kn(tmp_path):
+    """seed001_specimen (the elastoslide paper's specimen: friction and rate dependence, a
+    translational coupling) driven through blocks ramping up from rest at 0.5 Hz, written in mm
+    and kN without a time vector: the blocks found and K', loss factor of the bench's own
+    evaluation of the SI record (evaluate_history)."""
+    coupling = load_coupling("seed001_specimen")
+    fs = 256.0
+    history = H.amplitude_sweep([0.5e-3, 1.5e-3, 3e-3], 0.5, fs, run_in_cycles=3, cycles=4)
+    fine = 16
+    t_fine = np.arange(history.time_s.size * fine) / (fs * fine)
+    motion = np.interp(t_fine, history.time_s, history.angle_rad)
+    force = coupling.simulate(motion[None, :], 1.0 / (fs * fine)).torque_nm[0, ::fine]
+    reference = evaluate_history(history, force)
+    record = _write_csv(tmp_path / "specimen.csv", {"Weg [mm]": 1e3 * motion[::fine], "Kraft [kN]": 1e-3 * force})
+    table = evaluate_records([record], sample_interval_s=1 / fs, cycles=4)
+    assert len(table) == len(reference) == 3
+    for row, ev in zip(table.itertuples(), reference):
+        assert row.storage_stiffness_n_per_m == pytest.approx(ev.storage_stiffness_nm_per_rad, rel=1e-5)
+        assert row.loss_factor == pytest.approx(ev.loss_factor, rel=1e-5)
+    assert table["loss_factor"].iloc[-1] > 0.05  # friction: a loop, not a line

@@ -295,16 +295,23 @@ def _read_record(path: str | Path, roles: dict[str, str] | None, sample_rate_hz:
     from droptower.io.mapping import SERVO_KINDS, find_servo_roles, map_servo_channels
 
     record = read_any(path)
-    if sample_rate_hz is None:
+    _, specs = find_servo_roles(record, roles)
+    motion_role = next((r for r in ("angle", "displacement") if r in specs), None)
+    spec = specs.get(motion_role or "", "")
+    own = record.channels.get(spec if spec in record.channels else spec.rsplit(":", 1)[0])
+    timed = "time" in specs or (own is not None and own.time() is not None)
+    if sample_rate_hz is None and not timed and motion_role is not None:
         # say which values give a time base before the mapping's generic message
-        _, specs = find_servo_roles(record, roles)
-        motion_role = next((r for r in ("angle", "displacement") if r in specs), None)
-        spec = specs.get(motion_role or "", "")
-        own = record.channels.get(spec if spec in record.channels else spec.rsplit(":", 1)[0])
-        if "time" not in specs and (own is None or own.time() is None) and motion_role is not None:
-            raise DroptowerError("no time channel; give `sample_rate_hz` or `sample_interval_s` (or name the time "
-                                 "channel with `roles={'time': 'NAME[:UNIT]'}`)", file=path)
+        raise DroptowerError("no time channel; give `sample_rate_hz` or `sample_interval_s` (or name the time "
+                             "channel with `roles={'time': 'NAME[:UNIT]'}`)", file=path)
     signals = map_servo_channels(record, roles, sample_rate_hz=sample_rate_hz)
+    if sample_rate_hz is not None and timed and "time" not in (roles or {}):
+        # a given rate and the file's own time base must agree: one of them would be silently wrong
+        own_rate = 1.0 / _uniform_step(map_servo_channels(record, roles).time_s, path)
+        if abs(own_rate / sample_rate_hz - 1.0) > 1e-6:
+            raise DroptowerError(f"the file's time base runs at {own_rate:.6g} Hz, the given sample rate is "
+                                 f"{sample_rate_hz:.6g} Hz; give neither `sample_rate_hz` nor `sample_interval_s` "
+                                 "for a record with a time channel", file=path)
     if signals.load_si is None:
         role = SERVO_KINDS[signals.units][1]
         raise DroptowerError(f"no {role} channel found; name it with `roles={{'{role}': 'NAME[:UNIT]'}}` "
