@@ -333,6 +333,7 @@ def test_validate_servo_records_in_one_go(tmp_path, capsys, map_file):
     one_go = json.loads(out)
     assert len(one_go["points"]) == 4
     assert one_go["points"] == two_steps["points"]
+    assert one_go["summary"]["servo_source"].startswith("servo records s0.csv, s1.csv, s2.csv and 1 more")
     assert (tmp_path / "v" / "servo_records.csv").is_file()
     # without --out: a temporary table, nothing left behind, the same points
     code, out, _ = _run(capsys, ["validate", "--map", str(map_file), *records, "--json"])

@@ -211,3 +211,13 @@ def servo_records_table(options: dict[str, Any], servo_results: Path | None, out
         return
     with tempfile.TemporaryDirectory(prefix="droptower-servo-records-") as folder:
         yield evaluate_for_validate(*args, Path(folder))
+
+
+def name_servo_source(result: Any, options: dict[str, Any]) -> None:
+    """With ``--servo-records``: the validation's servo source names the records (the table they
+    were evaluated into may be a temporary one), not the table's path."""
+    records = tuple(options.get("servo_records") or ())
+    if records:
+        names = ", ".join(Path(r).name for r in records[:3]) + (f" and {len(records) - 3} more" if len(records) > 3 else "")
+        result.validation.summary["servo_source"] = (f"servo records {names}, evaluated as `droptower evaluate-servo` "
+                                                     "does (the last 5 cycles of every block after 1 settling cycle)")

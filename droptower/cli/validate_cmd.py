@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from droptower.cli.options import quiet_option, wrote
-from droptower.cli.servo_records_cmd import servo_record_options, servo_records_table
+from droptower.cli.servo_records_cmd import name_servo_source, servo_record_options, servo_records_table
 from droptower.configs import DEFAULT_COUPLING
 
 
@@ -80,6 +80,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
     with servo_records_table(servo_records, servo_results, out) as servo_results:
         result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
                                 reference=reference, results=results, model_map=model_map_path, quick=quick)
+    name_servo_source(result, servo_records)
     if out is not None:
         described = {"validation_routes": "the two routes vs the servo points",
                      "validation_model_map": f"the {result.model_route} at every servo point"}
