@@ -245,7 +245,8 @@ def evaluate_record(time_s: np.ndarray, motion: np.ndarray, load: np.ndarray, *,
         usable = [k for k in range(settle_cycles, block.n_cycles)
                   if starts[k] - margin_s >= t[0] and starts[k] + 1.0 / f + margin_s <= t[-1]]
         if not usable:
-            skipped.append(f"{where}: no cycle left after the {settle_cycles} settling cycle(s)")
+            skipped.append(f"{where}: no whole cycle left after the {settle_cycles} settling cycle(s) (lower "
+                           "`settle_cycles`, or the record ends too close to the block)")
             continue
         # the last `cycles` whole cycles whose window (with its margin) lies inside the record
         stop = usable[-1] + 1
@@ -325,7 +326,7 @@ def _read_record(path: str | Path, roles: dict[str, str] | None, sample_rate_hz:
     return signals.time_s, motion, load, units, list(signals.notes)
 
 
-def evaluate_records(paths: Iterable[str | Path], roles: dict[str, str] | None = None, *,
+def evaluate_records(paths: str | Path | Iterable[str | Path], roles: dict[str, str] | None = None, *,
                      sample_rate_hz: float | None = None, sample_interval_s: float | None = None,
                      lever_arm_m: float | None = None, cycles: int = CYCLES, settle_cycles: int = SETTLE_CYCLES,
                      smooth: bool = True, notes: list[str] | None = None,
@@ -334,7 +335,7 @@ def evaluate_records(paths: Iterable[str | Path], roles: dict[str, str] | None =
 
     Parameters
     ----------
-    paths : iterable of paths
+    paths : path or iterable of paths
         Records in any format the readers take (:func:`droptower.io.read_any`): one file per
         test or one file with several amplitude/frequency blocks.
     roles : dict, optional
@@ -374,7 +375,7 @@ def evaluate_records(paths: Iterable[str | Path], roles: dict[str, str] | None =
     check_positive(sample_interval_s, "sample_interval_s")
     check_positive(lever_arm_m, "lever_arm_m")
     rate = 1.0 / sample_interval_s if sample_interval_s is not None else sample_rate_hz
-    paths = [Path(p) for p in paths]
+    paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     if not paths:
         raise DroptowerError("give at least one record")
     tables: list[pd.DataFrame] = []
