@@ -23,7 +23,7 @@ from droptower.cli.main import main
 from droptower.errors import DroptowerError
 from droptower.io import write_log
 from droptower.rheology import load_coupling
-from droptower.servo import evaluate_history, evaluate_records, find_blocks, run_grid, run_records
+from droptower.servo import evaluate_history, evaluate_record, evaluate_records, find_blocks, run_grid, run_records
 from droptower.servo import histories as H
 
 K = 14000.0  # N*m/rad
@@ -415,3 +415,16 @@ def test_a_nonlinear_translational_record_from_rest_in_mm_and_kn(tmp_path):
         assert row.storage_stiffness_n_per_m == pytest.approx(ev.storage_stiffness_nm_per_rad, rel=1e-5)
         assert row.loss_factor == pytest.approx(ev.loss_factor, rel=1e-5)
     assert table["loss_factor"].iloc[-1] > 0.05  # friction: a loop, not a line
+
+
+def test_a_record_of_whole_cycles_from_its_first_sample():
+    """Stamps 0 to T - dt of exactly 8 sine cycles: the crossings at 0 and T (just outside the
+    samples) bound whole cycles too: 8 whole cycles; the first is settling, the last has no
+    samples after it for the smoothing: cycles 3 to 7 evaluated, K' = k."""
+    f = 4.0
+    t = np.arange(int(8 / f * FS)) / FS
+    x = math.radians(1.0) * np.sin(2 * math.pi * f * t)
+    row = evaluate_record(t, x, _kelvin_voigt(t, x)).iloc[0]
+    assert row["block_cycles"] == 8 and row["evaluated_cycles"] == 5
+    assert row["first_cycle_start_s"] == pytest.approx(2 / f, abs=1e-6)
+    assert row["storage_stiffness_nm_per_rad"] == pytest.approx(K, rel=1e-6)

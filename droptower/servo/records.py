@@ -91,9 +91,15 @@ def _upward_crossings(y: np.ndarray, lo: int, hi: int, min_gap: float) -> np.nda
     ``min_gap`` samples apart (noise near a crossing makes no second one)."""
     seg = y[lo:hi]
     idx = np.flatnonzero((seg[:-1] < 0) & (seg[1:] >= 0))
+    found = [lo + i + (-seg[i]) / (seg[i + 1] - seg[i]) for i in idx]
+    # a record that starts at a crossing, or stops within a sample or so of one (time stamps 0
+    # to T - dt), has that crossing just outside its samples: extrapolated from the first/last two
+    if lo == 0 and seg.size > 1 and seg[1] > seg[0] >= 0 and seg[0] <= seg[1] - seg[0]:
+        found.insert(0, -seg[0] / (seg[1] - seg[0]))
+    if hi == y.size and seg.size > 1 and seg[-2] < seg[-1] < 0 and -seg[-1] <= 1.5 * (seg[-1] - seg[-2]):
+        found.append(y.size - 1 + (-seg[-1]) / (seg[-1] - seg[-2]))
     keep: list[float] = []
-    for i in idx:
-        pos = lo + i + (-seg[i]) / (seg[i + 1] - seg[i])
+    for pos in found:
         if not keep or pos - keep[-1] >= min_gap:
             keep.append(pos)
     return np.asarray(keep)
