@@ -11,7 +11,10 @@ bench's results table, one row per block, that :func:`droptower.validate` reads:
    noise), grouped into plateaus of one amplitude and one frequency (each cycle within
    :data:`BLOCK_TOLERANCE` of the plateau's first). A block's cycles run from one upward
    crossing of its mean to the next; a cycle cut by the start of the record, by a change of
-   amplitude or by the end of the record is not a whole cycle of the block and does not count.
+   amplitude or by the end of the record is not a whole cycle of the block and does not count
+   (a crossing within a sample or so outside the record, where it starts or stops at one, is
+   extrapolated). A whole cycle is evaluated only with samples on both sides of it (the
+   smoothing's half window and a few more).
 2. **Steady cycles**: the first ``settle_cycles`` of every block are never evaluated (the run-in
    after a change of amplitude: transients, first-cycle softening); of the rest the **last**
    ``cycles`` are (the steadiest). A block with no cycle left after the settling ones is
