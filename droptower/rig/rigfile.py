@@ -129,7 +129,7 @@ def _value(value: Any) -> str:
 def rig_toml(rig: RigConfig) -> str:
     """The rig as a TOML file :func:`~droptower.rig.config.load_rig` reads; every field an
     assumption filled is marked ``# assumed: why``."""
-    lines = [f"# Drop-tower rig file (droptower rig new). SI units; fields: docs/guide/rig-file.md"]
+    lines = ["# Drop-tower rig file (droptower rig new). SI units; fields: docs/guide/rig-file.md"]
 
     def field(name: str, value: Any, dotted: str | None = None) -> None:
         dotted = dotted or name
