@@ -199,6 +199,21 @@ class Conditions:
         used = {self._match(Path(p)) for p in paths}
         return [key for key in [*self.rows, *self.errors] if key not in used]
 
+    def shared_rows(self, paths: Iterable[str | Path]) -> dict[str, str]:
+        """Logs of ``paths`` that one row would give its conditions to together (``day1/L2.csv``
+        and ``day2/L2.csv`` under a row ``L2.csv``): path -> why it cannot be used (key the
+        table by the path relative to the folder). Empty when every row names one log."""
+        if self.pattern is not None:
+            return {}
+        by_key: dict[str, list[str]] = {}
+        for p in paths:
+            key = self._match(Path(p))
+            if key is not None:
+                by_key.setdefault(key, []).append(str(p))
+        return {p: (f"row '{key}' of the conditions table {self.source} names {len(group)} of the given logs "
+                    f"({', '.join(group)}); key the table by the path relative to the folder")
+                for key, group in by_key.items() if len(group) > 1 for p in group}
+
     def _from_name(self, path: Path) -> dict[str, Any]:
         regex, fields = _pattern_regex(self.pattern)
         target = path.name if PurePosixPath(self.pattern).suffix else path.stem
