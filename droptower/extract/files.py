@@ -103,32 +103,8 @@ def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
     given = {key: value if value is not None or key in signals.metadata else defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
     if given["inertia_kgm2"] is None and signals.metadata.get("inertia_kgm2") is None:
-        raise DroptowerError(_no_inertia(signals, settings))
+        raise DroptowerError(settings.no_inertia_reason(signals.metadata))
     return extract(signals, **given, window=settings.window)
-
-
-def _no_inertia(signals: DropSignals, settings: Settings) -> str:
-    """Why a drop has no rotating inertia, in terms of what was given (never asking for it again)."""
-    rig = settings.rig
-    fixture = signals.metadata.get("fixture")
-    if settings.conditions is not None:
-        said = f"name fixture '{fixture}', which " if fixture is not None else "give neither inertia nor fixture: "
-        if fixture is not None and rig is not None and rig.fixtures:
-            where = f"is not one of the named fixtures of rig {rig.label} ({', '.join(rig.fixtures)})"
-        elif fixture is not None and rig is not None:
-            where = f"rig {rig.label} cannot resolve: it names no fixtures (add a [fixtures] table to it)"
-        elif fixture is not None:
-            where = "needs a `rig` with named fixtures to give its inertia"
-        else:
-            where = "add an inertia or fixture column"
-        return f"no rotating inertia: the conditions from {settings.conditions.source} {said}{where}"
-    if rig is not None:
-        fixtures = ", ".join(f"{n} {j:g}" for n, j in rig.fixtures.items()) or ", ".join(f"{j:g}" for j in rig.inertias_kgm2)
-        return (f"no rotating inertia: rig {rig.label} has {len(rig.inertias_kgm2)} fixtures ({fixtures} kg*m^2) and "
-                "the log's metadata does not say which was used; give `conditions` (a table with a fixture or inertia "
-                "column per file) or `inertia_kgm2` for every log")
-    return ("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2`, `conditions` (per "
-            "file) or a `rig` with a single fixture")
 
 
 def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: Settings) -> None:
