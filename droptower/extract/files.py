@@ -40,6 +40,7 @@ class Settings(LogSettings):
     min_drop_spacing_s: float = MIN_DROP_SPACING_S
 
     def __post_init__(self):
+        super().__post_init__()
         for name, least in (("sample_rate_hz", "> 0"), ("pre_trigger_s", ">= 0"), ("min_drop_spacing_s", "> 0")):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)

@@ -46,6 +46,17 @@ class LogSettings:
     conditions: "Conditions | None" = None
     rig: "RigConfig | None" = None
 
+    def __post_init__(self):
+        from droptower.io.conditions import Conditions
+        from droptower.rig.config import RigConfig
+
+        for name, kind, how in (("conditions", Conditions, "read_conditions(path) or conditions_from_names(pattern)"),
+                                ("rig", RigConfig, "load_rig(path)")):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise TypeError(f"{type(self).__name__}.{name} must be a {kind.__name__} ({how}), got "
+                                f"{type(value).__name__}")
+
     @property
     def geometry_defaults(self) -> dict[str, float]:
         """``defaults`` over the rig's (:func:`rig_defaults`)."""
