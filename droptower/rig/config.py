@@ -20,6 +20,7 @@ from droptower.configs import display_name, read_toml, resolve
 from droptower.errors import DroptowerError, not_in_range
 from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
 from droptower.rates import RIG_SAMPLE_RATE_HZ
+from droptower.rig.uncertainty import RigUncertainty
 from droptower.validation import StrictModel, validate
 
 if TYPE_CHECKING:
@@ -114,6 +115,9 @@ class RigConfig(StrictModel):
     gravity_m_per_s2: PositiveFloat = 9.81
     simulation: Simulation = Simulation()
     sensors: Sensors
+    uncertainty: RigUncertainty | None = Field(
+        None, description="standard uncertainties of the rig's inputs (the [uncertainty] table; "
+                          "droptower.rig.uncertainty); None: not given")
 
     @model_validator(mode="after")
     def _check(self):
