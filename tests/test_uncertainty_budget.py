@@ -63,7 +63,7 @@ def test_stiffness_carries_the_inertia_and_twice_the_clock():
     assert c.contributions["sample_rate_hz"] == pytest.approx(2 * c.value * u_fs / FS, rel=1e-6)
     assert f.contributions["sample_rate_hz"] == pytest.approx(f.value * u_fs / FS, rel=1e-6)
     assert f.contributions["inertia_kgm2"] == 0.0
-    # (u_c/c)² = (u_J/J)² + (2 u_f/f)²  (NOTES: first-order drop-tower budget), the fit's share included in u_f
+    # (u_c/c)² = (u_J/J)² + (2 u_f/f)², the first-order drop-tower budget; the fit's share is part of u_f
     fit_c = c.contributions[FIT] / c.value
     assert (c.standard_uncertainty / c.value) ** 2 == pytest.approx(
         (u_j / J) ** 2 + (2 * u_fs / FS) ** 2 + fit_c ** 2, rel=1e-9)
