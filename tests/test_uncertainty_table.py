@@ -70,19 +70,23 @@ def test_a_rig_file_supplies_the_uncertainties_and_the_nominal_values(tmp_path):
 
 def test_en_numbers_and_verdicts():
     # ISO 13528: E_n = (x_lab - x_ref)/sqrt(U_lab² + U_ref²); |E_n| <= 1 agrees
-    out = en_verdicts([100.0, 100.0, 100.0, 100.0, 100.0], [3.0, 3.0, 3.0, 3.0, np.nan],
-                      [104.0, 106.0, 90.0, 100.0, 100.0], [4.0, 4.0, np.nan, 4.0, 4.0])
-    assert out["en_number"].iloc[:2].tolist() == pytest.approx([-0.8, -1.2])
-    assert out["verdict"].tolist() == ["agrees", "disagrees", VERDICTS[2], "agrees", VERDICTS[3]]
-    assert np.isnan(out["en_number"].iloc[2]) and np.isnan(out["en_number"].iloc[4])
+    out = en_verdicts([100.0, 100.0, 100.0, 100.0], [3.0, 3.0, 3.0, 3.0],
+                      [104.0, 106.0, 90.0, 100.0], [4.0, 4.0, np.nan, 4.0])
+    assert out["en_number"].iloc[[0, 1, 3]].tolist() == pytest.approx([-0.8, -1.2, 0.0])
+    assert out["verdict"].tolist() == ["agrees", "disagrees", VERDICTS[2], "agrees"]
+    assert np.isnan(out["en_number"].iloc[2])
+    assert en_verdicts([1.0, 2.0], [0.1, 0.1], [1.0, 2.0])["verdict"].tolist() == [VERDICTS[2]] * 2
     # one relative figure for the bench where it gives none per point
     rel = en_verdicts([100.0, 100.0], [3.0, 3.0], [104.0, 90.0], [np.nan, 1.0], u95_ref_rel=0.04)
     assert rel["en_number"].tolist() == pytest.approx([-4 / math.hypot(3, 4.16), 10 / math.hypot(3, 1)])
-    assert en_verdicts([1.0], [0.0], [1.0], u95_ref_rel=0.0)["verdict"].tolist() == ["agrees"]
-    assert en_number(1.0, 0.0, 2.0, 0.0) == -np.inf
-    for bad in ({"u95_ref": [-1.0]}, {"u95_ref_rel": -0.1}):
-        with pytest.raises(DroptowerError):
-            en_verdicts([1.0], [0.1], [1.0], **bad)
+    assert float(en_number(1.0, 0.0, 2.0, 0.5)) == -2.0
+    for args, kwargs, where in [(([1.0], [0.1], [1.0]), {"u95_ref": [-1.0]}, "u95_ref"),
+                                (([1.0], [0.1], [1.0]), {"u95_ref_rel": -0.1}, "u95_ref_rel"),
+                                (([1.0], [0.0], [1.0]), {"u95_ref_rel": 0.0}, "both 0"),
+                                (([np.nan], [0.1], [1.0]), {}, "x_lab: sample 0 is NaN"),
+                                (([1.0, 2.0], [0.1], [1.0, 2.0, 3.0]), {}, "do not match")]:
+        with pytest.raises(DroptowerError, match=where):
+            en_verdicts(*args, **kwargs)
 
 
 @settings(max_examples=100, derandomize=True, deadline=None)

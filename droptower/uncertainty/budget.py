@@ -16,13 +16,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal, Mapping
+from collections.abc import Mapping
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
 from scipy.special import erfinv
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.extract.result import ExtractionResult
 from droptower.rig.uncertainty import RigUncertainty
 from droptower.uncertainty.gum import propagate_gum
@@ -87,7 +88,9 @@ class DropBudget:
 
 
 def coverage_factor(coverage: float) -> float:
-    """k_p of a normal output for the coverage probability ``coverage`` (1.96 for 0.95; GUM G.1.3)."""
+    """k_p of a normal output for the coverage probability ``coverage`` in (0, 1) (1.96 for 0.95; GUM G.1.3)."""
+    if not (isinstance(coverage, (int, float)) and not isinstance(coverage, bool) and 0 < coverage < 1):
+        raise DroptowerError(f"must be a probability between 0 and 1, got {coverage!r}", where="coverage")
     return float(np.sqrt(2.0) * erfinv(coverage))
 
 
@@ -101,6 +104,8 @@ def _nominal(name: str, given: float | None, metadata: Mapping[str, Any], rig_va
         raise DroptowerError(f"the log's {name} {value!r} is not a number", where=name) from None
 
 
+@expects(result="droptower.extract.result.ExtractionResult", uncertainty=(RigUncertainty, type(None)),
+         rig=("droptower.rig.config.RigConfig", type(None)), metadata=(Mapping, type(None)))
 def drop_budget(result: ExtractionResult, uncertainty: RigUncertainty | None = None, *, rig: Any = None,
                 metadata: Mapping[str, Any] | None = None, lever_length_m: float | None = None,
                 laser_radius_m: float | None = None, drop_mass_kg: float | None = None,
@@ -148,6 +153,7 @@ def drop_budget(result: ExtractionResult, uncertainty: RigUncertainty | None = N
     if method not in ("auto", "gum", "mc"):
         raise DroptowerError(f"must be 'auto', 'gum' or 'mc', got {method!r}", where="method")
     metadata = metadata or {}
+    coverage_factor(coverage)  # a probability, checked before anything runs
     if uncertainty is None and rig is not None:
         uncertainty = rig.uncertainty
     lever = _nominal("lever_length_m", lever_length_m, metadata, getattr(rig, "lever_length_m", None))

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from droptower.errors import expects
 from droptower.uncertainty.inputs import DropInputs
 from droptower.uncertainty.model import QUANTITIES, DropModel
 
@@ -36,6 +37,7 @@ class GumPropagation:
     standard_uncertainty: dict[str, float]
 
 
+@expects(model=DropModel, inputs=DropInputs)
 def propagate_gum(model: DropModel, inputs: DropInputs) -> GumPropagation:
     """Combined standard uncertainty and budget of every quantity of one drop (GUM 5.1.2).
 

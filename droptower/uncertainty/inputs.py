@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rig.uncertainty import InputUncertainty, RigUncertainty
 
 #: the inputs, in the order a budget lists them: name -> unit
@@ -51,6 +51,7 @@ class DropInputs:
     unused: tuple[str, ...] = ()
 
 
+@expects(uncertainty=(RigUncertainty, type(None)))
 def drop_inputs(uncertainty: RigUncertainty | None, *, inertia_kgm2: float, lever_length_m: float | None = None,
                 laser_radius_m: float | None = None, drop_mass_kg: float | None = None,
                 drop_height_m: float | None = None, sample_rate_hz: float | None = None) -> DropInputs:

@@ -66,6 +66,8 @@ class DropModel:
         from the force impulse the lever length defaults to the one the result implies,
         L = J·φ'(0+)/∫F dt.
         """
+        if not isinstance(result, ExtractionResult):
+            raise TypeError(f"DropModel.from_result: expects an ExtractionResult, got {type(result).__name__}")
         if result.angle_fit is None:
             raise DroptowerError("the extraction result carries no angle fit (result.angle_fit is None)",
                                  where="result")

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from droptower.errors import expects
 from droptower.uncertainty.inputs import DropInputs, Input
 from droptower.uncertainty.model import QUANTITIES, DropModel
 
@@ -53,6 +54,7 @@ def draw_fit(theta: np.ndarray, cov: np.ndarray, n: int, rng: np.random.Generato
     return theta[:, None] + root @ rng.standard_normal((theta.size, n))
 
 
+@expects(model=DropModel, inputs=DropInputs)
 def propagate_monte_carlo(model: DropModel, inputs: DropInputs, *, coverage: float = 0.95, batch: int = BATCH,
                           tolerance: float = TOLERANCE, max_trials: int = MAX_TRIALS,
                           seed: int = 0) -> MonteCarloPropagation:

@@ -10,7 +10,7 @@ from typing import Any, Iterable, Literal, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.extract.result import OUTPUTS, ExtractionResult
 from droptower.rig.uncertainty import RigUncertainty
 from droptower.uncertainty.budget import DropBudget, drop_budget
@@ -21,6 +21,7 @@ UNCERTAIN_OUTPUTS: dict[str, tuple[str, float]] = {name: (attr, abs(factor)) for
                                                    if attr in QUANTITIES}
 
 
+@expects(budget=(DropBudget, type(None)))
 def uncertainty_columns(budget: DropBudget | None) -> dict[str, Any]:
     """The uncertainty columns of one drop (NaN and "" for a drop without a budget)."""
     row: dict[str, Any] = {}
@@ -33,6 +34,7 @@ def uncertainty_columns(budget: DropBudget | None) -> dict[str, Any]:
     return row
 
 
+@expects(table=pd.DataFrame, budgets=[(DropBudget, type(None))])
 def with_uncertainty(table: pd.DataFrame, budgets: Sequence[DropBudget | None]) -> pd.DataFrame:
     """A copy of the per-drop ``table`` (``extract`` rows, :func:`droptower.extract.result_row`)
     with the uncertainty columns of :func:`uncertainty_columns`, one budget per row in order
