@@ -187,3 +187,14 @@ def test_an_input_given_without_its_nominal_value_is_one_line():
     with pytest.raises(DroptowerError, match="method"):
         drop_budget(result, metadata=meta, method="bayes")
     assert DropModel.from_result(result).nominal_values()["stiffness_nm_per_rad"] == result.stiffness_nm_per_rad
+
+
+def test_a_model_without_the_nominal_value_of_a_given_input_is_refused():
+    from droptower.uncertainty import drop_inputs, propagate_gum, propagate_monte_carlo
+
+    result, _ = _drop()
+    model = DropModel.from_result(result)  # built without a laser radius
+    inputs = drop_inputs(RigUncertainty(laser_radius_m=_u(0.001)), inertia_kgm2=J, laser_radius_m=R)
+    for propagate in (propagate_gum, propagate_monte_carlo):
+        with pytest.raises(DroptowerError, match="laser_radius_m"):
+            propagate(model, inputs)

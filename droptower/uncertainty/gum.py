@@ -53,6 +53,7 @@ def propagate_gum(model: DropModel, inputs: DropInputs) -> GumPropagation:
     GumPropagation
         Values, sensitivity coefficients, contributions (the fit's and each input's) and u_c per quantity.
     """
+    model.check_inputs(inputs.given)
     theta = model.theta
     sd = np.sqrt(np.clip(np.diag(model.cov), 0.0, None))
     fit_params = np.flatnonzero(sd > 0)

@@ -21,6 +21,7 @@ Every function here is vectorised over trials: θ has shape (7, N) and each inpu
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,6 +140,13 @@ class DropModel:
             return impact_velocities(value("drop_mass_kg"), inertia, lever, value("drop_height_m"), self.restitution,
                                      self.gravity_m_per_s2).impact_energy_j
         return np.asarray(math.nan)
+
+    def check_inputs(self, given: Iterable[str]) -> None:
+        """Refuse inputs whose nominal value the model does not hold (one-line DroptowerError)."""
+        missing = [name for name in given if name not in self.nominal]
+        if missing:
+            raise DroptowerError(f"the model holds no nominal value of {', '.join(missing)}: give it to "
+                                 "DropModel.from_result", where=missing[0])
 
     def nominal_values(self) -> dict[str, float]:
         """The quantities at the fitted θ and the nominal inputs (what the extraction reported)."""

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from droptower.errors import expects
+from droptower.errors import DroptowerError, expects
 from droptower.uncertainty.inputs import DropInputs, Input
 from droptower.uncertainty.model import QUANTITIES, DropModel
 
@@ -82,6 +82,10 @@ def propagate_monte_carlo(model: DropModel, inputs: DropInputs, *, coverage: flo
     MonteCarloPropagation
         Mean, standard uncertainty and coverage interval per quantity, and the number of trials.
     """
+    model.check_inputs(inputs.given)
+    if not (isinstance(batch, int) and batch >= 2 and isinstance(max_trials, int) and tolerance > 0):
+        raise DroptowerError(f"batch {batch!r} must be an int >= 2, max_trials {max_trials!r} an int and tolerance "
+                             f"{tolerance!r} > 0", where="batch")
     rng = np.random.default_rng(seed)
     tail = 100 * (1 - coverage) / 2
     runs: list[dict[str, np.ndarray]] = []

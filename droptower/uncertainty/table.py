@@ -15,6 +15,7 @@ from droptower.extract.result import OUTPUTS, ExtractionResult
 from droptower.rig.uncertainty import RigUncertainty
 from droptower.uncertainty.budget import DropBudget, drop_budget
 from droptower.uncertainty.model import QUANTITIES
+from droptower.uncertainty.montecarlo import TOLERANCE
 
 #: the table's output names that carry an uncertainty: output name -> (SI quantity, factor)
 UNCERTAIN_OUTPUTS: dict[str, tuple[str, float]] = {name: (attr, abs(factor)) for name, (attr, factor) in OUTPUTS.items()
@@ -60,13 +61,16 @@ def with_uncertainty(table: pd.DataFrame, budgets: Sequence[DropBudget | None]) 
 
 def drop_budgets(results: Iterable[ExtractionResult | None], uncertainty: RigUncertainty | None = None, *,
                  metadata: Iterable[Mapping[str, Any]] | None = None, rig: Any = None,
-                 method: Literal["auto", "gum", "mc"] = "auto", seed: int = 0) -> list[DropBudget | None]:
+                 method: Literal["auto", "gum", "mc"] = "auto", tolerance: float = TOLERANCE,
+                 seed: int = 0) -> list[DropBudget | None]:
     """The budget of every drop (:func:`~droptower.uncertainty.budget.drop_budget`), None for a
     missing result; ``metadata`` the logs' metadata in the same order (``DropSignals.metadata``),
-    ``rig`` the nominal values the logs do not carry; drop i draws with seed ``seed + i``."""
+    ``rig`` the nominal values the logs do not carry; ``method`` and ``tolerance`` as there;
+    drop i draws with seed ``seed + i``."""
     results = list(results)
     metas = list(metadata) if metadata is not None else [{}] * len(results)
     if len(metas) != len(results):
         raise DroptowerError(f"{len(metas)} metadata for {len(results)} results", where="metadata")
-    return [drop_budget(r, uncertainty, rig=rig, metadata=m, method=method, seed=seed + i) if r is not None else None
+    return [drop_budget(r, uncertainty, rig=rig, metadata=m, method=method, tolerance=tolerance, seed=seed + i)
+            if r is not None else None
             for i, (r, m) in enumerate(zip(results, metas))]
