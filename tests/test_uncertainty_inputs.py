@@ -65,3 +65,18 @@ def test_every_input_is_described_in_the_schema():
         assert len(prop.get("description", "")) > 30, name
     assert InputUncertainty(value=3.0, distribution="rectangular").standard == pytest.approx(math.sqrt(3.0))
     assert FixtureUncertainty(nominal=1.0, value=0.1).standard == 0.1
+
+
+def test_the_examples_of_the_guide_and_the_module_validate():
+    import re
+    import tomllib
+
+    import droptower.rig.uncertainty as module
+
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "uncertainty.md").read_text(encoding="utf-8")
+    examples = [re.search(r"```toml\n(.*?)```", guide, re.S).group(1),
+                re.search(r"::\n\n(.*?)\n\"\"\"", module.__doc__ + '"""', re.S).group(1)]
+    for text in examples:
+        table = tomllib.loads(re.sub(r"(?m)^    ", "", text))["uncertainty"]
+        given = RigUncertainty.model_validate(table)
+        assert given.inertia(0.359) is not None and given.lever_length_m.distribution == "rectangular"
