@@ -82,8 +82,8 @@ class DropModel:
         if route == "impact_force" and lever_length_m is None:
             lever_length_m = result.inertia_kgm2 * result.lever_rate_after_rad_per_s / result.impact_impulse_ns
         if route == "impact_law" and None in (lever_length_m, drop_mass_kg, drop_height_m, restitution):
-            raise DroptowerError("the impact energy came from the impact law: give `lever_length_m`, `drop_mass_kg`, "
-                                 "`drop_height_m` and `restitution` (the log's metadata has them)", where="result")
+            raise DroptowerError("the impact energy came from the impact law: give the drop's lever_length_m, "
+                                 "drop_mass_kg, drop_height_m and restitution (the log's metadata has them)", where="result")
         nominal = {"inertia_kgm2": result.inertia_kgm2, "sample_rate_hz": result.sample_rate_hz,
                    "lever_length_m": lever_length_m, "laser_radius_m": laser_radius_m, "drop_mass_kg": drop_mass_kg,
                    "drop_height_m": drop_height_m, "torque_calibration_rel": 1.0, "laser_calibration_rel": 1.0,
