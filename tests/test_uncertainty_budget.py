@@ -209,3 +209,9 @@ def test_a_noisy_decay_leaves_the_damping_ratio_to_monte_carlo():
     assert d.method == "MC" and d.gum_standard_uncertainty / d.value > 0.1
     assert d.high - d.value > 1.2 * (d.value - d.low)
     assert d.dominant == FIT
+
+
+def test_the_energy_uses_the_lever_length_the_extraction_used():
+    result, meta = _drop()
+    b = drop_budget(result, metadata={**meta, "lever_length_m": 0.3}, method="gum")  # another L than extract's
+    assert b["impact_energy_j"].value == pytest.approx(result.impact_energy_j, rel=1e-12)

@@ -64,8 +64,7 @@ class DropModel:
 
         The nominal values are those the extraction used: J and the sample rate from ``result``,
         the rest as given (m, m, kg, m; restitution for the impact-law energy). For the energy
-        from the force impulse the lever length defaults to the one the result implies,
-        L = J·φ'(0+)/∫F dt.
+        from the force impulse the lever length is the one the extraction used, L = J·φ'(0+)/∫F dt.
         """
         if not isinstance(result, ExtractionResult):
             raise TypeError(f"DropModel.from_result: expects an ExtractionResult, got {type(result).__name__}")
@@ -79,7 +78,7 @@ class DropModel:
         if result.torque_fit is not None:
             cov[4:, 4:] = result.torque_fit.cov  # independent fits, as the extractor treats them
         route = result.lever_rate_after_from
-        if route == "impact_force" and lever_length_m is None:
+        if route == "impact_force":  # the lever length the extraction used: φ'(0+) = L·∫F dt / J
             lever_length_m = result.inertia_kgm2 * result.lever_rate_after_rad_per_s / result.impact_impulse_ns
         if route == "impact_law" and None in (lever_length_m, drop_mass_kg, drop_height_m, restitution):
             raise DroptowerError("the impact energy came from the impact law: give the drop's lever_length_m, "
