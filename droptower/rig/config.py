@@ -20,6 +20,7 @@ from droptower.configs import display_name, read_toml, resolve
 from droptower.errors import DroptowerError, not_in_range
 from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
 from droptower.rates import RIG_SAMPLE_RATE_HZ
+from droptower.rig.uncertainty import RigUncertainty
 from droptower.validation import StrictModel, validate
 
 if TYPE_CHECKING:
@@ -128,6 +129,9 @@ class RigConfig(StrictModel):
     simulation: Simulation = Field(Simulation(), description="How the virtual rig is stepped (table [simulation]; "
                                    "simulation only).")
     sensors: Sensors = Field(description="Data acquisition and sensors (table [sensors]).")
+    uncertainty: RigUncertainty | None = Field(
+        None, description="Standard uncertainties of the rig's inputs (table [uncertainty]; "
+                          "droptower.rig.uncertainty, docs/guide/uncertainty.md); not given by default.")
 
     @model_validator(mode="before")
     @classmethod

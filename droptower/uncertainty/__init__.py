@@ -1,0 +1,27 @@
+"""Measurement uncertainty of drop-tower results (GUM, JCGM 100:2008; Monte Carlo, JCGM 101:2008;
+docs/guide/uncertainty.md).
+
+The rig's input uncertainties (:class:`RigUncertainty`, the rig file's ``[uncertainty]``
+table) and the fit's covariance are propagated through the extraction's own closed forms:
+
+- :mod:`.inputs`: the rig's stated uncertainties resolved for one drop (:func:`drop_inputs`);
+- :mod:`.model`: the measurement model of one drop (:class:`DropModel`);
+- :mod:`.gum`: the law of propagation, sensitivities and contributions (:func:`propagate_gum`);
+- :mod:`.montecarlo`: propagation of distributions, adaptive (:func:`propagate_monte_carlo`);
+- :mod:`.budget`: one drop's budget, the method chosen by validation (:func:`drop_budget`);
+- :mod:`.table`: ``*_u``, ``*_U95`` and the dominant input in per-drop tables (:func:`with_uncertainty`);
+- :mod:`.agreement`: E_n numbers and verdicts against a bench (ISO 13528, :func:`en_verdicts`).
+"""
+from droptower.rig.uncertainty import FixtureUncertainty, InputUncertainty, RigUncertainty
+from droptower.uncertainty.agreement import VERDICTS, en_number, en_verdicts
+from droptower.uncertainty.budget import DropBudget, QuantityUncertainty, coverage_factor, drop_budget
+from droptower.uncertainty.gum import GumPropagation, propagate_gum
+from droptower.uncertainty.inputs import INPUTS, DropInputs, Input, drop_inputs
+from droptower.uncertainty.model import QUANTITIES, DropModel
+from droptower.uncertainty.montecarlo import MonteCarloPropagation, propagate_monte_carlo
+from droptower.uncertainty.table import drop_budgets, uncertainty_columns, with_uncertainty
+
+__all__ = ["DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
+           "InputUncertainty", "MonteCarloPropagation", "QUANTITIES", "QuantityUncertainty", "RigUncertainty",
+           "VERDICTS", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "propagate_gum",
+           "propagate_monte_carlo", "uncertainty_columns", "with_uncertainty"]
