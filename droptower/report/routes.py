@@ -1,5 +1,5 @@
 """The report's two-routes section: the paper's map (eq. 19/20) and the model-based map side by
-side, each named, over amplitude per frequency (95 % bands shaded), and both validated against
+side, each named, over amplitude per frequency (95 % bands shaded where the map has them), and both validated against
 the servo bench inside and outside the drop tests' hull (docs/routes.md).
 
 Kept in its own module and handed to :func:`droptower.report.write_report` as an extra section,
