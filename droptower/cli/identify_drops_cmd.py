@@ -20,7 +20,8 @@ EXCLUDED_SHOWN = 5
 
 def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], init: Any, template: str | None,
             holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
-            lever_length_m: float | None, verbose: bool = False) -> Any:
+            lever_length_m: float | None, verbose: bool = False, *, sensor_radius_m: float | None = None,
+            conditions: Any = None) -> Any:
     """The campaign's logs read (:func:`~droptower.identify.drops.read_drop_tests`) from the
     command line's options, the excluded logs reported on stderr (the first few, or with
     ``verbose`` all)."""
@@ -29,7 +30,8 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
 
     campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
                                holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
-                               lever_length_m=lever_length_m, roles=parse_channel_options(channels))
+                               lever_length_m=lever_length_m, roles=parse_channel_options(channels),
+                               sensor_radius_m=sensor_radius_m, conditions=conditions)
     excluded = campaign.excluded
     for e in excluded if verbose else excluded[:EXCLUDED_SHOWN]:
         click.echo(f"droptower: excluded {e['file']}: {cli_text(e['reason'])}", err=True)
@@ -41,13 +43,14 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
 def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,
         holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
         out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None,
-        verbose: bool = False, accept_poor: bool = False) -> None:
+        verbose: bool = False, accept_poor: bool = False, *, sensor_radius_m: float | None = None,
+        conditions: Any = None) -> None:
     from droptower.identify.dropreport import drop_report_text, plot_servo_prediction, servo_prediction
     from droptower.identify.drops import identify_from_drop_tests
     from droptower.identify.verdict import EXIT_POOR_FIT
 
     campaign = prepare(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
-                       verbose)
+                       verbose, sensor_radius_m=sensor_radius_m, conditions=conditions)
     progress(f"identify: fitting {kind} to {len(campaign.decays)} drop test(s) ...")
     result = identify_from_drop_tests(campaign, kind, init=init.initial, bounds=init.bounds)
     poor = result.verdict is not None and result.verdict.poor and not accept_poor
