@@ -194,7 +194,12 @@ def select_tests(table: pd.DataFrame, source: str | Path | None = None) -> tuple
     bad_flag = np.array([any(f in UNUSABLE_FLAGS for f in row) for row in flags], dtype=bool)
     keep = ~bad_flag & np.all(np.isfinite(v), axis=1) & np.all(v > 0, axis=1)
     excluded = []
+    failed = (table["status"].astype(str).to_numpy() == "failed") if "status" in table.columns else np.zeros(len(table), bool)
+    errors = table["error"].tolist() if "error" in table.columns else [None] * len(table)
     for i in np.flatnonzero(~keep):
+        if failed[i]:  # a log that could not be evaluated: its error says why, not its missing values
+            excluded.append(ExcludedTest(names.iloc[i], f"failed: {errors[i]}" if isinstance(errors[i], str) else "failed"))
+            continue
         reasons = [f"flag {f}" for f in flags[i] if f in UNUSABLE_FLAGS]
         for col, x in zip(REQUIRED, v[i]):
             if not np.isfinite(x):
