@@ -3,11 +3,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from droptower.io.mapping import map_channels
 from droptower.io.readers import read_any
 from droptower.io.signals import DropSignals
+
+if TYPE_CHECKING:
+    from droptower.io.conditions import Conditions
 
 
 @dataclass(frozen=True)
@@ -16,21 +19,31 @@ class LogSettings:
     (m): override the logs' metadata; defaults: values (``inertia_kgm2``, ``lever_length_m``,
     ``sensor_radius_m``) used where a log's metadata lacks them, e.g. from the rig;
     sensor_radius_m: laser spot radius (m) for a distance channel, over the log's own
-    ``laser_radius_m``."""
+    ``laser_radius_m``; conditions: per-file test conditions (:mod:`droptower.io.conditions`: a
+    conditions table or file-name pattern), merged over each log's metadata (a log value they
+    replace is kept as ``log_<key>``)."""
 
     roles: dict[str, str] = field(default_factory=dict)
     inertia_kgm2: float | None = None
     lever_length_m: float | None = None
     defaults: dict[str, float] = field(default_factory=dict)
     sensor_radius_m: float | None = None
+    conditions: "Conditions | None" = None
 
     def read_signals(self, path: str | Path, *, sample_rate_hz: float | None = None,
                      reader_options: dict[str, Any] | None = None, radius_flags: str = "`sensor_radius_m` or `rig`",
                      sample_rate_flag: str | None = "`sample_rate_hz`") -> DropSignals:
         """Read one log (any format) and map its channels; problems are DroptowerErrors naming the
         file (and ``radius_flags`` / ``sample_rate_flag``: the parameters that give what is missing, which a
-        command reports as its flags)."""
+        command reports as its flags). A file the ``conditions`` lack is a DroptowerError naming it."""
+        conditions = self.conditions.for_path(path) if self.conditions is not None else {}
         record = read_any(path, **(reader_options or {}))
-        return map_channels(record, self.roles, sensor_radius_m=self.sensor_radius_m, sample_rate_hz=sample_rate_hz,
+        signals = map_channels(record, self.roles, sensor_radius_m=self.sensor_radius_m, sample_rate_hz=sample_rate_hz,
                             default_sensor_radius_m=self.defaults.get("sensor_radius_m"), radius_flags=radius_flags,
                             sample_rate_flag=sample_rate_flag)
+        for key, value in conditions.items():
+            old = signals.metadata.get(key)
+            if old is not None and old != value:
+                signals.metadata[f"log_{key}"] = old
+            signals.metadata[key] = value
+        return signals

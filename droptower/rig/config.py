@@ -106,6 +106,7 @@ class RigConfig(StrictModel):
     source: str = ""
     lever_length_m: PositiveFloat
     inertias_kgm2: list[PositiveFloat] = Field(min_length=1)   # the rig's lever fixtures
+    fixtures: dict[str, PositiveFloat] = {}                    # fixture name -> its inertia
     drop_masses_kg: list[PositiveFloat] = Field(min_length=1)  # the rig's drop masses
     drop_height_range_m: list[PositiveFloat]
     preload_range_nm: list[NonNegativeFloat] = [0.0, 0.0]
@@ -115,11 +116,40 @@ class RigConfig(StrictModel):
     simulation: Simulation = Simulation()
     sensors: Sensors
 
+    @model_validator(mode="before")
+    @classmethod
+    def _fixture_inertias(cls, data: Any) -> Any:
+        # a rig file may name its fixtures instead of listing their inertias: the list follows
+        if isinstance(data, dict) and isinstance(data.get("fixtures"), dict) and data["fixtures"] \
+                and "inertias_kgm2" not in data:
+            data = {**data, "inertias_kgm2": list(data["fixtures"].values())}
+        return data
+
     @model_validator(mode="after")
     def _check(self):
         _range(self.drop_height_range_m, "drop_height_range_m")
         _range(self.preload_range_nm, "preload_range_nm")
+        for name, inertia in self.fixtures.items():
+            if not any(math.isclose(inertia, j, rel_tol=1e-9) for j in self.inertias_kgm2):
+                raise ValueError(f"fixture '{name}' ({inertia:g} kg*m^2) is not one of inertias_kgm2 "
+                                 f"({', '.join(f'{j:g}' for j in self.inertias_kgm2)}); give one of them or [fixtures] alone")
         return self
+
+    def fixture_inertia_kgm2(self, name: str) -> float:
+        """The inertia (kg*m^2) of the fixture called ``name``; a name the rig does not have is a
+        :class:`DroptowerError` listing its fixtures."""
+        if name not in self.fixtures:
+            have = ", ".join(f"{n} ({j:g} kg*m^2)" for n, j in self.fixtures.items()) or "none named"
+            raise self.error(f"no fixture '{name}' (fixtures: {have})", "field fixtures")
+        return float(self.fixtures[name])
+
+    def fixture_name(self, inertia_kgm2: float) -> str | None:
+        """The name of the fixture whose inertia is ``inertia_kgm2`` (kg*m^2, within 0.5 %), or
+        None (no named fixture has it)."""
+        for name, inertia in self.fixtures.items():
+            if math.isclose(inertia, inertia_kgm2, rel_tol=0.005):
+                return name
+        return None
 
     _path: Path | None = PrivateAttr(None)  # the file it came from (set by the loader)
 
@@ -136,6 +166,20 @@ class RigConfig(StrictModel):
     @property
     def coupling_limit_rad(self) -> float:
         return math.radians(self.coupling_limit_deg)
+
+    @property
+    def is_preset(self) -> bool:
+        """True for a rig shipped with droptower (``rapp2022``), not a lab's own file."""
+        return self.path is not None and display_name(self.path, "rigs") != str(self.path)
+
+    def geometry_text(self) -> str:
+        """The geometry extraction takes from this rig, on one line: where it came from, lever
+        length, laser radius and fixtures."""
+        origin = f"shipped preset {self.label}" if self.is_preset else f"rig file {self.label}"
+        fixtures = (", ".join(f"{n} {j:g}" for n, j in self.fixtures.items()) if self.fixtures
+                    else ", ".join(f"{j:g}" for j in self.inertias_kgm2))
+        return (f"{origin}: lever length {self.lever_length_m:g} m, laser radius {self.sensors.laser.radius_m:g} m, "
+                f"fixtures {fixtures} kg*m^2")
 
     @property
     def label(self) -> str:
