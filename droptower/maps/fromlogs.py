@@ -90,17 +90,30 @@ def results_from_logs(paths: str | Path | Iterable[str | Path], *, rig: Any = No
     geometry = {"lever_length_m": lever_length_m or settings.defaults.get("lever_length_m"),
                 "sensor_radius_m": sensor_radius_m or settings.defaults.get("sensor_radius_m"),
                 "rig": (rig.name or "rig") if rig is not None else None}
+    several = None
+    if rig is not None and inertia_kgm2 is None and len(rig.inertias_kgm2) > 1:
+        named = getattr(rig, "fixtures", None) or {}
+        several = (", ".join(f"{n} {j:g}" for n, j in named.items()) if named
+                   else ", ".join(f"{j:g}" for j in rig.inertias_kgm2)) + " kg*m^2"
     rows: list[dict[str, Any]] = []
+
+    def failed(path: Path, exc: DroptowerError, **more: Any) -> dict[str, Any]:
+        problem = exc.problem
+        if several is not None and problem.startswith("no rotating inertia"):
+            # `rig` was given: what is missing is which of its fixtures this log is
+            problem = (f"no rotating inertia: the rig has several lever fixtures ({several}) and nothing says which "
+                       "one this log is: give `conditions` (each file's fixture or inertia)")
+        return {"file": str(path), **more, "status": "failed", "error": problem}
+
     for path in files:
         try:
             drops = extract_drops(path, settings)
         except DroptowerError as exc:
-            rows.append({"file": str(path), "status": "failed", "error": exc.problem})
+            rows.append(failed(path, exc))
             continue
         for drop in drops:
             if drop.error is not None:
-                rows.append({"file": str(path), "drop_index": drop.span.index, "status": "failed",
-                             "error": drop.error.problem})
+                rows.append(failed(path, drop.error, drop_index=drop.span.index))
                 continue
             row = result_row(path, drop.signals, drop.result, drop.span.index)
             row["status"] = "done"

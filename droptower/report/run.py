@@ -49,19 +49,68 @@ class Run:
     extract: dict[str, Any] = field(default_factory=dict)
 
 
-def load_run(source: str | Path) -> Run:
-    """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``) or a results table
-    (any format ``droptower map`` reads) whose ``file`` column names the logs; one-line errors
-    otherwise."""
+def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | None = None,
+             sensor_radius_m: float | None = None, conditions: Any = None) -> Run:
+    """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``), a results table
+    (any format ``droptower map`` reads) whose ``file`` column names the logs, or a lab's folder
+    of logs (extracted here, :func:`droptower.maps.fromlogs.results_from_logs`); one-line errors
+    otherwise.
+
+    rig (RigConfig), sensor_radius_m (m), conditions (:class:`~droptower.io.conditions.Conditions`)
+    and roles (channel mapping): how a lab's logs are read, for the folder's extraction and for
+    drawing the decays of a results table again (where its rows do not store the geometry)."""
+    from droptower.maps.fromlogs import is_log_folder, rig_defaults
+
     source = Path(source)
     if source.is_dir():
         if (source / "manifest.json").is_file():
             return _campaign(source)
-        raise DroptowerError("a folder without manifest.json (not a campaign folder); give a results table "
-                             "of the extraction (its results file) or a campaign folder", file=source)
+        if is_log_folder(source):
+            return _log_folder(source, rig, roles, sensor_radius_m, conditions)
+        raise DroptowerError("a folder without manifest.json and without logs; give a results table of the "
+                             "extraction (its results file), a campaign folder or a folder of logs", file=source)
     if not source.is_file():
         raise missing_file(source)
-    return _results_table(source)
+    run = _results_table(source)
+    defaults = {**_table_geometry(run.table), **rig_defaults(rig)}
+    run.extract = {"defaults": defaults, "sensor_radius_m": sensor_radius_m,
+                   **({"conditions": conditions} if conditions is not None else {})}
+    if rig is not None:
+        run.facts.insert(1, ("geometry", rig.geometry_text() if hasattr(rig, "geometry_text") else str(rig.name)))
+    return run
+
+
+def _table_geometry(table: pd.DataFrame) -> dict[str, float]:
+    """The lever length and laser radius (m) a results table's rows store, where all agree."""
+    out = {}
+    for column in ("lever_length_m", "sensor_radius_m"):
+        if column in table.columns:
+            values = pd.to_numeric(table[column], errors="coerce").dropna().unique()
+            if len(values) == 1:
+                out[column] = float(values[0])
+    return out
+
+
+def _log_folder(folder: Path, rig: Any, roles: dict[str, str] | None, sensor_radius_m: float | None,
+                conditions: Any) -> Run:
+    from droptower.maps.fromlogs import log_files, results_from_logs, rig_defaults
+
+    skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
+    logs = log_files(folder, exclude=skip)
+    table = results_from_logs(logs, rig=rig, roles=roles, sensor_radius_m=sensor_radius_m, conditions=conditions)
+    drops = table["drop_index"] if "drop_index" in table.columns else [None] * len(table)
+    names = [Path(str(f)).name + (f" drop {int(k)}" if k is not None and pd.notna(k) and k > 1 else "")
+             for f, k in zip(table["file"], drops)]
+    paths = [Path(str(f)) for f in table["file"]]
+    failed = int((table.get("status") == "failed").sum()) if "status" in table.columns else 0
+    facts = [("folder", folder.resolve().name), ("logs", f"{len(logs)} real log(s), {failed} failed extraction")]
+    if rig is not None:
+        facts.append(("geometry", rig.geometry_text() if hasattr(rig, "geometry_text") else str(rig.name)))
+    if conditions is not None:
+        facts.append(("conditions", Path(str(conditions.source)).name))
+    extract = {"defaults": rig_defaults(rig), "sensor_radius_m": sensor_radius_m,
+               **({"conditions": conditions} if conditions is not None else {})}
+    return Run("log folder", folder.resolve().name, facts, table, names, paths, extract)
 
 
 def _campaign(root: Path) -> Run:
