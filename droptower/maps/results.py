@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.data import TABLE4_NAME, table4_path
-from droptower.errors import DroptowerError, expects, missing_file, no_file_or_preset, unreadable_file
+from droptower.errors import DroptowerError, expects, missing_file, no_file_or_preset, readable_file, unreadable_file
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: Columns the map is fitted from (the extractor's output names).
@@ -71,6 +71,7 @@ def read_results(path: str | Path) -> pd.DataFrame:
         if not path.exists() and not path.suffix and len(path.parts) == 1:  # a name, as of a shipped table
             raise no_file_or_preset(path, "table", [TABLE4_NAME])
         raise missing_file(path)
+    readable_file(path)
     if _is_own_csv(path):
         # the extractor's own CSV (comma-separated, names in its first line): read as written.
         # The lab's dialect sniffing would take the ';' of its copied `delimiter` column for the separator

@@ -67,7 +67,7 @@ def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | Non
             return _campaign(source)
         if is_log_folder(source):
             return _log_folder(source, rig, roles, sensor_radius_m, conditions)
-        raise DroptowerError("a folder without manifest.json and without logs; give a results table of the "
+        raise DroptowerError("a folder without manifest.json (not a campaign folder) and without logs; give a results table of the "
                              "extraction (its results file), a campaign folder or a folder of logs", file=source)
     if not source.is_file():
         raise missing_file(source)
