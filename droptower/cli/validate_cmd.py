@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from droptower.cli.options import quiet_option, wrote
+from droptower.cli.options import conditions_options, quiet_option, wrote
 from droptower.configs import DEFAULT_COUPLING
 
 
@@ -43,10 +43,18 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--table-format", type=click.Choice(["csv", "parquet", "json", "xlsx"]), default="csv",
               show_default=True, help="Format of the tables written into --out.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
+@click.option("--rig", default=None, help="With --results a lab's folder of logs: its rig TOML (lever length, laser "
+                                          "radius, fixtures).")
+@click.option("--sensor-radius-m", type=float, default=None,
+              help="With --results a lab's folder of logs: the laser spot radius in m.")
+@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="With --results a lab's folder of logs: channel mapping (as droptower extract --channel).")
+@conditions_options
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,
              results: Path | None, model_map_path: Path | None, quick: bool, out: Path | None, table_format: str,
-             as_json: bool) -> None:
+             as_json: bool, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
+             conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> None:
     """Predict the servo-hydraulic sweeps of docs/theory.md#servo from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
     10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
@@ -73,8 +81,9 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
 
         output_folder(out, create=False)  # before the sweeps: a bad --out fails at once
     columns = parse_column_options(servo_columns, "--servo-column")
+    read = _lab_logs(results, rig, sensor_radius_m, channel_specs, conditions, condition_columns, conditions_pattern)
     result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
-                            reference=reference, results=results, model_map=model_map_path, quick=quick)
+                            reference=reference, results=results, model_map=model_map_path, quick=quick, **read)
     if out is not None:
         described = {"validation_routes": "the two routes vs the servo points",
                      "validation_model_map": f"the {result.model_route} at every servo point"}
@@ -84,3 +93,24 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
         click.echo(json.dumps(result.to_dict(), indent=1))
         return
     click.echo(result.summary())
+
+
+def _lab_logs(results: Path | None, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
+              conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> dict:
+    """How --results, a lab's folder of logs, is read: rig, channels, laser radius, conditions."""
+    from droptower.cli.options import conditions_from_cli, rig_for_logs
+    from droptower.errors import DroptowerError, check_positive
+    from droptower.io.mapping import parse_channel_options
+    from droptower.maps.fromlogs import is_log_folder, log_files
+
+    given = rig or sensor_radius_m or channel_specs or conditions or conditions_pattern
+    if given and (results is None or not is_log_folder(results)):
+        raise DroptowerError("--rig, --sensor-radius-m, --channel and --conditions read the logs of --results: "
+                             "give --results a folder of logs")
+    if not given:
+        return {}
+    check_positive(sensor_radius_m, "--sensor-radius-m")
+    logs = log_files(results, exclude=[p for p in (conditions, rig) if p])
+    config = rig_for_logs(rig, [str(p) for p in logs])
+    return {"rig": config, "roles": parse_channel_options(channel_specs), "sensor_radius_m": sensor_radius_m,
+            "conditions": conditions_from_cli(conditions, condition_columns, conditions_pattern, config)}
