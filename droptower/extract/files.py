@@ -11,6 +11,7 @@ from typing import Any
 from droptower.errors import DroptowerError, expects
 from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
+from droptower.extract.geometry import geometry_checks
 from droptower.extract.result import ExtractionResult
 from droptower.extract.window import Window
 from droptower.io.logsettings import LogSettings
@@ -25,7 +26,9 @@ class Settings(LogSettings):
     reader_options: CSV settings for :func:`droptower.io.read_any`; drops: the drop numbers
     (from 1) to evaluate in each record (None: all); drop_conditions: drop number -> its
     conditions (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the
-    log's metadata; pre_trigger_s, min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
+    log's metadata and the per-file ``conditions`` (drop conditions apply to one drop of a
+    recording of several; the file's conditions to all its drops); pre_trigger_s,
+    min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
     """
 
     sample_rate_hz: float | None = None
@@ -86,6 +89,7 @@ def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
             drop.result = _extract(part, settings)
             if span.cut:
                 drop.result.flags = (*drop.result.flags, DECAY_CUT)
+            _record_geometry(part, drop.result, settings)
         except DroptowerError as exc:
             problem = exc.problem if len(spans) == 1 else f"drop {span.index}: {exc.problem}"
             drop.error = DroptowerError(problem, file=Path(path), where=exc.where)
@@ -94,9 +98,68 @@ def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
 
 
 def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
-    given = {key: value if value is not None or key in signals.metadata else settings.defaults.get(key)
+    defaults = settings.geometry_defaults
+    given = {key: value if value is not None or key in signals.metadata else defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
+    if given["inertia_kgm2"] is None and signals.metadata.get("inertia_kgm2") is None:
+        raise DroptowerError(_no_inertia(signals, settings))
     return extract(signals, **given, window=settings.window)
+
+
+def _no_inertia(signals: DropSignals, settings: Settings) -> str:
+    """Why a drop has no rotating inertia, in terms of what was given (never asking for it again)."""
+    rig = settings.rig
+    fixture = signals.metadata.get("fixture")
+    if settings.conditions is not None:
+        said = f"names fixture '{fixture}', which " if fixture is not None else "gives neither inertia nor fixture; "
+        if fixture is not None and rig is not None:
+            where = f"is not one of the named fixtures of rig {rig.label} ({', '.join(rig.fixtures) or 'it names none'})"
+        elif fixture is not None:
+            where = "needs a `rig` with named fixtures to give its inertia"
+        else:
+            where = "add an inertia or fixture column"
+        return f"no rotating inertia: the conditions ({settings.conditions.source}) {said}{where}"
+    if rig is not None:
+        fixtures = ", ".join(f"{n} {j:g}" for n, j in rig.fixtures.items()) or ", ".join(f"{j:g}" for j in rig.inertias_kgm2)
+        return (f"no rotating inertia: rig {rig.label} has {len(rig.inertias_kgm2)} fixtures ({fixtures} kg*m^2) and "
+                "the log's metadata does not say which was used; give `conditions` (a table with a fixture or inertia "
+                "column per file) or `inertia_kgm2` for every log")
+    return ("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2`, `conditions` (per "
+            "file) or a `rig` with a single fixture")
+
+
+def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: Settings) -> None:
+    """What the drop's result needs to say about its geometry: the rig, the lever length and
+    laser radius used (into the drop's metadata, so the row carries them), its fixture (the
+    conditions', else the rig's name for its inertia), its temperature, and the geometry
+    cross-checks (:mod:`droptower.extract.geometry`) as outputs and flags."""
+    meta = signals.metadata
+    rig = settings.rig
+    lever = settings.lever_length_m
+    if lever is None:
+        lever = meta.get("lever_length_m", settings.geometry_defaults.get("lever_length_m"))
+    try:
+        lever = float(lever) if lever is not None else None
+    except (TypeError, ValueError):
+        lever = None
+    if settings.lever_length_m is not None and meta.get("lever_length_m") not in (None, settings.lever_length_m):
+        meta["log_lever_length_m"] = meta["lever_length_m"]
+    meta["rig"] = rig.label if rig is not None else meta.get("rig", "")
+    meta["lever_length_m"] = lever if lever is not None else math.nan
+    meta.setdefault("sensor_radius_m", math.nan)
+    if meta.get("fixture") is None:
+        meta["fixture"] = (rig.fixture_name(result.inertia_kgm2) if rig is not None else None) or ""
+    meta.setdefault("temperature_c", math.nan)
+    restitution = rig.restitution if rig is not None else None
+    if restitution is None and meta.get("restitution") is not None:
+        try:
+            restitution = float(meta["restitution"])
+        except (TypeError, ValueError):
+            restitution = None
+    outputs, flags = geometry_checks(result, meta, lever, restitution,
+                                     rig.gravity_m_per_s2 if rig is not None else 9.81)
+    result.geometry = outputs
+    result.flags = (*result.flags, *flags)
 
 
 def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> tuple[DropSignals, ExtractionResult]:

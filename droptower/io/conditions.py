@@ -102,7 +102,7 @@ def _convert(values: pd.Series, unit: str, key: str, source: str) -> pd.Series:
         raise ValueError(f"unit '{unit}' of column '{source}' is not a unit of {key} (expected e.g. {target})") from None
 
 
-def _number(value: Any) -> float | None:
+def parse_number(value: Any) -> float | None:
     """A cell as a float (``"1,5"`` read as 1.5), None if empty, ValueError if not a number."""
     if value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA:
         return None
@@ -211,7 +211,7 @@ class Conditions:
             raw = match.group(group)
             try:
                 if key in CONDITION_UNITS or key == "repeat":
-                    number = _number(re.sub(r"(?<=\d)p(?=\d)", ".", raw))
+                    number = parse_number(re.sub(r"(?<=\d)p(?=\d)", ".", raw))
                     if number is None:
                         raise ValueError("is empty")
                     if key in CONDITION_UNITS:
@@ -434,7 +434,7 @@ def read_conditions(path: str | Path, *, columns: dict[str, str] | None = None,
             parsed: list[Any] = []
             for value in raw:
                 try:
-                    parsed.append(_number(value))
+                    parsed.append(parse_number(value))
                 except ValueError:
                     parsed.append(ValueError(f"{key} {_text(value)!r} is not a number"))
             if key in CONDITION_UNITS:

@@ -5,12 +5,25 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from droptower.io.mapping import map_channels
+from droptower.io.mapping import find_roles, map_channels
 from droptower.io.readers import read_any
 from droptower.io.signals import DropSignals
 
 if TYPE_CHECKING:
     from droptower.io.conditions import Conditions
+    from droptower.rig.config import RigConfig
+
+
+def rig_defaults(rig: "RigConfig | None") -> dict[str, float]:
+    """What a rig gives a log that lacks it: lever length (m), laser radius (m) and, for a rig
+    with a single lever fixture, its inertia (kg*m^2; with several, the log's metadata or the
+    conditions say which)."""
+    if rig is None:
+        return {}
+    out = {"lever_length_m": float(rig.lever_length_m), "sensor_radius_m": float(rig.sensors.laser.radius_m)}
+    if len(rig.inertias_kgm2) == 1:
+        out["inertia_kgm2"] = float(rig.inertias_kgm2[0])
+    return out
 
 
 @dataclass(frozen=True)
@@ -21,7 +34,9 @@ class LogSettings:
     sensor_radius_m: laser spot radius (m) for a distance channel, over the log's own
     ``laser_radius_m``; conditions: per-file test conditions (:mod:`droptower.io.conditions`: a
     conditions table or file-name pattern), merged over each log's metadata (a log value they
-    replace is kept as ``log_<key>``)."""
+    replace is kept as ``log_<key>``); rig: the rig (:func:`droptower.rig.load_rig`) whose lever
+    length, laser radius and single fixture fill what a log lacks (under ``defaults``), whose
+    named fixtures name each result's ``fixture``."""
 
     roles: dict[str, str] = field(default_factory=dict)
     inertia_kgm2: float | None = None
@@ -29,6 +44,12 @@ class LogSettings:
     defaults: dict[str, float] = field(default_factory=dict)
     sensor_radius_m: float | None = None
     conditions: "Conditions | None" = None
+    rig: "RigConfig | None" = None
+
+    @property
+    def geometry_defaults(self) -> dict[str, float]:
+        """``defaults`` over the rig's (:func:`rig_defaults`)."""
+        return {**rig_defaults(self.rig), **self.defaults}
 
     def read_signals(self, path: str | Path, *, sample_rate_hz: float | None = None,
                      reader_options: dict[str, Any] | None = None, radius_flags: str = "`sensor_radius_m` or `rig`",
@@ -38,9 +59,16 @@ class LogSettings:
         command reports as its flags). A file the ``conditions`` lack is a DroptowerError naming it."""
         conditions = self.conditions.for_path(path) if self.conditions is not None else {}
         record = read_any(path, **(reader_options or {}))
+        default_radius = self.geometry_defaults.get("sensor_radius_m")
         signals = map_channels(record, self.roles, sensor_radius_m=self.sensor_radius_m, sample_rate_hz=sample_rate_hz,
-                            default_sensor_radius_m=self.defaults.get("sensor_radius_m"), radius_flags=radius_flags,
-                            sample_rate_flag=sample_rate_flag)
+                               default_sensor_radius_m=default_radius, radius_flags=radius_flags,
+                               sample_rate_flag=sample_rate_flag)
+        specs = find_roles(record, self.roles)
+        if "angle" not in specs and "distance" in specs:  # the angle came from the laser: say at which radius
+            radius = self.sensor_radius_m
+            if radius is None:
+                radius = record.metadata.get("laser_radius_m", default_radius)
+            signals.metadata["sensor_radius_m"] = float(radius)
         for key, value in conditions.items():
             old = signals.metadata.get(key)
             if old is not None and old != value:

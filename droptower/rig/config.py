@@ -46,11 +46,12 @@ def _range(values: list[float], what: str) -> list[float]:
 class Simulation(StrictModel):
     """How the pymunk scene is stepped (see :mod:`droptower.rig.scene`)."""
 
-    steps_per_sample: PositiveInt = 2            # internal steps per output sample
-    solver_iterations: PositiveInt = 10          # pymunk impulse-solver passes per step
-    striker_radius_m: PositiveFloat = 0.005      # radius of the drop mass's round striker
-    preload_ramp_s: PositiveFloat = 2.0          # quasi-static ramp to the preload twist
-    preload_hold_s: PositiveFloat = 30.0         # hold before the drop (rate-dependent parts relax)
+    steps_per_sample: PositiveInt = Field(2, description="Internal simulation steps per output sample (simulation only).")
+    solver_iterations: PositiveInt = Field(10, description="pymunk impulse-solver passes per step (simulation only).")
+    striker_radius_m: PositiveFloat = Field(0.005, description="Radius of the drop mass's round striker, m (simulation only).")
+    preload_ramp_s: PositiveFloat = Field(2.0, description="Quasi-static ramp to the preload twist, s (simulation only).")
+    preload_hold_s: PositiveFloat = Field(30.0, description="Hold before the drop so rate-dependent parts relax, s "
+                                                          "(simulation only).")
 
 
 class Resonance(StrictModel):
@@ -60,61 +61,73 @@ class Resonance(StrictModel):
     with this natural frequency and damping ratio.
     """
 
-    frequency_hz: PositiveFloat
-    damping_ratio: PositiveFloat
-    strength: NonNegativeFloat = 1.0
+    frequency_hz: PositiveFloat = Field(description="Natural frequency of the setup resonance, Hz.")
+    damping_ratio: PositiveFloat = Field(description="Damping ratio of the setup resonance (Lehr's D), dimensionless.")
+    strength: NonNegativeFloat = Field(1.0, description="Share of the resonance in the measured torque, 0 (none) to 1.")
 
 
 class Laser(StrictModel):
     """Laser distance sensor on the lever: distance = radius * angle (arc length) + noise."""
 
-    radius_m: PositiveFloat
-    noise_m: NonNegativeFloat = 0.0
+    radius_m: PositiveFloat = Field(description="Horizontal distance of the laser spot from the pivot, m: the angle "
+                                    "is arctan(distance / radius_m). Used by extraction.")
+    noise_m: NonNegativeFloat = Field(0.0, description="Standard deviation of the laser's noise, m (simulation only).")
 
 
 class TorqueSensor(StrictModel):
     """Flange torque from a force sensor; ``range_nm`` is its full scale (saturates beyond)."""
 
-    noise_nm: NonNegativeFloat = 0.0
-    range_nm: PositiveFloat
-    resonance: Resonance | None = None
+    noise_nm: NonNegativeFloat = Field(0.0, description="Standard deviation of the torque noise, N*m (simulation only).")
+    range_nm: PositiveFloat = Field(description="Full scale of the torque sensor, N*m: the simulated torque saturates "
+                                    "beyond it.")
+    resonance: Resonance | None = Field(None, description="Ringing of the setup on the torque only (table "
+                                        "[sensors.torque.resonance]); none if absent.")
 
 
 class ForceSensor(StrictModel):
     """Piezo impact-force sensor at the lever tip; each contact is a half-sine pulse."""
 
-    contact_duration_s: PositiveFloat = 3e-4
-    noise_n: NonNegativeFloat = 0.0
-    range_n: PositiveFloat
+    contact_duration_s: PositiveFloat = Field(3e-4, description="Duration of one contact's half-sine force pulse, s.")
+    noise_n: NonNegativeFloat = Field(0.0, description="Standard deviation of the force noise, N (simulation only).")
+    range_n: PositiveFloat = Field(description="Full scale of the impact-force sensor, N (simulation only).")
 
 
 class Sensors(StrictModel):
     """The rig's data acquisition: sample rate (Hz), pre-trigger time (s) and its three sensors."""
 
-    sample_rate_hz: PositiveFloat = RIG_SAMPLE_RATE_HZ
-    pre_trigger_s: PositiveFloat = 0.005
-    laser: Laser
-    torque: TorqueSensor
-    impact_force: ForceSensor
+    sample_rate_hz: PositiveFloat = Field(RIG_SAMPLE_RATE_HZ, description="Sample rate of the data acquisition, Hz.")
+    pre_trigger_s: PositiveFloat = Field(0.005, description="Time recorded before the impact, s (the baseline for "
+                                         "offsets and preload); shorter than the fall from the lowest height.")
+    laser: Laser = Field(description="Laser distance sensor on the lever (table [sensors.laser]).")
+    torque: TorqueSensor = Field(description="Flange torque sensor (table [sensors.torque]).")
+    impact_force: ForceSensor = Field(description="Impact-force sensor at the lever tip (table [sensors.impact_force]).")
 
 
 class RigConfig(StrictModel):
     """A drop tower (Rapp et al. 2022, Table 1). SI units; angles in degrees only where named ``_deg``."""
 
-    name: str = ""
-    description: str = ""
-    source: str = ""
-    lever_length_m: PositiveFloat
-    inertias_kgm2: list[PositiveFloat] = Field(min_length=1)   # the rig's lever fixtures
-    fixtures: dict[str, PositiveFloat] = {}                    # fixture name -> its inertia
-    drop_masses_kg: list[PositiveFloat] = Field(min_length=1)  # the rig's drop masses
-    drop_height_range_m: list[PositiveFloat]
-    preload_range_nm: list[NonNegativeFloat] = [0.0, 0.0]
-    coupling_limit_deg: PositiveFloat
-    restitution: float = Field(0.5, ge=0.0, le=1.0)
-    gravity_m_per_s2: PositiveFloat = 9.81
-    simulation: Simulation = Simulation()
-    sensors: Sensors
+    name: str = Field("", description="The rig's name (default: the file's stem).")
+    description: str = Field("", description="One line on the rig.")
+    source: str = Field("", description="Where its numbers come from (measured, drawing, paper, assumed).")
+    lever_length_m: PositiveFloat = Field(description="Lever arm L from the rotation axis to the impact point, m. "
+                                          "Used by extraction (impact energy, geometry checks).")
+    inertias_kgm2: list[PositiveFloat] = Field(min_length=1, description="Rotating inertia J of each lever fixture "
+                                               "(lever arm plus the coupling's driven side), kg*m^2. May be left out "
+                                               "when [fixtures] names them.")
+    fixtures: dict[str, PositiveFloat] = Field({}, description="Table [fixtures]: fixture name = its inertia J in "
+                                               "kg*m^2 (e.g. L1 = 0.12); names a conditions table's fixture column "
+                                               "and each result's fixture. Each must be one of inertias_kgm2.")
+    drop_masses_kg: list[PositiveFloat] = Field(min_length=1, description="The rig's drop masses m1, kg.")
+    drop_height_range_m: list[PositiveFloat] = Field(description="[lowest, highest] drop height h, m.")
+    preload_range_nm: list[NonNegativeFloat] = Field([0.0, 0.0], description="[lowest, highest] preload torque, N*m.")
+    coupling_limit_deg: PositiveFloat = Field(description="Largest twist of the coupling the rig may impose, degrees "
+                                              "(planning and simulation).")
+    restitution: float = Field(0.5, ge=0.0, le=1.0, description="Newton's restitution k of the mass-lever contact, "
+                               "0 to 1 (impact law, docs/theory.md#impact; the impact-energy check).")
+    gravity_m_per_s2: PositiveFloat = Field(9.81, description="Gravitational acceleration g, m/s^2.")
+    simulation: Simulation = Field(Simulation(), description="How the virtual rig is stepped (table [simulation]; "
+                                   "simulation only).")
+    sensors: Sensors = Field(description="Data acquisition and sensors (table [sensors]).")
 
     @model_validator(mode="before")
     @classmethod
