@@ -86,7 +86,7 @@ def results_from_logs(paths: str | Path | Iterable[str | Path], *, rig: Any = No
         files += log_files(p, exclude=exclude) if p.is_dir() else [p]
     extra = {"conditions": conditions} if conditions is not None else {}
     settings = Settings(roles=dict(roles or {}), inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m,
-                        defaults=rig_defaults(rig), sensor_radius_m=sensor_radius_m, **extra)
+                        defaults=rig_defaults(rig), sensor_radius_m=sensor_radius_m, rig=rig, **extra)
     geometry = {"lever_length_m": lever_length_m or settings.defaults.get("lever_length_m"),
                 "sensor_radius_m": sensor_radius_m or settings.defaults.get("sensor_radius_m"),
                 "rig": (rig.name or "rig") if rig is not None else None}
