@@ -177,6 +177,9 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
     options.progress(f"map: extracting {len(logs)} log(s) of {results} ...")
     table = results_from_logs(logs, rig=rig_config, roles=parse_channel_options(channel_specs),
                               sensor_radius_m=sensor_radius_m, conditions=conditions_table)
+    # named as in the folder (the summary lists them), not by the machine's paths
+    table["file"] = [Path(str(f)).relative_to(results).as_posix() if Path(str(f)).is_relative_to(results) else f
+                     for f in table["file"]]
     if conditions_table is not None:
         for name in conditions_table.unmatched(logs):
             click.echo(f"droptower: warning: {conditions_table.source}: row '{name}' names no log of {results}", err=True)
