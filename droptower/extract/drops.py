@@ -216,13 +216,13 @@ def read_drop_conditions(path: str | Path) -> dict[int, dict[str, float]]:
     by its suffix; units in the names converted) -> {drop number: {column: value}}; empty
     cells are left out. It is keyed by the drop's number in a recording of several drops; a
     table keyed by file is a per-file conditions table (:func:`droptower.io.read_conditions`)."""
+    from droptower.io.conditions import CONDITION_NAMES, _normalise
     from droptower.io.table_reader import read_table
 
     path = Path(path)
-    wanted = {"drop_index": ("drop", "drop number", "drop no"), **{c: () for c in CONDITION_COLUMNS}}
+    wanted = {"drop_index": ("drop", "drop number", "drop no"), **{c: CONDITION_NAMES[c] for c in CONDITION_COLUMNS}}
     table = read_table(path, wanted, what="drop conditions")
     if "drop_index" not in table.columns:
-        from droptower.io.conditions import CONDITION_NAMES, _normalise
 
         if any(_normalise(c) in ("file", *CONDITION_NAMES["file"]) for c in table.columns):
             raise DroptowerError("the drop conditions are keyed by drop_index (the drop's number in a recording); "

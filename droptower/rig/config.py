@@ -67,7 +67,7 @@ class Resonance(StrictModel):
 
 
 class Laser(StrictModel):
-    """Laser distance sensor on the lever: distance = radius * angle (arc length) + noise."""
+    """Laser distance sensor on the lever: it reads the lever's displacement at radius_m from the pivot, radius * tan(angle), plus noise."""
 
     radius_m: PositiveFloat = Field(description="Horizontal distance of the laser spot from the pivot, m: the angle "
                                     "is arctan(distance / radius_m). Used by extraction.")
@@ -300,11 +300,17 @@ def load_rig(path_or_name: str | Path) -> RigConfig:
     rig = validate(RigConfig, data, path)
     rig._path = path
     rig.name = rig.name or path.stem
+    check_pre_trigger(rig)
+    return rig
+
+
+def check_pre_trigger(rig: RigConfig) -> None:
+    """The pre-trigger must be shorter than the fall from the lowest drop height (else a one-line
+    error naming the field)."""
     fall_time = math.sqrt(2 * rig.drop_height_range_m[0] / rig.gravity_m_per_s2)
     if rig.sensors.pre_trigger_s >= fall_time:
         raise rig.error(f"pre-trigger {rig.sensors.pre_trigger_s} s must be shorter than the fall time "
                         f"{fall_time:.4g} s from the lowest drop height", "field sensors.pre_trigger_s")
-    return rig
 
 
 # ------------------------------------------------------------------ test plan
