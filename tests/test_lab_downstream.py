@@ -229,7 +229,7 @@ def test_report_on_a_lab_folder_fails_loudly_or_draws_every_decay(lab, tmp_path,
     page = tmp_path / "r.html"
     code, _, err = _run(capsys, ["report", str(lab.folder), "--out", str(page)])
     assert code == 2 and err.count("\n") == 1 and not page.exists()
-    assert "none of the 18 decays can be drawn" in err and "--sensor-radius-m or --rig" in err
+    assert "none of the 18 logs can be evaluated" in err and "--sensor-radius-m or --rig" in err
     code, _, err = _run(capsys, ["report", str(lab.folder), "--rig", str(lab.rig), "--channel", "distance=Weg",
                                  "--out", str(page)])
     assert code == 2 and "give --conditions" in err and not page.exists()
@@ -237,3 +237,95 @@ def test_report_on_a_lab_folder_fails_loudly_or_draws_every_decay(lab, tmp_path,
     assert code == 0, err
     html = page.read_text(encoding="utf-8")
     assert "no decay plot" not in html and "12 tests used, 6 excluded" in html
+
+
+# ------------------------------------------------------------------------------ malformed conditions tables
+@pytest.fixture(scope="module")
+def small(lab, tmp_path_factory: pytest.TempPathFactory):
+    """Three logs (one per fixture) for the malformed tables, with the rig beside them."""
+    import shutil
+
+    folder = tmp_path_factory.mktemp("small")
+    chosen = [p for p in lab.logs if p.name.endswith("_h40_rep1.csv")]
+    for p in chosen:
+        shutil.copy(p, folder / p.name)
+    tables = tmp_path_factory.mktemp("tables")  # the drawn tables lie outside the folder of logs
+    truth = lab.truth[lab.truth["file"].isin([p.name for p in chosen])].reset_index(drop=True)
+    return folder, tables, truth
+
+
+def _commands(folder: Path, lab, table: Path, tmp_path: Path, map_json: Path) -> dict[str, list[str]]:
+    flags = ["--rig", str(lab.rig), "--conditions", str(table), "--channel", "distance=Weg"]
+    return {"map": ["map", str(folder), *flags],
+            "report": ["report", str(folder), *flags, "--out", str(tmp_path / "r.html")],
+            "validate": ["validate", "--map", str(map_json), "--servo-results", str(map_json.parent / "bench.csv"),
+                         "--reference", str(table4_path()), "--results", str(folder), *flags]}
+
+
+@pytest.fixture(scope="module")
+def map_json(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A map (the paper's Table 4's) and a bench table for validate, made once."""
+    folder = tmp_path_factory.mktemp("validate")
+    assert main(["map", "rapp2022_table4", "--out", str(folder / "map.json"), "-q"]) == 0
+    pd.DataFrame({"Amplitude [°]": [0.5, 1.0], "Frequenz [Hz]": [10.0, 20.0], "Speichersteifigkeit [Nm/°]": [300.0, 290.0],
+                  "Verlustfaktor": [0.1, 0.11]}).to_csv(folder / "bench.csv", sep=";", decimal=",", index=False)
+    return folder / "map.json"
+
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+from droptower.data import table4_path  # noqa: E402
+from tests.malformed_conditions import malformed_tables  # noqa: E402
+
+
+@pytest.mark.slow
+@settings(max_examples=8, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_malformed_conditions_through_map_report_validate(small, lab, map_json, data, capsys, tmp_path):
+    """Missing files, extra rows, duplicates, rows without a file, words for numbers, unknown
+    units, empty tables (tests/malformed_conditions.py) given to map, report and validate on a
+    folder of logs: never a traceback; a table that is wrong as a whole is one error line naming
+    it and exit 2 before any log is read; otherwise each file the table cannot give conditions
+    for is named on its own error line (exit 2), the others are not, and rows naming no log are
+    warned of (nothing dropped silently)."""
+    folder, tables, truth = small
+    case = data.draw(malformed_tables(tables, truth))
+    for name, argv in _commands(folder, lab, case.table, tmp_path, map_json).items():
+        code = main(argv)
+        err = capsys.readouterr().err
+        assert "Traceback" not in err, (name, err)
+        errors = [line for line in err.splitlines() if "error:" in line]
+        if case.whole_table:
+            assert code == 2 and len(errors) == 1 and str(case.table) in errors[0], (name, err)
+            continue
+        assert code == (2 if case.failing else code) and code in (0, 2), (name, code, err)
+        for failing in case.failing:
+            assert any(failing in line for line in errors), (name, failing, err)
+        for good in case.good:
+            assert not any(good in line for line in errors), (name, good, err)
+        if "extra" in case.problems:
+            assert any("not_given_rep9.csv" in line and "names no log" in line for line in err.splitlines()), (name, err)
+
+
+@pytest.mark.slow
+@settings(max_examples=4, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_malformed_conditions_through_identify(small, lab, data, capsys):
+    """The same tables given to identify --from-drop-tests: never a traceback; a table wrong as
+    a whole is one error line naming it (exit 2); each file without conditions is excluded by
+    name, the others are fitted."""
+    folder, tables, truth = small
+    case = data.draw(malformed_tables(tables, truth))
+    code = main(["identify", "--from-drop-tests", str(folder), "--model", "template", "--template", "rapp2022_nr60",
+                 "--rig", str(lab.rig), "--conditions", str(case.table), "--channel", "distance=Weg", "--verbose",
+                 "--holdout-fraction", "0", "--accept-poor"])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    if case.whole_table:
+        errors = [line for line in err.splitlines() if "error:" in line]
+        assert code == 2 and len(errors) == 1 and str(case.table) in errors[0], err
+        return
+    assert code in (0, 2), err
+    excluded = [line for line in err.splitlines() if "excluded" in line]
+    for failing in case.failing:
+        assert any(failing in line for line in excluded), (failing, err)

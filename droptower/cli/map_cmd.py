@@ -73,6 +73,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     """
     from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, read_results, select_tests
+    from droptower.maps.fromlogs import is_log_folder
     from droptower.maps.nested import nested_summary
 
     if out is not None:
@@ -87,6 +88,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         raise DroptowerError("--nested-cv cross-validates auto's choice of terms: use it with --form auto")
     table, rig_config, conditions_table = _read_source(results, rig, sensor_radius_m, channel_specs, conditions,
                                                        condition_columns, conditions_pattern)
+    failed = failed_logs(table) if is_log_folder(results) else 0
     fit = fit_map(table, source=results, form=form)
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
@@ -152,6 +154,9 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
+    if failed:
+        click.echo(f"droptower: {failed} log(s) could not be evaluated (listed above); exit code 2", err=True)
+        raise click.exceptions.Exit(2)
 
 
 def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
@@ -184,3 +189,19 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
         for name in conditions_table.unmatched(logs):
             click.echo(f"droptower: warning: {conditions_table.source}: row '{name}' names no log of {results}", err=True)
     return table, rig_config, conditions_table
+
+
+def failed_logs(table) -> int:
+    """Print each log of a folder whose extraction failed, one error line naming it (at once,
+    before the map: a map that cannot be fitted still names them); returns how many. Every log
+    failing for one reason (the geometry or the conditions not given) is one error, not a line
+    per log."""
+    if "status" not in table.columns:
+        return 0
+    rows = table[table["status"].astype(str) == "failed"]
+    reasons = set(rows["error"].astype(str)) if "error" in rows.columns else set()
+    if len(rows) == len(table) and len(rows) > 1 and len(reasons) == 1:
+        raise DroptowerError(f"none of the {len(rows)} logs can be evaluated: {reasons.pop()}")
+    for _, row in rows.iterrows():
+        click.echo(f"droptower: error: {row['file']}: {cli_text(str(row.get('error', 'failed')))}", err=True)
+    return len(rows)

@@ -46,7 +46,8 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     and torque with the decay fit and its window (the logs are extracted again for the plots).
     Every test the map uses has its decay drawn: if one cannot be drawn (its log missing, or the
     geometry to read it: --rig, --sensor-radius-m, --conditions), nothing is written and the exit
-    code is 2, with the reason.
+    code is 2, with the reason. A log of a folder that cannot be evaluated is named on one line,
+    the page lists it, and the exit code is 2.
 
     \b
     Examples:
@@ -55,6 +56,7 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
       droptower report lab/ --rig lab_rig.toml --conditions lab/conditions.xlsx --channel distance=Weg:mm \\
           --model-map model_map.json --servo-results bench.csv --out lab_report.html
     """
+    from droptower.cli.map_cmd import failed_logs
     from droptower.errors import DroptowerError, check_positive
     from droptower.io.mapping import parse_channel_options
     from droptower.io.table_reader import parse_column_options
@@ -72,6 +74,7 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     conditions_table = options.conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)
     channels = parse_channel_options(channel_specs)
     run = load_run(source, rig=rig_config, roles=channels, sensor_radius_m=sensor_radius_m, conditions=conditions_table)
+    failed = failed_logs(run.table) if run.kind == "log folder" else 0
     if conditions_table is not None and logs:
         for name in conditions_table.unmatched(logs):
             click.echo(f"droptower: warning: {conditions_table.source}: row '{name}' names no log of {source}", err=True)
@@ -82,6 +85,9 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     path = write_report(source, out, form=form, channels=channels, extra_sections=extra,
                         progress=options.progress_disabled() is None, run=run)
     options.wrote(path, f"HTML report, {path.stat().st_size / 1e6:.1f} MB")
+    if failed:  # the page lists them too; the run was not complete
+        click.echo(f"droptower: {failed} log(s) could not be evaluated (listed above); exit code 2", err=True)
+        raise click.exceptions.Exit(2)
 
 
 def _routes(source: Path, run, model_map_path: Path, form: str, servo_results: Path | None,

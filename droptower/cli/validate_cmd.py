@@ -81,9 +81,14 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
 
         output_folder(out, create=False)  # before the sweeps: a bad --out fails at once
     columns = parse_column_options(servo_columns, "--servo-column")
-    read = _lab_logs(results, rig, sensor_radius_m, channel_specs, conditions, condition_columns, conditions_pattern)
+    lab = _lab_logs(results, rig, sensor_radius_m, channel_specs, conditions, condition_columns, conditions_pattern)
+    failed = 0
+    if lab is not None:  # a lab's folder, extracted here: its failed logs named, one line each
+        from droptower.cli.map_cmd import failed_logs
+
+        failed, results = failed_logs(lab), lab
     result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
-                            reference=reference, results=results, model_map=model_map_path, quick=quick, **read)
+                            reference=reference, results=results, model_map=model_map_path, quick=quick)
     if out is not None:
         described = {"validation_routes": "the two routes vs the servo points",
                      "validation_model_map": f"the {result.model_route} at every servo point"}
@@ -91,26 +96,35 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
             wrote(path, described.get(path.stem, "validation"))
     if as_json:
         click.echo(json.dumps(result.to_dict(), indent=1))
-        return
-    click.echo(result.summary())
+    else:
+        click.echo(result.summary())
+    if failed:
+        click.echo(f"droptower: {failed} log(s) of --results could not be evaluated (listed above); exit code 2",
+                   err=True)
+        raise click.exceptions.Exit(2)
 
 
 def _lab_logs(results: Path | None, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
-              conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> dict:
-    """How --results, a lab's folder of logs, is read: rig, channels, laser radius, conditions."""
+              conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None):
+    """--results, a lab's folder of logs, extracted with the rig, channels, laser radius and
+    conditions (:func:`droptower.maps.fromlogs.results_from_logs`); None for any other --results."""
     from droptower.cli.options import conditions_from_cli, rig_for_logs
     from droptower.errors import DroptowerError, check_positive
     from droptower.io.mapping import parse_channel_options
-    from droptower.maps.fromlogs import is_log_folder, log_files
+    from droptower.maps.fromlogs import is_log_folder, log_files, results_from_logs
 
+    folder = results is not None and is_log_folder(results)
     given = rig or sensor_radius_m or channel_specs or conditions or conditions_pattern
-    if given and (results is None or not is_log_folder(results)):
+    if given and not folder:
         raise DroptowerError("--rig, --sensor-radius-m, --channel and --conditions read the logs of --results: "
                              "give --results a folder of logs")
-    if not given:
-        return {}
+    if not folder:
+        return None
     check_positive(sensor_radius_m, "--sensor-radius-m")
     logs = log_files(results, exclude=[p for p in (conditions, rig) if p])
     config = rig_for_logs(rig, [str(p) for p in logs])
-    return {"rig": config, "roles": parse_channel_options(channel_specs), "sensor_radius_m": sensor_radius_m,
-            "conditions": conditions_from_cli(conditions, condition_columns, conditions_pattern, config)}
+    table = conditions_from_cli(conditions, condition_columns, conditions_pattern, config)
+    for name in table.unmatched(logs) if table is not None else []:
+        click.echo(f"droptower: warning: {table.source}: row '{name}' names no log of {results}", err=True)
+    return results_from_logs(logs, rig=config, roles=parse_channel_options(channel_specs),
+                             sensor_radius_m=sensor_radius_m, conditions=table)
