@@ -329,3 +329,27 @@ def test_malformed_conditions_through_identify(small, lab, data, capsys):
     excluded = [line for line in err.splitlines() if "excluded" in line]
     for failing in case.failing:
         assert any(failing in line for line in excluded), (failing, err)
+
+
+def test_model_route_reads_a_results_table_with_its_logs(lab, tmp_path, capsys):
+    """A results table from extract --out, with the logs it names: the model route reads each log
+    with its own row's inertia (several fixtures, no conditions needed again), the double
+    impacts excluded by name."""
+    from droptower.compare.model_map import read_logs_for_model
+    from droptower.rig.config import load_rig
+
+    out = tmp_path / "results.xlsx"
+    assert main(["extract", *map(str, lab.logs), *_lab_flags(lab), "--out", str(out), "-q"]) == 0
+    capsys.readouterr()
+    campaign = read_logs_for_model(out, "template", template="rapp2022_nr60", rig=load_rig(lab.rig),
+                                   roles={"distance": "Weg"})
+    truth = lab.truth.set_index("file")
+    used = {d.name for d in campaign.decays}
+    excluded = {Path(e["file"]).name: e["reason"] for e in campaign.excluded}
+    assert used | set(excluded) == set(truth.index) and not used & set(excluded)  # nothing lost
+    # the simulated double impacts are all excluded (the identification also wants 1.5 free periods)
+    assert set(truth.index[truth["double_impact"]]) <= set(excluded)
+    assert all(r.startswith("double impact") for r in excluded.values()), excluded
+    assert {n[:2] for n in used} == {"L2", "L3"}
+    for d in campaign.decays:
+        assert d.inertia_kgm2 == pytest.approx(truth.loc[d.name, "inertia_kgm2"], rel=1e-12)

@@ -45,16 +45,41 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
     conditions_table = conditions_from_cli(table, columns, pattern, rig_config)
     data = tuple(files)
     rig = rig_config if rig_config is not None else rig
-    campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
-                               holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
-                               lever_length_m=lever_length_m, roles=parse_channel_options(channels),
-                               sensor_radius_m=sensor_radius_m, conditions=conditions_table)
+    results_table = _results_table(data)
+    if results_table is not None:  # a results table with its logs: each log read with its row's inertia
+        from droptower.compare.model_map import read_logs_for_model
+
+        campaign = read_logs_for_model(data[0], kind, template=template, rig=rig, roles=parse_channel_options(channels),
+                                       sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=results_table,
+                                       holdout_fraction=holdout_fraction, options=init.options)
+    else:
+        campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
+                                   holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
+                                   lever_length_m=lever_length_m, roles=parse_channel_options(channels),
+                                   sensor_radius_m=sensor_radius_m, conditions=conditions_table)
     excluded = campaign.excluded
     for e in excluded if verbose else excluded[:EXCLUDED_SHOWN]:
         click.echo(f"droptower: excluded {e['file']}: {cli_text(e['reason'])}", err=True)
     if len(excluded) > EXCLUDED_SHOWN and not verbose:
         click.echo(f"droptower: excluded {len(excluded) - EXCLUDED_SHOWN} more test(s) (--verbose names them)", err=True)
     return campaign
+
+
+def _results_table(data: tuple) -> Any:
+    """The results table DATA is (one table from ``extract --out`` whose ``file`` column names
+    its logs), or None for logs and folders."""
+    from pathlib import Path
+
+    from droptower.maps import read_results
+
+    if len(data) != 1 or not Path(data[0]).is_file() or Path(data[0]).suffix.lower() not in (".csv", ".parquet",
+                                                                                              ".xlsx", ".json"):
+        return None
+    try:
+        table = read_results(data[0])
+    except DroptowerError:
+        return None  # a log, not a results table
+    return table if "file" in table.columns else None
 
 
 def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,

@@ -443,17 +443,47 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
 
 def read_logs_for_model(results: str | Path, model: str, *, template: str | None = None, rig: Any = None,
                         roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
-                        conditions: Any = None, table: pd.DataFrame | None = None) -> Any:
+                        conditions: Any = None, table: pd.DataFrame | None = None, holdout_fraction: float = 0.0,
+                        options: dict[str, Any] | None = None) -> Any:
     """The drop tests a model-based map identifies from (:func:`~droptower.identify.drops.read_drop_tests`):
     a campaign folder's ``logs/`` with its own rig (unless ``rig``), a lab's folder of logs (the
     conditions table beside them left out), or the logs a results table names (``file``),
-    each with the inertia its row gives where no ``conditions`` do."""
+    each with the inertia its row gives where no ``conditions`` do.
+
+    Parameters
+    ----------
+    results : path
+        Campaign folder, folder of logs or results table.
+    model : str
+        The family to be fitted.
+    template : str, optional
+        With ``model="template"``: the coupling whose structure is fitted.
+    rig : str or RigConfig, optional
+        The rig (lever length m, laser radius m, fixtures).
+    roles : dict, optional
+        Channel role -> ``NAME[:UNIT]``.
+    sensor_radius_m : float, optional
+        Laser spot radius (m).
+    conditions : Conditions, optional
+        Per-file conditions.
+    table : DataFrame, optional
+        The results table already read.
+    holdout_fraction : float
+        Share of the tests held out (0 for a map: every test fits).
+    options : dict, optional
+        The family's, the fit's and the reading's options (as :func:`~droptower.identify.drops.read_drop_tests`).
+
+    Returns
+    -------
+    DropCampaign
+        The decays, the excluded logs with their reasons, the settings.
+    """
     from droptower.identify.drops import DropCampaign, read_drop_tests
     from droptower.maps.fromlogs import log_files
 
     results = Path(results)
-    common = dict(model=model, template=template, holdout_fraction=0.0, roles=roles, sensor_radius_m=sensor_radius_m,
-                  conditions=conditions)
+    common = dict(model=model, template=template, holdout_fraction=holdout_fraction, roles=roles,
+                  sensor_radius_m=sensor_radius_m, conditions=conditions, options=options)
     if results.is_dir():
         from droptower.campaign.folder import saved_inputs
 
