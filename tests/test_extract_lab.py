@@ -167,3 +167,16 @@ def test_full_lab_folder_and_table2_campaign_no_false_flags(tmp_path, capsys):
     results = pd.read_csv(tmp_path / "t2" / "results.csv", keep_default_na=False)
     assert len(results) == 450
     assert not any(set(flags.split(";")) & set(GEOMETRY_FLAGS) for flags in results["flags"])
+
+
+def test_one_row_for_two_logs_fails_both(lab, capsys, tmp_path):
+    """Two days' logs of the same name under a sheet keyed by name: which row means which is
+    not known, so both fail (and say how to key the sheet); the third log is written."""
+    logs = []
+    for day in ("day1", "day2"):
+        (tmp_path / day).mkdir()
+        logs.append(shutil.copy(lab.logs[2], tmp_path / day / lab.logs[2].name))
+    code, err, table = _extract([*map(str, logs), str(lab.logs[4]), "--rig", str(lab.rig), "--conditions",
+                                 str(lab.sheet)], capsys, tmp_path)
+    assert code == 2 and list(table["file"]) == [str(lab.logs[4])]
+    assert err.count("key the table by the path relative to the folder") == 4  # two error lines, two in the list

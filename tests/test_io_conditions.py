@@ -173,3 +173,13 @@ def test_logsettings_merge_conditions_over_metadata(tmp_path):
     other = drop.write(tmp_path / "other.csv")
     with pytest.raises(DroptowerError, match="other.csv: not in the conditions table"):
         LogSettings(conditions=read_conditions(sheet)).read_signals(other)
+
+
+def test_one_row_for_two_logs_is_refused_for_both(tmp_path):
+    sheet = tmp_path / "c.csv"
+    pd.DataFrame({"file": ["L2.csv", "day1/L3.csv", "day2/L3.csv"], "drop_height_m": [0.1, 0.2, 0.3]}).to_csv(
+        sheet, index=False)
+    conditions = read_conditions(sheet)
+    shared = conditions.shared_rows(["day1/L2.csv", "day2/L2.csv", "day1/L3.csv", "day2/L3.csv"])
+    assert set(shared) == {"day1/L2.csv", "day2/L2.csv"}
+    assert "row 'L2.csv' of the conditions table" in shared["day1/L2.csv"]

@@ -159,8 +159,11 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
     failures: list[str] = []
     failed: set[str] = set()
     plots: set[str] = set()
+    shared = table.shared_rows(paths) if table is not None else {}
     for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=progress_disabled()):
         try:
+            if path in shared:  # one row for several logs: which one it means is not known
+                raise DroptowerError(shared[path], file=path)
             for drop in extract_drops(path, settings):
                 for text in drop.signals.notes if drop.span.index == 1 and not progress_disabled() else ():
                     tqdm.write(f"droptower: note: {path}: {text}", file=sys.stderr)

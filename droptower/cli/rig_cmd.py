@@ -11,11 +11,18 @@ from droptower.errors import DroptowerError
 
 
 @click.group()
+@quiet_option
 def rig() -> None:
     """Write a rig file from the lab's numbers (rig new) or check one (rig check).
 
     A rig file gives extraction the lever length, the laser radius and the named lever fixtures
     (`droptower extract --rig FILE`); every field: docs/guide/rig-file.md.
+
+    \b
+    Examples:
+      droptower rig new lab_rig.toml --lever-length-m 0.25 --laser-radius-m 0.25 \\
+          --fixture L1=0.12 --fixture L2=0.25 --drop-mass-kg 1 --sample-rate-hz 19200
+      droptower rig check lab_rig.toml
     """
 
 
@@ -60,7 +67,7 @@ def new(out: Path, lever_length_m: float, laser_radius_m: float, fixtures: tuple
     file. The file is checked as `rig check` does before it is written.
 
     \b
-    Example:
+    Examples:
       droptower rig new lab_rig.toml --lever-length-m 0.25 --laser-radius-m 0.25 \\
           --fixture L1=0.12 --fixture L2=0.25 --fixture L3=0.40 \\
           --drop-mass-kg 1 --drop-mass-kg 2 --sample-rate-hz 19200
@@ -94,12 +101,13 @@ def new(out: Path, lever_length_m: float, laser_radius_m: float, fixtures: tuple
 
 
 @rig.command("check")
+@quiet_option
 @click.argument("rig_file", metavar="FILE")
 def check(rig_file: str) -> None:
     """Validate the rig file FILE (or a shipped preset's name) and print the geometry extraction uses.
 
     \b
-    Example:
+    Examples:
       droptower rig check lab_rig.toml
     """
     from droptower.rig.config import load_rig

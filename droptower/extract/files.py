@@ -65,6 +65,7 @@ class Drop:
 DECAY_CUT = "decay_cut_by_next_drop"
 
 
+@expects(path=(str, Path), settings=Settings)
 def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
     """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
     samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
@@ -111,14 +112,16 @@ def _no_inertia(signals: DropSignals, settings: Settings) -> str:
     rig = settings.rig
     fixture = signals.metadata.get("fixture")
     if settings.conditions is not None:
-        said = f"names fixture '{fixture}', which " if fixture is not None else "gives neither inertia nor fixture; "
-        if fixture is not None and rig is not None:
-            where = f"is not one of the named fixtures of rig {rig.label} ({', '.join(rig.fixtures) or 'it names none'})"
+        said = f"name fixture '{fixture}', which " if fixture is not None else "give neither inertia nor fixture: "
+        if fixture is not None and rig is not None and rig.fixtures:
+            where = f"is not one of the named fixtures of rig {rig.label} ({', '.join(rig.fixtures)})"
+        elif fixture is not None and rig is not None:
+            where = f"rig {rig.label} cannot resolve: it names no fixtures (add a [fixtures] table to it)"
         elif fixture is not None:
             where = "needs a `rig` with named fixtures to give its inertia"
         else:
             where = "add an inertia or fixture column"
-        return f"no rotating inertia: the conditions ({settings.conditions.source}) {said}{where}"
+        return f"no rotating inertia: the conditions from {settings.conditions.source} {said}{where}"
     if rig is not None:
         fixtures = ", ".join(f"{n} {j:g}" for n, j in rig.fixtures.items()) or ", ".join(f"{j:g}" for j in rig.inertias_kgm2)
         return (f"no rotating inertia: rig {rig.label} has {len(rig.inertias_kgm2)} fixtures ({fixtures} kg*m^2) and "

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from droptower.errors import expects
 from droptower.extract.result import ExtractionResult
 
 #: |c_dyn,M2 / c_dyn,M1 - 1| beyond this flags stiffness_m2_m1_deviation (the right geometry: within
@@ -59,6 +60,7 @@ def impact_law_energy_j(drop_mass_kg: float, drop_height_m: float, inertia_kgm2:
     return 0.5 * inertia_kgm2 * rate**2
 
 
+@expects(result=ExtractionResult, metadata=dict)
 def geometry_checks(result: ExtractionResult, metadata: dict[str, Any], lever_length_m: float | None,
                     restitution: float | None = None, gravity_m_per_s2: float = 9.81) -> tuple[dict[str, float], tuple[str, ...]]:
     """The geometry cross-checks of one drop: outputs (NaN where a check lacks its inputs) and

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError, readable_file, unreadable_file
+from droptower.errors import DroptowerError, expects, readable_file, unreadable_file
 from droptower.io.csvfmt import split_name_unit
 from droptower.units import is_unit, normalise_unit
 
@@ -52,14 +52,13 @@ CONDITION_NAMES: dict[str, tuple[str, ...]] = {
     "fixture": ("fixture", "lever", "lever fixture", "hebel", "hebelvariante", "hebel variante", "arm",
                 "schwungmasse", "case", "fall"),
     "inertia_kgm2": ("inertia", "j", "rotating inertia", "moment of inertia", "traegheit", "traegheitsmoment",
-                     "massentraegheit", "massentraegheitsmoment", "inertia kgm2"),
-    "drop_mass_kg": ("drop mass", "mass", "m1", "fallmasse", "masse", "fallgewicht", "drop mass kg"),
-    "drop_height_m": ("drop height", "height", "h", "fallhoehe", "hoehe", "drop height m"),
-    "preload_nm": ("preload", "pre load", "pretorque", "vorlast", "vorspannung", "vorspannmoment",
-                   "preload nm"),
+                     "massentraegheit", "massentraegheitsmoment"),
+    "drop_mass_kg": ("drop mass", "mass", "m1", "fallmasse", "masse", "fallgewicht"),
+    "drop_height_m": ("drop height", "height", "h", "fallhoehe", "hoehe"),
+    "preload_nm": ("preload", "pre load", "pretorque", "vorlast", "vorspannung", "vorspannmoment"),
     "specimen": ("specimen", "sample", "probe", "pruefling", "coupling", "kupplung", "specimen id"),
     "repeat": ("repeat", "repetition", "rep", "wiederholung", "wdh", "run"),
-    "temperature_c": ("temperature", "temp", "temperatur", "t amb", "ambient temperature", "temperature c"),
+    "temperature_c": ("temperature", "temp", "temperatur", "t amb", "ambient temperature"),
 }
 #: pattern field suffix -> unit (``{drop_height_mm}``); the longest suffix first
 _PATTERN_UNITS = (("_kgm2", "kg*m**2"), ("_gcm2", "g*cm**2"), ("_knm", "kN*m"), ("_nm", "N*m"), ("_kg", "kg"),
@@ -200,6 +199,21 @@ class Conditions:
         used = {self._match(Path(p)) for p in paths}
         return [key for key in [*self.rows, *self.errors] if key not in used]
 
+    def shared_rows(self, paths: Iterable[str | Path]) -> dict[str, str]:
+        """Logs of ``paths`` that one row would give its conditions to together (``day1/L2.csv``
+        and ``day2/L2.csv`` under a row ``L2.csv``): path -> why it cannot be used (key the
+        table by the path relative to the folder). Empty when every row names one log."""
+        if self.pattern is not None:
+            return {}
+        by_key: dict[str, list[str]] = {}
+        for p in paths:
+            key = self._match(Path(p))
+            if key is not None:
+                by_key.setdefault(key, []).append(str(p))
+        return {p: (f"row '{key}' of the conditions table {self.source} names {len(group)} of the given logs "
+                    f"({', '.join(group)}); key the table by the path relative to the folder")
+                for key, group in by_key.items() if len(group) > 1 for p in group}
+
     def _from_name(self, path: Path) -> dict[str, Any]:
         regex, fields = _pattern_regex(self.pattern)
         target = path.name if PurePosixPath(self.pattern).suffix else path.stem
@@ -286,6 +300,7 @@ def _rig_fixtures(rig: "RigConfig | None") -> tuple[dict[str, float], str]:
     return dict(rig.fixtures), rig.label
 
 
+@expects(pattern=str, rig=("droptower.rig.config.RigConfig", type(None)))
 def conditions_from_names(pattern: str, *, rig: "RigConfig | None" = None) -> Conditions:
     """Conditions read from each file's name by ``pattern``.
 
@@ -348,6 +363,7 @@ def _read_frame(path: Path) -> pd.DataFrame:
     return frame
 
 
+@expects(path=(str, Path), columns=(dict, type(None)), rig=("droptower.rig.config.RigConfig", type(None)))
 def read_conditions(path: str | Path, *, columns: dict[str, str] | None = None,
                     rig: "RigConfig | None" = None) -> Conditions:
     """Read a conditions table: one row per log file, keyed by its name or relative path.

@@ -18,7 +18,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rig.config import RigConfig, check_pre_trigger
 from droptower.validation import validate
 
@@ -38,6 +38,7 @@ ASSUMED: dict[str, tuple[Any, str]] = {
 }
 
 
+@expects(fixtures=dict, drop_masses_kg=(list, tuple))
 def new_rig(*, lever_length_m: float, laser_radius_m: float, fixtures: dict[str, float], drop_masses_kg: list[float],
             sample_rate_hz: float, name: str = "", description: str = "", source: str = "",
             drop_height_range_m: list[float] | None = None, preload_range_nm: list[float] | None = None,
@@ -126,10 +127,11 @@ def _value(value: Any) -> str:
     return tomli_w.dumps({"v": value}).split("=", 1)[1].strip()
 
 
+@expects(rig="droptower.rig.config.RigConfig")
 def rig_toml(rig: RigConfig) -> str:
     """The rig as a TOML file :func:`~droptower.rig.config.load_rig` reads; every field an
     assumption filled is marked ``# assumed: why``."""
-    lines = [f"# Drop-tower rig file (droptower rig new). SI units; fields: docs/guide/rig-file.md"]
+    lines = ["# Drop-tower rig file (droptower rig new). SI units; fields: docs/guide/rig-file.md"]
 
     def field(name: str, value: Any, dotted: str | None = None) -> None:
         dotted = dotted or name
