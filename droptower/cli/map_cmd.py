@@ -72,7 +72,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
           --model zerodim6 --out map.json
     """
     from droptower.io.tables import check_table_path, write_table
-    from droptower.maps import fit_map, read_results, select_tests
+    from droptower.maps import fit_map, select_tests
     from droptower.maps.fromlogs import is_log_folder
     from droptower.maps.nested import nested_summary
 
