@@ -119,6 +119,9 @@ def test_map_of_a_lab_folder_names_the_fixture_that_dropped_out(lab, capsys):
     assert 0.1 < advised < 1.0  # the 1 kg struck twice
     assert "none of the rig's drop masses would" in line
     assert len(doc["excluded"]) == 6 and all(e["test"].startswith("L1_") for e in doc["excluded"])
+    assert doc["fixtures"] == ["L2", "L3"]  # the map carries the fixtures it covers, and their temperatures
+    used = lab.truth[lab.truth["fixture"] != "L1"]["temperature_c"]
+    np.testing.assert_allclose(doc["temperature_range_c"], [used.min(), used.max()], atol=0.006)  # the sheet's 2 decimals
 
 
 def test_double_impact_advice_agrees_with_the_simulated_rig(lab):

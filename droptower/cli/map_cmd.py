@@ -89,7 +89,16 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     table, rig_config, conditions_table = _read_source(results, rig, sensor_radius_m, channel_specs, conditions,
                                                        condition_columns, conditions_pattern)
     failed = failed_logs(table) if is_log_folder(results) else 0
-    fit = fit_map(table, source=results, form=form)
+    from droptower.maps.coverage import coverage_notes
+
+    try:
+        fit = fit_map(table, source=results, form=form)
+    except DroptowerError:
+        # no map: still say which fixtures and conditions dropped out, and why (before the error)
+        for line in coverage_notes(table, *select_tests(table, results), rig=rig_config):
+            click.echo(f"droptower: not covered: {line}", err=True)
+        raise
+    fit.coverage = tuple(coverage_notes(table, *select_tests(table, results), rig=rig_config))
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
         options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
@@ -107,11 +116,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
                                     on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress,
                                     rig=rig_config, roles=parse_channel_options(channel_specs),
                                     sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table)
-    from droptower.maps.coverage import coverage_notes
-
-    coverage = coverage_notes(table, *select_tests(table, results), rig=rig_config)
     extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
-             **({"coverage": coverage} if coverage else {}),
              **({"model_map": model_map.to_dict()} if model_map is not None else {})}
     if as_json and extra:
         click.echo(json.dumps({**json.loads(fit.to_json()), **extra}, indent=2))
@@ -119,9 +124,6 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         click.echo(fit.to_json(), nl=False)
     else:
         click.echo(fit.summary())
-        if coverage:
-            click.echo("not covered by the map:")
-            click.echo("\n".join(f"  {line}" for line in coverage))
         if nested is not None:
             click.echo(f"nested cross-validated (terms chosen without each fold's tests, {nested['inner_folds']} "
                        f"inner folds): stiffness {nested['stiffness_rms_error_pct']:.2f} %, damping ratio "
