@@ -24,7 +24,8 @@ from droptower.maps.results import ExcludedTest
 #: A map whose tests span more than this temperature range (K) says so: an elastomer's stiffness
 #: and damping change with temperature, so one map over them mixes states.
 TEMPERATURE_SPAN_K = 5.0
-#: Drop masses (kg) searched for the advice: from this fraction of the lightest tested mass up.
+#: Drop masses searched for the advice: this many, geometrically spaced from 2 % of the heaviest
+#: tested drop mass up to it.
 ADVICE_MASS_STEPS = 60
 #: Samples per period of the closed-form decay checked for a second impact.
 ADVICE_SAMPLES_PER_PERIOD = 400
@@ -117,8 +118,10 @@ def _restitution(rows: pd.DataFrame, lever_length_m: float) -> float | None:
     v = v[(v > 0).all(axis=1)]
     if v.empty:
         return None
+    from droptower.rig.impact import G
+
     m1, m2 = v["drop_mass_kg"], v["inertia_kgm2"] / lever_length_m ** 2
-    v1 = np.sqrt(2.0 * 9.81 * v["drop_height_m"])
+    v1 = np.sqrt(2.0 * G * v["drop_height_m"])
     after = v1 - v["impact_impulse_n_s"] / m1
     k = (m1 - after * (m1 + m2) / v1) / m2
     k = k[np.isfinite(k) & (k >= 0) & (k <= 1)]
