@@ -140,6 +140,13 @@ def test_double_impact_advice_agrees_with_the_simulated_rig(lab):
         text = double_impact_advice(j, f, delta, 0.25, 0.5, [1.0], [0.02, 0.04, 0.08], (1.0,))
         clears = "of the rig's drop masses, 1 kg would" in text
         assert clears == (not lab.truth[lab.truth["fixture"] == fixture]["double_impact"].all()), (fixture, text)
+    # without the rig: the lever length the rows store, the restitution measured from the impulse
+    # (J phi'(0+) = L * impulse, docs/theory.md#impact; the rig's is 0.5)
+    from droptower.maps.coverage import _restitution
+
+    assert _restitution(table[table["fixture"] == "L1"], 0.25) == pytest.approx(0.5, abs=0.02)
+    (line,) = coverage_notes(table, *select_tests(table))
+    assert line.startswith("fixture L1") and "restitution 0.5" in line
 
 
 def test_temperature_span_is_said():
