@@ -28,8 +28,8 @@ from droptower.report.run import FLAG_REASONS, Run, load_run
 
 #: Columns of the per-test table, in order, where the results have them (name shown: unit in brackets).
 TEST_COLUMNS = {
-    "case": "case", "inertia_kgm2": "J [kg·m²]", "drop_mass_kg": "m [kg]", "drop_height_m": "h [m]",
-    "preload_nm": "preload [N·m]", "amplitude_deg": "amplitude [deg]",
+    "case": "case", "fixture": "fixture", "inertia_kgm2": "J [kg·m²]", "drop_mass_kg": "m [kg]", "drop_height_m": "h [m]",
+    "preload_nm": "preload [N·m]", "temperature_c": "T [°C]", "amplitude_deg": "amplitude [deg]",
     "frequency_hz": "f [Hz]", "stiffness_nm_per_deg": "c [N·m/deg]", "damping_ratio": "d [-]",
     "fit_error": "fit error [-]",
 }
