@@ -87,7 +87,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if nested_cv and form != "auto":
         raise DroptowerError("--nested-cv cross-validates auto's choice of terms: use it with --form auto")
     table, rig_config, conditions_table = _read_source(results, rig, sensor_radius_m, channel_specs, conditions,
-                                                       condition_columns, conditions_pattern)
+                                                       condition_columns, conditions_pattern, model_kind is not None)
     failed = failed_logs(table) if is_log_folder(results) else 0
     from droptower.maps.coverage import coverage_notes
 
@@ -162,10 +162,12 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
 
 
 def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
-                 conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None):
+                 conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
+                 reads_logs: bool = False):
     """(results table, rig, conditions) of RESULTS: a lab's folder of logs is extracted first
     (every log, failed ones kept with their error); a conditions table's rows that name no log
-    are warned of (nothing is dropped silently)."""
+    are warned of (nothing is dropped silently). The flags that read logs are refused where no
+    log is read (a results table without --model): a flag is never ignored silently."""
     from droptower.errors import check_positive
     from droptower.io.mapping import parse_channel_options
     from droptower.maps import read_results
@@ -173,6 +175,11 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
 
     check_positive(sensor_radius_m, "--sensor-radius-m")
     folder = is_log_folder(results)
+    log_flags = [flag for flag, given in (("--conditions", conditions), ("--conditions-from-names", conditions_pattern),
+                                          ("--channel", channel_specs), ("--sensor-radius-m", sensor_radius_m)) if given]
+    if log_flags and not folder and not reads_logs:
+        raise DroptowerError(f"{', '.join(log_flags)} read logs: RESULTS is a results table, whose values are used as "
+                             "they are (give a folder of logs, or --model to read the logs the table names)")
     logs = log_files(results, exclude=[p for p in (conditions, rig) if p]) if folder else []
     rig_config = options.rig_for_logs(rig, [str(p) for p in logs])
     conditions_table = options.conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)

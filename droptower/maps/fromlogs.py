@@ -82,6 +82,8 @@ def results_from_logs(paths: str | Path | Iterable[str | Path], *, rig: Any = No
     from droptower.extract.files import Settings, extract_drops, result_row
 
     files: list[Path] = []
+    if conditions is not None and Path(str(conditions.source)).is_file():  # the table beside the logs is not a log
+        exclude = [*exclude, conditions.source]
     for p in map(Path, [paths] if isinstance(paths, (str, Path)) else paths):
         files += log_files(p, exclude=exclude) if p.is_dir() else [p]
     extra = {"conditions": conditions} if conditions is not None else {}
