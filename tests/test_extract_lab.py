@@ -45,7 +45,7 @@ def test_conditions_sheet_and_rig(lab, capsys, tmp_path):
     geometry = [line for line in err.splitlines() if "geometry:" in line]
     assert geometry == [f"droptower: geometry: rig file {lab.rig}: lever length 0.25 m, laser radius 0.25 m, "
                         "fixtures 0.12, 0.25, 0.4 kg*m^2"]
-    assert "warning" not in err
+    assert "shipped preset" not in err and "conditions table" not in err
     truth = lab.truth.set_index("file")
     assert len(table) == len(truth)
     for row in table.to_dict(orient="records"):
@@ -86,7 +86,7 @@ def test_preset_rig_on_lab_logs_is_flagged(lab, capsys, tmp_path):
     code, err, table = _extract([*map(str, lab.logs), "--rig", "rapp2022", "--conditions", str(lab.sheet)],
                                 capsys, tmp_path)
     assert code == 0
-    (warning,) = [line for line in err.splitlines() if "warning:" in line]
+    (warning,) = [line for line in err.splitlines() if "warning:" in line and "preset" in line]
     assert "--rig rapp2022 is a shipped preset" in warning and "lever length 0.2 m, laser radius 0.15 m" in warning
     judged = table[~table["double_impact"]]
     assert len(judged) == 2  # L2 and L3 with the 1 kg mass
@@ -180,3 +180,16 @@ def test_one_row_for_two_logs_fails_both(lab, capsys, tmp_path):
                                  str(lab.sheet)], capsys, tmp_path)
     assert code == 2 and list(table["file"]) == [str(lab.logs[4])]
     assert err.count("key the table by the path relative to the folder") == 4  # two error lines, two in the list
+
+
+def test_a_fixture_that_drops_out_is_named(lab, capsys, tmp_path):
+    """Every drop of L1 double-impacts (J/L^2 = 1.92 kg against the drop mass): one warning per
+    fixture and mass, with the equivalent mass; the usable groups get none."""
+    code, err, table = _extract([*map(str, lab.logs), "--rig", str(lab.rig), "--conditions", str(lab.sheet)],
+                                capsys, tmp_path)
+    warned = [line for line in err.splitlines() if "warning:" in line]
+    groups = table.groupby(["fixture", "drop_mass_kg"])["double_impact"].all()
+    assert len(warned) == int(groups.sum()) >= 1
+    assert any(line.startswith("droptower: warning: fixture L1 with the 1 kg drop mass: all 1 drop(s) are double "
+                               "impacts (equivalent lever mass J/L^2 = 1.92 kg") for line in warned)
+    assert not any("fixture L2 with the 1 kg" in line or "fixture L3 with the 1 kg" in line for line in warned)

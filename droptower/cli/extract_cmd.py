@@ -12,7 +12,7 @@ import click
 from droptower.cli.options import (conditions_from_cli, conditions_options, note, progress_disabled, quiet_option,
                                    renamed_option, rig_for_logs, wrote)
 from droptower.errors import DroptowerError, WriteError, check_positive, make_folder
-from droptower.cli.flags import cli_message
+from droptower.cli.flags import cli_message, cli_text
 
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
@@ -125,7 +125,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
     from tqdm import tqdm
 
     from droptower.extract.drops import parse_drop_selection, read_drop_conditions
-    from droptower.extract.files import Settings, extract_drops, result_row
+    from droptower.extract.files import Settings, dropped_out, extract_drops, result_row
     from droptower.jsonsafe import json_safe
     from droptower.extract.window import Window
     from droptower.io.tables import check_table_path, write_table
@@ -189,6 +189,8 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
             failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
+    for line in dropped_out(rows):
+        click.echo(f"droptower: warning: {cli_text(line)}", err=True)
     unused = table.unmatched(paths) if table is not None else []
     if unused:
         shown = ", ".join(unused[:5]) + (f" and {len(unused) - 5} more" if len(unused) > 5 else "")

@@ -40,6 +40,7 @@ class Settings(LogSettings):
     min_drop_spacing_s: float = MIN_DROP_SPACING_S
 
     def __post_init__(self):
+        super().__post_init__()
         for name, least in (("sample_rate_hz", "> 0"), ("pre_trigger_s", ">= 0"), ("min_drop_spacing_s", "> 0")):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
@@ -103,32 +104,8 @@ def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
     given = {key: value if value is not None or key in signals.metadata else defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
     if given["inertia_kgm2"] is None and signals.metadata.get("inertia_kgm2") is None:
-        raise DroptowerError(_no_inertia(signals, settings))
+        raise DroptowerError(settings.no_inertia_reason(signals.metadata))
     return extract(signals, **given, window=settings.window)
-
-
-def _no_inertia(signals: DropSignals, settings: Settings) -> str:
-    """Why a drop has no rotating inertia, in terms of what was given (never asking for it again)."""
-    rig = settings.rig
-    fixture = signals.metadata.get("fixture")
-    if settings.conditions is not None:
-        said = f"name fixture '{fixture}', which " if fixture is not None else "give neither inertia nor fixture: "
-        if fixture is not None and rig is not None and rig.fixtures:
-            where = f"is not one of the named fixtures of rig {rig.label} ({', '.join(rig.fixtures)})"
-        elif fixture is not None and rig is not None:
-            where = f"rig {rig.label} cannot resolve: it names no fixtures (add a [fixtures] table to it)"
-        elif fixture is not None:
-            where = "needs a `rig` with named fixtures to give its inertia"
-        else:
-            where = "add an inertia or fixture column"
-        return f"no rotating inertia: the conditions from {settings.conditions.source} {said}{where}"
-    if rig is not None:
-        fixtures = ", ".join(f"{n} {j:g}" for n, j in rig.fixtures.items()) or ", ".join(f"{j:g}" for j in rig.inertias_kgm2)
-        return (f"no rotating inertia: rig {rig.label} has {len(rig.inertias_kgm2)} fixtures ({fixtures} kg*m^2) and "
-                "the log's metadata does not say which was used; give `conditions` (a table with a fixture or inertia "
-                "column per file) or `inertia_kgm2` for every log")
-    return ("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2`, `conditions` (per "
-            "file) or a `rig` with a single fixture")
 
 
 def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: Settings) -> None:
@@ -172,6 +149,33 @@ def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> t
     if drops[0].error is not None:
         raise drops[0].error
     return drops[0].signals, drops[0].result
+
+
+def dropped_out(rows: list[dict[str, Any]]) -> list[str]:
+    """The fixtures (with a drop mass) none of whose drops is usable, each with why: every one a
+    double impact (with the equivalent lever mass J/L², kg, beside the drop mass: the impact law,
+    docs/theory.md#impact) or every one carrying another flag. ``rows``: :func:`result_row`'s. One
+    line per group, so a map over the rest does not quietly cover fewer fixtures."""
+    groups: dict[tuple[str, Any], list[dict[str, Any]]] = {}
+    for row in rows:
+        fixture = row.get("fixture") or (f"J = {row['inertia_kgm2']:g} kg*m^2" if row.get("inertia_kgm2") else "")
+        mass = row.get("drop_mass_kg")
+        groups.setdefault((str(fixture), mass if isinstance(mass, (int, float)) and math.isfinite(mass) else None),
+                          []).append(row)
+    lines = []
+    for (fixture, mass), group in groups.items():
+        label = f"fixture {fixture}" + (f" with the {mass:g} kg drop mass" if mass is not None else "")
+        if all(r.get("double_impact") for r in group):
+            j, lever = group[0].get("inertia_kgm2"), group[0].get("lever_length_m")
+            equivalent = (f" (equivalent lever mass J/L^2 = {j / lever**2:.3g} kg"
+                          + (f" against the {mass:g} kg drop mass)" if mass is not None else ")")
+                          if isinstance(lever, float) and lever > 0 and j else "")
+            lines.append(f"{label}: all {len(group)} drop(s) are double impacts{equivalent}; a lighter drop mass or a "
+                         "heavier fixture avoids it (the planner, droptower plan, predicts which)")
+        elif all(r.get("flags") for r in group):
+            flags = sorted({f for r in group for f in r["flags"]})
+            lines.append(f"{label}: all {len(group)} drop(s) are flagged ({', '.join(flags)})")
+    return lines
 
 
 def _scalar(value: Any) -> Any:

@@ -438,8 +438,8 @@ def read_conditions(path: str | Path, *, columns: dict[str, str] | None = None,
                              f"`columns={{'drop_height_m': 'COLUMN[:UNIT]'}}` (roles: {', '.join(CONDITION_KEYS)})",
                              file=path)
     used = {c for c, _ in chosen.values()}
-    notes = tuple(f"conditions table {path}: column(s) {', '.join(map(repr, [n for n in names if n not in used]))} "
-                  "not used" for _ in [0] if set(names) - used)
+    unused = [n for n in names if n not in used]
+    notes = (f"conditions table {path}: column(s) {', '.join(map(repr, unused))} not used",) if unused else ()
 
     # per cell: a number (or text) or the reason it is not; units per column (a bad unit: the whole table)
     cells: dict[str, list[Any]] = {}

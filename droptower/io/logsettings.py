@@ -46,10 +46,46 @@ class LogSettings:
     conditions: "Conditions | None" = None
     rig: "RigConfig | None" = None
 
+    def __post_init__(self):
+        from droptower.io.conditions import Conditions
+        from droptower.rig.config import RigConfig
+
+        for name, kind, how in (("conditions", Conditions, "read_conditions(path) or conditions_from_names(pattern)"),
+                                ("rig", RigConfig, "load_rig(path)")):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise TypeError(f"{type(self).__name__}.{name} must be a {kind.__name__} ({how}), got "
+                                f"{type(value).__name__}")
+
     @property
     def geometry_defaults(self) -> dict[str, float]:
         """``defaults`` over the rig's (:func:`rig_defaults`)."""
         return {**rig_defaults(self.rig), **self.defaults}
+
+    def no_inertia_reason(self, metadata: dict[str, Any]) -> str:
+        """Why a log with this ``metadata`` has no rotating inertia, in terms of what these
+        settings were given (a rig of several fixtures, conditions without inertia or fixture),
+        never asking for what was given; Python names in backticks (a command reports its flags)."""
+        rig = self.rig
+        fixture = metadata.get("fixture")
+        if self.conditions is not None:
+            said = f"name fixture '{fixture}', which " if fixture is not None else "give neither inertia nor fixture: "
+            if fixture is not None and rig is not None and rig.fixtures:
+                where = f"is not one of the named fixtures of rig {rig.label} ({', '.join(rig.fixtures)})"
+            elif fixture is not None and rig is not None:
+                where = f"rig {rig.label} cannot resolve: it names no fixtures (add a [fixtures] table to it)"
+            elif fixture is not None:
+                where = "needs a `rig` with named fixtures to give its inertia"
+            else:
+                where = "add an inertia or fixture column"
+            return f"no rotating inertia: the conditions from {self.conditions.source} {said}{where}"
+        if rig is not None:
+            fixtures = ", ".join(f"{n} {j:g}" for n, j in rig.fixtures.items()) or ", ".join(f"{j:g}" for j in rig.inertias_kgm2)
+            return (f"no rotating inertia: rig {rig.label} has {len(rig.inertias_kgm2)} fixtures ({fixtures} kg*m^2) and "
+                    "the log's metadata does not say which was used; give `conditions` (a table with a fixture or inertia "
+                    "column per file) or `inertia_kgm2` for every log")
+        return ("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2`, `conditions` (per "
+                "file) or a `rig` with a single fixture")
 
     def read_signals(self, path: str | Path, *, sample_rate_hz: float | None = None,
                      reader_options: dict[str, Any] | None = None, radius_flags: str = "`sensor_radius_m` or `rig`",
