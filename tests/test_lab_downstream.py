@@ -247,6 +247,7 @@ def test_report_on_a_lab_folder_fails_loudly_or_draws_every_decay(lab, tmp_path,
     assert code == 0, err
     html = page.read_text(encoding="utf-8")
     assert "no decay plot" not in html and "12 tests used, 6 excluded" in html
+    assert re.search(r"id='not-covered'.*fixture L1 \(J = 0.12 kg\*m\^2\): all 6 test\(s\) left out", html, re.S)
 
 
 # ------------------------------------------------------------------------------ malformed conditions tables

@@ -20,6 +20,7 @@ from threadpoolctl import threadpool_limits
 from droptower.errors import DroptowerError, make_folder
 from droptower.io.droptower_log import atomic_write
 from droptower.maps import MapFit, fit_map, select_tests
+from droptower.maps.coverage import coverage_notes
 from droptower.maps.results import flag_list
 from droptower.report import figures
 from droptower.report.decays import Drawing
@@ -114,6 +115,7 @@ def _map_and_tests(run: Run, source: str | Path, form: str) -> tuple[MapFit | No
         # 4 500 tests ten times slower (54 s against 5 s, measured on 2 loaded cores)
         with threadpool_limits(limits=1, user_api="blas"):
             fit = fit_map(table, source=_shown_source(source), form=form)
+        fit.coverage = tuple(coverage_notes(table, usable, excluded, rig=run.rig))
     except DroptowerError as exc:
         map_error = exc.message
     map_figure = figures.map_figure(usable, [n for n, ok in zip(run.test, usable_mask) if ok], fit) if fit else None

@@ -37,7 +37,8 @@ class Run:
     pairs for the summary; table: one row per test (the extractor's columns); test: a short
     name per row (``test_00042`` or the log's file name); logs: the log per row (None: not
     found); extract: keyword arguments of :class:`droptower.extract.files.Settings` that
-    extract the logs as the run did.
+    extract the logs as the run did; rig: the lab's rig (RigConfig) given for real logs, None
+    otherwise.
     """
 
     kind: str
@@ -47,6 +48,7 @@ class Run:
     test: list[str]
     logs: list[Path | None]
     extract: dict[str, Any] = field(default_factory=dict)
+    rig: Any = None
 
 
 def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | None = None,
@@ -77,6 +79,7 @@ def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | Non
                    **({"conditions": conditions} if conditions is not None else {})}
     if rig is not None:
         run.facts.insert(1, ("geometry", rig.geometry_text() if hasattr(rig, "geometry_text") else str(rig.name)))
+    run.rig = rig
     return run
 
 
@@ -110,7 +113,7 @@ def _log_folder(folder: Path, rig: Any, roles: dict[str, str] | None, sensor_rad
         facts.append(("conditions", Path(str(conditions.source)).name))
     extract = {"defaults": rig_defaults(rig), "sensor_radius_m": sensor_radius_m,
                **({"conditions": conditions} if conditions is not None else {})}
-    return Run("log folder", folder.resolve().name, facts, table, names, paths, extract)
+    return Run("log folder", folder.resolve().name, facts, table, names, paths, extract, rig)
 
 
 def _campaign(root: Path) -> Run:
