@@ -46,12 +46,17 @@ from droptower.errors import DroptowerError
               help="Laser spot radius in m for a distance channel of a lab's logs (over the rig's).")
 @click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel mapping for reading a lab's logs (as droptower extract --channel).")
+@click.option("--inertia-kgm2", type=float, default=None,
+              help="Rotating inertia J in kg*m^2 of every log (a lab's logs; else their metadata, --conditions or a "
+                   "rig with a single fixture).")
+@click.option("--lever-length-m", type=float, default=None,
+              help="Lever arm L in m of a lab's logs (over their metadata and the rig's).")
 @conditions_options
 def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, nested_cv: bool,
                 as_json: bool, model_kind: str | None, template: str | None, model_coupling: Path | None,
                 model_out: Path | None, accept_poor: bool, rig: str | None, sensor_radius_m: float | None,
-                channel_specs: tuple[str, ...], conditions: str | None, condition_columns: tuple[str, ...],
-                conditions_pattern: str | None) -> None:
+                channel_specs: tuple[str, ...], inertia_kgm2: float | None, lever_length_m: float | None,
+                conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> None:
     """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20),
     or another --form; the summary gives fit and cross-validated errors.
 
@@ -86,8 +91,10 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         raise DroptowerError("--model-out writes the model-based map: give --model KIND or --model-coupling FILE")
     if nested_cv and form != "auto":
         raise DroptowerError("--nested-cv cross-validates auto's choice of terms: use it with --form auto")
+    geometry = {"inertia_kgm2": inertia_kgm2, "lever_length_m": lever_length_m}
     table, rig_config, conditions_table = _read_source(results, rig, sensor_radius_m, channel_specs, conditions,
-                                                       condition_columns, conditions_pattern, model_kind is not None)
+                                                       condition_columns, conditions_pattern, model_kind is not None,
+                                                       geometry)
     failed = failed_logs(table) if is_log_folder(results) else 0
     from droptower.maps.coverage import coverage_notes
 
@@ -115,7 +122,8 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         model_map = build_model_map(results, fit, model=model_kind, template=template, coupling_file=model_coupling,
                                     on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress,
                                     rig=rig_config, roles=parse_channel_options(channel_specs),
-                                    sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table)
+                                    sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table,
+                                    **geometry)
     extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
              **({"model_map": model_map.to_dict()} if model_map is not None else {})}
     if as_json and extra:
@@ -163,7 +171,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
 
 def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
                  conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
-                 reads_logs: bool = False):
+                 reads_logs: bool = False, geometry: dict | None = None):
     """(results table, rig, conditions) of RESULTS: a lab's folder of logs is extracted first
     (every log, failed ones kept with their error); a conditions table's rows that name no log
     are warned of (nothing is dropped silently). The flags that read logs are refused where no
@@ -173,10 +181,15 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
     from droptower.maps import read_results
     from droptower.maps.fromlogs import is_log_folder, log_files, results_from_logs
 
+    geometry = geometry or {}
     check_positive(sensor_radius_m, "--sensor-radius-m")
+    check_positive(geometry.get("inertia_kgm2"), "--inertia-kgm2")
+    check_positive(geometry.get("lever_length_m"), "--lever-length-m")
     folder = is_log_folder(results)
     log_flags = [flag for flag, given in (("--conditions", conditions), ("--conditions-from-names", conditions_pattern),
-                                          ("--channel", channel_specs), ("--sensor-radius-m", sensor_radius_m)) if given]
+                                          ("--channel", channel_specs), ("--sensor-radius-m", sensor_radius_m),
+                                          ("--inertia-kgm2", geometry.get("inertia_kgm2")),
+                                          ("--lever-length-m", geometry.get("lever_length_m"))) if given]
     if log_flags and not folder and not reads_logs:
         raise DroptowerError(f"{', '.join(log_flags)} read logs: RESULTS is a results table, whose values are used as "
                              "they are (give a folder of logs, or --model to read the logs the table names)")
@@ -190,7 +203,7 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
         return read_results(results), rig_config, conditions_table
     options.progress(f"map: extracting {len(logs)} log(s) of {results} ...")
     table = results_from_logs(logs, rig=rig_config, roles=parse_channel_options(channel_specs),
-                              sensor_radius_m=sensor_radius_m, conditions=conditions_table)
+                              sensor_radius_m=sensor_radius_m, conditions=conditions_table, **geometry)
     # named as in the folder (the summary lists them), not by the machine's paths
     table["file"] = [Path(str(f)).relative_to(results).as_posix() if Path(str(f)).is_relative_to(results) else f
                      for f in table["file"]]

@@ -23,6 +23,11 @@ from droptower.cli.options import conditions_options
               help="Rig TOML (or shipped preset) of real logs: lever length, laser radius, fixtures (as extract --rig).")
 @click.option("--sensor-radius-m", type=float, default=None,
               help="Laser spot radius in m for a distance channel of real logs (over the rig's).")
+@click.option("--inertia-kgm2", type=float, default=None,
+              help="Rotating inertia J in kg*m^2 of every log (a lab's logs; else their metadata, --conditions or a "
+                   "rig with a single fixture).")
+@click.option("--lever-length-m", type=float, default=None,
+              help="Lever arm L in m of a lab's logs (over their metadata and the rig's).")
 @conditions_options
 @click.option("--model-map", "model_map_path", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Also show the model-based map (model_map.json from `droptower map --model-out`) beside the "
@@ -34,7 +39,8 @@ from droptower.cli.options import conditions_options
 @click.option("--servo-column", "servo_columns", multiple=True, metavar="NAME=SOURCE[:UNIT]",
               help="Map a column of --servo-results (as validate --servo-column); repeatable.")
 def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, ...], rig: str | None,
-           sensor_radius_m: float | None, conditions: str | None, condition_columns: tuple[str, ...],
+           sensor_radius_m: float | None, inertia_kgm2: float | None, lever_length_m: float | None,
+           conditions: str | None, condition_columns: tuple[str, ...],
            conditions_pattern: str | None, model_map_path: Path | None, servo_results: Path | None,
            servo_columns: tuple[str, ...]) -> None:
     """Write one HTML report (opens offline, no server) of SOURCE: a `droptower campaign` folder,
@@ -65,6 +71,8 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     from droptower.report.run import load_run
 
     check_positive(sensor_radius_m, "--sensor-radius-m")
+    check_positive(inertia_kgm2, "--inertia-kgm2")
+    check_positive(lever_length_m, "--lever-length-m")
     if servo_results is not None and model_map_path is None:
         raise DroptowerError("--servo-results validates the two routes of --model-map: give --model-map too")
     if servo_columns and servo_results is None:
@@ -73,7 +81,8 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     rig_config = options.rig_for_logs(rig, [str(p) for p in logs])
     conditions_table = options.conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)
     channels = parse_channel_options(channel_specs)
-    run = load_run(source, rig=rig_config, roles=channels, sensor_radius_m=sensor_radius_m, conditions=conditions_table)
+    run = load_run(source, rig=rig_config, roles=channels, sensor_radius_m=sensor_radius_m, conditions=conditions_table,
+                   inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
     failed = failed_logs(run.table) if run.kind == "log folder" else 0
     if conditions_table is not None and logs:
         for name in conditions_table.unmatched(logs):

@@ -357,7 +357,8 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
                     on_note: Callable[[str], None] | None = None,
                     on_progress: Callable[[str], None] | None = None, rig: Any = None,
                     roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
-                    conditions: Any = None, table: pd.DataFrame | None = None) -> ModelMap:
+                    conditions: Any = None, table: pd.DataFrame | None = None, inertia_kgm2: float | None = None,
+                    lever_length_m: float | None = None) -> ModelMap:
     """The model-based map beside the paper's map ``fit`` (whose measured range it shares),
     evaluated on its grid.
 
@@ -394,6 +395,8 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         Per-file conditions (each log's fixture or inertia, drop mass and height).
     table : DataFrame, optional
         The results table already read (for a results table's per-file inertia).
+    inertia_kgm2, lever_length_m : float, optional
+        Every log's inertia (kg*m^2) and lever length (m), over the logs', the conditions' and the rig's.
 
     Returns
     -------
@@ -421,7 +424,8 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
 
         if campaign is None:
             campaign = read_logs_for_model(results, model, template=template, rig=rig, roles=roles,
-                                           sensor_radius_m=sensor_radius_m, conditions=conditions, table=table)
+                                           sensor_radius_m=sensor_radius_m, conditions=conditions, table=table,
+                                           inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
             for e in campaign.excluded[:EXCLUDED_NAMED] if on_note is not None else []:
                 on_note(f"excluded {e['file']}: {e['reason']}")
             if len(campaign.excluded) > EXCLUDED_NAMED and on_note is not None:
@@ -444,7 +448,8 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
 def read_logs_for_model(results: str | Path, model: str, *, template: str | None = None, rig: Any = None,
                         roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
                         conditions: Any = None, table: pd.DataFrame | None = None, holdout_fraction: float = 0.0,
-                        options: dict[str, Any] | None = None) -> Any:
+                        options: dict[str, Any] | None = None, inertia_kgm2: float | None = None,
+                        lever_length_m: float | None = None) -> Any:
     """The drop tests a model-based map identifies from (:func:`~droptower.identify.drops.read_drop_tests`):
     a campaign folder's ``logs/`` with its own rig (unless ``rig``), a lab's folder of logs (the
     conditions table beside them left out), or the logs a results table names (``file``),
@@ -472,6 +477,8 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
         Share of the tests held out (0 for a map: every test fits).
     options : dict, optional
         The family's, the fit's and the reading's options (as :func:`~droptower.identify.drops.read_drop_tests`).
+    inertia_kgm2, lever_length_m : float, optional
+        Every log's inertia (kg*m^2) and lever length (m), over what the logs, the table and the rig say.
 
     Returns
     -------
@@ -483,16 +490,17 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
 
     results = Path(results)
     common = dict(model=model, template=template, holdout_fraction=holdout_fraction, roles=roles,
-                  sensor_radius_m=sensor_radius_m, conditions=conditions, options=options)
+                  sensor_radius_m=sensor_radius_m, conditions=conditions, options=options, lever_length_m=lever_length_m)
     if results.is_dir():
         from droptower.campaign.folder import saved_inputs
 
         if (results / "logs").is_dir() and (results / "manifest.json").is_file():
             inputs = saved_inputs(results)
             own = str(inputs["rig"]) if "rig" in inputs else None
-            return read_drop_tests(results / "logs", rig=rig if rig is not None else own, **common)
+            return read_drop_tests(results / "logs", rig=rig if rig is not None else own, inertia_kgm2=inertia_kgm2,
+                                   **common)
         skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
-        return read_drop_tests(log_files(results, exclude=skip), rig=rig, **common)
+        return read_drop_tests(log_files(results, exclude=skip), rig=rig, inertia_kgm2=inertia_kgm2, **common)
     if table is None:
         from droptower.maps.results import read_results
 
@@ -508,13 +516,14 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
                              f"log(s) was found (e.g. {files[0] if files else '-'}; relative to the table's folder or "
                              "the working folder)", file=results)
     inertia = {}
-    if conditions is None and "inertia_kgm2" in table.columns:
+    if conditions is None and inertia_kgm2 is None and "inertia_kgm2" in table.columns:
         by_file = table.drop_duplicates("file").set_index(table.drop_duplicates("file")["file"].astype(str))
         inertia = pd.to_numeric(by_file["inertia_kgm2"], errors="coerce").to_dict()
     groups: dict[float | None, list[Path]] = {}
     for f, p in found.items():
         if p is not None:
             j = inertia.get(f)
+            j = inertia_kgm2 if inertia_kgm2 is not None else j
             groups.setdefault(float(j) if j is not None and math.isfinite(j) else None, []).append(p)
     parts = [read_drop_tests(paths, rig=rig, inertia_kgm2=j, **common) for j, paths in groups.items()]
     first = parts[0]

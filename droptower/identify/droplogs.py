@@ -106,7 +106,8 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
                              "nothing says which one this log is: give `conditions` (a table with its fixture or "
                              "inertia per file) or `inertia_kgm2`")
     if inertia is None:
-        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2` or `rig`")
+        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2`, "
+                             "`conditions` (per file) or a `rig` with a single fixture")
     lever = metadata_value(signals, settings.lever_length_m, "lever_length_m") or settings.defaults.get("lever_length_m")
     force = signals.impact_force_n if settings.rate != "slope" else None
     if settings.rate == "impulse" and (signals.impact_force_n is None or lever is None):

@@ -33,8 +33,8 @@ ADVICE_SAMPLES_PER_PERIOD = 400
 
 def _level_names(table: pd.DataFrame) -> list[tuple[str, str]]:
     """(column, how it is named) of the nested groupings a campaign's conditions form."""
-    first = ("fixture", "fixture") if "fixture" in table.columns and table["fixture"].notna().any() else (
-        "inertia_kgm2", "inertia")
+    named = "fixture" in table.columns and table["fixture"].astype(str).str.strip().replace("nan", "").ne("").any()
+    first = ("fixture", "fixture") if named else ("inertia_kgm2", "inertia")
     return [level for level in (first, ("drop_mass_kg", "drop mass"), ("drop_height_m", "drop height"))
             if level[0] in table.columns and table[level[0]].notna().any()]
 

@@ -111,8 +111,9 @@ def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None
 
 def _fixtures(usable: pd.DataFrame) -> tuple[str, ...]:
     """The lever fixtures of the tests used: their names, else their inertias (kg*m^2)."""
-    if "fixture" in usable.columns and usable["fixture"].notna().any():
-        return tuple(sorted(str(v) for v in usable["fixture"].dropna().unique()))
+    named = sorted({str(v).strip() for v in usable["fixture"].dropna()} - {""}) if "fixture" in usable.columns else []
+    if named:
+        return tuple(named)
     if "inertia_kgm2" in usable.columns:
         j = pd.to_numeric(usable["inertia_kgm2"], errors="coerce").dropna().unique()
         return tuple(f"{v:g} kg*m^2" for v in sorted(j))

@@ -53,7 +53,8 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
                  channels: dict[str, str] | None = None, extra_sections: list[tuple[str, str]] | None = None,
                  title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS,
                  workers: int | None = None, *, rig: Any = None, sensor_radius_m: float | None = None,
-                 conditions: Any = None, run: Run | None = None, strict: bool = True) -> Path:
+                 conditions: Any = None, run: Run | None = None, strict: bool = True,
+                 inertia_kgm2: float | None = None, lever_length_m: float | None = None) -> Path:
     """Write the report of ``source`` (campaign folder, results table or a lab's folder of logs) to ``out``.
 
     form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
@@ -61,12 +62,14 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
     appended (the study's); inline_max_tests: more tests than this put their decay figures in
     side files in ``<out stem>_files/`` beside the page; workers: processes drawing the decay
     figures (None: every local core, 1: this process); rig (RigConfig), sensor_radius_m (m),
-    conditions (:class:`~droptower.io.conditions.Conditions`): how real logs are read
+    conditions (:class:`~droptower.io.conditions.Conditions`), inertia_kgm2 (kg*m^2), lever_length_m (m):
+    how real logs are read
     (:func:`~droptower.report.run.load_run`); run: the run already loaded; strict: a usable test
     (one the map uses) whose decay cannot be drawn is a DroptowerError saying why, and no page is
     written (else the page lists it); returns the path of the page."""
     if run is None:
-        run = load_run(source, rig=rig, roles=channels, sensor_radius_m=sensor_radius_m, conditions=conditions)
+        run = load_run(source, rig=rig, roles=channels, sensor_radius_m=sensor_radius_m, conditions=conditions,
+                       inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
     out = Path(out) if out is not None else default_out(source)
     with Drawing(run, channels or {}, progress, workers) as drawing:  # the decay figures, meanwhile the rest
         fit, map_error, usable_mask, excluded_reason, sections = _map_and_tests(run, source, form)

@@ -52,14 +52,15 @@ class Run:
 
 
 def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | None = None,
-             sensor_radius_m: float | None = None, conditions: Any = None) -> Run:
+             sensor_radius_m: float | None = None, conditions: Any = None, inertia_kgm2: float | None = None,
+             lever_length_m: float | None = None) -> Run:
     """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``), a results table
     (any format ``droptower map`` reads) whose ``file`` column names the logs, or a lab's folder
     of logs (extracted here, :func:`droptower.maps.fromlogs.results_from_logs`); one-line errors
     otherwise.
 
-    rig (RigConfig), sensor_radius_m (m), conditions (:class:`~droptower.io.conditions.Conditions`)
-    and roles (channel mapping): how a lab's logs are read, for the folder's extraction and for
+    rig (RigConfig), sensor_radius_m (m), conditions (:class:`~droptower.io.conditions.Conditions`),
+    roles (channel mapping), inertia_kgm2 (kg*m^2, every log's) and lever_length_m (m): how a lab's logs are read, for the folder's extraction and for
     drawing the decays of a results table again (where its rows do not store the geometry)."""
     from droptower.maps.fromlogs import is_log_folder, rig_defaults
 
@@ -68,13 +69,15 @@ def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | Non
         if (source / "manifest.json").is_file():
             return _campaign(source)
         if is_log_folder(source):
-            return _log_folder(source, rig, roles, sensor_radius_m, conditions)
+            return _log_folder(source, rig, roles, sensor_radius_m, conditions, inertia_kgm2, lever_length_m)
         raise DroptowerError("a folder without manifest.json (not a campaign folder) and without logs; give a results table of the "
                              "extraction (its results file), a campaign folder or a folder of logs", file=source)
     if not source.is_file():
         raise missing_file(source)
     run = _results_table(source)
     defaults = {**_table_geometry(run.table), **rig_defaults(rig)}
+    if lever_length_m is not None:
+        defaults["lever_length_m"] = lever_length_m
     run.extract = {"defaults": defaults, "sensor_radius_m": sensor_radius_m,
                    **({"conditions": conditions} if conditions is not None else {})}
     if rig is not None:
@@ -95,12 +98,13 @@ def _table_geometry(table: pd.DataFrame) -> dict[str, float]:
 
 
 def _log_folder(folder: Path, rig: Any, roles: dict[str, str] | None, sensor_radius_m: float | None,
-                conditions: Any) -> Run:
+                conditions: Any, inertia_kgm2: float | None = None, lever_length_m: float | None = None) -> Run:
     from droptower.maps.fromlogs import log_files, results_from_logs, rig_defaults
 
     skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
     logs = log_files(folder, exclude=skip)
-    table = results_from_logs(logs, rig=rig, roles=roles, sensor_radius_m=sensor_radius_m, conditions=conditions)
+    table = results_from_logs(logs, rig=rig, roles=roles, sensor_radius_m=sensor_radius_m, conditions=conditions,
+                              inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
     drops = table["drop_index"] if "drop_index" in table.columns else [None] * len(table)
     names = [Path(str(f)).name + (f" drop {int(k)}" if k is not None and pd.notna(k) and k > 1 else "")
              for f, k in zip(table["file"], drops)]
@@ -111,7 +115,8 @@ def _log_folder(folder: Path, rig: Any, roles: dict[str, str] | None, sensor_rad
         facts.append(("geometry", rig.geometry_text() if hasattr(rig, "geometry_text") else str(rig.name)))
     if conditions is not None:
         facts.append(("conditions", Path(str(conditions.source)).name))
-    extract = {"defaults": rig_defaults(rig), "sensor_radius_m": sensor_radius_m,
+    extract = {"defaults": {**rig_defaults(rig), **({"lever_length_m": lever_length_m} if lever_length_m else {})},
+               "sensor_radius_m": sensor_radius_m,
                **({"conditions": conditions} if conditions is not None else {})}
     return Run("log folder", folder.resolve().name, facts, table, names, paths, extract, rig)
 
