@@ -364,3 +364,29 @@ def test_model_route_reads_a_results_table_with_its_logs(lab, tmp_path, capsys):
     assert {n[:2] for n in used} == {"L2", "L3"}
     for d in campaign.decays:
         assert d.inertia_kgm2 == pytest.approx(truth.loc[d.name, "inertia_kgm2"], rel=1e-12)
+
+
+def test_messages_name_only_flags_the_command_has(lab, map_json, tmp_path, capsys):
+    """On a lab's folder given too little, each command's messages name flags of that command
+    only (never one it lacks), and never ask for what was given."""
+    import click
+
+    from droptower.cli.main import cli
+
+    folder, rig = str(lab.folder), str(lab.rig)
+    calls = [["map", folder], ["map", folder, "--rig", rig, "--channel", "distance=Weg"],
+             ["report", folder, "--out", str(tmp_path / "r.html")],
+             ["report", folder, "--rig", rig, "--out", str(tmp_path / "r.html")],
+             ["identify", "--from-drop-tests", folder, "--model", "zerodim6"],
+             ["identify", "--from-drop-tests", folder, "--model", "zerodim6", "--rig", rig],
+             ["validate", "--map", str(map_json), "--servo-results", str(map_json.parent / "bench.csv"),
+              "--reference", str(table4_path()), "--results", folder, "--channel", "distance=Weg"]]
+    for argv in calls:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        command = cli.get_command(click.Context(cli), argv[0])
+        known = {o for p in command.params if isinstance(p, click.Option) for o in p.opts}
+        named = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]+", err))
+        assert named and named <= known, (argv, named - known, err)
+        given = {a for a in argv if a.startswith("--")} - {"--from-drop-tests", "--model", "--out", "--channel"}
+        assert not any(re.search(rf"give [^;]*{g}\b", err) for g in given), (argv, err)
