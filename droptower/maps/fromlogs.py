@@ -21,9 +21,10 @@ LOG_SUFFIXES = (".csv", ".txt", ".dat", ".asc", ".tsv", ".parquet", ".mf4", ".md
 
 
 def is_log_folder(path: str | Path) -> bool:
-    """A folder holding logs and no campaign (no ``results.parquet``)."""
+    """A folder holding logs and no campaign (no ``results.parquet``, no ``manifest.json``)."""
     p = Path(path)
-    return p.is_dir() and not (p / "results.parquet").is_file() and any(log_files(p, strict=False))
+    campaign = (p / "results.parquet").is_file() or (p / "manifest.json").is_file()
+    return p.is_dir() and not campaign and any(log_files(p, strict=False))
 
 
 def log_files(folder: str | Path, strict: bool = True, exclude: Iterable[str | Path] = ()) -> list[Path]:
