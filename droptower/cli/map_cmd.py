@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from droptower.cli import options
-from droptower.cli.options import conditions_options, quiet_option
+from droptower.cli.options import lab_log_options, quiet_option
 from droptower.cli.flags import cli_text
 from droptower.errors import DroptowerError
 
@@ -40,18 +40,7 @@ from droptower.errors import DroptowerError
 @click.option("--model-out", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Write the model-based map: model_map.json (what validate --model-map reads) or its grid "
                    "as .csv, .parquet or .xlsx.")
-@click.option("--rig", default=None, help="Rig TOML (or shipped preset) of a lab's logs: lever length, laser radius, "
-                                          "fixtures (for a folder of logs, --model and the double-impact advice).")
-@click.option("--sensor-radius-m", type=float, default=None,
-              help="Laser spot radius in m for a distance channel of a lab's logs (over the rig's).")
-@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
-              help="Channel mapping for reading a lab's logs (as droptower extract --channel).")
-@click.option("--inertia-kgm2", type=float, default=None,
-              help="Rotating inertia J in kg*m^2 of every log (a lab's logs; else their metadata, --conditions or a "
-                   "rig with a single fixture).")
-@click.option("--lever-length-m", type=float, default=None,
-              help="Lever arm L in m of a lab's logs (over their metadata and the rig's).")
-@conditions_options
+@lab_log_options
 def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, nested_cv: bool,
                 as_json: bool, model_kind: str | None, template: str | None, model_coupling: Path | None,
                 model_out: Path | None, accept_poor: bool, rig: str | None, sensor_radius_m: float | None,

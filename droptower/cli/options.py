@@ -99,6 +99,26 @@ def conditions_options(f: Callable) -> Callable:
                              "mass, drop height, preload, specimen, repeat, temperature. Over each log's metadata.")(f)
 
 
+def lab_log_options(f: Callable) -> Callable:
+    """How a command reads a lab's logs: ``--rig``, ``--sensor-radius-m``, ``--channel``,
+    ``--inertia-kgm2``, ``--lever-length-m`` (parameters ``rig``, ``sensor_radius_m``,
+    ``channel_specs``, ``inertia_kgm2``, ``lever_length_m``) and :func:`conditions_options`: the
+    same flags, with the same meaning, on every command that reads logs (map, validate, report)."""
+    f = conditions_options(f)
+    f = click.option("--lever-length-m", type=float, default=None,
+                     help="Lever arm L in m of a lab's logs (over their metadata and the rig's).")(f)
+    f = click.option("--inertia-kgm2", type=float, default=None,
+                     help="Rotating inertia J in kg*m^2 of every log (a lab's logs; else their metadata, --conditions "
+                          "or a rig with a single fixture).")(f)
+    f = click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
+                     help="Channel mapping for reading a lab's logs (as droptower extract --channel).")(f)
+    f = click.option("--sensor-radius-m", type=float, default=None,
+                     help="Laser spot radius in m for a distance channel of a lab's logs (over the rig's).")(f)
+    return click.option("--rig", default=None,
+                        help="Rig TOML (or shipped preset) of a lab's logs: lever length, laser radius, fixtures "
+                             "(as extract --rig).")(f)
+
+
 def _cli_columns_text(exc: Exception) -> Exception:
     """A conditions error as the command line says it: ``--condition-column`` for ``columns=``."""
     from droptower.errors import DroptowerError

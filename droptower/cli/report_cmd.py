@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from droptower.cli import options
-from droptower.cli.options import conditions_options
+from droptower.cli.options import lab_log_options
 
 
 @click.command("report")
@@ -17,18 +17,7 @@ from droptower.cli.options import conditions_options
               help="The HTML file to write (default: DIR/report.html, or the results table's name with .html).")
 @click.option("--form", type=click.Choice(["paper", "velocity", "auto"]), default="paper", show_default=True,
               help="The map form (as droptower map --form).")
-@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
-              help="Channel mapping for reading real logs again (as droptower extract --channel).")
-@click.option("--rig", default=None,
-              help="Rig TOML (or shipped preset) of real logs: lever length, laser radius, fixtures (as extract --rig).")
-@click.option("--sensor-radius-m", type=float, default=None,
-              help="Laser spot radius in m for a distance channel of real logs (over the rig's).")
-@click.option("--inertia-kgm2", type=float, default=None,
-              help="Rotating inertia J in kg*m^2 of every log (a lab's logs; else their metadata, --conditions or a "
-                   "rig with a single fixture).")
-@click.option("--lever-length-m", type=float, default=None,
-              help="Lever arm L in m of a lab's logs (over their metadata and the rig's).")
-@conditions_options
+@lab_log_options
 @click.option("--model-map", "model_map_path", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Also show the model-based map (model_map.json from `droptower map --model-out`) beside the "
                    "paper's, both validated against the servo bench: a campaign's own coupling on the virtual "

@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import conditions_options, quiet_option, wrote
+from droptower.cli.options import lab_log_options, quiet_option, wrote
 from droptower.cli.servo_records_cmd import name_servo_source, servo_record_options, servo_records_table
 from droptower.configs import DEFAULT_COUPLING
 
@@ -45,17 +45,7 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--table-format", type=click.Choice(["csv", "parquet", "json", "xlsx"]), default="csv",
               show_default=True, help="Format of the tables written into --out.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
-@click.option("--rig", default=None, help="With --results a lab's folder of logs: its rig TOML (lever length, laser "
-                                          "radius, fixtures).")
-@click.option("--sensor-radius-m", type=float, default=None,
-              help="With --results a lab's folder of logs: the laser spot radius in m.")
-@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
-              help="With --results a lab's folder of logs: channel mapping (as droptower extract --channel).")
-@click.option("--inertia-kgm2", type=float, default=None,
-              help="With --results a lab's folder of logs: the inertia J in kg*m^2 of every log.")
-@click.option("--lever-length-m", type=float, default=None,
-              help="With --results a lab's folder of logs: the lever arm L in m.")
-@conditions_options
+@lab_log_options
 @servo_record_options
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,

@@ -41,17 +41,6 @@ def log_files(folder: str | Path, strict: bool = True, exclude: Iterable[str | P
     return found
 
 
-def rig_defaults(rig: Any) -> dict[str, float]:
-    """What a rig gives logs that do not say it: lever length (m), laser radius (m), and the
-    inertia (kg*m^2) where the rig has one fixture."""
-    if rig is None:
-        return {}
-    out = {"lever_length_m": float(rig.lever_length_m), "sensor_radius_m": float(rig.sensors.laser.radius_m)}
-    if len(rig.inertias_kgm2) == 1:
-        out["inertia_kgm2"] = float(rig.inertias_kgm2[0])
-    return out
-
-
 def results_from_logs(paths: str | Path | Iterable[str | Path], *, rig: Any = None,
                       inertia_kgm2: float | None = None, lever_length_m: float | None = None,
                       sensor_radius_m: float | None = None, roles: Mapping[str, str] | None = None,
@@ -89,9 +78,9 @@ def results_from_logs(paths: str | Path | Iterable[str | Path], *, rig: Any = No
         files += log_files(p, exclude=exclude) if p.is_dir() else [p]
     extra = {"conditions": conditions} if conditions is not None else {}
     settings = Settings(roles=dict(roles or {}), inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m,
-                        defaults=rig_defaults(rig), sensor_radius_m=sensor_radius_m, rig=rig, **extra)
-    geometry = {"lever_length_m": lever_length_m or settings.defaults.get("lever_length_m"),
-                "sensor_radius_m": sensor_radius_m or settings.defaults.get("sensor_radius_m"),
+                        sensor_radius_m=sensor_radius_m, rig=rig, **extra)
+    geometry = {"lever_length_m": lever_length_m or settings.geometry_defaults.get("lever_length_m"),
+                "sensor_radius_m": sensor_radius_m or settings.geometry_defaults.get("sensor_radius_m"),
                 "rig": (rig.name or "rig") if rig is not None else None}
     several = None
     if rig is not None and inertia_kgm2 is None and len(rig.inertias_kgm2) > 1:

@@ -62,7 +62,8 @@ def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | Non
     rig (RigConfig), sensor_radius_m (m), conditions (:class:`~droptower.io.conditions.Conditions`),
     roles (channel mapping), inertia_kgm2 (kg*m^2, every log's) and lever_length_m (m): how a lab's logs are read, for the folder's extraction and for
     drawing the decays of a results table again (where its rows do not store the geometry)."""
-    from droptower.maps.fromlogs import is_log_folder, rig_defaults
+    from droptower.io.logsettings import rig_defaults
+    from droptower.maps.fromlogs import is_log_folder
 
     source = Path(source)
     if source.is_dir():
@@ -99,7 +100,8 @@ def _table_geometry(table: pd.DataFrame) -> dict[str, float]:
 
 def _log_folder(folder: Path, rig: Any, roles: dict[str, str] | None, sensor_radius_m: float | None,
                 conditions: Any, inertia_kgm2: float | None = None, lever_length_m: float | None = None) -> Run:
-    from droptower.maps.fromlogs import log_files, results_from_logs, rig_defaults
+    from droptower.io.logsettings import rig_defaults
+    from droptower.maps.fromlogs import log_files, results_from_logs
 
     skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
     logs = log_files(folder, exclude=skip)
