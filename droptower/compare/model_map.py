@@ -522,9 +522,9 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
     groups: dict[float | None, list[Path]] = {}
     for f, p in found.items():
         if p is not None:
-            j = inertia.get(f)
-            j = inertia_kgm2 if inertia_kgm2 is not None else j
-            groups.setdefault(float(j) if j is not None and math.isfinite(j) else None, []).append(p)
+            j = inertia_kgm2 if inertia_kgm2 is not None else inertia.get(f)
+            known = j is not None and math.isfinite(j)  # a row without a number: the log's own metadata says
+            groups.setdefault(float(j) if known else None, []).append(p)
     parts = [read_drop_tests(paths, rig=rig, inertia_kgm2=j, **common) for j, paths in groups.items()]
     first = parts[0]
     excluded = [e for part in parts for e in part.excluded]

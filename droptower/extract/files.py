@@ -160,8 +160,8 @@ def dropped_out(rows: list[dict[str, Any]]) -> list[str]:
     for row in rows:
         fixture = row.get("fixture") or (f"J = {row['inertia_kgm2']:g} kg*m^2" if row.get("inertia_kgm2") else "")
         mass = row.get("drop_mass_kg")
-        groups.setdefault((str(fixture), mass if isinstance(mass, (int, float)) and math.isfinite(mass) else None),
-                          []).append(row)
+        known = isinstance(mass, (int, float)) and math.isfinite(mass)
+        groups.setdefault((str(fixture), mass if known else None), []).append(row)
     lines = []
     for (fixture, mass), group in groups.items():
         label = f"fixture {fixture}" + (f" with the {mass:g} kg drop mass" if mass is not None else "")

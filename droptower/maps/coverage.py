@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from droptower.errors import expects
 from droptower.maps.results import ExcludedTest
 
 #: A map whose tests span more than this temperature range (K) says so: an elastomer's stiffness
@@ -135,6 +136,7 @@ def _median(rows: pd.DataFrame, column: str) -> float:
     return float(values.median()) if len(values) else math.nan
 
 
+@expects(table=pd.DataFrame, usable=pd.DataFrame, excluded=[ExcludedTest])
 def coverage_notes(table: pd.DataFrame, usable: pd.DataFrame, excluded: list[ExcludedTest],
                    rig: Any | None = None) -> list[str]:
     """One line per fixture or condition that dropped out of the map entirely (named, the
