@@ -183,13 +183,16 @@ def test_one_row_for_two_logs_fails_both(lab, capsys, tmp_path):
 
 
 def test_a_fixture_that_drops_out_is_named(lab, capsys, tmp_path):
-    """Every drop of L1 double-impacts (J/L^2 = 1.92 kg against the drop mass): one warning per
-    fixture and mass, with the equivalent mass; the usable groups get none."""
+    """Every drop of L1 double-impacts (J/L^2 = 1.92 kg against the drop masses), and so does each
+    2 kg drop of L2 and L3: one warning per group none of whose drops is usable (as map names
+    them), with the equivalent mass and the drop mass that would avoid it; the usable groups get none."""
     code, err, table = _extract([*map(str, lab.logs), "--rig", str(lab.rig), "--conditions", str(lab.sheet)],
                                 capsys, tmp_path)
     warned = [line for line in err.splitlines() if "warning:" in line]
-    groups = table.groupby(["fixture", "drop_mass_kg"])["double_impact"].all()
-    assert len(warned) == int(groups.sum()) >= 1
-    assert any(line.startswith("droptower: warning: fixture L1 with the 1 kg drop mass: all 1 drop(s) are double "
-                               "impacts (equivalent lever mass J/L^2 = 1.92 kg") for line in warned)
-    assert not any("fixture L2 with the 1 kg" in line or "fixture L3 with the 1 kg" in line for line in warned)
+    assert len(warned) == 3
+    (l1,) = [line for line in warned if "fixture L1" in line]
+    assert l1.startswith("droptower: warning: fixture L1 (J = 0.12 kg*m^2): all 2 test(s) left out") and \
+        "J/L^2 = 1.92 kg" in l1 and "none of the rig's drop masses would" in l1
+    for fixture in ("L2", "L3"):
+        (line,) = [line for line in warned if f"fixture {fixture}" in line]
+        assert "drop mass 2 kg: all 1 test(s)" in line and "of the rig's drop masses, 1 kg would" in line

@@ -125,7 +125,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
     from tqdm import tqdm
 
     from droptower.extract.drops import parse_drop_selection, read_drop_conditions
-    from droptower.extract.files import Settings, dropped_out, extract_drops, result_row
+    from droptower.extract.files import Settings, extract_drops, result_row
     from droptower.jsonsafe import json_safe
     from droptower.extract.window import Window
     from droptower.io.tables import check_table_path, write_table
@@ -189,8 +189,13 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
             failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
-    for line in dropped_out(rows):
-        click.echo(f"droptower: warning: {cli_text(line)}", err=True)
+    if rows:  # a fixture or condition none of whose drops is usable is named, with why (as map names it)
+        from droptower.maps.coverage import coverage_notes
+        from droptower.maps.results import select_tests
+
+        evaluated = pd.DataFrame(rows)
+        for line in coverage_notes(evaluated, *select_tests(evaluated), rig=settings.rig):
+            click.echo(f"droptower: warning: {cli_text(line)}", err=True)
     unused = table.unmatched(paths) if table is not None else []
     if unused:
         shown = ", ".join(unused[:5]) + (f" and {len(unused) - 5} more" if len(unused) > 5 else "")

@@ -151,33 +151,6 @@ def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> t
     return drops[0].signals, drops[0].result
 
 
-def dropped_out(rows: list[dict[str, Any]]) -> list[str]:
-    """The fixtures (with a drop mass) none of whose drops is usable, each with why: every one a
-    double impact (with the equivalent lever mass J/L², kg, beside the drop mass: the impact law,
-    docs/theory.md#impact) or every one carrying another flag. ``rows``: :func:`result_row`'s. One
-    line per group, so a map over the rest does not quietly cover fewer fixtures."""
-    groups: dict[tuple[str, Any], list[dict[str, Any]]] = {}
-    for row in rows:
-        fixture = row.get("fixture") or (f"J = {row['inertia_kgm2']:g} kg*m^2" if row.get("inertia_kgm2") else "")
-        mass = row.get("drop_mass_kg")
-        known = isinstance(mass, (int, float)) and math.isfinite(mass)
-        groups.setdefault((str(fixture), mass if known else None), []).append(row)
-    lines = []
-    for (fixture, mass), group in groups.items():
-        label = f"fixture {fixture}" + (f" with the {mass:g} kg drop mass" if mass is not None else "")
-        if all(r.get("double_impact") for r in group):
-            j, lever = group[0].get("inertia_kgm2"), group[0].get("lever_length_m")
-            equivalent = (f" (equivalent lever mass J/L^2 = {j / lever**2:.3g} kg"
-                          + (f" against the {mass:g} kg drop mass)" if mass is not None else ")")
-                          if isinstance(lever, float) and lever > 0 and j else "")
-            lines.append(f"{label}: all {len(group)} drop(s) are double impacts{equivalent}; a lighter drop mass or a "
-                         "heavier fixture avoids it (the planner, droptower plan, predicts which)")
-        elif all(r.get("flags") for r in group):
-            flags = sorted({f for r in group for f in r["flags"]})
-            lines.append(f"{label}: all {len(group)} drop(s) are flagged ({', '.join(flags)})")
-    return lines
-
-
 def _scalar(value: Any) -> Any:
     if value is None or isinstance(value, (str, bool, int, float)):
         return value
