@@ -44,6 +44,8 @@ GUESS_STARTS = 12
 _BAND = (8, 9)
 #: First harmonic of |sin| sin: the stiffening spring (k0 + g |e|) e at e = E sin is k0 + g 8/(3 pi) E.
 _ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
+#: Parameters of the family without the large-strain network (those follow them).
+_N_BASE = 13
 #: Relative Newton step below which :func:`stiffening_maxwell_stiffness` stops (converged to rounding).
 _NEWTON_TOLERANCE = 1e-10
 
@@ -131,7 +133,7 @@ class FilledRubberFamily(Family):
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
     OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
-               "stiffening_branch": True}
+               "stiffening_branch": True, "large_strain": None, "large_strain_n": 24}
 
     def _parameters(self) -> list[FitVariable]:
         s = self.scale
@@ -156,7 +158,46 @@ class FilledRubberFamily(Family):
                 stiffness_parameter("kv_nm_per_rad", s, 1e-4, 10.0),
                 FitVariable("kv_gain_nm_per_rad2", 0.0, 10.0 * s.stiffness_nm_per_rad / amp, log=False,
                           scale=s.stiffness_nm_per_rad / amp),
-                FitVariable("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))]
+                FitVariable("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))] + (
+            self._large_strain_parameters() if self.large_strain else [])
+
+    @property
+    def large_strain(self) -> bool:
+        """Whether the couplings hold the large-strain network (option ``large_strain``; None, the
+        default, leaves the choice to the caller: the servo strategy turns it on, a drop-test fit
+        keeps the family without it)."""
+        return bool(self.options["large_strain"])
+
+    def with_large_strain(self) -> "FilledRubberFamily":
+        """The same family with the large-strain network (its parameters after the others) and
+        without the stiffening Maxwell branch: the network's spring carries the stiffening, softened
+        by the scragging as the filler's is (an unscragged stiffening term, the equilibrium spring's
+        cubic term or the branch's, extrapolates to larger amplitudes unsoftened: on the bearing of
+        tests/test_identify_large_strain.py it doubles the error on the unseen amplitude)."""
+        return type(self)(self.scale, {**self.options, "large_strain": True, "stiffening_branch": False})
+
+    def _large_strain_parameters(self) -> list[FitVariable]:
+        """The large-strain network's parameters (docs/theory.md#large-strain-network), each gain
+        free to vanish: the virgin spring's stiffness, its stiffening read as the stiffness it adds
+        at the data's amplitude A, the stiffening's order, the network's stiffness and largest slip
+        (over A) and spread, its hardening g A^2, the scragging damage's largest value, angle (over
+        A), exponent and travel (over A)."""
+        s = self.scale
+        k, amp = s.stiffness_nm_per_rad, s.amplitude_rad
+        if int(self.options["large_strain_n"]) < 2:
+            raise DroptowerError(f"option large_strain_n of model {self.kind} must be an integer >= 2, got "
+                                 f"{self.options['large_strain_n']}")
+        return [FitVariable("ks_nm_per_rad", 0.0, 10.0 * k, log=False, scale=k),
+                FitVariable("ks_hardening_nm_per_rad", 0.0, 10.0 * k, log=False, scale=k),
+                FitVariable("ks_hardening_order", 0.5, 6.0, log=False, scale=1.0),
+                FitVariable("kn_nm_per_rad", 0.0, 30.0 * k, log=False, scale=k),
+                FitVariable("slip_angle_rad", 1e-3 * amp, 3.0 * amp),
+                FitVariable("slip_spread", 0.2, 8.0),
+                FitVariable("network_hardening", 0.0, 30.0, log=False, scale=1.0),
+                FitVariable("scragging", 0.0, 0.99, log=False, scale=1.0),
+                FitVariable("scragging_angle_rad", 0.05 * amp, 5.0 * amp),
+                FitVariable("scragging_exponent", 0.3, 4.0),
+                FitVariable("scragging_travel_rad", 0.05 * amp, 30.0 * amp)]
 
     #: The stiffening Maxwell branch's parameters: a drop-test fit searches first with the branch
     #: off (:meth:`branch_off`) and frees them in its wider search after a poor verdict, so a
@@ -183,11 +224,28 @@ class FilledRubberFamily(Family):
     def guess(self) -> np.ndarray:
         s = self.scale
         k, amp, f = s.stiffness_nm_per_rad, s.amplitude_rad, self.reference_frequency_hz
-        return np.array([0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0,
-                         0.05 * k, 0.0, 1.0 / (2 * math.pi * f)])
+        base = [0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0,
+                0.05 * k, 0.0, 1.0 / (2 * math.pi * f)]
+        # the large-strain network: a scragged spring, a network of slips up to A/4, a little of each
+        large = [1.0 * k, 0.2 * k, 1.7, 10.0 * k, 0.12 * amp, 4.0, 0.5, 0.8, 1.5 * amp, 1.0, 5.0 * amp]
+        return np.array(base + (large if self.large_strain else []))
 
     def elements(self, v: np.ndarray) -> list[dict[str, Any]]:
-        return self._element_fields(*(float(x) for x in v))
+        out = self._element_fields(*(float(x) for x in v[:_N_BASE]))
+        if self.large_strain:
+            out.append(self._large_strain_fields(*(float(x) for x in v[_N_BASE:])))
+        return out
+
+    def _large_strain_fields(self, ks: float, hardening: float, order: float, kn: float, slip: float, spread: float,
+                             network_hardening: float, scragging: float, scragging_angle: float,
+                             scragging_exponent: float, travel: float) -> dict[str, Any]:
+        """The large-strain network's element of its parameters (:meth:`_large_strain_parameters`)."""
+        amp = self.scale.amplitude_rad
+        return {"kind": "large_strain_network", "name": "large_strain", "stiffness": ks,
+                "gain": hardening / amp ** order, "exponent": order, "network_stiffness": kn, "slip": slip,
+                "spread": spread, "friction_gain": network_hardening / amp ** 2, "damage": scragging,
+                "damage_angle": scragging_angle, "damage_exponent": scragging_exponent, "damage_travel": travel,
+                "n": int(self.options["large_strain_n"])}
 
     def _element_fields(self, k: Any, a: Any, kf: Any, ac: Any, m: Any, ab: Any, kp: Any, eta: Any, f_min: float,
                         decades: float, kv: Any, gain: Any, tau_v: Any) -> list[dict[str, Any]]:
@@ -204,7 +262,7 @@ class FilledRubberFamily(Family):
                  "max_frequency": f_min * 10.0 ** decades,
                  "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)}] + (
                 [{"kind": "variable_maxwell", "name": "amplitude_viscous", "stiffness": kv, "stiffness_gain": gain,
-                  "damping": kv * tau_v}] if self.options["stiffening_branch"] else [])
+                  "damping": kv * tau_v}] if self.options["stiffening_branch"] and not self.large_strain else [])
 
     def derived(self, v: np.ndarray) -> dict[str, float]:
         eta, f_min, decades = float(v[7]), float(v[8]), float(v[9])
@@ -246,7 +304,8 @@ class FilledRubberFamily(Family):
         """:meth:`harmonic_stiffness_rows` of parameter sets that share one band."""
         columns = np.ascontiguousarray(rows.T).reshape(rows.shape[::-1] + (1,) * max(amp.ndim, freq.ndim))
         band = [float(rows[0, i]) for i in _BAND]
-        spring, network, matrix, *viscous = self._element_fields(*columns[:_BAND[0]], *band, *columns[_BAND[1] + 1:])
+        spring, network, matrix, *viscous = self._element_fields(*columns[:_BAND[0]], *band,
+                                                                  *columns[_BAND[1] + 1:_N_BASE])
         _closed_form_fields((network, ("stiffness", "critical_angle", "exponent", "breakdown_angle")),
                             (matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
                                       "terms_per_decade")))
@@ -274,7 +333,7 @@ class FilledRubberFamily(Family):
         if amp.size < 3:
             return x0
         params = self.parameters
-        idx = [i for i in range(len(params)) if not given[i] and i not in _BAND]
+        idx = [i for i in range(min(len(params), _N_BASE)) if not given[i] and i not in _BAND]
         if not idx:
             return x0
         lo, hi = np.array([params[i].z_bounds() for i in idx]).T
@@ -331,11 +390,37 @@ def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_)
     """The closed form fitted to the steady blocks' K' and K'' (the first guess), then the joint
     least squares on all records."""
     fam: FilledRubberFamily = s.family  # type: ignore[assignment]
+    if fam.options["large_strain"] is None:  # the default: servo records get the large-strain network
+        fam = _with_large_strain(s)
     amp, freq, stiffness = servo_readings(segments)
     x = fam.guess_from_readings(amp, freq, stiffness, s.x0.copy(), s.given)
     extra = {"readings": int(amp.size)}
-    r = s.fit(segments, x, None, "joint (from the harmonic readings' fit)" if amp.size >= 3 else "joint")
+    free = None if not fam.large_strain else [n for n, g in zip(fam.names, s.given) if not g]
+    r = s.fit(segments, x, free, "joint (from the harmonic readings' fit)" if amp.size >= 3 else "joint")
     return result_of(s, segments, r.values.copy(), [r], start, extra=extra)
+
+
+def _with_large_strain(s: Setup) -> FilledRubberFamily:
+    """Turn ``s`` (in place) into the family with the large-strain network
+    (:meth:`FilledRubberFamily.with_large_strain`): the user's bounds and initial values kept, the
+    network's from its first guess; the parameters of the stiffening it replaces (the equilibrium
+    spring's cubic term at 0, the stiffening branch's, which the couplings leave out) held, as
+    given values are in the global search."""
+    old: FilledRubberFamily = s.family  # type: ignore[assignment]
+    fam = old.with_large_strain()
+    fam.parameters[:_N_BASE] = old.parameters
+    extra = len(fam.parameters) - _N_BASE
+    held = np.isin(fam.names, REPLACED_BY_LARGE_STRAIN)
+    s.family = fam
+    s.x0 = np.concatenate([np.where(held[:_N_BASE] & ~s.given, fam.branch_off(s.x0), s.x0), fam.guess()[_N_BASE:]])
+    s.x0[fam.names.index("a_nm_per_rad3")] = 0.0 if not s.given[1] else s.x0[1]
+    s.given = np.concatenate([s.given, np.zeros(extra, bool)]) | held
+    s.bounded = np.concatenate([s.bounded, np.zeros(extra, bool)])
+    return fam
+
+
+#: The parameters the large-strain network replaces: held (at 0, or unused) when it is on.
+REPLACED_BY_LARGE_STRAIN = ("a_nm_per_rad3", "kv_nm_per_rad", "kv_gain_nm_per_rad2", "tau_v_s")
 
 
 FAMILY = FilledRubberFamily
