@@ -194,7 +194,7 @@ class FilledRubberFamily(Family):
                 FitVariable("slip_angle_rad", 1e-3 * amp, 3.0 * amp),
                 FitVariable("slip_spread", 0.2, 8.0),
                 FitVariable("network_hardening", 0.0, 30.0, log=False, scale=1.0),
-                FitVariable("scragging", 0.0, 0.99, log=False, scale=1.0),
+                FitVariable("scragging", 0.0, 0.999, log=False, scale=1.0),
                 FitVariable("scragging_angle_rad", 0.05 * amp, 5.0 * amp),
                 FitVariable("scragging_exponent", 0.3, 4.0),
                 FitVariable("scragging_travel_rad", 0.05 * amp, 30.0 * amp)]
