@@ -1016,7 +1016,7 @@ def large_strain_network(p, po, s, so, x0, x1, h):
       - D) exp(-|dx| / L)); it never recovers (a scragged rubber stays scragged within a test);
     - **a stiffening friction network**: n Jenkins elements (springs k_n, slip limits s_i), its
       energy psi = H(x) sum k_n e_i^2 / 2 with H(x) = 1 + g x^2: the loss grows with the amplitude
-      faster than one Coulomb bank (Grant et al.'s (b1 + b2 |x|^2) z), and its torque
+      faster than one Coulomb bank (Grant, Fenves & Whittaker's (2004) (b1 + b2 |x|^2) z), and its torque
       d psi / dx = H k_n sum e_i + g x k_n sum e_i^2 is the gradient of a potential: the sliders,
       whose limits in force scale with H, slip at the elongations s_i whatever x (a return
       mapping, exact).
