@@ -44,6 +44,8 @@ GUESS_STARTS = 12
 _BAND = (8, 9)
 #: First harmonic of |sin| sin: the stiffening spring (k0 + g |e|) e at e = E sin is k0 + g 8/(3 pi) E.
 _ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
+#: A large-strain part whose gain is below this share of its scale is off (:meth:`FilledRubberFamily.idle_parameters`).
+IDLE_SHARE = 1e-2
 #: Parameters of the family without the large-strain network (those follow them).
 _N_BASE = 13
 #: Relative Newton step below which :func:`stiffening_maxwell_stiffness` stops (converged to rounding).
@@ -235,6 +237,22 @@ class FilledRubberFamily(Family):
         if self.large_strain:
             out.append(self._large_strain_fields(*(float(x) for x in v[_N_BASE:])))
         return out
+
+    def idle_parameters(self, v: np.ndarray) -> list[str]:
+        """Names of the large-strain network's shape parameters whose part is switched off in
+        ``v`` (its gain below :data:`IDLE_SHARE` of its scale: the data's stiffness, or 1 for the
+        scragging): the stiffening's order without stiffening, the network's slips and hardening
+        without network, the scragging's angle, exponent and travel without scragging. A part that
+        small cannot place its shape, so the data cannot hold those off a bound: such a bound is
+        not a bound hit (as a gain at its lower bound of 0 is not)."""
+        if not self.large_strain:
+            return []
+        params, values = self.parameters[_N_BASE:], np.asarray(v, float)[_N_BASE:]
+        off = {p.name: val <= IDLE_SHARE * p.scale for p, val in zip(params, values)}
+        idle = {"ks_hardening_nm_per_rad": ("ks_hardening_order",),
+                "kn_nm_per_rad": ("slip_angle_rad", "slip_spread", "network_hardening"),
+                "scragging": ("scragging_angle_rad", "scragging_exponent", "scragging_travel_rad")}
+        return [name for gain, names in idle.items() if off[gain] for name in names]
 
     def _large_strain_fields(self, ks: float, hardening: float, order: float, kn: float, slip: float, spread: float,
                              network_hardening: float, scragging: float, scragging_angle: float,
