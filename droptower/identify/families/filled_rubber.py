@@ -13,6 +13,12 @@ of servo records, or of the drop tests' first cycles, :func:`~droptower.identify
 the family's closed-form K*(A, f) is fitted to them, which splits the stiffness into spring and
 network by its amplitude trend and gives the power-law level by its frequency trend. Then the
 joint least squares on the records (and the global search where that fit is poor).
+
+From servo records the family holds a fifth part by default, the large-strain network
+(``large_strain_network``: a stiffening spring softened by scragging and a stiffening friction
+network, Grant, Fenves & Whittaker 2004; docs/theory.md#large-strain-network): real filled rubber
+at strains of order one (high-damping rubber bearings). Its parameters follow the others; with it
+the equilibrium spring is linear and the stiffening Maxwell branch is left out.
 """
 from __future__ import annotations
 
@@ -127,7 +133,11 @@ class FilledRubberFamily(Family):
 
     Options: ``n`` (Jenkins elements of the network), ``recovery_time_s`` and
     ``centre_relaxation_time_s`` (the network's bookkeeping times), ``terms`` (Maxwell terms of
-    the power-law band, whatever its width, so that every parameter set has one structure).
+    the power-law band, whatever its width, so that every parameter set has one structure),
+    ``stiffening_branch`` (the stiffening Maxwell branch), ``large_strain`` (the large-strain
+    network, docs/theory.md#large-strain-network: None, the default, lets the servo strategy
+    turn it on and a drop-test fit leave it off; True or False force it) and
+    ``large_strain_sliders`` (its Jenkins elements).
     """
 
     kind = "filled_rubber"
@@ -135,7 +145,7 @@ class FilledRubberFamily(Family):
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
     OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
-               "stiffening_branch": True, "large_strain": None, "large_strain_n": 24}
+               "stiffening_branch": True, "large_strain": None, "large_strain_sliders": 24}
 
     def _parameters(self) -> list[FitVariable]:
         s = self.scale
@@ -186,9 +196,9 @@ class FilledRubberFamily(Family):
         A), exponent and travel (over A)."""
         s = self.scale
         k, amp = s.stiffness_nm_per_rad, s.amplitude_rad
-        if int(self.options["large_strain_n"]) < 2:
-            raise DroptowerError(f"option large_strain_n of model {self.kind} must be an integer >= 2, got "
-                                 f"{self.options['large_strain_n']}")
+        if int(self.options["large_strain_sliders"]) < 2:
+            raise DroptowerError(f"option large_strain_sliders of model {self.kind} must be an integer >= 2, got "
+                                 f"{self.options['large_strain_sliders']}")
         return [FitVariable("ks_nm_per_rad", 0.0, 10.0 * k, log=False, scale=k),
                 FitVariable("ks_hardening_nm_per_rad", 0.0, 10.0 * k, log=False, scale=k),
                 FitVariable("ks_hardening_order", 0.5, 6.0, log=False, scale=1.0),
@@ -263,7 +273,7 @@ class FilledRubberFamily(Family):
                 "gain": hardening / amp ** order, "exponent": order, "network_stiffness": kn, "slip": slip,
                 "spread": spread, "friction_gain": network_hardening / amp ** 2, "damage": scragging,
                 "damage_angle": scragging_angle, "damage_exponent": scragging_exponent, "damage_travel": travel,
-                "n": int(self.options["large_strain_n"])}
+                "n": int(self.options["large_strain_sliders"])}
 
     def _element_fields(self, k: Any, a: Any, kf: Any, ac: Any, m: Any, ab: Any, kp: Any, eta: Any, f_min: float,
                         decades: float, kv: Any, gain: Any, tau_v: Any) -> list[dict[str, Any]]:
