@@ -200,6 +200,7 @@ def _law_records(tmp_path: Path) -> tuple[Path, Path, dict[str, slice]]:
                                 "decaying sine": slice(n_big, x_cm.size)}
 
 
+@pytest.mark.slow
 def test_published_law_predicted_from_four_blocks(tmp_path):
     """filled_rubber fitted to the law's four blocks (records in mm and kN) predicts the unseen
     amplitude and the decaying sine better than the simpler families, with a verdict that is not
