@@ -37,6 +37,8 @@ from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
+from droptower.identify.noise import servo_noise
+from droptower.identify.verdict import bound_hits, judge
 from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,
                                          power_law_exponent)
 from droptower.rheology.numba_cache import cache_available, compile_once_across_processes
@@ -427,9 +429,6 @@ def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_)
     stays one of four parts and pays nothing for the fifth; one they miss for another reason
     pays one more local fit (a six-parameter coupling's records: 20 s against 2 s) and keeps
     its four parts."""
-    from droptower.identify.noise import servo_noise
-    from droptower.identify.strategies import servo_verdict
-
     amp, freq, stiffness = servo_readings(segments)
     extra = {"readings": int(amp.size)}
     stage = "joint (from the harmonic readings' fit)" if amp.size >= 3 else "joint"
@@ -441,7 +440,7 @@ def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_)
     x = fam.guess_from_readings(amp, freq, stiffness, s.x0.copy(), s.given)
     r = s.fit(segments, x, None, stage)
     plain = result_of(s, segments, r.values.copy(), [r], start, extra=extra)
-    if not auto or not servo_verdict(plain, servo_noise(segments), fam.parameters).poor:
+    if not auto or not _poor(plain, segments, fam):
         return plain
     kept = (s.family, s.x0, s.given, s.bounded)
     _with_large_strain(s)
@@ -453,6 +452,17 @@ def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_)
     s.family, s.x0, s.given, s.bounded = kept
     plain.extra["large_strain"] = {"nrmse": rich.fit.nrmse, "kept": False}
     return plain
+
+
+def _poor(result: Identification, segments: list[Segment], fam: FilledRubberFamily) -> bool:
+    """Whether the servo verdict on ``result`` is "poor fit" (as the servo strategies' caller
+    judges it: the RMS error against the records' noise floor with the last stage's step error
+    in quadrature, the parameters on a bound that count)."""
+    step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
+    values = np.array(list(result.parameters.values()), float)
+    hits = bound_hits(fam.parameters, [n for n in result.at_bounds if n not in fam.idle_parameters(values)])
+    return judge(result.fit.rmse_nm, servo_noise(segments).sigma, "nm", hits, accuracy=step,
+                 converged=result.converged).poor
 
 
 def _large_strain_fit(s: Setup, segments: list[Segment], start: float, readings: tuple, stage: str,
