@@ -85,6 +85,12 @@ FACTORIES = {
                                  "exponent": r.uniform(0.4, 0.8), "breakdown_angle": r.uniform(1e-3, 5e-2),
                                  "recovery_time": r.uniform(0.01, 1.0), "centre_relaxation_time": r.uniform(0.01, 1.0),
                                  "n": 8},
+    "large_strain_network": lambda r: {"stiffness": r.uniform(1e3, 1e4), "gain": r.uniform(0, 1e6),
+                                       "exponent": r.uniform(1, 4), "network_stiffness": r.uniform(1e3, 2e4),
+                                       "slip": r.uniform(2e-3, 2e-2), "spread": r.uniform(0.5, 3),
+                                       "friction_gain": r.uniform(0, 1e3), "damage": r.uniform(0, 0.9),
+                                       "damage_angle": r.uniform(5e-3, 5e-2), "damage_exponent": r.uniform(0.5, 2),
+                                       "damage_travel": r.uniform(5e-3, 5e-2), "n": 8},
     "power_law": lambda r: {"storage_stiffness": r.uniform(1e3, 5e3), "loss_factor": r.uniform(0.1, 1),
                             "reference_frequency": 100.0, "min_frequency": 10.0, "max_frequency": 1e3},
 }

@@ -255,8 +255,9 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     is skipped with the reason and the others are ranked. Each family's fit has a wall-time
     budget (--budget-s): a family that does not converge within it, or whose optimiser stops at
     its evaluation limit, is listed with status 'not converged' (the reason in 'note') and
-    ranked after every converged family; the table is always complete. --holdout does not
-    change the ranking: it adds each family's error on a record none of them was fitted to.
+    ranked after every converged family; the table is always complete. With --holdout the
+    families are ranked by their error on that record, which none of them was fitted to (the
+    BIC on the fitting data beside it): a richer family must predict better, not fit better.
 
     \b
     Exit code: 0 when the best-ranked converged family is a good fit; 3 when it is a "poor

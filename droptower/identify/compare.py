@@ -3,7 +3,10 @@
 :func:`compare_models` fits every family (servo records: :func:`~droptower.identify.strategies.identify`,
 the later families seeing the earlier results, so ``zerodim20`` starts from ``zerodim6``;
 drop-test decays: :func:`~droptower.identify.dropfit.identify_drops` on the same fitting tests),
-each within its own wall-time budget (:mod:`.budget`), and ranks them by one criterion
+each within its own wall-time budget (:mod:`.budget`), and ranks them by one criterion: with a
+hold-out (servo records kept out of every fit) by what each family predicts on it
+(:data:`HOLDOUT_RULE`: a richer family earns its place on records it was not fitted to, not on
+the fit), else by the information criterion on the fitting data
 (:data:`~droptower.identify.criterion.RULE`). The table is always complete:
 
 - a family whose data requirement the records do not meet (``overlay`` without steady sine
@@ -36,6 +39,15 @@ DEFAULT_BUDGET_S = 60.0
 #: less a margin for the one core call a family may run past its budget (:mod:`.budget`
 #: checks between calls) and for the tables.
 DEFAULT_TOTAL_BUDGET_S = 110.0
+#: Hold-out errors within this many percentage points of each other are a tie (a tie goes to the
+#: family with fewer parameters): a tenth of a percent of the largest load is below what the
+#: repeats of a servo test agree to.
+HOLDOUT_TIE_PERCENT = 0.1
+#: How the ranking is made when a hold-out is given (printed with it).
+HOLDOUT_RULE = (f"hold-out nRMSE: each family's RMS error on the hold-out records (fitted to none of them), in percent "
+                f"of their largest load; lower is better; families within {HOLDOUT_TIE_PERCENT:g} percentage points of "
+                "each other are tied and a tie goes to fewer parameters; bic and delta_bic on the fitting data are "
+                "reported beside it; non-converged fits last")
 #: Exit code when no family converged (as for a fit that does not converge: nothing usable).
 EXIT_NONE_FITS = 2
 CONVERGED, NOT_CONVERGED = "converged", "not converged"
@@ -127,8 +139,8 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
         Family names; they are fitted in the order of their number of parameters (the cheaper
         first, ties in the order given), so a budget runs out on the costliest.
     holdout : list of Segment, optional
-        Servo records kept out of every fit (their error is reported, the ranking stays on the
-        fitting data).
+        Servo records kept out of every fit: the families are ranked by their error on them
+        (:data:`HOLDOUT_RULE`), the information criterion on the fitting data reported beside it.
     budget_s : float or dict, optional
         Wall-time budget of each family's fit in s (None: unbounded), or family -> its budget
         (a family not named gets :data:`DEFAULT_BUDGET_S`). A family over its budget is listed
@@ -208,8 +220,28 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
         not_converged[kind] = reason
         rows.append({"model": kind, "n_parameters": sizes[kind],
                      "bic": math.nan, "verdict": NOT_CONVERGED, "fit_time_s": seconds, "converged": False})
+    by_holdout = bool(holdout) and not drops and not ranking.empty
+    if by_holdout:
+        ranking = by_holdout_error(ranking)
     ranking = _complete(ranking, rows, not_converged)
-    return Comparison(ranking, records, results, skipped, not_converged, budget_s, drops)
+    return Comparison(ranking, records, results, skipped, not_converged, budget_s, drops,
+                      HOLDOUT_RULE if by_holdout else RULE)
+
+
+def by_holdout_error(ranking: pd.DataFrame, tie: float = HOLDOUT_TIE_PERCENT) -> pd.DataFrame:
+    """``ranking`` (columns ``model``, ``n_parameters``, ``holdout_nrmse_percent``, ``converged``)
+    re-ordered best first by the hold-out error (:data:`HOLDOUT_RULE`): the converged families
+    by their hold-out nRMSE (%), errors within ``tie`` percentage points of the best remaining
+    one a group ordered by parameters, then the others in the same way; numbered from 1."""
+    from droptower.identify.criterion import order
+
+    names = [m for ok in (True, False) for m in order(
+        [(m, int(k), float(e) if np.isfinite(e) else math.inf) for m, k, e, c in
+         zip(ranking["model"], ranking["n_parameters"], ranking["holdout_nrmse_percent"], ranking["converged"])
+         if bool(c) == ok], tie)]
+    table = ranking.set_index("model").loc[names].reset_index()
+    table.index = np.arange(1, len(table) + 1)
+    return table
 
 
 def _fit(kind: str, data: list, drops: bool, holdout: list | None, results: dict[str, Any],

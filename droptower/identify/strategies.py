@@ -82,13 +82,13 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
                                                         search=search, seed=seed)}
     result = STRATEGIES[kind](s, segments, start, previous=previous)
     noise = servo_noise(segments)
-    result.verdict = servo_verdict(result, noise, s.family.parameters)
+    result.verdict = servo_verdict(result, noise, s.family.parameters, _idle(s.family, result))
     first = (previous or {}).get(inner) if inner else None
     # a start that the contained family's global search gave already: searching through it again repeats it
     searched_start = first is not None and "global_search" in first.extra
     if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed, staged=np.array(list(result.parameters.values())))
-        searched.verdict = servo_verdict(searched, noise, s.family.parameters)
+        searched.verdict = servo_verdict(searched, noise, s.family.parameters, _idle(s.family, searched))
         searched.extra["staged_fit"] = {"nrmse": result.fit.nrmse, "verdict": result.verdict.verdict}
         if searched.fit.rmse_nm < result.fit.rmse_nm:
             result = searched
@@ -104,11 +104,21 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
     return result
 
 
-def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[FitVariable]) -> Verdict:
+def _idle(family: Any, result: Identification) -> list[str]:
+    """The parameters of a switched-off part of ``result`` (a family's ``idle_parameters``, if it
+    has them): their bounds are not bound hits."""
+    idle = getattr(family, "idle_parameters", None)
+    return list(idle(np.array(list(result.parameters.values()), float))) if idle is not None else []
+
+
+def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[FitVariable],
+                  idle: list[str] | None = None) -> Verdict:
     """The fit's RMS torque error against the records' noise floor (N*m), with the model's
-    discretisation error at the sample step (the last stage's) added in quadrature."""
+    discretisation error at the sample step (the last stage's) added in quadrature; ``idle``:
+    parameters of a switched-off part, whose bounds are not bound hits."""
     step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
-    return judge(result.fit.rmse_nm, noise.sigma, "nm", bound_hits(parameters, result.at_bounds), accuracy=step,
+    hits = bound_hits(parameters, [n for n in result.at_bounds if n not in set(idle or ())])
+    return judge(result.fit.rmse_nm, noise.sigma, "nm", hits, accuracy=step,
                  converged=result.converged)
 
 

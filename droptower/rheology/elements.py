@@ -788,12 +788,55 @@ class FillerNetwork(ElementSpec):
         return filler_network_complex_stiffness(self.stiffness, self.critical_angle, self.exponent,
                                                 self.breakdown_angle, self.n, amplitude_rad)
 
+class LargeStrainNetwork(ElementSpec):
+    """Filled rubber at large strain (high-damping rubber): a stiffening spring softened by
+    scragging damage and a stiffening friction network
+    (:func:`droptower.rheology.kernels.large_strain_network` states its variables and energy books;
+    Grant, Fenves & Whittaker 2004; docs/theory.md#large-strain-network).
+
+    Torque (1 - D) (``stiffness`` + ``gain`` |x|^``exponent``) x + the network's: ``n`` Jenkins
+    elements of ``network_stiffness`` in all, slipping at s_i = ``slip`` ((i + 1/2) / n)^``spread``,
+    whose energy carries the factor 1 + ``friction_gain`` x^2. The damage D grows with the
+    travel |dx| over ``damage_travel`` towards ``damage`` (1 - exp(-(x_max / ``damage_angle``)^
+    ``damage_exponent``)), x_max the largest |x| seen, and does not recover. Every gain may be 0:
+    ``gain`` 0 no stiffening, ``network_stiffness`` 0 no network, ``friction_gain`` 0 a plain Iwan
+    network, ``damage`` 0 no softening (the element is then a linear spring || an Iwan network).
+    """
+
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"n"})
+    kind: Literal["large_strain_network"]
+    stiffness: NonNegativeFloat = 0.0         # N*m/rad, the virgin spring's linear stiffness
+    gain: NonNegativeFloat = 0.0              # N*m/rad^(1+exponent), the stiffening term's coefficient
+    exponent: PositiveFloat = 2.0             # -, the stiffening's order q: (k + a |x|^q) x
+    network_stiffness: NonNegativeFloat = 0.0  # N*m/rad, the network's springs all sticking
+    slip: PositiveFloat = 1.0                 # rad, the largest slip angle of the network
+    spread: PositiveFloat = 1.0               # -, the slips s_i = slip ((i + 1/2)/n)^spread
+    friction_gain: NonNegativeFloat = 0.0     # 1/rad^2, the network's energy factor 1 + g x^2
+    damage: float = Field(0.0, ge=0.0, lt=1.0)  # -, the largest scragging damage D_max
+    damage_angle: PositiveFloat = 1.0         # rad, x_D: the largest angle seen that sets D_inf
+    damage_exponent: PositiveFloat = 1.0      # -, r: D_inf = D_max (1 - exp(-(x_max/x_D)^r))
+    damage_travel: PositiveFloat = 1.0        # rad, L: the damage approaches D_inf over this travel
+    n: PositiveInt = 24                       # -, Jenkins elements of the network
+
+    _n_limit = field_validator("n")(_at_most_max_n)
+
+    def slips(self) -> np.ndarray:
+        """s_i (rad): the network's slip angles, smallest first."""
+        return self.slip * ((np.arange(self.n) + 0.5) / self.n) ** self.spread
+
+    def compile(self):
+        params = np.concatenate([[self.n, self.stiffness, self.gain, self.exponent, self.network_stiffness / self.n,
+                                  self.friction_gain, self.damage, self.damage_angle, self.damage_exponent,
+                                  self.damage_travel], self.slips()])
+        return [KernelElement(K.LARGE_STRAIN_NETWORK, params)]
+
+
 ElementUnion = Annotated[
     Union[Spring, SpringTable, CubicSpring, Dashpot, Maxwell, Prony, Prandtl, Masing, Elastoslide,
-          Mullins, VariableMaxwell, Pfeffer, Payne, PowerLaw, FillerNetwork],
+          Mullins, VariableMaxwell, Pfeffer, Payne, PowerLaw, FillerNetwork, LargeStrainNetwork],
     Field(discriminator="kind"),
 ]
 
 ELEMENT_KINDS = ("spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl",
                  "masing", "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law",
-                 "filler_network")
+                 "filler_network", "large_strain_network")

@@ -40,6 +40,7 @@ PFEFFER = 7
 PAYNE = 8
 FILLER_NETWORK = 9
 MAXWELL_BANK = 10
+LARGE_STRAIN_NETWORK = 11
 
 # named slots of the parameter and state slices (the layouts of droptower.rheology.kinds)
 # ---------------------------------------------------------------- slot offsets (generated)
@@ -130,6 +131,20 @@ S_MAXWELL_BANK_CACHED_H = 3
 S_MAXWELL_BANK_CACHED_K1 = 4
 S_MAXWELL_BANK_CACHED_C1 = 5
 S_MAXWELL_BANK_BLOCKS = 6
+P_LARGE_STRAIN_NETWORK_N = 0
+P_LARGE_STRAIN_NETWORK_STIFFNESS = 1
+P_LARGE_STRAIN_NETWORK_GAIN = 2
+P_LARGE_STRAIN_NETWORK_EXPONENT = 3
+P_LARGE_STRAIN_NETWORK_NETWORK_STIFFNESS = 4
+P_LARGE_STRAIN_NETWORK_FRICTION_GAIN = 5
+P_LARGE_STRAIN_NETWORK_DAMAGE_MAX = 6
+P_LARGE_STRAIN_NETWORK_DAMAGE_ANGLE = 7
+P_LARGE_STRAIN_NETWORK_DAMAGE_EXPONENT = 8
+P_LARGE_STRAIN_NETWORK_DAMAGE_TRAVEL = 9
+P_LARGE_STRAIN_NETWORK_TABLES = 10
+S_LARGE_STRAIN_NETWORK_DAMAGE = 3
+S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD = 4
+S_LARGE_STRAIN_NETWORK_BLOCKS = 5
 # ---------------------------------------------------------------- end of the generated slot offsets
 
 CACHE = cache_available()  # False where no cache folder is writable: compiled at every start instead
@@ -985,6 +1000,83 @@ def filler_network(p, po, s, so, x0, x1, h):
 
 
 # ---------------------------------------------------------------- the compiled coupling
+
+@njit(inline="always", **JIT)
+def large_strain_network(p, po, s, so, x0, x1, h):
+    """One step of the large-strain network from x0 to x1 (rad) over h (s); returns its torque (N*m).
+
+    What filled rubber shows at shear strains of order one (high-damping rubber bearings; the
+    form of Grant, Fenves & Whittaker 2004, with an Iwan network for their Bouc-Wen variable;
+    docs/theory.md#large-strain-network), three parts sharing one state:
+
+    - **a stiffening spring softened by scragging**: (1 - D) (k x + a x |x|^q), the stiffening's
+      onset and order set by a and q; the damage D (Mullins 1969; the scragging of isolator
+      rubber) grows towards D_inf(x_max) = D_max (1 - exp(-(x_max / x_D)^r)), x_max the largest
+      |x| yet seen, by the travel: dD = (D_inf - D) |dx| / L (exact for the step: D_inf - (D_inf
+      - D) exp(-|dx| / L)); it never recovers (a scragged rubber stays scragged within a test);
+    - **a stiffening friction network**: n Jenkins elements (springs k_n, slip limits s_i), its
+      energy psi = H(x) sum k_n e_i^2 / 2 with H(x) = 1 + g x^2: the loss grows with the amplitude
+      faster than one Coulomb bank (Grant, Fenves & Whittaker's (2004) (b1 + b2 |x|^2) z), and its torque
+      d psi / dx = H k_n sum e_i + g x k_n sum e_i^2 is the gradient of a potential: the sliders,
+      whose limits in force scale with H, slip at the elongations s_i whatever x (a return
+      mapping, exact).
+
+    Energy: the stored energy is psi plus the spring's (1 - D) (k x^2 / 2 + a |x|^(q+2) / (q+2));
+    the dissipated energy is booked as the trapezoidal work of the step minus the change of the
+    stored energy, so the books balance to round-off; what it books is the sliders' slip and the
+    damage's released energy, plus the trapezoid's O(h^3) error on the nonlinear spring.
+
+    params: [n, k, a, q, k_n, g, D_max, x_D, r, L, s_1..s_n].
+    internal (after the common header): [D, x_max, e_1..e_n].
+    """
+    n = int(p[po + P_LARGE_STRAIN_NETWORK_N])
+    dx = x1 - x0
+    ax = abs(x1)
+    peak = s[so + S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD]
+    if ax > peak:
+        peak = ax
+        s[so + S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD] = peak
+    damage = s[so + S_LARGE_STRAIN_NETWORK_DAMAGE]
+    d_max = p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_MAX]
+    if d_max > 0.0 and dx != 0.0:
+        d_inf = d_max * (1.0 - np.exp(-(peak / p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_ANGLE])
+                                      ** p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_EXPONENT]))
+        if damage < d_inf:
+            damage = d_inf - (d_inf - damage) * np.exp(-abs(dx) / p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_TRAVEL])
+            s[so + S_LARGE_STRAIN_NETWORK_DAMAGE] = damage
+    k = p[po + P_LARGE_STRAIN_NETWORK_STIFFNESS]
+    a = p[po + P_LARGE_STRAIN_NETWORK_GAIN]
+    q = p[po + P_LARGE_STRAIN_NETWORK_EXPONENT]
+    hard = ax ** q if a != 0.0 else 0.0
+    intact = 1.0 - damage
+    torque = intact * (k + a * hard) * x1
+    psi = intact * (0.5 * k * x1 * x1 + a * hard * x1 * x1 / (q + 2.0))
+    kn = p[po + P_LARGE_STRAIN_NETWORK_NETWORK_STIFFNESS]
+    if kn > 0.0:
+        g = p[po + P_LARGE_STRAIN_NETWORK_FRICTION_GAIN]
+        base = so + S_LARGE_STRAIN_NETWORK_BLOCKS
+        limits = po + P_LARGE_STRAIN_NETWORK_TABLES
+        sum_e = 0.0
+        sum_e2 = 0.0
+        for i in range(n):
+            e = s[base + i] + dx
+            lim = p[limits + i]
+            if e > lim:
+                e = lim
+            elif e < -lim:
+                e = -lim
+            s[base + i] = e
+            sum_e += e
+            sum_e2 += e * e
+        weight = 1.0 + g * x1 * x1
+        torque += kn * (weight * sum_e + g * x1 * sum_e2)
+        psi += 0.5 * kn * weight * sum_e2
+    s[so + S_DISSIPATED_ENERGY_J] += 0.5 * (s[so + S_TORQUE_NM] + torque) * dx - (psi - s[so + S_STORED_ENERGY_J])
+    s[so + S_STORED_ENERGY_J] = psi
+    s[so + S_TORQUE_NM] = torque
+    return torque
+
+
 @njit(inline="always", **JIT)
 def step_element(code, p, po, s, so, x0, x1, h):
     """Dispatch one kernel element (parameters from p[po], state from s[so])."""
@@ -1010,6 +1102,8 @@ def step_element(code, p, po, s, so, x0, x1, h):
         return filler_network(p, po, s, so, x0, x1, h)
     if code == MAXWELL_BANK:
         return maxwell_bank(p, po, s, so, x0, x1, h)
+    if code == LARGE_STRAIN_NETWORK:
+        return large_strain_network(p, po, s, so, x0, x1, h)
     return np.nan
 
 

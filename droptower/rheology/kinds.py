@@ -245,9 +245,31 @@ FILLER_NETWORK = KernelKind(
     n_params=lambda v: K.P_FILLER_NETWORK_TABLES + 2 * int(v["n"]),
     n_internal=lambda v: K.S_FILLER_NETWORK_BLOCKS - K.N_HEADER + int(v["n"]))
 
+
+
+def _large_strain_network_stiffness(v: dict[str, float], p: np.ndarray, motion: Motion) -> float:
+    """Upper bound of the large-strain network's tangent (N*m/rad) up to the motion's angle A: the
+    intact spring's k + a (q + 1) A^q, the network's n k_n (1 + g A^2) (every spring sticking) and
+    its stiffening's g k_n n (4 A s + s^2), s the largest slip (the damage only lowers it)."""
+    a_max = motion.angle_rad
+    slip = float(np.max(p[K.P_LARGE_STRAIN_NETWORK_TABLES:][:int(v["n"])], initial=0.0))
+    network = v["n"] * v["network_stiffness"]
+    return (v["stiffness"] + v["gain"] * (v["exponent"] + 1.0) * a_max ** v["exponent"]
+            + network * (1.0 + v["friction_gain"] * (a_max * a_max + 4.0 * a_max * slip + slip * slip)))
+
+
+LARGE_STRAIN_NETWORK = KernelKind(
+    "large_strain_network", K.LARGE_STRAIN_NETWORK, K.large_strain_network,
+    params=("n", "stiffness", "gain", "exponent", "network_stiffness", "friction_gain", "damage_max", "damage_angle",
+            "damage_exponent", "damage_travel"),
+    internal=("damage", "peak_angle_rad"),  # then e_1..e_n
+    stiffness_bound=_large_strain_network_stiffness,
+    n_params=lambda v: K.P_LARGE_STRAIN_NETWORK_TABLES + int(v["n"]),  # then the slips s_1..s_n
+    n_internal=lambda v: K.S_LARGE_STRAIN_NETWORK_BLOCKS - K.N_HEADER + int(v["n"]))
+
 KINDS: dict[int, KernelKind] = {k.code: k for k in (
     LINEAR_SPRING, TABLE_SPRING, CUBIC_SPRING, DASHPOT, MAXWELL, SLIDER_BANK, VARIABLE_MAXWELL, PFEFFER, PAYNE,
-    MAXWELL_BANK, FILLER_NETWORK)}
+    MAXWELL_BANK, FILLER_NETWORK, LARGE_STRAIN_NETWORK)}
 
 
 def kind_of(code: int) -> KernelKind:

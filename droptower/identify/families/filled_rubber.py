@@ -13,6 +13,12 @@ of servo records, or of the drop tests' first cycles, :func:`~droptower.identify
 the family's closed-form K*(A, f) is fitted to them, which splits the stiffness into spring and
 network by its amplitude trend and gives the power-law level by its frequency trend. Then the
 joint least squares on the records (and the global search where that fit is poor).
+
+From servo records the family holds a fifth part by default, the large-strain network
+(``large_strain_network``: a stiffening spring softened by scragging and a stiffening friction
+network, Grant, Fenves & Whittaker 2004; docs/theory.md#large-strain-network): real filled rubber
+at strains of order one (high-damping rubber bearings). Its parameters follow the others; with it
+the equilibrium spring is linear and the stiffening Maxwell branch is left out.
 """
 from __future__ import annotations
 
@@ -31,6 +37,8 @@ from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
+from droptower.identify.noise import servo_noise
+from droptower.identify.verdict import bound_hits, judge
 from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,
                                          power_law_exponent)
 from droptower.rheology.numba_cache import cache_available, compile_once_across_processes
@@ -44,6 +52,13 @@ GUESS_STARTS = 12
 _BAND = (8, 9)
 #: First harmonic of |sin| sin: the stiffening spring (k0 + g |e|) e at e = E sin is k0 + g 8/(3 pi) E.
 _ABS_SIN_HARMONIC = 8.0 / (3.0 * math.pi)
+#: The large-strain network is kept where it lowers the four parts' RMS error below this share
+#: (the bearing of tests/test_identify_large_strain.py: 0.50; a six-parameter coupling's records: 0.996).
+LARGE_STRAIN_GAIN = 0.8
+#: A large-strain part whose gain is below this share of its scale is off (:meth:`FilledRubberFamily.idle_parameters`).
+IDLE_SHARE = 1e-2
+#: Parameters of the family without the large-strain network (those follow them).
+_N_BASE = 13
 #: Relative Newton step below which :func:`stiffening_maxwell_stiffness` stops (converged to rounding).
 _NEWTON_TOLERANCE = 1e-10
 
@@ -123,7 +138,11 @@ class FilledRubberFamily(Family):
 
     Options: ``n`` (Jenkins elements of the network), ``recovery_time_s`` and
     ``centre_relaxation_time_s`` (the network's bookkeeping times), ``terms`` (Maxwell terms of
-    the power-law band, whatever its width, so that every parameter set has one structure).
+    the power-law band, whatever its width, so that every parameter set has one structure),
+    ``stiffening_branch`` (the stiffening Maxwell branch), ``large_strain`` (the large-strain
+    network, docs/theory.md#large-strain-network: None, the default, lets the servo strategy
+    turn it on and a drop-test fit leave it off; True or False force it) and
+    ``large_strain_sliders`` (its Jenkins elements).
     """
 
     kind = "filled_rubber"
@@ -131,7 +150,7 @@ class FilledRubberFamily(Family):
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
     OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
-               "stiffening_branch": True}
+               "stiffening_branch": True, "large_strain": None, "large_strain_sliders": 16}
 
     def _parameters(self) -> list[FitVariable]:
         s = self.scale
@@ -156,7 +175,46 @@ class FilledRubberFamily(Family):
                 stiffness_parameter("kv_nm_per_rad", s, 1e-4, 10.0),
                 FitVariable("kv_gain_nm_per_rad2", 0.0, 10.0 * s.stiffness_nm_per_rad / amp, log=False,
                           scale=s.stiffness_nm_per_rad / amp),
-                FitVariable("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))]
+                FitVariable("tau_v_s", 1e-2 / (2 * math.pi * f), 1e2 / (2 * math.pi * f))] + (
+            self._large_strain_parameters() if self.large_strain else [])
+
+    @property
+    def large_strain(self) -> bool:
+        """Whether the couplings hold the large-strain network (option ``large_strain``; None, the
+        default, leaves the choice to the caller: the servo strategy turns it on, a drop-test fit
+        keeps the family without it)."""
+        return bool(self.options["large_strain"])
+
+    def with_large_strain(self) -> "FilledRubberFamily":
+        """The same family with the large-strain network (its parameters after the others) and
+        without the stiffening Maxwell branch: the network's spring carries the stiffening, softened
+        by the scragging as the filler's is (an unscragged stiffening term, the equilibrium spring's
+        cubic term or the branch's, extrapolates to larger amplitudes unsoftened: on the bearing of
+        tests/test_identify_large_strain.py it doubles the error on the unseen amplitude)."""
+        return type(self)(self.scale, {**self.options, "large_strain": True, "stiffening_branch": False})
+
+    def _large_strain_parameters(self) -> list[FitVariable]:
+        """The large-strain network's parameters (docs/theory.md#large-strain-network), each gain
+        free to vanish: the virgin spring's stiffness, its stiffening read as the stiffness it adds
+        at the data's amplitude A, the stiffening's order, the network's stiffness and largest slip
+        (over A) and spread, its hardening g A^2, the scragging damage's largest value, angle (over
+        A), exponent and travel (over A)."""
+        s = self.scale
+        k, amp = s.stiffness_nm_per_rad, s.amplitude_rad
+        if int(self.options["large_strain_sliders"]) < 2:
+            raise DroptowerError(f"option large_strain_sliders of model {self.kind} must be an integer >= 2, got "
+                                 f"{self.options['large_strain_sliders']}")
+        return [FitVariable("ks_nm_per_rad", 0.0, 10.0 * k, log=False, scale=k),
+                FitVariable("ks_hardening_nm_per_rad", 0.0, 10.0 * k, log=False, scale=k),
+                FitVariable("ks_hardening_order", 0.5, 6.0, log=False, scale=1.0),
+                FitVariable("kn_nm_per_rad", 0.0, 30.0 * k, log=False, scale=k),
+                FitVariable("slip_angle_rad", 1e-3 * amp, 3.0 * amp),
+                FitVariable("slip_spread", 0.2, 8.0),
+                FitVariable("network_hardening", 0.0, 30.0, log=False, scale=1.0),
+                FitVariable("scragging", 0.0, 0.999, log=False, scale=1.0),
+                FitVariable("scragging_angle_rad", 0.05 * amp, 5.0 * amp),
+                FitVariable("scragging_exponent", 0.3, 4.0),
+                FitVariable("scragging_travel_rad", 0.05 * amp, 30.0 * amp)]
 
     #: The stiffening Maxwell branch's parameters: a drop-test fit searches first with the branch
     #: off (:meth:`branch_off`) and frees them in its wider search after a poor verdict, so a
@@ -183,11 +241,44 @@ class FilledRubberFamily(Family):
     def guess(self) -> np.ndarray:
         s = self.scale
         k, amp, f = s.stiffness_nm_per_rad, s.amplitude_rad, self.reference_frequency_hz
-        return np.array([0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0,
-                         0.05 * k, 0.0, 1.0 / (2 * math.pi * f)])
+        base = [0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0,
+                0.05 * k, 0.0, 1.0 / (2 * math.pi * f)]
+        # the large-strain network: a scragged spring, a network of slips up to A/4, a little of each
+        large = [1.0 * k, 0.2 * k, 1.7, 10.0 * k, 0.12 * amp, 4.0, 0.5, 0.8, 1.5 * amp, 1.0, 5.0 * amp]
+        return np.array(base + (large if self.large_strain else []))
 
     def elements(self, v: np.ndarray) -> list[dict[str, Any]]:
-        return self._element_fields(*(float(x) for x in v))
+        out = self._element_fields(*(float(x) for x in v[:_N_BASE]))
+        if self.large_strain:
+            out.append(self._large_strain_fields(*(float(x) for x in v[_N_BASE:])))
+        return out
+
+    def idle_parameters(self, v: np.ndarray) -> list[str]:
+        """Names of the large-strain network's shape parameters whose part is switched off in
+        ``v`` (its gain below :data:`IDLE_SHARE` of its scale: the data's stiffness, or 1 for the
+        scragging): the stiffening's order without stiffening, the network's slips and hardening
+        without network, the scragging's angle, exponent and travel without scragging. A part that
+        small cannot place its shape, so the data cannot hold those off a bound: such a bound is
+        not a bound hit (as a gain at its lower bound of 0 is not)."""
+        if not self.large_strain:
+            return []
+        params, values = self.parameters[_N_BASE:], np.asarray(v, float)[_N_BASE:]
+        off = {p.name: val <= IDLE_SHARE * p.scale for p, val in zip(params, values)}
+        idle = {"ks_hardening_nm_per_rad": ("ks_hardening_order",),
+                "kn_nm_per_rad": ("slip_angle_rad", "slip_spread", "network_hardening"),
+                "scragging": ("scragging_angle_rad", "scragging_exponent", "scragging_travel_rad")}
+        return [name for gain, names in idle.items() if off[gain] for name in names]
+
+    def _large_strain_fields(self, ks: float, hardening: float, order: float, kn: float, slip: float, spread: float,
+                             network_hardening: float, scragging: float, scragging_angle: float,
+                             scragging_exponent: float, travel: float) -> dict[str, Any]:
+        """The large-strain network's element of its parameters (:meth:`_large_strain_parameters`)."""
+        amp = self.scale.amplitude_rad
+        return {"kind": "large_strain_network", "name": "large_strain", "stiffness": ks,
+                "gain": hardening / amp ** order, "exponent": order, "network_stiffness": kn, "slip": slip,
+                "spread": spread, "friction_gain": network_hardening / amp ** 2, "damage": scragging,
+                "damage_angle": scragging_angle, "damage_exponent": scragging_exponent, "damage_travel": travel,
+                "n": int(self.options["large_strain_sliders"])}
 
     def _element_fields(self, k: Any, a: Any, kf: Any, ac: Any, m: Any, ab: Any, kp: Any, eta: Any, f_min: float,
                         decades: float, kv: Any, gain: Any, tau_v: Any) -> list[dict[str, Any]]:
@@ -204,7 +295,7 @@ class FilledRubberFamily(Family):
                  "max_frequency": f_min * 10.0 ** decades,
                  "terms_per_decade": (terms - 1) / decades * (1.0 - _TERMS_MARGIN)}] + (
                 [{"kind": "variable_maxwell", "name": "amplitude_viscous", "stiffness": kv, "stiffness_gain": gain,
-                  "damping": kv * tau_v}] if self.options["stiffening_branch"] else [])
+                  "damping": kv * tau_v}] if self.options["stiffening_branch"] and not self.large_strain else [])
 
     def derived(self, v: np.ndarray) -> dict[str, float]:
         eta, f_min, decades = float(v[7]), float(v[8]), float(v[9])
@@ -246,7 +337,8 @@ class FilledRubberFamily(Family):
         """:meth:`harmonic_stiffness_rows` of parameter sets that share one band."""
         columns = np.ascontiguousarray(rows.T).reshape(rows.shape[::-1] + (1,) * max(amp.ndim, freq.ndim))
         band = [float(rows[0, i]) for i in _BAND]
-        spring, network, matrix, *viscous = self._element_fields(*columns[:_BAND[0]], *band, *columns[_BAND[1] + 1:])
+        spring, network, matrix, *viscous = self._element_fields(*columns[:_BAND[0]], *band,
+                                                                  *columns[_BAND[1] + 1:_N_BASE])
         _closed_form_fields((network, ("stiffness", "critical_angle", "exponent", "breakdown_angle")),
                             (matrix, ("storage_stiffness", "loss_factor", "reference_frequency", "min_frequency",
                                       "terms_per_decade")))
@@ -274,7 +366,7 @@ class FilledRubberFamily(Family):
         if amp.size < 3:
             return x0
         params = self.parameters
-        idx = [i for i in range(len(params)) if not given[i] and i not in _BAND]
+        idx = [i for i in range(min(len(params), _N_BASE)) if not given[i] and i not in _BAND]
         if not idx:
             return x0
         lo, hi = np.array([params[i].z_bounds() for i in idx]).T
@@ -329,13 +421,89 @@ def servo_readings(segments: list[Segment]) -> tuple[np.ndarray, np.ndarray, np.
 
 def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
     """The closed form fitted to the steady blocks' K' and K'' (the first guess), then the joint
-    least squares on all records."""
-    fam: FilledRubberFamily = s.family  # type: ignore[assignment]
+    least squares on all records. With option ``large_strain`` None (the default) the family's
+    four parts are fitted first, and only where that fit is poor is ``s`` turned into the family
+    with the large-strain network (in place: the global search that may follow searches it) and
+    fitted again from its own first guess; that fit is kept where its RMS error is below
+    :data:`LARGE_STRAIN_GAIN` times the four parts'. A coupling the four parts represent so
+    stays one of four parts and pays nothing for the fifth; one they miss for another reason
+    pays one more local fit (a six-parameter coupling's records: 20 s against 2 s) and keeps
+    its four parts."""
     amp, freq, stiffness = servo_readings(segments)
-    x = fam.guess_from_readings(amp, freq, stiffness, s.x0.copy(), s.given)
     extra = {"readings": int(amp.size)}
-    r = s.fit(segments, x, None, "joint (from the harmonic readings' fit)" if amp.size >= 3 else "joint")
+    stage = "joint (from the harmonic readings' fit)" if amp.size >= 3 else "joint"
+    fam: FilledRubberFamily = s.family  # type: ignore[assignment]
+    auto = fam.options["large_strain"] is None
+    if fam.large_strain:  # asked for: fitted with the network at once
+        _with_large_strain(s)
+        return _large_strain_fit(s, segments, start, (amp, freq, stiffness), stage, extra)
+    x = fam.guess_from_readings(amp, freq, stiffness, s.x0.copy(), s.given)
+    r = s.fit(segments, x, None, stage)
+    plain = result_of(s, segments, r.values.copy(), [r], start, extra=extra)
+    if not auto or not _poor(plain, segments, fam):
+        return plain
+    kept = (s.family, s.x0, s.given, s.bounded)
+    _with_large_strain(s)
+    rich = _large_strain_fit(s, segments, start, (amp, freq, stiffness), stage,
+                             {**extra, "four_parts": {"nrmse": plain.fit.nrmse, "verdict": "poor fit"}})
+    if rich.fit.rmse_nm < LARGE_STRAIN_GAIN * plain.fit.rmse_nm:
+        return rich
+    # no clear gain: the family stays as it was (and so does the global search that may follow)
+    s.family, s.x0, s.given, s.bounded = kept
+    plain.extra["large_strain"] = {"nrmse": rich.fit.nrmse, "kept": False}
+    return plain
+
+
+def _poor(result: Identification, segments: list[Segment], fam: FilledRubberFamily) -> bool:
+    """Whether the servo verdict on ``result`` is "poor fit" (as the servo strategies' caller
+    judges it: the RMS error against the records' noise floor with the last stage's step error
+    in quadrature, the parameters on a bound that count)."""
+    step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
+    values = np.array(list(result.parameters.values()), float)
+    hits = bound_hits(fam.parameters, [n for n in result.at_bounds if n not in fam.idle_parameters(values)])
+    return judge(result.fit.rmse_nm, servo_noise(segments).sigma, "nm", hits, accuracy=step,
+                 converged=result.converged).poor
+
+
+def _large_strain_fit(s: Setup, segments: list[Segment], start: float, readings: tuple, stage: str,
+                      extra: dict[str, Any]) -> Identification:
+    """The family with the large-strain network fitted: its first guess from the readings (the
+    four parts' closed form, the network's parameters at their start), then the joint least
+    squares on every parameter not held."""
+    fam: FilledRubberFamily = s.family  # type: ignore[assignment]
+    x = fam.guess_from_readings(*readings, s.x0.copy(), s.given)
+    r = s.fit(segments, x, [n for n, g in zip(fam.names, s.given) if not g], stage)
     return result_of(s, segments, r.values.copy(), [r], start, extra=extra)
+
+
+def _with_large_strain(s: Setup) -> FilledRubberFamily:
+    """Turn ``s`` (in place) into the family with the large-strain network
+    (:meth:`FilledRubberFamily.with_large_strain`; a family that has it already keeps its
+    parameters): the user's bounds and initial values kept, the network's from its first guess;
+    the parameters of the stiffening it replaces (the equilibrium spring's cubic term at 0, the
+    stiffening branch's, which the couplings leave out) held unless the user gave them, as given
+    values are in the global search."""
+    old: FilledRubberFamily = s.family  # type: ignore[assignment]
+    if not old.large_strain:
+        fam = old.with_large_strain()
+        fam.parameters[:_N_BASE] = old.parameters
+        extra = len(fam.parameters) - _N_BASE
+        s.family = fam
+        s.x0 = np.concatenate([s.x0, fam.guess()[_N_BASE:]])
+        s.given = np.concatenate([s.given, np.zeros(extra, bool)])
+        s.bounded = np.concatenate([s.bounded, np.zeros(extra, bool)])
+    fam = s.family  # type: ignore[assignment]
+    held = np.isin(fam.names, REPLACED_BY_LARGE_STRAIN) & ~s.given
+    s.x0 = np.where(held, fam.branch_off(s.x0), s.x0)
+    cubic = fam.names.index("a_nm_per_rad3")
+    if held[cubic]:
+        s.x0[cubic] = 0.0
+    s.given = s.given | held
+    return fam
+
+
+#: The parameters the large-strain network replaces: held (at 0, or unused) when it is on.
+REPLACED_BY_LARGE_STRAIN = ("a_nm_per_rad3", "kv_nm_per_rad", "kv_gain_nm_per_rad2", "tau_v_s")
 
 
 FAMILY = FilledRubberFamily
