@@ -2,7 +2,7 @@
 docs/guide/uncertainty.md).
 
 The rig's input uncertainties (:class:`RigUncertainty`, the rig file's ``[uncertainty]``
-table) and the fit's covariance are propagated through the extraction's own closed forms:
+table, with :func:`override_uncertainty` over it: the command line's ``NAME=VALUE[:distribution]``) and the fit's covariance are propagated through the extraction's own closed forms:
 
 - :mod:`.inputs`: the rig's stated uncertainties resolved for one drop (:func:`drop_inputs`);
 - :mod:`.model`: the measurement model of one drop (:class:`DropModel`);
@@ -12,7 +12,8 @@ table) and the fit's covariance are propagated through the extraction's own clos
 - :mod:`.table`: ``*_u``, ``*_U95`` and the dominant input in per-drop tables (:func:`with_uncertainty`);
 - :mod:`.agreement`: E_n numbers and verdicts against a bench (ISO 13528, :func:`en_verdicts`).
 """
-from droptower.rig.uncertainty import FixtureUncertainty, InputUncertainty, RigUncertainty
+from droptower.rig.uncertainty import (FixtureUncertainty, InputUncertainty, RigUncertainty, override_uncertainty,
+                                       parse_uncertainty_spec)
 from droptower.uncertainty.agreement import VERDICTS, en_number, en_verdicts
 from droptower.uncertainty.budget import DropBudget, QuantityUncertainty, coverage_factor, drop_budget
 from droptower.uncertainty.gum import GumPropagation, propagate_gum
@@ -23,5 +24,6 @@ from droptower.uncertainty.table import drop_budgets, uncertainty_columns, with_
 
 __all__ = ["DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
            "InputUncertainty", "MonteCarloPropagation", "QUANTITIES", "QuantityUncertainty", "RigUncertainty",
-           "VERDICTS", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "propagate_gum",
+           "VERDICTS", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "override_uncertainty",
+           "parse_uncertainty_spec", "propagate_gum",
            "propagate_monte_carlo", "uncertainty_columns", "with_uncertainty"]
