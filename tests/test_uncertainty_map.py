@@ -77,3 +77,23 @@ def test_no_input_given_is_the_fits_share_alone_and_says_so():
     assert (pred["stiffness_nm_per_deg_u_inputs"] == 0).all() and (pred["stiffness_nm_per_deg_dominant"] == "fit").all()
     assert mu.not_given == ("inertia_kgm2@0.1557", "inertia_kgm2@0.359", "inertia_kgm2@0.5233", "sample_rate_hz",
                             "laser_radius_m", "laser_calibration_rel")
+
+
+def test_map_command_prints_writes_and_plots_the_expanded_uncertainties(tmp_path, capsys):
+    import json
+
+    from droptower.cli.main import main
+
+    path = tmp_path / "results.csv"
+    synthetic_table(0.02).to_csv(path, index=False)
+    specs = ["--uncertainty", "inertia_kgm2@0.359=0.0036"]
+    assert main(["map", str(path), *specs, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["uncertainty"]
+    assert doc["coverage_factor"] == 2.0 and "inertia_kgm2@0.5233" in doc["not_given"]
+    k5 = next(r for r in doc["coefficients"] if r["coefficient"] == "k5")
+    assert k5["U95"] == pytest.approx(2 * np.hypot(k5["u_fit"], k5["u_inputs"]))
+    out = tmp_path / "coefficients.csv"
+    assert main(["map", str(path), *specs, "--out", str(out), "--plot", str(tmp_path / "figs")]) == 0
+    assert "expanded uncertainties (k = 2" in capsys.readouterr().out
+    assert {"u_fit", "u_inertia_kgm2@0.359", "U95", "dominant"} <= set(pd.read_csv(out).columns)
+    assert (tmp_path / "figs" / "fig13_damping_map.png").is_file()
