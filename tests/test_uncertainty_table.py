@@ -96,3 +96,22 @@ def test_en_is_antisymmetric_and_agrees_exactly_within_the_combined_interval(x, 
     assert float(en_number(y, u2, x, u1)) == -en
     verdict = en_verdicts([x], [u1], [y], [u2])["verdict"].iloc[0]
     assert (verdict == "agrees") == (abs(x - y) / math.hypot(u1, u2) <= 1.0)
+
+
+def test_route_agreement_judges_each_point_and_names_a_missing_bench_uncertainty():
+    from droptower.uncertainty import format_agreement, route_agreement
+
+    table = pd.DataFrame({"sweep": ["f"] * 3, "amplitude_deg": [0.5, 1.0, 1.5], "frequency_hz": [10.0, 20.0, 30.0],
+                          "in_range": [True, True, False], "map_stiffness_nm_per_deg": [100.0, 103.0, 110.0],
+                          "servo_stiffness_nm_per_deg": [100.0, 100.0, 100.0],
+                          "map_damping_ratio": [1.0, 1.0, 1.0], "servo_damping_ratio": [1.0, 1.0, 1.0]})
+    out = route_agreement(table, {"stiffness_nm_per_deg": [4.0, 4.0, 4.0]}, u95_ref_rel=0.03)
+    # E_n = (x1 - x2)/sqrt(U1² + U2²): 3/sqrt(16 + 9) = 0.6; 10/5 = 2
+    np.testing.assert_allclose(out["stiffness_nm_per_deg_en_number"], [0.0, 0.6, 2.0])
+    assert list(out["stiffness_nm_per_deg_verdict"]) == ["agrees", "agrees", "disagrees"]
+    assert "damping_ratio_verdict" not in out  # no U95 of the route's damping: not judged
+    none = route_agreement(table, {"stiffness_nm_per_deg": 4.0})
+    assert set(none["stiffness_nm_per_deg_verdict"]) == {"bench uncertainty not given"}
+    text = format_agreement({"r": out, "s": none})
+    assert "inside: 2/2 agree" in text and "all: 2/3 agree, max |E_n| 2.00" in text
+    assert "s, stiffness_nm_per_deg: inside: bench uncertainty not given" in text

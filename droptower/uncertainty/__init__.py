@@ -12,11 +12,13 @@ table, with :func:`override_uncertainty` over it: the command line's ``NAME=VALU
 - :mod:`.table`: ``*_u``, ``*_U95`` and the dominant input in per-drop tables (:func:`with_uncertainty`);
 - :mod:`.mapband`: the map's coefficients and predictions with the fit's and the inputs' shares, the
   inputs correlated across the drops that share them (:func:`map_uncertainty`);
-- :mod:`.agreement`: E_n numbers and verdicts against a bench (ISO 13528, :func:`en_verdicts`).
+- :mod:`.agreement`: E_n numbers and verdicts against a bench (ISO 13528, :func:`en_verdicts`), per
+  servo point of a validated route (:func:`route_agreement`).
 """
 from droptower.rig.uncertainty import (FixtureUncertainty, InputUncertainty, RigUncertainty, override_uncertainty,
                                        parse_uncertainty_spec)
-from droptower.uncertainty.agreement import VERDICTS, en_number, en_verdicts
+from droptower.uncertainty.agreement import (AGREEMENT_QUANTITIES, VERDICTS, en_number, en_verdicts, format_agreement,
+                                             route_agreement)
 from droptower.uncertainty.budget import DropBudget, QuantityUncertainty, coverage_factor, drop_budget
 from droptower.uncertainty.gum import GumPropagation, propagate_gum
 from droptower.uncertainty.inputs import INPUTS, DropInputs, Input, drop_inputs
@@ -25,8 +27,8 @@ from droptower.uncertainty.model import QUANTITIES, DropModel
 from droptower.uncertainty.montecarlo import MonteCarloPropagation, propagate_monte_carlo
 from droptower.uncertainty.table import drop_budgets, uncertainty_columns, with_uncertainty
 
-__all__ = ["DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
+__all__ = ["AGREEMENT_QUANTITIES", "DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
            "InputUncertainty", "MapUncertainty", "MonteCarloPropagation", "QUANTITIES", "QuantityUncertainty", "RigUncertainty",
-           "VERDICTS", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "map_uncertainty", "override_uncertainty",
+           "VERDICTS", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
            "parse_uncertainty_spec", "propagate_gum",
-           "propagate_monte_carlo", "uncertainty_columns", "with_uncertainty"]
+           "propagate_monte_carlo", "route_agreement", "uncertainty_columns", "with_uncertainty"]
