@@ -115,3 +115,18 @@ def test_route_agreement_judges_each_point_and_names_a_missing_bench_uncertainty
     text = format_agreement({"r": out, "s": none})
     assert "inside: 2/2 agree" in text and "all: 2/3 agree, max |E_n| 2.00" in text
     assert "s, stiffness_nm_per_deg: inside: bench uncertainty not given" in text
+
+
+def test_a_servo_tables_own_u95_column_is_read_by_point(tmp_path):
+    from droptower.compare import read_servo_results
+    from droptower.compare.validate import servo_u95_columns
+
+    path = tmp_path / "servo.csv"
+    path.write_text("amplitude_deg,frequency_hz,storage_stiffness_nm_per_deg,loss_factor,storage_stiffness_nm_per_deg_U95\n"
+                    "0.5,10,300,0.2,6\n0.5,20,310,0.21,6.2\n1.5,10,280,0.25,5.6\n")
+    points = read_servo_results(path)  # its table is sorted: the U95 follows its point, not its row
+    u95 = servo_u95_columns(points, points.table)
+    lookup = {(0.5, 10.0): 6.0, (0.5, 20.0): 6.2, (1.5, 10.0): 5.6}
+    expected = [lookup[(a, f)] for a, f in zip(points.table["amplitude_deg"], points.table["frequency_hz"])]
+    np.testing.assert_allclose(u95["stiffness_nm_per_deg"], expected)
+    assert "damping_ratio" not in u95

@@ -254,18 +254,46 @@ def _agreement(fit: MapFit, validation: Validation, routes: dict[str, Validation
     from droptower.compare.model_map import PAPER_ROUTE
     from droptower.uncertainty import map_uncertainty, route_agreement
 
-    servo_u95 = {q: points.table[f"servo_{q}_U95"].to_numpy(float) for q in ("stiffness_nm_per_deg", "damping_ratio")
-                 if f"servo_{q}_U95" in points.table.columns}
     paper_table = routes[PAPER_ROUTE].table if routes is not None else validation.table
     out: dict[str, pd.DataFrame] = {}
     if campaign is not None:
         bands = map_uncertainty(campaign, uncertainty, map_fit=fit).predict(paper_table["amplitude_deg"],
                                                                              paper_table["frequency_hz"])
         u95 = {q: bands[f"{q}_U95"].to_numpy() for q in ("stiffness_nm_per_deg", "damping_ratio")}
-        out[PAPER_ROUTE] = route_agreement(paper_table, u95, servo_u95=servo_u95, u95_ref_rel=servo_u95_rel)
+        out[PAPER_ROUTE] = route_agreement(paper_table, u95, servo_u95=servo_u95_columns(points, paper_table),
+                                           u95_ref_rel=servo_u95_rel)
     if routes is not None and mm is not None:
         table = routes[mm.route].table
         u95 = model_route_u95(mm, table, inertia_u_rel(uncertainty, campaign))
         if u95:
-            out[mm.route] = route_agreement(table, u95, servo_u95=servo_u95, u95_ref_rel=servo_u95_rel)
+            out[mm.route] = route_agreement(table, u95, servo_u95=servo_u95_columns(points, table),
+                                            u95_ref_rel=servo_u95_rel)
+    return out
+
+
+#: the servo table's columns of its own expanded uncertainty (95 %), per judged quantity, first found wins
+SERVO_U95_COLUMNS: dict[str, tuple[str, ...]] = {
+    "stiffness_nm_per_deg": ("servo_stiffness_nm_per_deg_U95", "storage_stiffness_nm_per_deg_U95"),
+    "damping_ratio": ("servo_damping_ratio_U95", "drop_tower_equivalent_damping_ratio_U95"),
+}
+
+
+def servo_u95_columns(points: ServoPoints, table: pd.DataFrame) -> dict[str, Any]:
+    """The bench's own U95 per row of a validation ``table``, from its file's columns
+    (:data:`SERVO_U95_COLUMNS`, in the quantity's unit), matched by amplitude and frequency; a
+    quantity without such a column is left out (NaN rows: not given there)."""
+    import numpy as np
+
+    raw = points.raw
+    out: dict[str, Any] = {}
+    if raw is None or "amplitude_deg" not in raw.columns:
+        return out
+    key = lambda a, f: list(zip(np.round(np.asarray(a, float), 9), np.round(np.asarray(f, float), 9)))  # noqa: E731
+    rows = key(table["amplitude_deg"], table["frequency_hz"])
+    for q, names in SERVO_U95_COLUMNS.items():
+        column = next((c for c in names if c in raw.columns), None)
+        if column is None:
+            continue
+        lookup = dict(zip(key(raw["amplitude_deg"], raw["frequency_hz"]), pd.to_numeric(raw[column], errors="coerce")))
+        out[q] = np.array([lookup.get(r, np.nan) for r in rows], float)
     return out
