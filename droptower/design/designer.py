@@ -49,7 +49,8 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
     uncertainty_pct : float, optional
         Instead of ``repeats``: enough repeats for this standard uncertainty (% of the value) of
         the mean stiffness and damping ratio of every condition, from a virtual pilot test per
-        condition.
+        condition, with the rig's input uncertainties (its ``[uncertainty]``: J does not average
+        out) counted; where an input alone exceeds the target, ``on_note`` says so.
     rig : str or path
         Rig TOML file or shipped preset name.
     coupling : str or path
@@ -103,11 +104,14 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
         result = design_campaign(rig_cfg, coupling_model, target, repeats=repeats or DEFAULT_REPEATS,
                                  max_tests=max_tests)
         if uncertainty_pct is not None:
-            from droptower.design.repeats import pilot_uncertainty, repeats_for
+            from droptower.design.repeats import pilot_uncertainty, repeats_advice
 
             if on_note is not None:
                 on_note(f"pilot: one virtual test per condition ({result.n_conditions}) for the scatter of c and d")
-            n = repeats_for(pilot_uncertainty(result, rig, coupling), uncertainty_pct)
+            advice = repeats_advice(pilot_uncertainty(result, rig, coupling), uncertainty_pct, rig_cfg.uncertainty)
+            if not advice.reachable and on_note is not None:
+                on_note(f"warning: {advice.limit}")
+            n = advice.repeats
             result = design_campaign(rig_cfg, coupling_model, target, repeats=n, max_tests=max_tests,
                                      candidates=result.candidates)
     result.rig_name, result.coupling_name = rig_cfg.name, coupling_model.name
