@@ -9,6 +9,7 @@ table, with :func:`override_uncertainty` over it: the command line's ``NAME=VALU
 - :mod:`.gum`: the law of propagation, sensitivities and contributions (:func:`propagate_gum`);
 - :mod:`.montecarlo`: propagation of distributions, adaptive (:func:`propagate_monte_carlo`);
 - :mod:`.budget`: one drop's budget, the method chosen by validation (:func:`drop_budget`);
+- :mod:`.conditions`: each condition's mean with its budget, which input dominates (:func:`condition_budgets`);
 - :mod:`.table`: ``*_u``, ``*_U95`` and the dominant input in per-drop tables (:func:`with_uncertainty`);
 - :mod:`.mapband`: the map's coefficients and predictions with the fit's and the inputs' shares, the
   inputs correlated across the drops that share them (:func:`map_uncertainty`);
@@ -20,6 +21,7 @@ from droptower.rig.uncertainty import (FixtureUncertainty, InputUncertainty, Rig
 from droptower.uncertainty.agreement import (AGREEMENT_QUANTITIES, VERDICTS, en_number, en_verdicts, format_agreement,
                                              route_agreement)
 from droptower.uncertainty.budget import DropBudget, QuantityUncertainty, coverage_factor, drop_budget
+from droptower.uncertainty.conditions import condition_budgets
 from droptower.uncertainty.gum import GumPropagation, propagate_gum
 from droptower.uncertainty.inputs import INPUTS, DropInputs, Input, drop_inputs
 from droptower.uncertainty.mapband import MapUncertainty, map_uncertainty
@@ -29,6 +31,6 @@ from droptower.uncertainty.table import drop_budgets, uncertainty_columns, with_
 
 __all__ = ["AGREEMENT_QUANTITIES", "DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
            "InputUncertainty", "MapUncertainty", "MonteCarloPropagation", "QUANTITIES", "QuantityUncertainty", "RigUncertainty",
-           "VERDICTS", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
+           "VERDICTS", "condition_budgets", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
            "parse_uncertainty_spec", "propagate_gum",
            "propagate_monte_carlo", "route_agreement", "uncertainty_columns", "with_uncertainty"]
