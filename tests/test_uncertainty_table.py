@@ -130,3 +130,30 @@ def test_a_servo_tables_own_u95_column_is_read_by_point(tmp_path):
     expected = [lookup[(a, f)] for a, f in zip(points.table["amplitude_deg"], points.table["frequency_hz"])]
     np.testing.assert_allclose(u95["stiffness_nm_per_deg"], expected)
     assert "damping_ratio" not in u95
+
+
+def test_a_campaigns_budgets_reuse_monte_carlo_where_the_make_up_is_the_same():
+    """campaign_budgets against both methods on every drop: U95 and the interval's ends within
+    5 % of U95 (the GUM-vs-Monte-Carlo criterion), with Monte Carlo on a few drops only; the
+    amplitude, dominated by a rectangular calibration, stays Monte Carlo's (GUM 4.3.7: ±1.65 u)."""
+    from droptower.rig.uncertainty import override_uncertainty
+    from droptower.uncertainty import campaign_budgets
+
+    signals = [SyntheticDrop(duration_s=0.1, seed=i, amplitude_deg=1.0 + 0.02 * (i % 3)).signals() for i in range(9)]
+    results = [extract(s) for s in signals]
+    u = override_uncertainty(None, [f"inertia_kgm2@{J}={0.01 * J}", "laser_calibration_rel=0.003:rectangular",
+                                    "sample_rate_hz=0.3"])
+    metas = [s.metadata for s in signals]
+    fast = campaign_budgets(results, u, metadata=metas)
+    full = drop_budgets(results, u, metadata=metas, method="auto")
+    assert sum(b.trials > 0 for b in fast) < len(fast) / 2
+    for b, f in zip(fast, full):
+        for name, q in f.quantities.items():
+            if q.expanded_uncertainty > 0:
+                tol = 0.05 * q.expanded_uncertainty
+                assert abs(b[name].expanded_uncertainty - q.expanded_uncertainty) <= tol, name
+                # the ends: a GUM interval is y ± 2u by convention (k = 2), Monte Carlo's its 95 % quantiles
+                # (±1.96u for a normal output): a borderline validation may pick either
+                ends = tol + (2 - 1.96) * q.standard_uncertainty
+                assert abs(b[name].low - q.low) <= ends and abs(b[name].high - q.high) <= ends, name
+        assert f["amplitude_ref_rad"].method == "MC"

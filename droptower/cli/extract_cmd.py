@@ -38,19 +38,34 @@ def _summary(rows: list[dict[str, Any]]) -> str:
     return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)) for line in [list(columns), *table])
 
 
-def _uncertainty_row(path: str, drop: Any, uncertainty: Any, rig: Any, method: str, lever_length_m: float | None,
-                     laser_radius_m: float | None) -> dict[str, Any]:
-    """The drop's uncertainty columns; a budget that cannot be made (a nominal value the log
-    lacks) leaves them empty with a warning, the drop's results stand."""
-    from droptower.uncertainty import drop_budget, uncertainty_columns
+def _uncertainty_rows(drops: list[tuple[int, str, Any]], uncertainty: Any, rig: Any, method: str,
+                      lever_length_m: float | None, laser_radius_m: float | None) -> list[dict[str, Any]]:
+    """Each drop's uncertainty columns. ``auto``: the campaign's route (Monte Carlo on the drops
+    whose budget's make-up no earlier drop had, :func:`droptower.uncertainty.campaign_budgets`);
+    a drop whose budget cannot be made (a nominal value its log lacks) gets empty columns and a
+    warning, its results stand."""
+    from droptower.uncertainty import campaign_budgets, drop_budget, uncertainty_columns
 
-    try:
-        budget = drop_budget(drop.result, uncertainty, rig=rig, metadata=drop.signals.metadata, method=method,
-                             lever_length_m=lever_length_m, laser_radius_m=laser_radius_m, seed=drop.span.index)
-    except DroptowerError as exc:
-        click.echo(f"droptower: warning: {path}: no uncertainty budget: {cli_message(exc)}", err=True)
-        budget = None
-    return uncertainty_columns(budget)
+    nominal = {"lever_length_m": lever_length_m, "laser_radius_m": laser_radius_m}
+    metas = [{**drop.signals.metadata, **{k: v for k, v in nominal.items() if v is not None}} for _, _, drop in drops]
+    if method == "auto":
+        try:
+            keys = [tuple(m.get(k) for k in ("inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"))
+                    for m in metas]
+            budgets = campaign_budgets([d.result for _, _, d in drops], uncertainty, conditions=keys, metadata=metas,
+                                       rig=rig)
+            return [uncertainty_columns(b) for b in budgets]
+        except DroptowerError:
+            pass  # one drop's problem: each drop on its own below, the failing ones named
+    out = []
+    for (_, path, drop), meta in zip(drops, metas):
+        try:
+            budget = drop_budget(drop.result, uncertainty, rig=rig, metadata=meta, method=method, seed=drop.span.index)
+        except DroptowerError as exc:
+            click.echo(f"droptower: warning: {path}: no uncertainty budget: {cli_message(exc)}", err=True)
+            budget = None
+        out.append(uncertainty_columns(budget))
+    return out
 
 
 @click.command()
@@ -92,7 +107,8 @@ def _uncertainty_row(path: str, drop: Any, uncertainty: Any, rig: Any, method: s
 @uncertainty_option
 @click.option("--uncertainty-method", type=click.Choice(["auto", "gum", "mc"]), default="auto", show_default=True,
               help="With input uncertainties: auto (the GUM where Monte Carlo validates it, else Monte Carlo; "
-                   "JCGM 101, 8), gum (first order only, fast) or mc (Monte Carlo only).")
+                   "JCGM 101, 8; Monte Carlo run once per make-up of the budget, not per drop), gum (first order "
+                   "only, fast) or mc (Monte Carlo on every drop).")
 @click.option("--delimiter", default=None, help="CSV field separator (default: sniffed).")
 @click.option("--decimal", type=click.Choice([".", ","]), default=None, help="CSV decimal separator (default: sniffed).")
 @click.option("--header-lines", type=int, default=None, help="CSV lines above the names row (default: sniffed).")
@@ -190,6 +206,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
         make_folder(plot_dir)
 
     rows: list[dict[str, Any]] = []
+    budget_drops: list[tuple[int, str, Any]] = []
     failures: list[str] = []
     failed: set[str] = set()
     plots: set[str] = set()
@@ -213,8 +230,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
                     plot_fit(drop.signals, drop.result, plot_dir / f"{name}.png", title=None)
                 rows.append(result_row(path, drop.signals, drop.result, drop.span.index))
                 if input_u is not None:
-                    rows[-1].update(_uncertainty_row(path, drop, input_u, rig_config, uncertainty_method,
-                                                 lever_length, sensor_radius))
+                    budget_drops.append((len(rows) - 1, path, drop))
         except WriteError:  # the output place, not this log: the next plot would fail alike
             raise
         except DroptowerError as exc:
@@ -226,6 +242,10 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
             failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
+    if budget_drops:
+        for i, columns in enumerate(_uncertainty_rows(budget_drops, input_u, rig_config, uncertainty_method,
+                                                      lever_length, sensor_radius)):
+            rows[budget_drops[i][0]].update(columns)
     for line in dropped_out(rows):
         click.echo(f"droptower: warning: {cli_text(line)}", err=True)
     unused = table.unmatched(paths) if table is not None else []

@@ -11,6 +11,7 @@ table, with :func:`override_uncertainty` over it: the command line's ``NAME=VALU
 - :mod:`.budget`: one drop's budget, the method chosen by validation (:func:`drop_budget`);
 - :mod:`.conditions`: each condition's mean with its budget, which input dominates (:func:`condition_budgets`);
 - :mod:`.table`: ``*_u``, ``*_U95`` and the dominant input in per-drop tables (:func:`with_uncertainty`);
+  a campaign's budgets with the GUM validated once per condition (:func:`campaign_budgets`);
 - :mod:`.mapband`: the map's coefficients and predictions with the fit's and the inputs' shares, the
   inputs correlated across the drops that share them (:func:`map_uncertainty`);
 - :mod:`.agreement`: E_n numbers and verdicts against a bench (ISO 13528, :func:`en_verdicts`), per
@@ -27,10 +28,10 @@ from droptower.uncertainty.inputs import INPUTS, DropInputs, Input, drop_inputs
 from droptower.uncertainty.mapband import MapUncertainty, map_uncertainty
 from droptower.uncertainty.model import QUANTITIES, DropModel
 from droptower.uncertainty.montecarlo import MonteCarloPropagation, propagate_monte_carlo
-from droptower.uncertainty.table import drop_budgets, uncertainty_columns, with_uncertainty
+from droptower.uncertainty.table import campaign_budgets, drop_budgets, uncertainty_columns, with_uncertainty
 
 __all__ = ["AGREEMENT_QUANTITIES", "DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
            "InputUncertainty", "MapUncertainty", "MonteCarloPropagation", "QUANTITIES", "QuantityUncertainty", "RigUncertainty",
-           "VERDICTS", "condition_budgets", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
+           "VERDICTS", "campaign_budgets", "condition_budgets", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
            "parse_uncertainty_spec", "propagate_gum",
            "propagate_monte_carlo", "route_agreement", "uncertainty_columns", "with_uncertainty"]
