@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 from droptower.design.choose import Design, design_campaign
@@ -32,7 +32,7 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
            preloads_nm: tuple[float, ...] = (0.0,), repeats: int | None = None, uncertainty_pct: float | None = None,
            rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING, max_tests: int | None = None,
            for_identification: str | None = None,
-           on_note: Callable[[str], None] | None = None) -> Design | IdentificationDesign:
+           on_note: Callable[[str], None] | None = None, uncertainty: Any = None) -> Design | IdentificationDesign:
     """Design a campaign that covers a target region, or that identifies a model best.
 
     Parameters
@@ -63,6 +63,9 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
         drops that identify it, with the parameters' predicted standard errors.
     on_note : callable, optional
         Called with a line on what is being done (the pilot tests).
+    uncertainty : RigUncertainty, optional
+        With ``uncertainty_pct``: the rig's input uncertainties whose share repeats do not
+        reduce (default: the rig file's ``[uncertainty]``).
 
     Returns
     -------
@@ -108,7 +111,8 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
 
             if on_note is not None:
                 on_note(f"pilot: one virtual test per condition ({result.n_conditions}) for the scatter of c and d")
-            advice = repeats_advice(pilot_uncertainty(result, rig, coupling), uncertainty_pct, rig_cfg.uncertainty)
+            advice = repeats_advice(pilot_uncertainty(result, rig, coupling), uncertainty_pct,
+                                    uncertainty if uncertainty is not None else rig_cfg.uncertainty)
             if not advice.reachable and on_note is not None:
                 on_note(f"warning: {advice.limit}")
             n = advice.repeats
