@@ -175,3 +175,17 @@ def test_validate_judges_each_route_by_en_against_a_bench_of_stated_uncertainty(
     code = main(["validate", "--map", str(routes["map"]), "--model-map", str(routes["model_map"]), "--coupling",
                  str(routes["truth"]), "--quick", "--results", str(routes["campaign"]), *specs])
     assert code == 0 and "bench uncertainty not given" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_the_model_maps_k_band_holds_the_fits_and_js_shares(routes):
+    from droptower.compare.model_map import Z95
+    from droptower.compare.validate import model_map_with_inputs
+
+    mm = ModelMap.from_json(routes["model_map"])
+    wide = model_map_with_inputs(mm, 0.01)
+    q = "storage_stiffness_nm_per_deg"
+    half = (wide.grid[f"{q}_band_hi"] - wide.grid[f"{q}_band_lo"]) / 2
+    np.testing.assert_allclose(half, Z95 * np.hypot(mm.grid[f"{q}_std"], 0.01 * mm.grid[q]), rtol=1e-12)
+    np.testing.assert_allclose(wide.grid["loss_factor_band_hi"], mm.grid["loss_factor_band_hi"])  # no J in η
+    assert "J's 1 %" in wide.band_method and mm.grid is not wide.grid

@@ -165,6 +165,11 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if model_map is not None:
         if not as_json:
             click.echo(model_map.summary())
+            if bands is not None and model_map.has_bands:
+                from droptower.compare.validate import inertia_u_rel
+
+                click.echo(f"inputs on the model-based map: J's {100 * inertia_u_rel(input_u, table):.3g} % on K' "
+                           "(added to its bands in the figures and in validate's E_n; the loss factor carries no J)")
         if poor and not accept_poor:
             model_out = None  # a map that cannot be trusted is written only when asked
         if model_out is not None and model_out.suffix.lower() == ".json":
@@ -181,7 +186,12 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         if model_map is not None and (accept_poor or not poor):
             from droptower.compare.model_map_plots import plot_model_map
 
-            files += plot_model_map(model_map, plot_dir, select_tests(table, results)[0], fit)
+            drawn = model_map
+            if bands is not None:  # the fit's bands and J's share on K' together
+                from droptower.compare.validate import inertia_u_rel, model_map_with_inputs
+
+                drawn = model_map_with_inputs(model_map, inertia_u_rel(input_u, table))
+            files += plot_model_map(drawn, plot_dir, select_tests(table, results)[0], fit)
         options.wrote(plot_dir, f"{', '.join(p.name for p in files)}")
     if poor and not accept_poor:
         from droptower.identify.verdict import EXIT_POOR_FIT

@@ -231,6 +231,28 @@ def model_route_u95(model_map: Any, table: pd.DataFrame, inertia_u_rel: float = 
             "damping_ratio": 2.0 * grid["drop_tower_equivalent_damping_ratio_std"].to_numpy()}
 
 
+def model_map_with_inputs(model_map: Any, inertia_u_rel: float) -> Any:
+    """A copy of a model-based map whose grid's K' band (95 %) holds the inertia's share too:
+    K' ± 1.96·√(std² + (K'·u_J/J)²), the fit's band and J's in quadrature (:func:`model_route_u95`;
+    the loss factor and d carry no J). For the figures (``plot_model_map``); a map without
+    bands or grid is returned as it is."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from droptower.compare.model_map import Z95
+
+    grid = model_map.grid
+    q = "storage_stiffness_nm_per_deg"
+    if grid is None or f"{q}_std" not in grid.columns or not inertia_u_rel > 0:
+        return model_map
+    grid = grid.copy()
+    u = np.hypot(grid[f"{q}_std"], grid[q] * inertia_u_rel)
+    grid[f"{q}_band_lo"], grid[f"{q}_band_hi"] = grid[q] - Z95 * u, grid[q] + Z95 * u
+    return replace(model_map, grid=grid, band_method=f"{model_map.band_method}; with J's {100 * inertia_u_rel:.3g} % "
+                                                    "on K' (the inputs, GUM)", _cache={})
+
+
 def inertia_u_rel(uncertainty: Any, campaign: pd.DataFrame | None) -> float:
     """The relative standard uncertainty J carries into an identification over every fixture:
     each fixture's u_J/J weighted by its share of the tests (independent fixtures; GUM 5.1.2),
