@@ -133,6 +133,9 @@ def format_agreement(agreements: dict[str, pd.DataFrame]) -> str:
     bench uncertainty, inside the hull and in all; the largest |E_n|."""
     lines = ["agreement with the servo bench (E_n = (x_map - x_servo)/sqrt(U_map^2 + U_servo^2), ISO 13528; "
              "|E_n| <= 1 agrees):"]
+    if not agreements:
+        lines.append("  no route's expanded uncertainty is known: the paper map's needs the tests it was fitted to, "
+                     "the model-based map's its bands")
     for route, t in agreements.items():
         for q in AGREEMENT_QUANTITIES:
             if f"{q}_verdict" not in t.columns:

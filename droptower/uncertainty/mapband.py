@@ -224,14 +224,13 @@ def map_uncertainty(results: pd.DataFrame | str | Path, uncertainty: RigUncertai
                 moves.append((f"inertia_kgm2@{j:g}", entry.standard / j, np.isclose(inertias, j, rtol=1e-6), "J"))
     elif u.inertias_kgm2:
         raise DroptowerError("the results have no inertia_kgm2 column: which fixture each test used is needed "
-                             "for the inertias' uncertainty", where="results")
+                             "for the inertias' uncertainty")
     else:
         not_given.append("inertia_kgm2")
     if u.sample_rate_hz is not None:
         rates = usable["sample_rate_hz"].to_numpy(float) if "sample_rate_hz" in usable.columns else None
         if rates is None or not np.all(np.isfinite(rates) & (rates > 0)):
-            raise DroptowerError("the results have no sample_rate_hz column: its uncertainty needs the nominal rate",
-                                 where="results")
+            raise DroptowerError("the results have no sample_rate_hz column: its uncertainty needs the nominal rate")
         moves.append(("sample_rate_hz", float(np.median(u.sample_rate_hz.standard / rates)), everyone, "clock"))
     else:
         not_given.append("sample_rate_hz")
@@ -239,7 +238,7 @@ def map_uncertainty(results: pd.DataFrame | str | Path, uncertainty: RigUncertai
         radius = usable["sensor_radius_m"].to_numpy(float) if "sensor_radius_m" in usable.columns else None
         if radius is None or not np.all(np.isfinite(radius) & (radius > 0)):
             raise DroptowerError("the results have no sensor_radius_m column: the laser radius's uncertainty needs "
-                                 "the nominal radius", where="results")
+                                 "the nominal radius")
         moves.append(("laser_radius_m", float(np.median(u.laser_radius_m.standard / radius)), everyone, "laser"))
     else:
         not_given.append("laser_radius_m")
