@@ -51,7 +51,7 @@ def campaign(seed: int, drops_per_fixture: int = 2, stated: RigUncertainty = STA
         delta = c / (2 * j)
         omega = math.sqrt(k / j - delta ** 2)
         d = 0.5 * (math.exp(4 * math.pi * delta / omega) - 1)
-        for rep in range(drops_per_fixture):
+        for _ in range(drops_per_fixture):
             drop = SyntheticDrop(inertia_kgm2=j, stiffness_nm_per_rad=k, damping_ratio=d,
                                  amplitude_deg=rng.uniform(0.5, 2.5), sample_rate_hz=fs, duration_s=0.1,
                                  seed=int(rng.integers(2 ** 31)))

@@ -22,7 +22,6 @@ u_c² = u_fit² + Σ_k u_k², the inputs independent of each other and of the fi
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
