@@ -225,3 +225,20 @@ def test_uncertainty_target_sets_the_repeats_from_a_pilot(designed):
     assert 1 <= loose <= tight
     worst = rel[["stiffness_relative_std", "damping_ratio_relative_std"]].to_numpy().max()
     assert worst / math.sqrt(tight) <= 0.002 or tight == 50
+
+
+def test_the_inputs_share_does_not_average_out_and_can_make_the_target_unreachable():
+    """u_mean² = u_1²/n + (u_J/J)²: J's share stays with repeats (one J serves every repeat)."""
+    from droptower.design.repeats import repeats_advice
+    from droptower.rig.uncertainty import override_uncertainty
+
+    rel = pd.DataFrame({"inertia_kgm2": [0.359, 0.5233], "stiffness_relative_std": [0.02, 0.01],
+                        "damping_ratio_relative_std": [0.01, 0.01]})
+    u_j = override_uncertainty(None, ["inertia_kgm2@0.359=0.001795"])  # 0.5 %
+    plain, with_j = repeats_advice(rel, 1.0), repeats_advice(rel, 1.0, u_j)
+    assert plain.repeats == 4 and plain.reachable
+    n = with_j.repeats  # the least n with 0.02²/n + 0.005² <= 0.01²
+    assert with_j.reachable and 0.02 ** 2 / n + 0.005 ** 2 <= 0.01 ** 2 < 0.02 ** 2 / (n - 1) + 0.005 ** 2
+    blocked = repeats_advice(rel, 0.4, u_j)  # J alone is 0.5 % > 0.4 %
+    assert not blocked.reachable and "inertia_kgm2@0.359" in blocked.limit and "no number of repeats" in blocked.limit
+    assert blocked.repeats == 16  # where the fit's share 2 %/sqrt(n) falls below J's 0.5 %

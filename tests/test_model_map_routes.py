@@ -146,3 +146,46 @@ def test_model_map_of_a_coupling_or_an_identification_json(routes, capsys):
     assert main(["map", str(routes["campaign"]), "--model-coupling", str(root / "bad.json")]) == 2
     err = capsys.readouterr().err
     assert "bad.json: the identification wrote no coupling" in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_validate_judges_each_route_by_en_against_a_bench_of_stated_uncertainty(routes, capsys):
+    """E_n (ISO 13528) per servo point with the bench's U95 stated (2 %) and J's (1 %, k = 1):
+    inside the hull the model-based route agrees (|E_n| <= 1) in stiffness and damping ratio; the
+    paper's route, whose first-cycle damping reads the slow creep as damping
+    (docs/theory.md#first-cycle), disagrees in the damping ratio at every point."""
+    out = routes["root"] / "validation_en"
+    capsys.readouterr()
+    specs = [arg for j in (0.1557, 0.359, 0.5233) for arg in ("--uncertainty", f"inertia_kgm2@{j}={0.01 * j}")]
+    code = main(["validate", "--map", str(routes["map"]), "--model-map", str(routes["model_map"]), "--coupling",
+                 str(routes["truth"]), "--quick", "--results", str(routes["campaign"]), *specs,
+                 "--servo-u95-rel", "0.02", "--out", str(out), "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)["agreement"]
+    model = [p for p in doc[ROUTE] if p["in_range"]]
+    paper = [p for p in doc[PAPER_ROUTE] if p["in_range"]]
+    assert model and len(model) == len(paper)
+    for p in model:
+        assert abs(p["stiffness_nm_per_deg_en_number"]) <= 1 and p["stiffness_nm_per_deg_verdict"] == "agrees", p
+        assert abs(p["damping_ratio_en_number"]) <= 1 and p["damping_ratio_verdict"] == "agrees", p
+        assert p["servo_stiffness_nm_per_deg_U95"] == pytest.approx(0.02 * p["servo_stiffness_nm_per_deg"])
+    assert all(p["damping_ratio_verdict"] == "disagrees" and p["damping_ratio_en_number"] > 1 for p in paper)
+    assert (out / "validation_en.csv").is_file()
+    # no bench uncertainty: no verdict but that
+    code = main(["validate", "--map", str(routes["map"]), "--model-map", str(routes["model_map"]), "--coupling",
+                 str(routes["truth"]), "--quick", "--results", str(routes["campaign"]), *specs])
+    assert code == 0 and "bench uncertainty not given" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_the_model_maps_k_band_holds_the_fits_and_js_shares(routes):
+    from droptower.compare.model_map import Z95
+    from droptower.compare.validate import model_map_with_inputs
+
+    mm = ModelMap.from_json(routes["model_map"])
+    wide = model_map_with_inputs(mm, 0.01)
+    q = "storage_stiffness_nm_per_deg"
+    half = (wide.grid[f"{q}_band_hi"] - wide.grid[f"{q}_band_lo"]) / 2
+    np.testing.assert_allclose(half, Z95 * np.hypot(mm.grid[f"{q}_std"], 0.01 * mm.grid[q]), rtol=1e-12)
+    np.testing.assert_allclose(wide.grid["loss_factor_band_hi"], mm.grid["loss_factor_band_hi"])  # no J in η
+    assert "J's 1 %" in wide.band_method and mm.grid is not wide.grid

@@ -96,3 +96,64 @@ def test_en_is_antisymmetric_and_agrees_exactly_within_the_combined_interval(x, 
     assert float(en_number(y, u2, x, u1)) == -en
     verdict = en_verdicts([x], [u1], [y], [u2])["verdict"].iloc[0]
     assert (verdict == "agrees") == (abs(x - y) / math.hypot(u1, u2) <= 1.0)
+
+
+def test_route_agreement_judges_each_point_and_names_a_missing_bench_uncertainty():
+    from droptower.uncertainty import format_agreement, route_agreement
+
+    table = pd.DataFrame({"sweep": ["f"] * 3, "amplitude_deg": [0.5, 1.0, 1.5], "frequency_hz": [10.0, 20.0, 30.0],
+                          "in_range": [True, True, False], "map_stiffness_nm_per_deg": [100.0, 103.0, 110.0],
+                          "servo_stiffness_nm_per_deg": [100.0, 100.0, 100.0],
+                          "map_damping_ratio": [1.0, 1.0, 1.0], "servo_damping_ratio": [1.0, 1.0, 1.0]})
+    out = route_agreement(table, {"stiffness_nm_per_deg": [4.0, 4.0, 4.0]}, u95_ref_rel=0.03)
+    # E_n = (x1 - x2)/sqrt(U1² + U2²): 3/sqrt(16 + 9) = 0.6; 10/5 = 2
+    np.testing.assert_allclose(out["stiffness_nm_per_deg_en_number"], [0.0, 0.6, 2.0])
+    assert list(out["stiffness_nm_per_deg_verdict"]) == ["agrees", "agrees", "disagrees"]
+    assert "damping_ratio_verdict" not in out  # no U95 of the route's damping: not judged
+    none = route_agreement(table, {"stiffness_nm_per_deg": 4.0})
+    assert set(none["stiffness_nm_per_deg_verdict"]) == {"bench uncertainty not given"}
+    text = format_agreement({"r": out, "s": none})
+    assert "inside: 2/2 agree" in text and "all: 2/3 agree, max |E_n| 2.00" in text
+    assert "s, stiffness_nm_per_deg: inside: bench uncertainty not given" in text
+
+
+def test_a_servo_tables_own_u95_column_is_read_by_point(tmp_path):
+    from droptower.compare import read_servo_results
+    from droptower.compare.validate import servo_u95_columns
+
+    path = tmp_path / "servo.csv"
+    path.write_text("amplitude_deg,frequency_hz,storage_stiffness_nm_per_deg,loss_factor,storage_stiffness_nm_per_deg_U95\n"
+                    "0.5,10,300,0.2,6\n0.5,20,310,0.21,6.2\n1.5,10,280,0.25,5.6\n")
+    points = read_servo_results(path)  # its table is sorted: the U95 follows its point, not its row
+    u95 = servo_u95_columns(points, points.table)
+    lookup = {(0.5, 10.0): 6.0, (0.5, 20.0): 6.2, (1.5, 10.0): 5.6}
+    expected = [lookup[(a, f)] for a, f in zip(points.table["amplitude_deg"], points.table["frequency_hz"])]
+    np.testing.assert_allclose(u95["stiffness_nm_per_deg"], expected)
+    assert "damping_ratio" not in u95
+
+
+def test_a_campaigns_budgets_reuse_monte_carlo_where_the_make_up_is_the_same():
+    """campaign_budgets against both methods on every drop: U95 and the interval's ends within
+    5 % of U95 (the GUM-vs-Monte-Carlo criterion), with Monte Carlo on a few drops only; the
+    amplitude, dominated by a rectangular calibration, stays Monte Carlo's (GUM 4.3.7: ±1.65 u)."""
+    from droptower.rig.uncertainty import override_uncertainty
+    from droptower.uncertainty import campaign_budgets
+
+    signals = [SyntheticDrop(duration_s=0.1, seed=i, amplitude_deg=1.0 + 0.02 * (i % 3)).signals() for i in range(9)]
+    results = [extract(s) for s in signals]
+    u = override_uncertainty(None, [f"inertia_kgm2@{J}={0.01 * J}", "laser_calibration_rel=0.003:rectangular",
+                                    "sample_rate_hz=0.3"])
+    metas = [s.metadata for s in signals]
+    fast = campaign_budgets(results, u, metadata=metas)
+    full = drop_budgets(results, u, metadata=metas, method="auto")
+    assert sum(b.trials > 0 for b in fast) < len(fast) / 2
+    for b, f in zip(fast, full):
+        for name, q in f.quantities.items():
+            if q.expanded_uncertainty > 0:
+                tol = 0.05 * q.expanded_uncertainty
+                assert abs(b[name].expanded_uncertainty - q.expanded_uncertainty) <= tol, name
+                # the ends: a GUM interval is y ± 2u by convention (k = 2), Monte Carlo's its 95 % quantiles
+                # (±1.96u for a normal output): a borderline validation may pick either
+                ends = tol + (2 - 1.96) * q.standard_uncertainty
+                assert abs(b[name].low - q.low) <= ends and abs(b[name].high - q.high) <= ends, name
+        assert f["amplitude_ref_rad"].method == "MC"

@@ -5,7 +5,7 @@ import json
 
 import click
 
-from droptower.cli.options import note, quiet_option
+from droptower.cli.options import note, quiet_option, uncertainty_from_cli, uncertainty_option
 from droptower.cli.flags import cli_text
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 from droptower.errors import DroptowerError
@@ -49,7 +49,9 @@ def _preloads(text: str) -> tuple[float, ...]:
               help="Repeats per condition (default 3; or --uncertainty-pct).")
 @click.option("--uncertainty-pct", type=float, default=None,
               help="Instead of --repeats: enough repeats for this standard uncertainty (% of the value) of the "
-                   "mean stiffness and damping ratio of every condition, from a virtual pilot test per condition.")
+                   "mean stiffness and damping ratio of every condition, from a virtual pilot test per condition; "
+                   "the rig's input uncertainties (--rig's [uncertainty], --uncertainty) count too: J's share does "
+                   "not average out, and the design says when an input alone exceeds the target.")
 @click.option("--rig", default=DEFAULT_RIG, show_default=True, help="Rig TOML file or shipped preset name.")
 @click.option("--coupling", default=DEFAULT_COUPLING, show_default=True,
               help="Coupling TOML file or shipped preset name (what the drops are predicted on).")
@@ -64,9 +66,11 @@ def _preloads(text: str) -> tuple[float, ...]:
 @click.option("--json", "as_json", is_flag=True, help="Print the design as JSON.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Draw the coverage of the target (PNG).")
+@uncertainty_option
 def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | None, preloads_nm: str, repeats: int | None,
            uncertainty_pct: float | None, rig: str, coupling: str, max_tests: int | None, out: str,
-           sheet: str | None, seed: int, as_json: bool, plot_path: str | None) -> None:
+           sheet: str | None, seed: int, as_json: bool, plot_path: str | None,
+           uncertainty_specs: tuple[str, ...] = ()) -> None:
     """Design a campaign that covers a target region of amplitude and frequency: which levers,
     drop masses and heights of the rig, at which preloads, how many repeats, in what order.
 
@@ -90,10 +94,16 @@ def design(amplitude_deg: str | None, frequency_hz: str | None, model: str | Non
     from droptower.design.outputs import check_plan_paths
 
     check_plan_paths(out, sheet)
+    input_u = None
+    if uncertainty_specs:
+        from droptower.rig.config import load_rig
+
+        input_u = uncertainty_from_cli(uncertainty_specs, load_rig(rig))
     result = run_design(_range("--amplitude-deg", amplitude_deg) if amplitude_deg is not None else None,
                         _range("--frequency-hz", frequency_hz) if frequency_hz is not None else None,
                         preloads_nm=_preloads(preloads_nm), repeats=repeats, uncertainty_pct=uncertainty_pct,
-                        rig=rig, coupling=coupling, max_tests=max_tests, for_identification=model, on_note=note)
+                        rig=rig, coupling=coupling, max_tests=max_tests, for_identification=model, on_note=note,
+                        uncertainty=input_u)
     result.write(out, sheet, seed)
     if plot_path and model is None:
         from droptower.design.plots import plot_coverage

@@ -9,8 +9,9 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import (conditions_from_cli, conditions_options, note, progress_disabled, quiet_option,
-                                   renamed_option, rig_for_logs, wrote)
+from droptower.cli.options import (conditions_from_cli, conditions_options, note, note_uncertainty, progress_disabled,
+                                   quiet_option, renamed_option, rig_for_logs, uncertainty_from_cli, uncertainty_option,
+                                   wrote)
 from droptower.errors import DroptowerError, WriteError, check_positive, make_folder
 from droptower.cli.flags import cli_message, cli_text
 
@@ -19,7 +20,12 @@ SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", 
            "damping_ratio", "lehr_damping", "stiffness_torque_nm_per_deg", "loss_factor", "relative_damping_psi", "fit_error", "flags")
 
 
+#: added to :data:`SUMMARY` when the rows carry input uncertainties
+SUMMARY_U95 = ("stiffness_nm_per_deg_U95", "stiffness_nm_per_deg_dominant", "loss_factor_U95")
+
+
 def _summary(rows: list[dict[str, Any]]) -> str:
+    columns = SUMMARY + (SUMMARY_U95 if any(SUMMARY_U95[0] in r for r in rows) else ())
     def cell(v: Any) -> str:
         if isinstance(v, float):
             return f"{v:.4g}"
@@ -27,9 +33,39 @@ def _summary(rows: list[dict[str, Any]]) -> str:
             return ";".join(v) or "-"
         return str(v)
 
-    table = [[cell(r[c]) for c in SUMMARY] for r in rows]
-    widths = [max(len(h), *(len(r[i]) for r in table)) for i, h in enumerate(SUMMARY)]
-    return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)) for line in [list(SUMMARY), *table])
+    table = [[cell(r.get(c, "")) for c in columns] for r in rows]
+    widths = [max(len(h), *(len(r[i]) for r in table)) for i, h in enumerate(columns)]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)) for line in [list(columns), *table])
+
+
+def _uncertainty_rows(drops: list[tuple[int, str, Any]], uncertainty: Any, rig: Any, method: str,
+                      lever_length_m: float | None, laser_radius_m: float | None) -> list[dict[str, Any]]:
+    """Each drop's uncertainty columns. ``auto``: the campaign's route (Monte Carlo on the drops
+    whose budget's make-up no earlier drop had, :func:`droptower.uncertainty.campaign_budgets`);
+    a drop whose budget cannot be made (a nominal value its log lacks) gets empty columns and a
+    warning, its results stand."""
+    from droptower.uncertainty import campaign_budgets, drop_budget, uncertainty_columns
+
+    nominal = {"lever_length_m": lever_length_m, "laser_radius_m": laser_radius_m}
+    metas = [{**drop.signals.metadata, **{k: v for k, v in nominal.items() if v is not None}} for _, _, drop in drops]
+    if method == "auto":
+        try:
+            keys = [tuple(m.get(k) for k in ("inertia_kgm2", "drop_mass_kg", "drop_height_m", "preload_nm"))
+                    for m in metas]
+            budgets = campaign_budgets([d.result for _, _, d in drops], uncertainty, conditions=keys, metadata=metas,
+                                       rig=rig)
+            return [uncertainty_columns(b) for b in budgets]
+        except DroptowerError:
+            pass  # one drop's problem: each drop on its own below, the failing ones named
+    out = []
+    for (_, path, drop), meta in zip(drops, metas):
+        try:
+            budget = drop_budget(drop.result, uncertainty, rig=rig, metadata=meta, method=method, seed=drop.span.index)
+        except DroptowerError as exc:
+            click.echo(f"droptower: warning: {path}: no uncertainty budget: {cli_message(exc)}", err=True)
+            budget = None
+        out.append(uncertainty_columns(budget))
+    return out
 
 
 @click.command()
@@ -68,6 +104,11 @@ def _summary(rows: list[dict[str, Any]]) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the results as a JSON list of objects.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Draw per test the angle and torque with their fits (Rapp et al. 2022, Fig. 9) into this folder.")
+@uncertainty_option
+@click.option("--uncertainty-method", type=click.Choice(["auto", "gum", "mc"]), default="auto", show_default=True,
+              help="With input uncertainties: auto (the GUM where Monte Carlo validates it, else Monte Carlo; "
+                   "JCGM 101, 8; Monte Carlo run once per make-up of the budget, not per drop), gum (first order "
+                   "only, fast) or mc (Monte Carlo on every drop).")
 @click.option("--delimiter", default=None, help="CSV field separator (default: sniffed).")
 @click.option("--decimal", type=click.Choice([".", ","]), default=None, help="CSV decimal separator (default: sniffed).")
 @click.option("--header-lines", type=int, default=None, help="CSV lines above the names row (default: sniffed).")
@@ -76,8 +117,9 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
             conditions_pattern: str | None, inertia: float | None, lever_length: float | None,
             sensor_radius: float | None, channel_specs: tuple[str, ...], sample_rate: float | None, window: str,
             drop_selection: str | None, drop_conditions: str | None, pre_trigger_s: float, min_drop_spacing_s: float,
-            out: Path | None, as_json: bool, plot_dir: Path | None, delimiter: str | None, decimal: str | None,
-            header_lines: int | None, unit_row: bool | None) -> None:
+            out: Path | None, as_json: bool, plot_dir: Path | None, uncertainty_specs: tuple[str, ...],
+            uncertainty_method: str, delimiter: str | None, decimal: str | None, header_lines: int | None,
+            unit_row: bool | None) -> None:
     """Extract stiffness and damping from drop-test logs PATH... (any number, any format).
 
     Per test: impact and pre-trigger baseline (offsets, preload), least-squares fit of
@@ -96,6 +138,13 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
     A file the conditions table lacks fails on its own; bad rows of the table are warned about
     once and fail only their files. --drop-conditions is for recordings of several drops: keyed
     by the drop's number, over --conditions.
+
+    Input uncertainties (the rig file's [uncertainty] table, --uncertainty over it): each row
+    gains <output>_u (combined standard uncertainty), <output>_U95 (expanded, 95 %: k = 2, or
+    the Monte Carlo interval's half-width) and <output>_dominant (the budget's largest term: an
+    input or the fit), and uncertainty_not_given (inputs left out, never counted as zero); the
+    inputs' share is propagated through the extraction's own equations (GUM, JCGM 100; Monte
+    Carlo, JCGM 101; docs/guide/uncertainty.md). None given: the fit's *_std only, and a note says so.
 
     Time stamps printed with few decimals (steps that differ only by the printed precision)
     are taken as a constant sample rate estimated from the whole log (a note says so); a truly
@@ -139,6 +188,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
     for name, value in (("--pre-trigger-s", pre_trigger_s), ("--min-drop-spacing-s", min_drop_spacing_s)):
         check_positive(value, name, most=3600.0)
     rig_config = rig_for_logs(rig, paths)
+    input_u = uncertainty_from_cli(uncertainty_specs, rig_config)
     table = conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
@@ -156,6 +206,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
         make_folder(plot_dir)
 
     rows: list[dict[str, Any]] = []
+    budget_drops: list[tuple[int, str, Any]] = []
     failures: list[str] = []
     failed: set[str] = set()
     plots: set[str] = set()
@@ -178,6 +229,8 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
                     plots.add(name)
                     plot_fit(drop.signals, drop.result, plot_dir / f"{name}.png", title=None)
                 rows.append(result_row(path, drop.signals, drop.result, drop.span.index))
+                if input_u is not None:
+                    budget_drops.append((len(rows) - 1, path, drop))
         except WriteError:  # the output place, not this log: the next plot would fail alike
             raise
         except DroptowerError as exc:
@@ -189,6 +242,10 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
             failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
+    if budget_drops:
+        for i, columns in enumerate(_uncertainty_rows(budget_drops, input_u, rig_config, uncertainty_method,
+                                                      lever_length, sensor_radius)):
+            rows[budget_drops[i][0]].update(columns)
     if rows:  # a fixture or condition none of whose drops is usable is named, with why (as map names it)
         from droptower.maps.coverage import coverage_notes
         from droptower.maps.results import select_tests
@@ -209,6 +266,8 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
         click.echo(json.dumps(json_safe(rows), indent=2))
     elif out is None and rows:
         click.echo(_summary(rows))
+    if rows:  # after the results: what their uncertainties hold
+        note_uncertainty(input_u)
     if failures and (len(paths) > 1 or rows):  # one file, one failure: its error line above says it all
         click.echo(f"droptower: {len(failed)} of {len(paths)} file(s) failed:", err=True)
         for line in failures:

@@ -52,6 +52,8 @@ FLAGS: dict[str, str] = {
     "model": "--model",
     "template": "--template",
     "conditions": "--conditions",
+    "uncertainty": "--uncertainty",
+    "u95_ref_rel": "--servo-u95-rel",
 }
 
 _ROLE = re.compile(r"`roles=\{'(\w+)': '([^']*)'\}`")

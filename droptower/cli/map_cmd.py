@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -41,11 +42,13 @@ from droptower.errors import DroptowerError
               help="Write the model-based map: model_map.json (what validate --model-map reads) or its grid "
                    "as .csv, .parquet or .xlsx.")
 @lab_log_options
+@options.uncertainty_option
 def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, nested_cv: bool,
                 as_json: bool, model_kind: str | None, template: str | None, model_coupling: Path | None,
                 model_out: Path | None, accept_poor: bool, rig: str | None, sensor_radius_m: float | None,
                 channel_specs: tuple[str, ...], inertia_kgm2: float | None, lever_length_m: float | None,
-                conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> None:
+                conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
+                uncertainty_specs: tuple[str, ...] = ()) -> None:
     """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20),
     or another --form; the summary gives fit and cross-validated errors.
 
@@ -55,6 +58,14 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     short_window, clipping), failed logs and incomplete rows are excluded and listed; a fixture or
     condition none of whose tests is usable is named with why (for double impacts: the drop mass
     that would avoid them), and tests spanning more than 5 K of temperature are said to.
+
+    Input uncertainties (--rig's [uncertainty] table, --uncertainty over it): the summary gains the
+    expanded uncertainty (k = 2) of every coefficient, the fit's share and the inputs' together,
+    each input treated as correlated across the tests that share it (one J for all tests of a
+    fixture: its error does not average out with repeats); --out's coefficient table gains
+    u_fit, u_<input>, u_inputs, u_c, U95 and dominant; --plot draws the map's U95 as bars
+    (Fig. 12) and bands (Fig. 13). The results table needs inertia_kgm2 (which fixture),
+    sample_rate_hz and sensor_radius_m for the inputs that use them.
 
     \b
     Examples:
@@ -95,11 +106,22 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
             click.echo(f"droptower: not covered: {line}", err=True)
         raise
     fit.coverage = tuple(coverage_notes(table, *select_tests(table, results), rig=rig_config))
+    input_u = options.uncertainty_from_cli(uncertainty_specs, rig_config)
+    bands = None
+    if input_u is not None:
+        from droptower.uncertainty import map_uncertainty
+
+        bands = map_uncertainty(table, input_u, map_fit=fit)
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
         options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
     elif out is not None:
         coefficients = fit.coefficient_table()
+        if bands is not None:
+            import pandas as pd
+
+            extra_columns = bands.coefficient_table().drop(columns=["coefficient", "value"])
+            coefficients = pd.concat([coefficients, extra_columns], axis=1)
         options.wrote(write_table(coefficients, out, "--out"), f"coefficient table, {len(coefficients)} rows")
     nested = nested_summary(table, results) if nested_cv else None
     model_map = None
@@ -114,6 +136,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
                                     sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table,
                                     **geometry)
     extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
+             **({"uncertainty": _uncertainty_json(bands)} if bands is not None else {}),
              **({"model_map": model_map.to_dict()} if model_map is not None else {})}
     if as_json and extra:
         click.echo(json.dumps({**json.loads(fit.to_json()), **extra}, indent=2))
@@ -121,6 +144,8 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         click.echo(fit.to_json(), nl=False)
     else:
         click.echo(fit.summary())
+        if bands is not None:
+            click.echo(_uncertainty_text(bands))
         if nested is not None:
             click.echo(f"nested cross-validated (terms chosen without each fold's tests, {nested['inner_folds']} "
                        f"inner folds): stiffness {nested['stiffness_rms_error_pct']:.2f} %, damping ratio "
@@ -129,6 +154,11 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if model_map is not None:
         if not as_json:
             click.echo(model_map.summary())
+            if bands is not None and model_map.has_bands:
+                from droptower.compare.validate import inertia_u_rel
+
+                click.echo(f"inputs on the model-based map: J's {100 * inertia_u_rel(input_u, table):.3g} % on K' "
+                           "(added to its bands in the figures and in validate's E_n; the loss factor carries no J)")
         if poor and not accept_poor:
             model_out = None  # a map that cannot be trusted is written only when asked
         if model_out is not None and model_out.suffix.lower() == ".json":
@@ -139,13 +169,18 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if plot_dir is not None:
         from droptower.maps.plots import plot_all
 
-        files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir)
+        files, notes = plot_all(select_tests(table, results)[0], fit, plot_dir, bands)
         for line in notes:
             options.note(f"note: {line}")
         if model_map is not None and (accept_poor or not poor):
             from droptower.compare.model_map_plots import plot_model_map
 
-            files += plot_model_map(model_map, plot_dir, select_tests(table, results)[0], fit)
+            drawn = model_map
+            if bands is not None:  # the fit's bands and J's share on K' together
+                from droptower.compare.validate import inertia_u_rel, model_map_with_inputs
+
+                drawn = model_map_with_inputs(model_map, inertia_u_rel(input_u, table))
+            files += plot_model_map(drawn, plot_dir, select_tests(table, results)[0], fit)
         options.wrote(plot_dir, f"{', '.join(p.name for p in files)}")
     if poor and not accept_poor:
         from droptower.identify.verdict import EXIT_POOR_FIT
@@ -156,6 +191,26 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if failed:
         click.echo(f"droptower: {failed} log(s) could not be evaluated (listed above); exit code 2", err=True)
         raise click.exceptions.Exit(2)
+
+
+def _uncertainty_json(bands: Any) -> dict[str, Any]:
+    """The map's expanded uncertainties for ``--json``: per coefficient and the inputs not given."""
+    from droptower.jsonsafe import json_safe
+
+    return json_safe({"coverage_factor": 2.0, "not_given": list(bands.not_given),
+                      "coefficients": bands.coefficient_table().to_dict(orient="records")})
+
+
+def _uncertainty_text(bands: Any) -> str:
+    """The summary's lines: each coefficient's U95 (k = 2), the fit's and the inputs' u, the dominant."""
+    table = bands.coefficient_table()
+    lines = ["expanded uncertainties (k = 2; the inputs correlated across the tests that share them):"]
+    for row in table.itertuples():
+        lines.append(f"  {row.coefficient:>4} = {row.value:.5g} ± {row.U95:.3g}  (u_fit {row.u_fit:.3g}, "
+                     f"u_inputs {row.u_inputs:.3g}; largest: {row.dominant})")
+    if bands.not_given:
+        lines.append(f"  inputs not given: {', '.join(bands.not_given)}")
+    return "\n".join(lines)
 
 
 def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],

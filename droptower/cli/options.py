@@ -193,3 +193,40 @@ def rig_for_logs(rig: str | None, paths: tuple[str, ...] | list[str] = ()) -> An
     else:
         note(f"geometry: {config.geometry_text()}")
     return config
+
+
+# ------------------------------------------------------------------ input uncertainties
+def uncertainty_option(f: Callable) -> Callable:
+    """``--uncertainty INPUT=VALUE[:normal|rectangular]`` (repeatable), over the rig file's ``[uncertainty]``."""
+    return click.option(
+        "--uncertainty", "uncertainty_specs", multiple=True, metavar="INPUT=VALUE[:normal|rectangular]",
+        help="An input's standard uncertainty (normal; rectangular: the half-width), over the rig file's "
+             "[uncertainty] table (repeatable): lever_length_m, laser_radius_m, drop_height_m, sample_rate_hz, "
+             "torque_calibration_rel, laser_calibration_rel, force_calibration_rel (relative: 0.005 = 0.5 %), or "
+             "a fixture's inertia_kgm2@NOMINAL / drop_mass_kg@NOMINAL (e.g. inertia_kgm2@0.359=0.0036). Not "
+             "given: the results carry the fit's uncertainty only, and say so.")(f)
+
+
+def uncertainty_from_cli(specs: tuple[str, ...] | list[str], rig: Any = None) -> Any:
+    """The input uncertainties of ``--uncertainty`` over ``rig.uncertainty`` (a RigUncertainty), or None."""
+    from droptower.cli.flags import cli_error
+    from droptower.errors import DroptowerError
+    from droptower.rig.uncertainty import override_uncertainty
+
+    try:
+        return override_uncertainty(getattr(rig, "uncertainty", None), list(specs))
+    except DroptowerError as exc:
+        raise cli_error(exc) from None
+
+
+def note_uncertainty(uncertainty: Any) -> None:
+    """Say once which inputs' uncertainties the results carry, and that the rest are not given."""
+    from droptower.rig.uncertainty import SPEC_NAMES
+
+    given = [name for name, field in SPEC_NAMES.items() if uncertainty is not None and getattr(uncertainty, field)]
+    if not given:
+        note("note: input uncertainties: not given (the rig file's [uncertainty] or --uncertainty); the "
+             "uncertainties shown are the fit's alone")
+    else:
+        rest = [name for name in SPEC_NAMES if name not in given]
+        note(f"note: input uncertainties given: {', '.join(given)}; not given: {', '.join(rest) or 'none'}")

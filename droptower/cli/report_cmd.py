@@ -27,11 +27,12 @@ from droptower.cli.options import lab_log_options
                    "both routes against.")
 @click.option("--servo-column", "servo_columns", multiple=True, metavar="NAME=SOURCE[:UNIT]",
               help="Map a column of --servo-results (as validate --servo-column); repeatable.")
+@options.uncertainty_option
 def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, ...], rig: str | None,
            sensor_radius_m: float | None, inertia_kgm2: float | None, lever_length_m: float | None,
            conditions: str | None, condition_columns: tuple[str, ...],
            conditions_pattern: str | None, model_map_path: Path | None, servo_results: Path | None,
-           servo_columns: tuple[str, ...]) -> None:
+           servo_columns: tuple[str, ...], uncertainty_specs: tuple[str, ...] = ()) -> None:
     """Write one HTML report (opens offline, no server) of SOURCE: a `droptower campaign` folder,
     a results table from `droptower extract --out` with its logs, or a lab's folder of logs
     (extracted here, with --rig, --conditions, --channel, --sensor-radius-m).
@@ -43,6 +44,10 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     geometry to read it: --rig, --sensor-radius-m, --conditions), nothing is written and the exit
     code is 2, with the reason. A log of a folder that cannot be evaluated is named on one line,
     the page lists it, and the exit code is 2.
+
+    With input uncertainties (--rig's [uncertainty] table, --uncertainty over it) the report has an
+    uncertainty budget per condition: each condition's mean stiffness, damping ratio, amplitude and
+    frequency with U95 (k = 2) and the input that dominates it.
 
     \b
     Examples:
@@ -80,6 +85,11 @@ def report(source: Path, out: Path | None, form: str, channel_specs: tuple[str, 
     if model_map_path is not None:
         extra = [_routes(source, run, model_map_path, form, servo_results,
                          parse_column_options(servo_columns, "--servo-column"))]
+    input_u = options.uncertainty_from_cli(uncertainty_specs, rig_config)
+    if input_u is not None:
+        from droptower.report.page import budget_section
+
+        extra = [*(extra or []), budget_section(run.table, input_u)]
     path = write_report(source, out, form=form, channels=channels, extra_sections=extra,
                         progress=options.progress_disabled() is None, run=run)
     options.wrote(path, f"HTML report, {path.stat().st_size / 1e6:.1f} MB")

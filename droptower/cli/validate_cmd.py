@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import lab_log_options, quiet_option, wrote
+from droptower.cli.options import lab_log_options, quiet_option, uncertainty_from_cli, uncertainty_option, wrote
 from droptower.cli.servo_records_cmd import name_servo_source, servo_record_options, servo_records_table
 from droptower.configs import DEFAULT_COUPLING
 
@@ -46,6 +46,11 @@ from droptower.configs import DEFAULT_COUPLING
               show_default=True, help="Format of the tables written into --out.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
 @lab_log_options
+@uncertainty_option
+@click.option("--servo-u95-rel", type=float, default=None, metavar="FRACTION",
+              help="The servo bench's own relative expanded uncertainty (95 %), e.g. 0.02 for 2 %: with it (and the "
+                   "routes' U95: --uncertainty, and --results for the paper map) each servo point gets its E_n "
+                   "number and a verdict (agrees |E_n| <= 1 / disagrees / bench uncertainty not given).")
 @servo_record_options
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,
@@ -53,6 +58,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
              as_json: bool, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
              inertia_kgm2: float | None, lever_length_m: float | None,
              conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
+             uncertainty_specs: tuple[str, ...] = (), servo_u95_rel: float | None = None,
              **servo_records: Any) -> None:
     """Predict the servo-hydraulic sweeps of docs/theory.md#servo from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
@@ -69,13 +75,27 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
       droptower validate --map map.json --coupling rapp2022_nr60 --out validation/
       droptower validate --map map.json --servo-results measured.csv --out validation/ --table-format xlsx
       droptower validate --map map.json --servo-records sweep1.csv --servo-records sweep2.csv --out validation/
+      droptower validate --map map.json --model-map model_map.json --results runs/table2 \
+          --uncertainty inertia_kgm2@0.359=0.0036 --servo-u95-rel 0.02 --out validation/
+
+    Agreement (ISO 13528): with --uncertainty or --servo-u95-rel, each route's value at each servo
+    point is judged by E_n = (x_map - x_servo)/sqrt(U_map^2 + U_servo^2), |E_n| <= 1 agrees, for the
+    stiffness and the damping ratio (validation_en in --out). The paper map's U95 needs --results
+    (its tests; the inputs correlated across the tests that share them); the model-based map's is
+    its bands' with J's share on K'. Without a bench uncertainty the verdict is "bench uncertainty
+    not given".
     """
     from droptower.compare.validate import validate as run_validation
     from droptower.errors import DroptowerError
     from droptower.io.table_reader import parse_column_options
 
-    if results is not None and reference is None:
-        raise DroptowerError("--results needs --reference (the measured map to compare the campaign with)")
+    if servo_u95_rel is not None and not (servo_u95_rel >= 0 and servo_u95_rel < 1):
+        raise DroptowerError(f"--servo-u95-rel: must be a fraction in [0, 1), got {servo_u95_rel!r}")
+    judged = bool(uncertainty_specs) or servo_u95_rel is not None
+    if results is not None and reference is None and not judged:
+        raise DroptowerError("--results needs --reference (the measured map to compare the campaign with) or "
+                             "--uncertainty (the paper map's U95 from its tests)")
+    input_u = uncertainty_from_cli(uncertainty_specs)
     if out is not None:
         from droptower.compare.files import output_folder
 
@@ -90,7 +110,8 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
         failed, results = failed_logs(lab), lab
     with servo_records_table(servo_records, servo_results, out) as servo_results:
         result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
-                                reference=reference, results=results, model_map=model_map_path, quick=quick)
+                                reference=reference, results=results, model_map=model_map_path, quick=quick,
+                                uncertainty=input_u, servo_u95_rel=servo_u95_rel)
     name_servo_source(result, servo_records)
     if out is not None:
         described = {"validation_routes": "the two routes vs the servo points",

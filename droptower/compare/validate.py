@@ -30,7 +30,9 @@ class MapValidation:
     points; reference: (rows, summary) of the comparison with a measured map, or None;
     routes: route name -> its :class:`~droptower.compare.validation.Validation` (the paper's map
     and the model-based map against the same points), or None; model_route: the model-based
-    map's route name; reference_name: the measured map's file name.
+    map's route name; reference_name: the measured map's file name; agreement: route name -> its
+    E_n per servo point (:func:`droptower.uncertainty.route_agreement`), where the routes'
+    expanded uncertainties are known, or None.
     """
 
     validation: Validation
@@ -40,6 +42,7 @@ class MapValidation:
     routes: dict[str, Validation] | None = None
     model_route: str | None = None
     reference_name: str = "Table 4"
+    agreement: dict[str, pd.DataFrame] | None = None
 
     @property
     def summary_dict(self) -> dict[str, Any]:
@@ -61,6 +64,8 @@ class MapValidation:
         if self.routes is not None:
             doc["routes"] = {name: {"summary": v.summary, "points": v.table.to_dict(orient="records")}
                              for name, v in self.routes.items()}
+        if self.agreement is not None:
+            doc["agreement"] = {name: t.to_dict(orient="records") for name, t in self.agreement.items()}
         return json_safe(doc)
 
     def summary(self) -> str:
@@ -73,6 +78,10 @@ class MapValidation:
             lines.append(format_routes(self.routes))
         if self.reference is not None:
             lines.append(format_comparison(self.reference[1], self.reference_name))
+        if self.agreement is not None:
+            from droptower.uncertainty.agreement import format_agreement
+
+            lines.append(format_agreement(self.agreement))
         return "\n".join(lines)
 
     def write(self, out: str | Path, table_format: str = "csv") -> list[Path]:
@@ -91,6 +100,11 @@ class MapValidation:
             files.append(write_table(route_table(self.routes), out / f"validation_routes.{table_format}", "out"))
             files.append(write_table(self.routes[self.model_route].table,
                                      out / f"validation_model_map.{table_format}", "out"))
+        if self.agreement is not None:
+            from droptower.io.tables import write_table
+
+            table = pd.concat([t.assign(route=name) for name, t in self.agreement.items()], ignore_index=True)
+            files.append(write_table(table, Path(out) / f"validation_en.{table_format}", "out"))
         return files
 
     def __repr__(self) -> str:
@@ -107,7 +121,7 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
              reference: str | Path | None = None, results: str | Path | pd.DataFrame | None = None,
              model_map: Any = None, quick: bool = False, rig: Any = None,
              roles: Mapping[str, str] | None = None, sensor_radius_m: float | None = None,
-             conditions: Any = None) -> MapValidation:
+             conditions: Any = None, uncertainty: Any = None, servo_u95_rel: float | None = None) -> MapValidation:
     """Validate a characteristic map against servo-hydraulic sweeps (Rapp et al. 2022, Fig. 14).
 
     Parameters
@@ -139,6 +153,16 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
         Laser spot radius (m) for their distance channel.
     conditions : Conditions, optional
         Their per-file conditions (fixture or inertia, drop mass and height, temperature).
+    uncertainty : RigUncertainty, optional
+        The rig's input uncertainties (:class:`droptower.uncertainty.RigUncertainty`): with it
+        (or with ``servo_u95_rel``) each route gets E_n numbers per servo point
+        (``agreement``). The paper's map's U95 (:func:`droptower.uncertainty.map_uncertainty`)
+        needs ``results``, the tests it was fitted to; the model-based map's is 2·std of its
+        bands with the inertia's share on K' (J scales every identified stiffness, not the loss
+        factor: see :func:`model_route_u95`).
+    servo_u95_rel : float, optional
+        The bench's own relative expanded uncertainty (0.02: 2 %) for every point where the servo
+        table gives none (columns ``servo_stiffness_nm_per_deg_U95``, ``servo_damping_ratio_U95``).
 
     Returns
     -------
@@ -155,8 +179,10 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     from droptower.compare.validation import validate_map
     from droptower.maps import read_results
 
-    if results is not None and reference is None:
-        raise DroptowerError("`results` needs `reference` (the measured map to compare the campaign with)")
+    judged = uncertainty is not None or servo_u95_rel is not None
+    if results is not None and reference is None and not judged:
+        raise DroptowerError("`results` needs `reference` (the measured map to compare the campaign with) or "
+                             "`uncertainty` (the paper map's expanded uncertainty is computed from its tests)")
     if servo_columns and servo_results is None:
         raise DroptowerError("`servo_columns` needs `servo_results` (the table whose columns it names)")
     fit = map_fit if isinstance(map_fit, MapFit) else MapFit.from_json(map_fit)
@@ -174,7 +200,7 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
               else run_sweeps(coupling, reduced=quick))
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
-    routes = route = None
+    routes = route = mm = None
     if model_map is not None:
         from droptower.compare.model_map import PAPER_ROUTE, ModelMap
         from droptower.compare.validation import validate_routes
@@ -182,5 +208,114 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
         mm = model_map if isinstance(model_map, ModelMap) else ModelMap.from_json(model_map)
         route = mm.route
         routes = validate_routes({PAPER_ROUTE: fit, mm.route: mm}, points, hull=fit)
+    agreement = _agreement(fit, validation, routes, mm, campaign, uncertainty, servo_u95_rel, points) \
+        if judged else None
     return MapValidation(validation, fit, points, comparison, routes, route,
-                         Path(reference).name if reference is not None else "Table 4")
+                         Path(reference).name if reference is not None else "Table 4", agreement)
+
+
+def model_route_u95(model_map: Any, table: pd.DataFrame, inertia_u_rel: float = 0.0) -> dict[str, Any]:
+    """The model-based map's expanded uncertainties (k = 2) at the validation table's points:
+    its bands' standard uncertainty (the fit's, cluster-robust) and, for the storage stiffness
+    K', the inertia's share K'·u_J/J (a J error scales every stiffness the identification
+    finds from the decays, c = J(ω² + δ²), and leaves the loss factor and d unchanged), combined
+    in quadrature. Quantity -> U95 per point; empty without bands."""
+    import numpy as np
+
+    if not model_map.has_bands:
+        return {}
+    grid = model_map.evaluate(table["amplitude_deg"].to_numpy(float), table["frequency_hz"].to_numpy(float))
+    k = grid["storage_stiffness_nm_per_deg"].to_numpy()
+    u_k = np.hypot(grid["storage_stiffness_nm_per_deg_std"].to_numpy(), k * inertia_u_rel)
+    return {"stiffness_nm_per_deg": 2.0 * u_k,
+            "damping_ratio": 2.0 * grid["drop_tower_equivalent_damping_ratio_std"].to_numpy()}
+
+
+def model_map_with_inputs(model_map: Any, inertia_u_rel: float) -> Any:
+    """A copy of a model-based map whose grid's K' band (95 %) holds the inertia's share too:
+    K' ± 1.96·√(std² + (K'·u_J/J)²), the fit's band and J's in quadrature (:func:`model_route_u95`;
+    the loss factor and d carry no J). For the figures (``plot_model_map``); a map without
+    bands or grid is returned as it is."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from droptower.compare.model_map import Z95
+
+    grid = model_map.grid
+    q = "storage_stiffness_nm_per_deg"
+    if grid is None or f"{q}_std" not in grid.columns or not inertia_u_rel > 0:
+        return model_map
+    grid = grid.copy()
+    u = np.hypot(grid[f"{q}_std"], grid[q] * inertia_u_rel)
+    grid[f"{q}_band_lo"], grid[f"{q}_band_hi"] = grid[q] - Z95 * u, grid[q] + Z95 * u
+    return replace(model_map, grid=grid, band_method=f"{model_map.band_method}; with J's {100 * inertia_u_rel:.3g} % "
+                                                    "on K' (the inputs, GUM)", _cache={})
+
+
+def inertia_u_rel(uncertainty: Any, campaign: pd.DataFrame | None) -> float:
+    """The relative standard uncertainty J carries into an identification over every fixture:
+    each fixture's u_J/J weighted by its share of the tests (independent fixtures; GUM 5.1.2),
+    or the largest given without the tests; 0 where none is given."""
+    import numpy as np
+
+    entries = list(getattr(uncertainty, "inertias_kgm2", None) or [])
+    if not entries:
+        return 0.0
+    if campaign is None or "inertia_kgm2" not in campaign.columns:
+        return max(e.standard / e.nominal for e in entries)
+    inertias = pd.to_numeric(campaign["inertia_kgm2"], errors="coerce").to_numpy(float)
+    weights = np.array([np.isclose(inertias, e.nominal, rtol=1e-6).sum() for e in entries], float) / inertias.size
+    return float(np.sqrt(sum((w * e.standard / e.nominal) ** 2 for w, e in zip(weights, entries))))
+
+
+def _agreement(fit: MapFit, validation: Validation, routes: dict[str, Validation] | None, mm: Any,
+               campaign: pd.DataFrame | None, uncertainty: Any, servo_u95_rel: float | None,
+               points: ServoPoints) -> dict[str, pd.DataFrame]:
+    """E_n per servo point of each route whose expanded uncertainty is known."""
+    from droptower.compare.model_map import PAPER_ROUTE
+    from droptower.uncertainty import map_uncertainty, route_agreement
+
+    paper_table = routes[PAPER_ROUTE].table if routes is not None else validation.table
+    out: dict[str, pd.DataFrame] = {}
+    if campaign is not None:
+        bands = map_uncertainty(campaign, uncertainty, map_fit=fit).predict(paper_table["amplitude_deg"],
+                                                                             paper_table["frequency_hz"])
+        u95 = {q: bands[f"{q}_U95"].to_numpy() for q in ("stiffness_nm_per_deg", "damping_ratio")}
+        out[PAPER_ROUTE] = route_agreement(paper_table, u95, servo_u95=servo_u95_columns(points, paper_table),
+                                           u95_ref_rel=servo_u95_rel)
+    if routes is not None and mm is not None:
+        table = routes[mm.route].table
+        u95 = model_route_u95(mm, table, inertia_u_rel(uncertainty, campaign))
+        if u95:
+            out[mm.route] = route_agreement(table, u95, servo_u95=servo_u95_columns(points, table),
+                                            u95_ref_rel=servo_u95_rel)
+    return out
+
+
+#: the servo table's columns of its own expanded uncertainty (95 %), per judged quantity, first found wins
+SERVO_U95_COLUMNS: dict[str, tuple[str, ...]] = {
+    "stiffness_nm_per_deg": ("servo_stiffness_nm_per_deg_U95", "storage_stiffness_nm_per_deg_U95"),
+    "damping_ratio": ("servo_damping_ratio_U95", "drop_tower_equivalent_damping_ratio_U95"),
+}
+
+
+def servo_u95_columns(points: ServoPoints, table: pd.DataFrame) -> dict[str, Any]:
+    """The bench's own U95 per row of a validation ``table``, from its file's columns
+    (:data:`SERVO_U95_COLUMNS`, in the quantity's unit), matched by amplitude and frequency; a
+    quantity without such a column is left out (NaN rows: not given there)."""
+    import numpy as np
+
+    raw = points.raw
+    out: dict[str, Any] = {}
+    if raw is None or "amplitude_deg" not in raw.columns:
+        return out
+    key = lambda a, f: list(zip(np.round(np.asarray(a, float), 9), np.round(np.asarray(f, float), 9)))  # noqa: E731
+    rows = key(table["amplitude_deg"], table["frequency_hz"])
+    for q, names in SERVO_U95_COLUMNS.items():
+        column = next((c for c in names if c in raw.columns), None)
+        if column is None:
+            continue
+        lookup = dict(zip(key(raw["amplitude_deg"], raw["frequency_hz"]), pd.to_numeric(raw[column], errors="coerce")))
+        out[q] = np.array([lookup.get(r, np.nan) for r in rows], float)
+    return out

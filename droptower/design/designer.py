@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_RIG
 from droptower.design.choose import Design, design_campaign
@@ -32,7 +32,7 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
            preloads_nm: tuple[float, ...] = (0.0,), repeats: int | None = None, uncertainty_pct: float | None = None,
            rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLING, max_tests: int | None = None,
            for_identification: str | None = None,
-           on_note: Callable[[str], None] | None = None) -> Design | IdentificationDesign:
+           on_note: Callable[[str], None] | None = None, uncertainty: Any = None) -> Design | IdentificationDesign:
     """Design a campaign that covers a target region, or that identifies a model best.
 
     Parameters
@@ -49,7 +49,8 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
     uncertainty_pct : float, optional
         Instead of ``repeats``: enough repeats for this standard uncertainty (% of the value) of
         the mean stiffness and damping ratio of every condition, from a virtual pilot test per
-        condition.
+        condition, with the rig's input uncertainties (its ``[uncertainty]``: J does not average
+        out) counted; where an input alone exceeds the target, ``on_note`` says so.
     rig : str or path
         Rig TOML file or shipped preset name.
     coupling : str or path
@@ -62,6 +63,9 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
         drops that identify it, with the parameters' predicted standard errors.
     on_note : callable, optional
         Called with a line on what is being done (the pilot tests).
+    uncertainty : RigUncertainty, optional
+        With ``uncertainty_pct``: the rig's input uncertainties whose share repeats do not
+        reduce (default: the rig file's ``[uncertainty]``).
 
     Returns
     -------
@@ -103,11 +107,15 @@ def design(amplitude_deg: tuple[float, float] | None = None, frequency_hz: tuple
         result = design_campaign(rig_cfg, coupling_model, target, repeats=repeats or DEFAULT_REPEATS,
                                  max_tests=max_tests)
         if uncertainty_pct is not None:
-            from droptower.design.repeats import pilot_uncertainty, repeats_for
+            from droptower.design.repeats import pilot_uncertainty, repeats_advice
 
             if on_note is not None:
                 on_note(f"pilot: one virtual test per condition ({result.n_conditions}) for the scatter of c and d")
-            n = repeats_for(pilot_uncertainty(result, rig, coupling), uncertainty_pct)
+            advice = repeats_advice(pilot_uncertainty(result, rig, coupling), uncertainty_pct,
+                                    uncertainty if uncertainty is not None else rig_cfg.uncertainty)
+            if not advice.reachable and on_note is not None:
+                on_note(f"warning: {advice.limit}")
+            n = advice.repeats
             result = design_campaign(rig_cfg, coupling_model, target, repeats=n, max_tests=max_tests,
                                      candidates=result.candidates)
     result.rig_name, result.coupling_name = rig_cfg.name, coupling_model.name

@@ -17,7 +17,7 @@ from droptower import sdof
 from droptower.decayfit import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
 from droptower.extract.impact import find_impact
 from droptower.extract.result import ExtractionResult
-from droptower.extract.uncertainty import propagate
+from droptower.propagation import propagate
 from droptower.extract.window import MIN_PERIODS, Window
 from droptower.io.signals import DropSignals
 

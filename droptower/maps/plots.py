@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -22,14 +23,17 @@ FIG12 = "fig12_stiffness_map.png"
 FIG13 = "fig13_damping_map.png"
 
 
-def plot_all(tests: pd.DataFrame, fit: MapFit, out_dir: str | Path) -> tuple[list[Path], list[str]]:
-    """Write Fig. 10, 12 and 13 of the usable ``tests`` and the ``fit`` into ``out_dir``.
+def plot_all(tests: pd.DataFrame, fit: MapFit, out_dir: str | Path, bands: Any = None) -> tuple[list[Path], list[str]]:
+    """Write Fig. 10, 12 and 13 of the usable ``tests`` and the ``fit`` into ``out_dir``; with
+    ``bands`` (a :class:`droptower.uncertainty.MapUncertainty` of ``fit``: anything whose
+    ``predict(amplitude_deg, frequency_hz)`` gives ``stiffness_nm_per_deg_U95`` and
+    ``damping_ratio_U95``) the map's expanded uncertainties (k = 2) as bars and bands.
 
     Returns the files written and notes on panels skipped for want of a column."""
     out_dir = make_folder(out_dir)
     notes = plot_parameter_variation(tests, out_dir / FIG10)
-    plot_stiffness_map(tests, fit, out_dir / FIG12)
-    plot_damping_map(tests, fit, out_dir / FIG13)
+    plot_stiffness_map(tests, fit, out_dir / FIG12, bands)
+    plot_damping_map(tests, fit, out_dir / FIG13, bands)
     return [out_dir / FIG10, out_dir / FIG12, out_dir / FIG13], notes
 
 
@@ -73,9 +77,9 @@ def plot_parameter_variation(tests: pd.DataFrame, path: Path) -> list[str]:
     return notes
 
 
-def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
+def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path, bands: Any = None) -> None:
     """Fig. 12: the eq. 19 surface over the measured amplitude × frequency range with the
-    tests on it, and measured vs. model stiffness."""
+    tests on it, and measured vs. model stiffness (with ``bands``: the model's U95 as bars)."""
     r = fit.range
     a, f = np.meshgrid(np.linspace(r.amplitude_deg_min, r.amplitude_deg_max, 40),
                        np.linspace(r.frequency_hz_min, r.frequency_hz_max, 40))
@@ -86,7 +90,12 @@ def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
     for label, rows in _groups(tests):
         ax3.scatter(rows["amplitude_deg"], rows["frequency_hz"], rows["stiffness_nm_per_deg"], depthshade=False, label=label)
         model_c = fit.stiffness_nm_per_deg(rows["amplitude_deg"].to_numpy(float), rows["frequency_hz"].to_numpy(float))
-        ax.plot(rows["stiffness_nm_per_deg"], model_c, "o", label=label)
+        if bands is not None:
+            u95 = bands.predict(rows["amplitude_deg"].to_numpy(float),
+                                rows["frequency_hz"].to_numpy(float))["stiffness_nm_per_deg_U95"].to_numpy()
+            ax.errorbar(rows["stiffness_nm_per_deg"], model_c, yerr=u95, fmt="o", capsize=2, label=f"{label} (map ± U95)")
+        else:
+            ax.plot(rows["stiffness_nm_per_deg"], model_c, "o", label=label)
     ax3.set(xlabel="amplitude [deg]", ylabel="frequency [Hz]", zlabel="stiffness [N·m/deg]")
     ax3.legend(loc="upper right")
     lo, hi = tests["stiffness_nm_per_deg"].min() * 0.95, tests["stiffness_nm_per_deg"].max() * 1.05
@@ -99,8 +108,9 @@ def plot_stiffness_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
     save_figure(fig, path, 120)
 
 
-def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
-    """Fig. 13: damping ratio vs amplitude, tests and the map's curves.
+def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path, bands: Any = None) -> None:
+    """Fig. 13: damping ratio vs amplitude, tests and the map's curves (with ``bands``: the
+    map's U95 band, k = 2, about each curve).
 
     Per inertia the curve follows the group's realised path: its tests' frequencies, which
     fall with amplitude (Payne effect, Fig. 10), joined in order of amplitude. Without inertias,
@@ -112,12 +122,20 @@ def plot_damping_map(tests: pd.DataFrame, fit: MapFit, path: Path) -> None:
         ax.plot(a, rows["damping_ratio"], "o", color=color, label=label)
         if "inertia_kgm2" in tests.columns:
             grid = path_grid(a)
-            ax.plot(grid, fit.damping_ratio(grid, _frequency_along(rows, grid)), "-", color=color)
+            along = _frequency_along(rows, grid)
+            curve = fit.damping_ratio(grid, along)
+            ax.plot(grid, curve, "-", color=color)
+            if bands is not None:
+                u95 = bands.predict(grid, along)["damping_ratio_U95"].to_numpy()
+                ax.fill_between(grid, curve - u95, curve + u95, color=color, alpha=0.2, lw=0)
     if "inertia_kgm2" not in tests.columns:
         r = fit.range
         grid = np.geomspace(r.amplitude_deg_min, r.amplitude_deg_max, 60)
         for f, color in zip(np.linspace(r.frequency_hz_min, r.frequency_hz_max, 3), ["C1", "C2", "C3"]):
             ax.plot(grid, fit.damping_ratio(grid, f), "-", color=color, label=f"map at {f:.3g} Hz")
+            if bands is not None:
+                curve, u95 = fit.damping_ratio(grid, f), bands.predict(grid, f)["damping_ratio_U95"].to_numpy()
+                ax.fill_between(grid, curve - u95, curve + u95, color=color, alpha=0.2, lw=0)
     ax.set(xlabel="angular amplitude [deg]", ylabel="d = E_diss/E_el (Rapp et al. 2022) [-]",
            title=f"{_label(fit, 'eq. 19 / eq. 20')}: rms {fit.stats.damping_ratio_rms_error_pct:.1f} %, "
                  f"max {fit.stats.damping_ratio_max_error_pct:.1f} %")

@@ -194,3 +194,21 @@ def page(title: str, facts: list[tuple[str, str]], problems: str, map_html: str,
         f"<script type='application/json' id='decay-files'>{files_json}</script>"
         f"<script type='application/json' id='plotly-template'>{json.dumps(template)}</script>"
         f"<script>{GLUE}</script></body></html>\n")
+
+
+def budget_section(results: pd.DataFrame, uncertainty: Any = None) -> tuple[str, str]:
+    """The report's section "Uncertainty budget": per condition and quantity the mean, its U95
+    (k = 2) and the input that dominates it (:func:`droptower.uncertainty.condition_budgets`),
+    and the inputs whose uncertainty was not given."""
+    from droptower.rig.uncertainty import SPEC_NAMES
+    from droptower.uncertainty import condition_budgets
+
+    table = condition_budgets(results, uncertainty)
+    shown = [c for c in table.columns if c not in ("u_c",)]
+    given = [n for n, field in SPEC_NAMES.items() if uncertainty is not None and getattr(uncertainty, field)]
+    lead = ("<p>Each condition's mean with its expanded uncertainty U95 (k = 2; GUM): the repeats' scatter "
+            "(type A, shrinks with more tests) and the rig's inputs (type B, shared by every test of the condition: "
+            "they do not average out), in the quantity's unit; <em>dominant</em> is the largest term and its share "
+            "of u_c². Inputs given: " + html.escape(", ".join(given) or "none") + "; the rest are not given and not "
+            "counted.</p>")
+    return "Uncertainty budget per condition", lead + plain_table(table[shown])

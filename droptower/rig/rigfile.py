@@ -171,16 +171,20 @@ def rig_toml(rig: RigConfig) -> str:
 
 # ------------------------------------------------------------------ schema reference
 def _type_name(annotation: Any) -> tuple[str, type | None]:
-    """How a field's type reads in the reference, and the sub-model it is (if any)."""
+    """How a field's type reads in the reference, and the sub-model it is (if any; a list of
+    tables names its entries' model too)."""
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return "table", annotation
+    if origin is typing.Literal:
+        return "one of " + ", ".join(f"`{a}`" for a in args), None
     if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
         inner = [a for a in args if a is not type(None)]
         name, model = _type_name(inner[0])
         return f"{name} (optional)", model
     if origin is list:
-        return f"list of {_type_name(args[0])[0]}", None
+        name, model = _type_name(args[0])
+        return f"list of {name}", model
     if origin is dict:
         return f"table of {_type_name(args[1])[0]}", None
     base = getattr(annotation, "__origin__", None) or annotation
@@ -216,24 +220,29 @@ def _default(field: Any) -> str:
 
 
 def rig_schema_markdown() -> str:
-    """The reference of every rig-file field, one table per TOML table, from the models."""
+    """The reference of every rig-file field, one table per TOML table, from the models; a
+    sub-model that several fields of one table share (every input of ``[uncertainty]``) is one
+    table naming them all, not the same table once per field."""
     out: list[str] = []
 
     def table(model: type[BaseModel], title: str) -> None:
-        doc = re.sub(r":\w+:`~?([^`]+)`", r"`\1`", (model.__doc__ or "").strip().split("\n\n")[0].replace("\n", " "))
-        doc = doc.replace("``", "`")
+        doc = re.sub(r":\w+:`~?([^`]+)`", r"`\1`", (model.__doc__ or "").strip().split("\n\n")[0])
+        doc = " ".join(doc.replace("``", "`").split())  # the docstring's line breaks and indents are one space
         rows = ["| Field | Type | Unit | Default | Meaning |", "|---|---|---|---|---|"]
-        subs = []
+        subs: dict[type, list[str]] = {}
         for name, field in model.model_fields.items():
             kind, sub = _type_name(field.annotation)
             description = (field.description or "").replace("|", "\\|")
             rows.append(f"| `{name}` | {kind} | {_unit(name)} | {_default(field)} | {description} |")
             if sub is not None:
-                subs.append((sub, f"{title}.{name}" if title else name))
+                subs.setdefault(sub, []).append(name)
         out.append(f"### `[{title}]`\n\n{doc}\n" if title else f"### Top level\n\n{doc}\n")
         out.append("\n".join(rows) + "\n")
-        for sub, sub_title in subs:
-            table(sub, sub_title)
+        for sub, names in subs.items():
+            if len(names) == 1:
+                table(sub, f"{title}.{names[0]}" if title else names[0])
+            else:  # one table for the fields that share it, named by all of them
+                table(sub, f"{title}.<{' | '.join(names)}>" if title else f"<{' | '.join(names)}>")
 
     table(RigConfig, "")
     return "\n".join(out)

@@ -98,3 +98,75 @@ def _fixture(entries: list[FixtureUncertainty] | None, nominal: float) -> Fixtur
         if math.isclose(entry.nominal, nominal, rel_tol=FIXTURE_MATCH_REL):
             return entry
     return None
+
+
+#: the names an input is given by in :func:`override_uncertainty` (a fixture's: ``NAME@NOMINAL``)
+#: -> the :class:`RigUncertainty` field it sets
+SPEC_NAMES: dict[str, str] = {
+    "inertia_kgm2": "inertias_kgm2", "drop_mass_kg": "drop_masses_kg", "lever_length_m": "lever_length_m",
+    "laser_radius_m": "laser_radius_m", "drop_height_m": "drop_height_m",
+    "torque_calibration_rel": "torque_calibration_rel", "laser_calibration_rel": "laser_calibration_rel",
+    "force_calibration_rel": "force_calibration_rel", "sample_rate_hz": "sample_rate_hz",
+}
+_FIXTURES = ("inertias_kgm2", "drop_masses_kg")
+
+
+def parse_uncertainty_spec(spec: str) -> tuple[str, float | None, InputUncertainty]:
+    """One input uncertainty written ``NAME=VALUE[:normal|rectangular]``; a fixture's as
+    ``NAME@NOMINAL=VALUE[:...]`` (``inertia_kgm2@0.359=0.0036``: the fixture of nominal 0.359 kg·m²).
+    NAME is a key of :data:`SPEC_NAMES`; VALUE the standard uncertainty (normal, the default) or
+    the half-width (rectangular), in NAME's unit (relative for ``*_rel``).
+
+    Returns
+    -------
+    tuple
+        The :class:`RigUncertainty` field, the fixture's nominal (None for a non-fixture) and the entry.
+    """
+    from droptower.errors import DroptowerError
+
+    if not isinstance(spec, str) or "=" not in spec:
+        raise DroptowerError(f"{spec!r} is not NAME=VALUE[:normal|rectangular]", where="uncertainty")
+    name, _, rest = (part.strip() for part in spec.partition("="))
+    value_text, _, distribution = (part.strip() for part in rest.partition(":"))
+    name, _, nominal_text = (part.strip() for part in name.partition("@"))
+    field = SPEC_NAMES.get(name)
+    if field is None:
+        raise DroptowerError(f"{spec!r}: unknown input {name!r}; the inputs are {', '.join(SPEC_NAMES)}",
+                             where="uncertainty")
+    if (field in _FIXTURES) != bool(nominal_text):
+        raise DroptowerError(f"{spec!r}: " + (f"a fixture's input is {name}@NOMINAL=VALUE (which fixture)"
+                                               if field in _FIXTURES else f"{name} takes no @NOMINAL"),
+                             where="uncertainty")
+    try:
+        value = float(value_text)
+        nominal = float(nominal_text) if nominal_text else None
+    except ValueError:
+        raise DroptowerError(f"{spec!r}: the value and nominal must be numbers", where="uncertainty") from None
+    if not (math.isfinite(value) and value >= 0) or (nominal is not None and not (math.isfinite(nominal) and nominal > 0)):
+        raise DroptowerError(f"{spec!r}: the value must be finite and >= 0, a nominal > 0", where="uncertainty")
+    if distribution not in ("", "normal", "rectangular"):
+        raise DroptowerError(f"{spec!r}: the distribution is normal or rectangular, got {distribution!r}",
+                             where="uncertainty")
+    kind = distribution or "normal"
+    entry = (FixtureUncertainty(nominal=nominal, value=value, distribution=kind) if nominal is not None
+             else InputUncertainty(value=value, distribution=kind))
+    return field, nominal, entry
+
+
+def override_uncertainty(base: RigUncertainty | None, specs: "list[str] | tuple[str, ...]") -> RigUncertainty | None:
+    """``base`` (a rig file's ``[uncertainty]``, or None) with the inputs of ``specs``
+    (:func:`parse_uncertainty_spec` each) over it: a later spec for the same input (the same
+    fixture) replaces the earlier and the rig file's. None when neither gives anything."""
+    if not specs:
+        return base
+    data = (base or RigUncertainty()).model_copy(deep=True)
+    updates: dict[str, object] = {}
+    for spec in specs:
+        field, nominal, entry = parse_uncertainty_spec(spec)
+        if nominal is None:
+            updates[field] = entry
+            continue
+        entries = list(updates.get(field) or getattr(data, field) or [])
+        entries = [e for e in entries if not math.isclose(e.nominal, nominal, rel_tol=FIXTURE_MATCH_REL)]
+        updates[field] = [*entries, entry]
+    return data.model_copy(update=updates)

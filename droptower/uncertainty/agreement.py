@@ -77,3 +77,78 @@ def en_verdicts(x_lab: ArrayLike, u95_lab: ArrayLike, x_ref: ArrayLike, u95_ref:
     en = en_number(x1, u1, x2, u2)
     verdict = np.where(np.isnan(u2), VERDICTS[2], np.where(np.abs(en) <= 1.0, VERDICTS[0], VERDICTS[1]))
     return pd.DataFrame({"en_number": en, "verdict": verdict})
+
+
+#: the quantities :func:`route_agreement` judges: the validation table's ``map_<q>`` against ``servo_<q>``
+AGREEMENT_QUANTITIES: tuple[str, ...] = ("stiffness_nm_per_deg", "damping_ratio")
+
+
+def route_agreement(table: pd.DataFrame, map_u95: dict[str, ArrayLike], *, servo_u95: dict[str, ArrayLike] | None = None,
+                    u95_ref_rel: float | None = None) -> pd.DataFrame:
+    """E_n per servo point of one route (a validation table: ``map_<q>`` and ``servo_<q>`` per
+    point, :func:`droptower.compare.validation.validate_map`).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The route's validation table.
+    map_u95 : dict
+        Quantity of :data:`AGREEMENT_QUANTITIES` -> the route's expanded uncertainty (95 %) per point,
+        in the quantity's unit; a quantity left out is not judged.
+    servo_u95 : dict, optional
+        Quantity -> the bench's own expanded uncertainty per point (NaN: not given there).
+    u95_ref_rel : float, optional
+        One relative expanded uncertainty of the bench (0.02: 2 %), where ``servo_u95`` gives none.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``sweep``, ``amplitude_deg``, ``frequency_hz``, ``in_range`` and per quantity ``map_<q>``,
+        ``map_<q>_U95``, ``servo_<q>``, ``servo_<q>_U95``, ``<q>_en_number``, ``<q>_verdict``.
+    """
+    keep = [c for c in ("sweep", "amplitude_deg", "frequency_hz", "in_range") if c in table.columns]
+    out = table[keep].copy()
+    for q, u95 in map_u95.items():
+        if q not in AGREEMENT_QUANTITIES:
+            raise DroptowerError(f"unknown quantity {q!r}; the quantities are {', '.join(AGREEMENT_QUANTITIES)}",
+                                 where="map_u95")
+        ref_u = (servo_u95 or {}).get(q)
+        verdicts = en_verdicts(table[f"map_{q}"].to_numpy(float), u95, table[f"servo_{q}"].to_numpy(float),
+                               ref_u, u95_ref_rel=u95_ref_rel)
+        x2 = table[f"servo_{q}"].to_numpy(float)
+        given = np.full(len(table), np.nan) if ref_u is None else np.broadcast_to(np.asarray(ref_u, float), x2.shape)
+        if u95_ref_rel is not None:
+            given = np.where(np.isfinite(given), given, u95_ref_rel * np.abs(x2))
+        out[f"map_{q}"] = table[f"map_{q}"].to_numpy(float)
+        out[f"map_{q}_U95"] = np.broadcast_to(np.asarray(u95, float), x2.shape)
+        out[f"servo_{q}"] = x2
+        out[f"servo_{q}_U95"] = given
+        out[f"{q}_en_number"] = verdicts["en_number"].to_numpy()
+        out[f"{q}_verdict"] = verdicts["verdict"].to_numpy()
+    return out
+
+
+def format_agreement(agreements: dict[str, pd.DataFrame]) -> str:
+    """Per route and quantity: how many servo points agree (|E_n| ≤ 1), disagree, or have no
+    bench uncertainty, inside the hull and in all; the largest |E_n|."""
+    lines = ["agreement with the servo bench (E_n = (x_map - x_servo)/sqrt(U_map^2 + U_servo^2), ISO 13528; "
+             "|E_n| <= 1 agrees):"]
+    if not agreements:
+        lines.append("  no route's expanded uncertainty is known: the paper map's needs the tests it was fitted to, "
+                     "the model-based map's its bands")
+    for route, t in agreements.items():
+        for q in AGREEMENT_QUANTITIES:
+            if f"{q}_verdict" not in t.columns:
+                continue
+            parts = []
+            for region, rows in (("inside", t[t["in_range"].astype(bool)] if "in_range" in t.columns else t.iloc[:0]),
+                                 ("all", t)):
+                v = rows[f"{q}_verdict"]
+                if v.eq(VERDICTS[2]).all() and len(v):
+                    parts.append(f"{region}: bench uncertainty not given")
+                    continue
+                en = np.abs(rows[f"{q}_en_number"].to_numpy(float))
+                worst = f", max |E_n| {np.nanmax(en):.2f}" if np.isfinite(en).any() else ""
+                parts.append(f"{region}: {int(v.eq(VERDICTS[0]).sum())}/{len(v)} agree{worst}")
+            lines.append(f"  {route}, {q}: " + "; ".join(parts))
+    return "\n".join(lines)

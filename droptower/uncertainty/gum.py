@@ -1,5 +1,6 @@
 """The GUM's law of propagation of uncertainty (JCGM 100:2008, 5.1.2) on a drop's measurement
-model: sensitivity coefficients c_i = ∂f/∂x_i by central differences through the extraction's
+model: sensitivity coefficients c_i = ∂f/∂x_i by central differences
+(:func:`droptower.propagation.sensitivities`, the package's one first-order propagation) through the extraction's
 own equations (:class:`~droptower.uncertainty.model.DropModel`), contributions u_i(y) = |c_i|·u(x_i),
 the fit's contribution √(g·Σ_θ·gᵀ) from its covariance, and u_c(y)² their sum of squares.
 
@@ -14,12 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from droptower.errors import expects
+from droptower.propagation import STEP_IN_U, sensitivities
 from droptower.uncertainty.inputs import DropInputs
 from droptower.uncertainty.model import QUANTITIES, DropModel
-
-#: central-difference step, in standard uncertainties of the input (the linearisation on the
-#: scale of the uncertainty itself, as droptower.extract.uncertainty.propagate does)
-STEP_IN_U = 1e-3
 
 #: the budget's name of the fit's contribution
 FIT = "fit"
@@ -58,35 +56,29 @@ def propagate_gum(model: DropModel, inputs: DropInputs) -> GumPropagation:
     sd = np.sqrt(np.clip(np.diag(model.cov), 0.0, None))
     fit_params = np.flatnonzero(sd > 0)
     given = list(inputs.given.values())
-    # one vectorised evaluation: the centre, then ± steps in each fitted parameter and each input
-    n = 1 + 2 * fit_params.size + 2 * len(given)
-    thetas = np.repeat(theta[:, None], n, axis=1)
-    columns = {x.name: np.full(n, x.nominal) for x in given}
-    col = 1
-    for i in fit_params:
-        thetas[i, col], thetas[i, col + 1] = theta[i] + STEP_IN_U * sd[i], theta[i] - STEP_IN_U * sd[i]
-        col += 2
-    for x in given:
-        h = STEP_IN_U * x.standard_uncertainty if x.standard_uncertainty > 0 else 1e-8 * x.nominal
-        columns[x.name][col], columns[x.name][col + 1] = x.nominal + h, x.nominal - h
-        col += 2
-    out = model.evaluate(thetas, columns)
+    # the variables: the fitted parameters with a variance, then the given inputs
+    x = np.concatenate([theta[fit_params], [g.nominal for g in given]])
+    steps = np.concatenate([STEP_IN_U * sd[fit_params],
+                            [STEP_IN_U * g.standard_uncertainty if g.standard_uncertainty > 0 else 1e-8 * g.nominal
+                             for g in given]])
+
+    def evaluate(columns: np.ndarray) -> np.ndarray:
+        thetas = np.repeat(theta[:, None], columns.shape[1], axis=1)
+        thetas[fit_params] = columns[:fit_params.size]
+        out = model.evaluate(thetas, {g.name: columns[fit_params.size + j] for j, g in enumerate(given)})
+        return np.stack([out[q] for q in QUANTITIES])
+
+    y0, grad = sensitivities(evaluate, x, steps, vectorised=True)   # one vectorised evaluation
+    cov_fit = model.cov[np.ix_(fit_params, fit_params)]
     values, sensitivity, contributions, total = {}, {}, {}, {}
-    for q in QUANTITIES:
-        y = out[q]
-        values[q] = float(y[0])
-        grad = np.zeros(theta.size)
-        col = 1
-        for i in fit_params:
-            grad[i] = (y[col] - y[col + 1]) / (2 * STEP_IN_U * sd[i])
-            col += 2
-        fit_var = float(grad @ model.cov @ grad)
+    for row, q in enumerate(QUANTITIES):
+        values[q] = float(y0[row])
+        g_fit = grad[row, :fit_params.size]
+        fit_var = float(g_fit @ cov_fit @ g_fit)
         sensitivity[q], contributions[q] = {}, {FIT: float(np.sqrt(max(fit_var, 0.0)))}
-        for x in given:
-            h = STEP_IN_U * x.standard_uncertainty if x.standard_uncertainty > 0 else 1e-8 * x.nominal
-            c = float((y[col] - y[col + 1]) / (2 * h))
-            sensitivity[q][x.name] = c
-            contributions[q][x.name] = abs(c) * x.standard_uncertainty
-            col += 2
+        for j, g in enumerate(given):
+            c = float(grad[row, fit_params.size + j])
+            sensitivity[q][g.name] = c
+            contributions[q][g.name] = abs(c) * g.standard_uncertainty
         total[q] = float(np.sqrt(sum(v * v for v in contributions[q].values())))
     return GumPropagation(values, sensitivity, contributions, total)
