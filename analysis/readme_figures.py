@@ -494,6 +494,41 @@ def zerodim20_times(stored: dict[str, Any]) -> Block:
         far=timed(far["zerodim20_alone_wall_s"], ".1f"), **_loads(m))
 
 
+def random_fits(path: Path | None = None) -> dict[str, list[dict[str, float]]]:
+    """Per family, the fits of ``bench_identify.py --random`` as stored in its text output
+    (``benchmarks/results/identify_random.txt``: one line per coupling, ``key value`` pairs)."""
+    fits: dict[str, list[dict[str, float]]] = {}
+    for line in (path or BENCH_RESULTS / "identify_random.txt").read_text().splitlines():
+        match = re.match(r"\s+(\w+) #\d+: (.*)", line)
+        if match is None:
+            continue
+        pairs = dict(item.strip().split(" ", 1) for item in match.group(2).split(","))
+        numbers = {}
+        for key, value in pairs.items():
+            try:
+                numbers[key] = float(value)
+            except ValueError:  # a verdict, a flag
+                pass
+        fits.setdefault(match.group(1), []).append(numbers)
+    return fits
+
+
+def identify_random_times(stored: dict[str, Any]) -> Block:
+    """Times per fit of the randomised acceptance (docs/guide/identification.md), from its stored output."""
+    import statistics
+
+    fits = random_fits()
+    medians = [statistics.median(f["drop_cpu_s"] for f in rows) for rows in fits.values()]
+    slowest = max(((f["drop_wall_s"], family) for family, rows in fits.items() for f in rows))
+    servo = [statistics.median(f["servo_wall_s"] for f in rows if "servo_wall_s" in f) for rows in fits.values()]
+    servo_max = max(f["servo_wall_s"] for rows in fits.values() for f in rows if "servo_wall_s" in f)
+    return fill(f"Time per drop-test fit (`benchmarks/results/identify_random.txt`): median {{lo}}–{{hi}} s CPU by "
+                f"family, the slowest {{slow}} s wall ({slowest[1]}); servo fits: median ≤ {{servo}} s, the slowest "
+                "{servo_max} s wall.\n",
+                lo=on_cpu(min(medians), ".1f"), hi=on_cpu(max(medians), ".1f"), slow=timed(slowest[0], ".0f"),
+                servo=timed(max(servo), ".1f"), servo_max=timed(servo_max, ".0f"))
+
+
 def refit_time(stored: dict[str, Any]) -> Block:
     """What one refit of a model-based route costs (docs/routes.md), from the stored route benchmark."""
     routes = [r for name, r in stored["routes"]["figures"]["routes"].items()
@@ -524,6 +559,7 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "fresh": ("docs/benchmarks.md", fresh_table),
     "campaign_time": ("docs/guide/campaign.md", campaign_time),
     "zerodim20": ("docs/guide/identification.md", zerodim20_times),
+    "identify_random_times": ("docs/guide/identification.md", identify_random_times),
     "refit_time": ("docs/routes.md", refit_time),
     "report_size": ("docs/guide/report.md", report_size),
     "study_targets": ("docs/study.md", study_targets),
