@@ -26,6 +26,7 @@ interleaved. Each command runs once untimed first (the numba cache of each copy 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import resource
 import shutil
@@ -157,7 +158,7 @@ def main() -> None:
 
         core = {}
         for name, root in roots.items():
-            runs = [__import__("json").loads(fresh(root, ["-c", CORE], tmp)[2]) for _ in range(3)]
+            runs = [json.loads(fresh(root, ["-c", CORE], tmp)[2]) for _ in range(3)]
             core[name] = (min(r["wall_s"] for r in runs), min(r["cpu_s"] for r in runs))
         figures.update({"core_wall_ms": 1e3 * core["new"][0], "core_cpu_ms": 1e3 * core["new"][1],
                         "core_real_time_factor": 1.0 / core["new"][0], "core_real_time_factor_cpu": 1.0 / core["new"][1],

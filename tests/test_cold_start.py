@@ -1,12 +1,13 @@
-"""A fresh process imports only what its command uses (docs/benchmarks.md#cold-start): reading and
+"""A fresh process imports only what its command uses (docs/conventions.md, docs/benchmarks.md): reading and
 extracting a log loads no numba, scipy.signal, scipy.optimize, pandas or pymunk until a step needs
 them, so a lab that runs the extractor per file from its own scripts does not pay for them.
 
 Guarded by what a fresh interpreter holds in ``sys.modules``, not by timing (the machine's load
-would make a timed test flaky); ``benchmarks/bench_cold_start.py`` measures the times."""
+would make a timed test flaky); ``benchmarks/bench_fresh.py`` measures the times."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -20,7 +21,7 @@ HEAVY = ("numba", "scipy.signal", "scipy.optimize", "scipy.stats", "pandas", "py
 def _fresh(code: str) -> dict:
     """Run ``code`` in a fresh interpreter on this checkout; it prints one JSON object."""
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120,
-                          env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+                          env={**os.environ, "PYTHONPATH": str(REPO)})
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
 
