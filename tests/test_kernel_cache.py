@@ -99,10 +99,10 @@ LOAD = """
 import json, sys
 sys.path.insert(0, sys.argv[1])
 import numpy as np
-from droptower import decayfit
+from droptower import decayfit, decayfit_kernels
 t = np.linspace(0.0, 0.5, 400)
 fit = decayfit.fit_decay(t, np.exp(-3.0 * t) * np.sin(2 * np.pi * 20.0 * t), 2 * np.pi * 20.0, 3.0)
-stats = decayfit._levenberg_marquardt.stats
+stats = decayfit_kernels.levenberg_marquardt.stats
 print(json.dumps({"file": decayfit.__file__, "fit": [float(v) for v in fit.params],
                   "hits": sum(stats.cache_hits.values()), "misses": sum(stats.cache_misses.values())}))
 """

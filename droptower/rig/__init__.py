@@ -12,10 +12,53 @@ drives the rheological coupling, sampled like the real rig, and a planner for te
 - :mod:`.planner`: predictions per test condition, batched through the coupling;
 - :mod:`.plots`: Rapp et al. 2022, Fig. 4 and the plan's figure.
 """
-from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
-from droptower.rig.planner import plan
-from droptower.rig.rigfile import new_rig, rig_toml
-from droptower.rig.simulate import DropResult, DropTest, simulate
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
+    from droptower.rig.planner import plan
+    from droptower.rig.rigfile import new_rig, rig_toml
+    from droptower.rig.simulate import DropResult, DropTest, simulate
+
+#: name -> module, imported on first use: reading a rig file (every command that reads logs with
+#: ``rig=``) imports neither pymunk nor the compiled coupling that simulating a test needs
+_LAZY: dict[str, str] = {"DOE": "droptower.rig.config", "RigConfig": "droptower.rig.config",
+                         "load_doe": "droptower.rig.config", "load_rig": "droptower.rig.config",
+                         "plan": "droptower.rig.planner", "new_rig": "droptower.rig.rigfile",
+                         "rig_toml": "droptower.rig.rigfile", "DropResult": "droptower.rig.simulate",
+                         "DropTest": "droptower.rig.simulate", "simulate": "droptower.rig.simulate"}
 
 __all__ = ["DOE", "DropResult", "DropTest", "RigConfig", "load_doe", "load_rig", "new_rig", "plan", "rig_toml",
            "simulate"]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name on first use (PEP 562)."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(types.ModuleType):
+    """This package's module: the function :func:`simulate` keeps its name when its module
+    ``droptower.rig.simulate`` is imported (the import system binds a submodule to its package's
+    attribute of the same name, which the eager ``from ... import simulate`` used to overwrite)."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _LAZY and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
