@@ -291,25 +291,27 @@ def test_a_record_without_time_is_read_with_its_sample_interval(tmp_path, capsys
 
 
 @pytest.mark.slow
-def test_the_published_record_through_identify_on_the_command_line(tmp_path, capsys):
+def test_the_published_record_through_identify_and_compare_models_on_the_command_line(tmp_path, capsys):
     """The bearing's record as published (displacement in cm, force in tonf, no time vector; its
     first three blocks to fit, the whole as the hold-out, every 4th sample) through
-    ``droptower identify --model filled_rubber --sample-interval-s``: read in SI (the largest
-    force 39.8 tonf = 390 kN), fitted and the whole predicted from rest within the issue's 4 %
-    (measured: fit 2.09 %, hold-out 3.39 %; 5 s). The verdict on real data is "poor fit" (the
-    error is 26 times the record's noise floor, which a bearing's 8-digit record makes tiny):
-    exit 3 and nothing written, unless --accept-poor."""
+    ``droptower identify --model filled_rubber --sample-interval-s`` and ``compare-models``: read
+    in SI (the largest force 39.8 tonf = 390 kN), fitted and the whole predicted from rest within
+    the issue's 4 % (measured: fit 2.09 %, hold-out 3.39 %; 4 s each), ranked by the hold-out. The
+    verdict on real data is "poor fit" (the error is 26 times the record's noise floor, which a
+    bearing's 8-digit record makes tiny): exit 3, unless --accept-poor."""
     d, f, cuts = bearing()
     rows = np.column_stack([d / CM, f / TONF])
     blocks = _published_csv(tmp_path / "blocks.csv", rows[:cuts[2]])
     whole = _published_csv(tmp_path / "whole.csv", rows)
-    argv = ["identify", str(blocks), "--model", "filled_rubber", "--sample-interval-s", str(DT_S),
-            "--holdout", str(whole), "--json"]
-    code, _, err = _cli(capsys, argv + ["--out", str(tmp_path / "refused.toml")])
-    assert code == 3 and "poor fit" in err and not (tmp_path / "refused.toml").exists()
-    code, out, _ = _cli(capsys, argv + ["--accept-poor", "--out", str(tmp_path / "bearing.toml")])
+    records = [str(blocks), "--sample-interval-s", str(DT_S), "--holdout", str(whole), "--json"]
+    code, out, err = _cli(capsys, ["compare-models", *records, "--models", "filled_rubber"])
+    (row,) = json.loads(out)["ranking"]
+    assert code == 3 and "poor fit" in err and row["model"] == "filled_rubber" and row["holdout_nrmse_percent"] <= 4.0
+    code, out, _ = _cli(capsys, ["identify", *records, "--model", "filled_rubber", "--accept-poor",
+                                 "--out", str(tmp_path / "bearing.toml")])
     report = json.loads(out)
     assert code == 0 and report["units"] == "translational" and (tmp_path / "bearing.toml").exists()
     assert report["holdout"]["n_samples"] == d.size and report["fit"]["n_samples"] == cuts[2]
     assert report["holdout"]["max_force_n"] == pytest.approx(np.max(np.abs(f)), rel=1e-7)
     assert report["holdout"]["nrmse_percent"] <= 4.0 and report["fit"]["nrmse_percent"] < report["holdout"]["nrmse_percent"]
+    assert report["holdout"]["nrmse_percent"] == pytest.approx(row["holdout_nrmse_percent"], rel=1e-6)
