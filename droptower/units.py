@@ -52,11 +52,21 @@ def _refuse_ambiguous(unit: str, text: str) -> None:
         raise ValueError(f"unit '{unit}' {AMBIGUOUS_GRAD}")
 
 
+#: Units pint's default registry lacks that published records use: the metric tonne-force
+#: ``tonf`` (1000 kgf = 9806.65 N exactly; pint's ``tf``, its ``metric_ton_force``), the force
+#: unit of Chilean and Japanese isolator tests (Gallardo et al. 2023's bearing record). Pint's
+#: own ``ton_force`` is the US short ton-force (8896 N): ``tonf`` is deliberately the metric one.
+EXTRA_UNITS = ("tonf = metric_ton_force",)
+
+
 @lru_cache(maxsize=None)
 def _registry():
     import pint
 
-    return pint.UnitRegistry()
+    registry = pint.UnitRegistry()
+    for definition in EXTRA_UNITS:
+        registry.define(definition)
+    return registry
 
 
 def normalise_unit(unit: str) -> str:
