@@ -14,7 +14,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from droptower import _moved
 from droptower.errors import DroptowerError
+
+_moved.install()  # the old import paths of renamed modules, with a DeprecationWarning
 
 if TYPE_CHECKING:
     from droptower.campaign import CampaignRun, run_campaign

@@ -84,7 +84,7 @@ def test_processes_that_reach_an_uncached_kernel_together_compile_it_once(tmp_pa
 def test_the_dispatchers_of_the_package_share_their_compilations() -> None:
     from numba.core.caching import FunctionCache
 
-    from droptower import decayfit
+    from droptower import damped_cosine as decayfit
     from droptower.rheology import kernels as K
     from droptower.rig import flight, lever
 

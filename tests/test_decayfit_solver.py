@@ -1,10 +1,10 @@
-"""The decay fit's compiled Levenberg-Marquardt finds the minimum MINPACK finds (droptower/decayfit.py)."""
+"""The decay fit's compiled Levenberg-Marquardt finds the minimum MINPACK finds (droptower/damped_cosine.py)."""
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from droptower import decayfit as D
+from droptower import damped_cosine as D
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)

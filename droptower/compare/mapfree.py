@@ -1,6 +1,6 @@
 """The map-free check of the drop-tower method: drop tests placed on servo points.
 
-The map-vs-servo validation (:mod:`droptower.compare.validation`) mixes two errors: the map's
+The map-vs-servo validation (:mod:`droptower.compare.map_vs_servo`) mixes two errors: the map's
 misfit and the drop tower's own bias. Here the map is taken out: for every servo point
 (amplitude A, frequency f) a virtual drop test is designed whose decay lands on it — the
 lever inertia J sets the frequency, the lever's rate after the impact sets the amplitude (both
@@ -27,15 +27,15 @@ import pandas as pd
 import tomli_w
 
 from droptower import sdof
-from droptower.compare.validation import deviation_stats
+from droptower.compare.map_vs_servo import deviation_stats
 from droptower.errors import DroptowerError
-from droptower.decayfit import fit_decay, start_frequency_and_decay
+from droptower.damped_cosine import fit_decay, start_frequency_and_decay
 from droptower.maps import MapFit
 from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.impact import G
-from droptower.rig.planner import free_decay
+from droptower.rig.impact_law import G
+from droptower.rig.predictions import free_decay
 from droptower.rig.preload import pretwist
 from droptower.servo.steady import steady_state
 

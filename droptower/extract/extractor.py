@@ -1,7 +1,7 @@
 """Stiffness and damping of one drop test from its signals (Rapp et al. 2022, Fig. 9, eq. 13-18;
 docs/theory.md#decay, #extraction, #damping-measures).
 
-Steps: impact onset and pre-trigger baseline (:mod:`.impact`; the pre-trigger means remove
+Steps: impact onset and pre-trigger baseline (:mod:`.impact_detection`; the pre-trigger means remove
 sensor offsets and the preload), starting frequency and decay from the angle after the impact,
 the fit window (:mod:`.window`), the angle fit and the torque fit (:mod:`.decay`), then eq.
 15-18 (:mod:`droptower.sdof`) with standard uncertainties propagated from the fits.
@@ -14,8 +14,8 @@ import numpy as np
 
 from droptower.errors import DroptowerError, finite_values, not_in_range
 from droptower import sdof
-from droptower.decayfit import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
-from droptower.extract.impact import find_impact
+from droptower.damped_cosine import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
+from droptower.extract.impact_detection import find_impact
 from droptower.extract.result import ExtractionResult
 from droptower.extract.uncertainty import propagate
 from droptower.extract.window import MIN_PERIODS, Window
@@ -91,7 +91,7 @@ def lever_rate_after(signals: DropSignals, inertia: float, lever_length_m: float
         return math.nan, ""
     if not (m1 > 0 and h > 0 and 0 <= k <= 1):
         return math.nan, ""
-    from droptower.rig.impact import impact_velocities  # here: the rig package imports pymunk
+    from droptower.rig.impact_law import impact_velocities  # here: the rig package imports pymunk
 
     return float(impact_velocities(m1, inertia, lever_length_m, h, k).rate_after_rad_per_s), "impact_law"
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from droptower.errors import DroptowerError, expects
-from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
+from droptower.extract.drop_spans import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
 from droptower.extract.geometry import geometry_checks
 from droptower.extract.result import ExtractionResult
@@ -28,7 +28,7 @@ class Settings(LogSettings):
     conditions (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the
     log's metadata and the per-file ``conditions`` (drop conditions apply to one drop of a
     recording of several; the file's conditions to all its drops); pre_trigger_s,
-    min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
+    min_drop_spacing_s: see :func:`droptower.extract.drop_spans.find_drops`.
     """
 
     sample_rate_hz: float | None = None
@@ -69,7 +69,7 @@ DECAY_CUT = "decay_cut_by_next_drop"
 @expects(path=(str, Path), settings=Settings)
 def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
     """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
-    samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
+    samples (:func:`droptower.extract.drop_spans.find_drops`). A problem of the whole file (unreadable,
     a drop number it does not have) is a DroptowerError naming the file; a drop that cannot be
     evaluated carries its error (naming the file and, in a recording of several, the drop)."""
     signals = settings.read_signals(path, sample_rate_hz=settings.sample_rate_hz, reader_options=settings.reader_options)

@@ -3,7 +3,7 @@
 J phi'' + T(phi, history) = 0, phi(0) = 0, phi'(0) = the rate the impact gave the lever. The
 coupling's state advances with the lever for every row (a test under one parameter set), so all
 tests of all candidate parameter sets decay in one call. The integrator is the rig's
-(:mod:`droptower.rig.lever`), with velocity Verlet: second order for the elastic torque (first
+(:mod:`droptower.rig.lever_decay`), with velocity Verlet: second order for the elastic torque (first
 order where the core's rate-dependent elements see the step's mean rate: 0.1 % of the peak at
 38.4 kHz, tested); the rig's pymunk scene integrates the same equation with symplectic Euler at
 the same step, and the two agree far below the fit errors that matter (tested).
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from droptower.rheology import Coupling, CouplingState
-from droptower.rig.lever import VERLET, LeverDecay
+from droptower.rig.lever_decay import VERLET, LeverDecay
 
 
 def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int | np.ndarray,

@@ -21,7 +21,7 @@ from droptower.errors import DroptowerError, not_in_range
 from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
 from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rig.uncertainty import RigUncertainty
-from droptower.validation import StrictModel, validate
+from droptower.config_validation import StrictModel, validate
 
 if TYPE_CHECKING:
     from droptower.rheology import Coupling

@@ -25,7 +25,7 @@ from droptower.io.droptower_log import write_log
 from droptower.io.signals import DropSignals
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.impact import ImpactVelocities, first_period, impact_velocities, lever_tip_path
+from droptower.rig.impact_law import ImpactVelocities, first_period, impact_velocities, lever_tip_path
 from droptower.rig.preload import Pretwist, pretwist
 from droptower.rig.scene import Contact, DropTowerScenes
 from droptower.rig.sensors import Channels, force_pulses, sample

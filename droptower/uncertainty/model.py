@@ -134,7 +134,7 @@ class DropModel:
             # J·φ'(0+) = L·∫F dt (Rapp et al. 2022, "Theory of Impact Investigation"), impulse read through κ_F
             return 0.5 * (lever * self.impulse_ns / value("force_calibration_rel")) ** 2 / inertia
         if self.energy_route == "impact_law":
-            from droptower.rig.impact import impact_velocities  # the rig package imports pymunk
+            from droptower.rig.impact_law import impact_velocities  # the rig package imports pymunk
 
             return impact_velocities(value("drop_mass_kg"), inertia, lever, value("drop_height_m"), self.restitution,
                                      self.gravity_m_per_s2).impact_energy_j

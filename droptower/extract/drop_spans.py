@@ -27,7 +27,7 @@ import pandas as pd
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from droptower.errors import DroptowerError
-from droptower.extract.impact import IMPACT_SNR, NOISE_FACTOR, PEAK_FRACTION, MIN_PRETRIGGER
+from droptower.extract.impact_detection import IMPACT_SNR, NOISE_FACTOR, PEAK_FRACTION, MIN_PRETRIGGER
 from droptower.io.signals import DropSignals
 
 PRE_TRIGGER_S = 0.005        # pre-trigger per drop in a continuous recording (the rig's default)

@@ -11,7 +11,7 @@ the rig's step against 2); the coupling's own updates have none:
 
 - ``SYMPLECTIC_EULER``: the angle advances with the old rate, the torque is taken at the angle
   reached, then the rate: exactly what the pymunk scene does (:mod:`droptower.rig.scene`), so
-  the plan (:mod:`droptower.rig.planner`) agrees with the simulation;
+  the plan (:mod:`droptower.rig.predictions`) agrees with the simulation;
 - ``VERLET``: velocity Verlet, second order for the elastic torque (first order where the
   core's rate-dependent elements see the step's mean rate): the identification's
   (``droptower.identify.lever``), which compares decays sampled more coarsely than the rig steps.
