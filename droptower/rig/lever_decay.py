@@ -98,7 +98,7 @@ class LeverDecay:
         their coupling rows, state, rest torque and carried angle, rate and acceleration (copies)."""
         c, s = self.coupling, self.state
         coupling = c.with_params(c.params[keep]) if c.n_sets > 1 else c
-        sub = LeverDecay(coupling, CouplingState(s.values[keep], s.angle_rad[keep], s.torque_nm[keep]),
+        sub = LeverDecay(coupling, s.take(keep),
                          self.inertia[keep], self.rate[keep], self.step_s, self.scheme, rest_torque_nm=self.rest[keep])
         sub.x_rest, sub.phi, sub.acc = self.x_rest[keep], self.phi[keep], self.acc[keep]
         return sub
