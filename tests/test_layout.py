@@ -37,3 +37,39 @@ def test_the_new_module_files_exist_and_the_old_ones_are_gone():
 def test_an_unknown_module_is_still_refused():
     with pytest.raises(ModuleNotFoundError):
         importlib.import_module("droptower.rig.no_such_module")
+
+
+def test_importing_identification_does_not_load_pymunk():
+    """Identification integrates the lever itself (droptower.rig.lever_decay); the pymunk scene
+    is the simulation's, imported when droptower.rig.simulate runs one."""
+    code = ("import sys, droptower.identify, droptower.rig.lever_decay, droptower.rig.preload; "
+            "print('pymunk' in sys.modules, 'droptower.rig.scene' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["False", "False"], done.stdout + done.stderr
+
+
+def test_both_free_decays_share_one_torque_convention_on_a_preloaded_spring():
+    """A linear spring K twisted by a preload T_rest: T - T_rest = K phi exactly, whichever
+    integrator ran the decay (the rig's symplectic Euler, the identification's Verlet); the
+    rig's torque_nm is the absolute torque K (twist + phi)."""
+    import numpy as np
+
+    from droptower.identify.lever import free_decay as identify_decay
+    from droptower.rheology import parse_coupling
+    from droptower.rig.predictions import free_decay as rig_decay
+    from droptower.rig.preload import pretwist
+
+    stiffness, preload = 2000.0, np.array([15.0, 0.0])
+    spring = parse_coupling({"element": [{"kind": "spring", "stiffness": stiffness}]})
+    inertia, rate0, step = np.array([0.05, 0.05]), np.array([3.0, 3.0]), 1 / 20000
+    twist = pretwist(spring, preload, 1.0, 1.0)
+    assert np.allclose(twist.torque_nm, preload, rtol=1e-9, atol=1e-9)
+
+    rig = rig_decay(spring, inertia, rate0, twist, step)
+    assert np.allclose(rig.torque_from_rest_nm, stiffness * rig.angle_rad, rtol=1e-12, atol=1e-9)
+    assert np.allclose(rig.torque_nm, stiffness * (twist.angle_rad[:, None] + rig.angle_rad), rtol=1e-12, atol=1e-9)
+    assert abs(rig.torque_nm[0, 0] - preload[0]) < 1e-9 and rig.torque_from_rest_nm[0, 0] == 0.0
+
+    angle, torque = identify_decay(spring, inertia, rate0, 400, step, twist.state.copy())
+    assert np.allclose(torque, stiffness * angle, rtol=1e-12, atol=1e-9)
+    assert np.max(np.abs(torque[0])) > 1.0  # the decay moved: the check above is not 0 == 0

@@ -52,7 +52,7 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
         if end > done:
             a, q = lever.advance(end - done)
             angle[running, done + 1:end + 1] = a
-            torque[running, done + 1:end + 1] = q - lever.rest[:, None]
+            torque[running, done + 1:end + 1] = lever.torque_from_rest(q)  # the convention of rig.lever_decay
             done = end
         ended = steps[running] == end
         rows = running[ended]

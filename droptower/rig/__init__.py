@@ -11,6 +11,9 @@ drives the rheological coupling, sampled like the real rig, and a planner for te
 - :mod:`.lever_decay`: the lever's free decay on the coupling, compiled (plan and identification);
 - :mod:`.predictions`: predictions per test condition, batched through the coupling;
 - :mod:`.plots`: Rapp et al. 2022, Fig. 4 and the plan's figure.
+
+:mod:`.scene` (pymunk) is imported when a simulation runs, so identification and the plan,
+which integrate the lever themselves (:mod:`.lever_decay`), load without pymunk.
 """
 from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
 from droptower.rig.predictions import plan
