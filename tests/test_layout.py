@@ -73,3 +73,63 @@ def test_both_free_decays_share_one_torque_convention_on_a_preloaded_spring():
     angle, torque = identify_decay(spring, inertia, rate0, 400, step, twist.state.copy())
     assert np.allclose(torque, stiffness * angle, rtol=1e-12, atol=1e-9)
     assert np.max(np.abs(torque[0])) > 1.0  # the decay moved: the check above is not 0 == 0
+
+
+def test_the_version_is_defined_once():
+    """pyproject.toml reads the version from droptower.__version__ (no second literal)."""
+    import tomllib
+    from pathlib import Path
+
+    from setuptools.config.pyprojecttoml import read_configuration
+
+    pyproject = Path(droptower.__file__).resolve().parents[1] / "pyproject.toml"
+    project = tomllib.loads(pyproject.read_text(encoding="utf-8"))["project"]
+    assert "version" not in project and "version" in project["dynamic"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # setuptools calls its [tool.setuptools] support beta
+        assert read_configuration(pyproject, expand=True)["project"]["version"] == droptower.__version__
+
+
+def test_the_preload_ramp_and_hold_are_one_fact():
+    """The rig file's defaults, the servo bench's and identification's conditioning are one
+    constant (a hold long against the reference coupling's 10 s network recovery)."""
+    from droptower.identify.dropfit import DropFitSettings
+    from droptower.rig import load_rig
+    from droptower.rig.config import PRELOAD_HOLD_S, PRELOAD_RAMP_S, Simulation
+    from droptower.servo import bench
+
+    assert PRELOAD_HOLD_S >= 6 * 10.0  # e^-6 of the recovery time left
+    assert (Simulation().preload_ramp_s, Simulation().preload_hold_s) == (PRELOAD_RAMP_S, PRELOAD_HOLD_S)
+    sim = load_rig("rapp2022").simulation
+    assert (sim.preload_ramp_s, sim.preload_hold_s) == (PRELOAD_RAMP_S, PRELOAD_HOLD_S)
+    assert DropFitSettings().conditioning == (PRELOAD_RAMP_S, PRELOAD_HOLD_S)
+    assert (bench.PRELOAD_RAMP_S, bench.PRELOAD_HOLD_S) == (PRELOAD_RAMP_S, PRELOAD_HOLD_S)
+
+
+def test_the_impact_law_rate_uses_the_given_gravity():
+    """The extraction's impact-law rate after the impact follows the free fall v1 = sqrt(2 g h):
+    under 4 g it is exactly twice the rate under g (the rig's gravity, when a rig is given)."""
+    import numpy as np
+
+    from droptower.extract.extractor import lever_rate_after
+    from droptower.io.signals import DropSignals
+    from droptower.units import GRAVITY_M_PER_S2
+
+    t = np.arange(100) / 1000.0
+    signals = DropSignals(t, np.zeros_like(t), metadata={"drop_mass_kg": 5.0, "drop_height_m": 0.1,
+                                                           "restitution": 0.5})
+    standard, source = lever_rate_after(signals, 0.4, 0.2, float("nan"))
+    heavy, _ = lever_rate_after(signals, 0.4, 0.2, float("nan"), 4 * GRAVITY_M_PER_S2)
+    assert source == "impact_law" and standard > 0
+    assert heavy == pytest.approx(2 * standard, rel=1e-12)
+
+
+def test_map_validation_summary_dict_is_deprecated():
+    from types import SimpleNamespace
+
+    from droptower.compare import MapValidation
+
+    validation = object.__new__(MapValidation)
+    object.__setattr__(validation, "validation", SimpleNamespace(summary={"all": {"points": 3}}))
+    with pytest.warns(DeprecationWarning, match="to_dict"):
+        assert validation.summary_dict == {"all": {"points": 3}}

@@ -43,7 +43,11 @@ class MapValidation:
 
     @property
     def summary_dict(self) -> dict[str, Any]:
-        """Per region (inside, outside, all of the map's range): points, RMS and max deviations (%)."""
+        """Deprecated (removed in the next release): ``to_dict()["summary"]``, the same dict."""
+        import warnings
+
+        warnings.warn("MapValidation.summary_dict is deprecated: use MapValidation.to_dict()['summary']",
+                      DeprecationWarning, stacklevel=2)
         return self.validation.summary
 
     def to_frame(self) -> pd.DataFrame:

@@ -17,6 +17,7 @@ from droptower.extract.window import Window
 from droptower.io.logsettings import LogSettings
 from droptower.io.signals import DropSignals
 from droptower.jsonsafe import json_safe
+from droptower.units import GRAVITY_M_PER_S2
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,8 @@ def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
     if given["inertia_kgm2"] is None and signals.metadata.get("inertia_kgm2") is None:
         raise DroptowerError(settings.no_inertia_reason(signals.metadata))
-    return extract(signals, **given, window=settings.window)
+    gravity = settings.rig.gravity_m_per_s2 if settings.rig is not None else None  # the rig's g, when given
+    return extract(signals, **given, window=settings.window, gravity_m_per_s2=gravity)
 
 
 def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: Settings) -> None:
@@ -137,7 +139,7 @@ def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: S
         except (TypeError, ValueError):
             restitution = None
     outputs, flags = geometry_checks(result, meta, lever, restitution,
-                                     rig.gravity_m_per_s2 if rig is not None else 9.81)
+                                     rig.gravity_m_per_s2 if rig is not None else GRAVITY_M_PER_S2)
     result.geometry = outputs
     result.flags = (*result.flags, *flags)
 
