@@ -59,20 +59,13 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
         angle[rows, end + 1:] = angle[rows, end][:, None]
         torque[rows, end + 1:] = torque[rows, end][:, None]
         if lever.state is not state:  # a subset's copy: its rows' states back into the caller's
-            _store(state, running, lever.state)
+            state.merge(running, lever.state)
         running = running[~ended]
         if not running.size:
             break
         if ended.any():
             lever = lever.rows(~ended)
     return angle, torque
-
-
-def _store(state: CouplingState, rows: np.ndarray, sub: CouplingState) -> None:
-    """The rows ``rows`` of ``state`` set to ``sub``'s (one row each)."""
-    state.values[rows] = sub.values
-    state.angle_rad[rows] = sub.angle_rad
-    state.torque_nm[rows] = sub.torque_nm
 
 
 def at_times(history: np.ndarray, step_s: float, times_s: np.ndarray) -> np.ndarray:
