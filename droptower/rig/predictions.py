@@ -21,7 +21,7 @@ from droptower.errors import DroptowerError, expects
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
 from droptower.rig.impact_law import (drop_mass_path, first_period, impact_velocities,
-                                  lever_tip_path, second_impact_time)
+                                      lever_tip_path, second_impact_time)
 from droptower.rig.lever_decay import SYMPLECTIC_EULER, LeverDecay, torque_from_rest
 from droptower.rig.preload import Pretwist, pretwist
 from droptower.sdof import damping_ratio, reference_amplitude
