@@ -1,5 +1,6 @@
 """The virtual drop tower (Rapp et al. 2022, docs/theory.md#rig, #impact, #decay): a pymunk scene whose restitution impact
-drives the rheological coupling, sampled like the real rig, and a planner for test campaigns.
+drives the rheological coupling, sampled like the real rig, and predictions of a test plan before it runs
+(:func:`plan`; the interactive planner page is :mod:`droptower.planner`).
 
 - :mod:`.config`: rig and test-plan files (:func:`load_rig`, :func:`load_doe`);
 - :mod:`.rigfile`: a lab's rig file from its numbers (:func:`new_rig`, :func:`rig_toml`), the schema reference;
