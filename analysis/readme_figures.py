@@ -613,12 +613,29 @@ def run(command: list[str]) -> None:
     subprocess.run([str(c) for c in command], cwd=ROOT, check=True)
 
 
+#: the reduced study's workers when its fingerprint is stored: as tests/test_study.py runs it
+FINGERPRINT_WORKERS = 2
+
+
 def rerun_study() -> None:
-    """The full study into a scratch folder; its stored files copied to ``analysis/results/``."""
+    """The full study into a scratch folder, its stored files copied to ``analysis/results/``; and
+    the reduced study, whose exact figures are stored beside them as the fingerprint that keys the
+    stored study to the code (``analysis/provenance.py``)."""
+    sys.path.insert(0, str(ROOT / "analysis"))
+    from provenance import FINGERPRINT_FILE, REGENERATE, figures  # analysis/provenance.py
+
     with tempfile.TemporaryDirectory(prefix="study_") as tmp:
         run([sys.executable, ROOT / "analysis" / "run_study.py", "--out", Path(tmp) / "report"])
+        run([sys.executable, ROOT / "analysis" / "run_study.py", "--reduced", "--out", Path(tmp) / "reduced",
+             "--workers", str(FINGERPRINT_WORKERS)])
         for name in STUDY_FILES:
             shutil.copy2(Path(tmp) / "report" / name, STUDY_RESULTS / name)
+        reduced = json.loads((Path(tmp) / "reduced" / "summary.json").read_text())
+        fingerprint = {"what": "the reduced study's figures (run_study.py --reduced): the stored study is current while "
+                               "the reduced study reproduces them and its inputs hash the same",
+                       "regenerate": REGENERATE, "workers": FINGERPRINT_WORKERS,
+                       "inputs_sha256": reduced["provenance"]["inputs_sha256"], "figures": figures(reduced)}
+        (STUDY_RESULTS / FINGERPRINT_FILE).write_text(json.dumps(fingerprint, indent=1, allow_nan=True) + "\n")
 
 
 def rerun_benchmarks() -> None:

@@ -15,6 +15,10 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 
+#: the acceleration of gravity (m/s^2) of Rapp et al. 2022's impact law: the rig file's default
+#: (``gravity_m_per_s2``) and what the extraction uses when no rig is given
+GRAVITY_M_PER_S2 = 9.81
+
 #: kind -> the SI unit values are converted to.
 SI_UNITS: dict[str, str] = {"time": "s", "angle": "rad", "torque": "N*m", "force": "N", "length": "m"}
 

@@ -33,7 +33,7 @@ def _loaded(names: tuple[str, ...] = HEAVY) -> str:
 @pytest.mark.parametrize("statement", ["import droptower.extract",
                                        "import droptower; droptower.extract_file; droptower.ExtractSettings",
                                        "from droptower.io import read_any, map_channels, DropSignals",
-                                       "import droptower.decayfit, droptower.sdof"])
+                                       "import droptower.damped_cosine, droptower.sdof"])
 def test_reading_and_extraction_import_no_heavy_package(statement: str) -> None:
     """The extractor's modules import none of the heavy packages: each is imported where it is
     used (scipy.signal for the angle-only drop finder, the decay fit's kernels when a fit runs,
@@ -53,11 +53,11 @@ def test_reading_a_rig_file_imports_no_simulator() -> None:
 def test_a_fit_loads_its_kernels_on_first_use() -> None:
     """The first fit imports the compiled kernels (from the package's cache) and gives the decay
     it was made from; later fits reuse them (numba compiles or loads each kernel once per process)."""
-    out = _fresh("import sys, json; import numpy as np; from droptower.decayfit import fit_decay\n"
-                 "before = 'droptower.decayfit_kernels' in sys.modules\n"
+    out = _fresh("import sys, json; import numpy as np; from droptower.damped_cosine import fit_decay\n"
+                 "before = 'droptower.damped_cosine_kernels' in sys.modules\n"
                  "t = np.arange(4000) / 38400.0; y = 0.01 * np.exp(-20.0 * t) * np.cos(200.0 * t - 0.3)\n"
                  "fits = [fit_decay(t, y, 210.0, 15.0) for _ in range(3)]\n"
-                 "from droptower.decayfit_kernels import levenberg_marquardt as lm\n"
+                 "from droptower.damped_cosine_kernels import levenberg_marquardt as lm\n"
                  "print(json.dumps({'before': before, 'params': [float(v) for v in fits[-1].params],"
                  " 'signatures': len(lm.signatures)}))")
     assert out["before"] is False and out["signatures"] == 1

@@ -1,11 +1,11 @@
-"""The decay fit's compiled Levenberg-Marquardt finds the minimum MINPACK finds (droptower/decayfit.py, droptower/decayfit_kernels.py)."""
+"""The decay fit's compiled Levenberg-Marquardt finds the minimum MINPACK finds (droptower/damped_cosine.py, droptower/damped_cosine_kernels.py)."""
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from droptower import decayfit as D
-from droptower import decayfit_kernels as DK
+from droptower import damped_cosine as D
+from droptower import damped_cosine_kernels as DK
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)

@@ -24,7 +24,7 @@ from pydantic import Field
 
 from droptower.cli.options import note, progress, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive
-from droptower.validation import StrictModel, validate
+from droptower.config_validation import StrictModel, validate
 from droptower.cli.flags import cli_text
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from droptower.errors import DroptowerError
-from droptower.extract.impact import IMPACT_SNR, NOISE_FACTOR, PEAK_FRACTION, MIN_PRETRIGGER
+from droptower.extract.impact_detection import IMPACT_SNR, NOISE_FACTOR, PEAK_FRACTION, MIN_PRETRIGGER
 from droptower.io.signals import DropSignals
 
 PRE_TRIGGER_S = 0.005        # pre-trigger per drop in a continuous recording (the rig's default)

@@ -4,7 +4,7 @@ Shared by the extractor (measured logs), the planner (predicted decays: a plan p
 extractor will report), identification and the comparisons, so they all read a decay the same way.
 
 Angle: φ(t) = φ̂·e^(−δt)·cos(ωt − Φ), fitted over (φ̂, δ, ω, Φ) by a compiled Levenberg-Marquardt
-from robust starting values (:mod:`droptower.decayfit_kernels`), to the minimum :func:`scipy.optimize.least_squares` (MINPACK) finds, which
+from robust starting values (:mod:`droptower.damped_cosine_kernels`), to the minimum :func:`scipy.optimize.least_squares` (MINPACK) finds, which
 takes over where it does not converge. Torque (eq. 17): δ and ω
 fixed from the angle fit, T(t) = T̂·e^(−δt)·cos(ωt − Φ_T) + offset, which is linear in
 (T̂ cos Φ_T, T̂ sin Φ_T, offset) and so solved exactly by linear least squares.
@@ -162,7 +162,7 @@ def fit_decay(t: np.ndarray, y: np.ndarray, omega0: float, delta0: float, baseli
     converged = False
     if np.all(np.isfinite(x0)) and np.all(scale > 0):
         # compiled on first use: importing this module (every command that reads a log) loads no numba
-        from droptower.decayfit_kernels import levenberg_marquardt
+        from droptower.damped_cosine_kernels import levenberg_marquardt
 
         params, converged = levenberg_marquardt(np.ascontiguousarray(t, np.float64),
                                                  np.ascontiguousarray(y, np.float64), x0, scale, STEP_TOLERANCE,

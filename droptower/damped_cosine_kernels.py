@@ -1,7 +1,7 @@
-"""The compiled kernels of the decay fit (:func:`droptower.decayfit.fit_decay`): the normal equations
+"""The compiled kernels of the decay fit (:func:`droptower.damped_cosine.fit_decay`): the normal equations
 of φ̂·e^(−δt)·cos(ωt − Φ) in one pass and a Levenberg-Marquardt on them (Rapp et al. 2022, eq. 13-14).
 
-A module of their own so that importing :mod:`droptower.decayfit` (every command that reads a log)
+A module of their own so that importing :mod:`droptower.damped_cosine` (every command that reads a log)
 imports no numba: this one is imported when a fit first runs, and its kernels are loaded from the
 package's cache (:mod:`droptower.rheology.numba_cache`) once per process.
 """
