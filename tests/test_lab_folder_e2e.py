@@ -119,7 +119,7 @@ def native(lab, usable, work) -> pd.DataFrame:
     for name, drop in zip(usable.index, drops):
         _, result = extract_file(drop.write_log(work / f"native_{Path(name).stem}.parquet"), Settings())
         rows.append({"file": name, "stiffness_nm_per_rad": result.stiffness_nm_per_rad,
-                     "amplitude_rad": result.amplitude_rad, "frequency_hz": result.frequency_hz,
+                     "amplitude_ref_rad": result.amplitude_ref_rad, "frequency_hz": result.frequency_hz,
                      "damping_ratio": result.damping_ratio})
     return pd.DataFrame(rows).set_index("file")
 
@@ -167,6 +167,17 @@ def reported(lab, model_mapped, bench, work) -> Step:
                      "--model-map", work / "model_map.json", "--out", work / "report.html")
 
 
+def _drawn_decays(page: Path) -> set[str]:
+    """The tests whose decay figure a report holds: in the page (``decay-data``, a figure as an
+    object, a reason as a string) or in its side files (``decay-files`` names them)."""
+    text = page.read_text(encoding="utf-8")
+
+    def block(name: str) -> dict:
+        return json.loads(re.search(rf"<script type='application/json' id='{name}'>(.*?)</script>", text, re.S).group(1))
+
+    return {name for name, fig in block("decay-data").items() if isinstance(fig, dict)} | set(block("decay-files"))
+
+
 def _row_by_file(table: pd.DataFrame) -> pd.DataFrame:
     return table.assign(file=[Path(f).name for f in table["file"]]).set_index("file")
 
@@ -196,14 +207,15 @@ def test_extract_gives_every_drop_with_its_conditions_and_the_truths_numbers(lab
     got = rows.loc[usable.index]
     for column in ("stiffness_nm_per_rad", "frequency_hz", "damping_ratio"):
         np.testing.assert_allclose(got[column], native[column], rtol=1e-4, err_msg=column)
-    np.testing.assert_allclose(np.radians(got["amplitude_deg"]), native["amplitude_rad"], rtol=1e-4)
+    np.testing.assert_allclose(np.radians(got["amplitude_deg"]), native["amplitude_ref_rad"], rtol=1e-4)
 
 
 def test_the_usable_drops_stiffness_is_the_couplings(usable, extracted):
-    """Against the coupling itself: the servo bench's K' at each drop's amplitude and frequency.
-    The drop tower's first-cycle c reads 2-6 % above it on this filled rubber (the Payne effect's
-    first-cycle bias, docs/theory.md#first-cycle; the study's map-free check: 2.1 % RMS), far
-    from what a wrong inertia would give (the fixtures' J differ by 60 % and more)."""
+    """Against the coupling itself: the servo bench's K' at each drop's reference amplitude
+    and frequency. The drop tower's first-cycle c agrees within the method's own error (the
+    study's map-free check, decays vs bench at the same points: 2.1 % RMS, docs/study.md;
+    measured here: 0.4-1.1 % below), far from what a wrong inertia would give (the fixtures'
+    J differ by 60 % and more)."""
     from droptower.rheology import load_coupling
     from droptower.servo import run_grid
 
@@ -213,8 +225,7 @@ def test_the_usable_drops_stiffness_is_the_couplings(usable, extracted):
                           ["storage_stiffness_nm_per_deg"].iloc[0]
                           for a, f in zip(rows["amplitude_deg"], rows["frequency_hz"])])
     deviation = rows["stiffness_nm_per_deg"].to_numpy() / k_storage - 1
-    assert np.all((0.0 < deviation) & (deviation < 0.065)), deviation
-    assert np.sqrt(np.mean(deviation ** 2)) < 0.045
+    assert np.all(np.abs(deviation) < 0.021), deviation
 
 
 def test_map_covers_the_usable_fixtures_and_names_the_one_that_dropped_out(lab, usable, mapped, work):
@@ -243,9 +254,12 @@ def test_the_model_route_runs_on_the_lab_folder_with_bands_and_a_verdict(usable,
     lo, hi = grid["storage_stiffness_nm_per_deg_band_lo"], grid["storage_stiffness_nm_per_deg_band_hi"]
     assert np.all(lo <= grid["storage_stiffness_nm_per_deg"]) and np.all(grid["storage_stiffness_nm_per_deg"] <= hi)
     # the identified coupling is the lab's coupling on the bench: K' and loss factor at the grid's points
-    truth = run_grid(load_coupling(COUPLING), amplitudes_rad=np.radians(sorted(set(grid["amplitude_deg"]))),
-                     frequencies_hz=sorted(set(grid["frequency_hz"])))
-    merged = grid.merge(truth, on=["amplitude_deg", "frequency_hz"], suffixes=("", "_truth"))
+    amplitudes, frequencies = np.unique(grid["amplitude_deg"]), np.unique(grid["frequency_hz"])
+    truth = run_grid(load_coupling(COUPLING), amplitudes_rad=np.radians(amplitudes), frequencies_hz=frequencies)
+    key = ["amplitude_key", "frequency_key"]
+    keyed = [g.assign(amplitude_key=g["amplitude_deg"].round(6), frequency_key=g["frequency_hz"].round(6))
+             for g in (grid, truth)]
+    merged = keyed[0].merge(keyed[1].drop(columns=["amplitude_deg", "frequency_hz"]), on=key, suffixes=("", "_truth"))
     assert len(merged) == len(grid)
     np.testing.assert_allclose(merged["storage_stiffness_nm_per_deg"], merged["storage_stiffness_nm_per_deg_truth"],
                                rtol=0.01)
@@ -273,15 +287,17 @@ def test_validate_against_the_labs_bench_csv(validated, work):
 def test_report_draws_every_usable_decay(lab, usable, reported, work):
     assert reported.code == 0, reported.err
     page = (work / "report.html").read_text(encoding="utf-8")
-    drawn = {}
-    for script in sorted((work / "report_files").glob("fits_*.js")):
-        text = script.read_text(encoding="utf-8")
-        drawn.update(json.loads(text[text.index("(") + 1:text.rindex(")")]))
-    names = {Path(name).name for name in drawn}
+    names = {Path(name).name for name in _drawn_decays(work / "report.html")}
     assert set(usable.index) <= names, sorted(set(usable.index) - names)
     assert len(names) == len(lab.logs)  # every drop's decay is drawn, the double impacts' too
-    # both routes validated against the lab's bench on the page
-    assert "Two routes" in page and "Pruefstand_Ergebnisse" in page
+    # both routes validated against the lab's bench on the page: its 12 points, the model-based route on it
+    text = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", re.sub(r"<script.*?</script>", "", page, flags=re.S)))
+    assert "Two routes: paper map and model-based map" in text
+    rows = dict(re.findall(r"(paper map, eq\. 19/20|model-based map, template) all (\d+ [\d.]+)", text))
+    n_points = len(BENCH_AMPLITUDES_DEG) * len(BENCH_FREQUENCIES_HZ)
+    assert {route: int(v.split()[0]) for route, v in rows.items()} == {
+        "paper map, eq. 19/20": n_points, "model-based map, template": n_points}
+    assert float(rows["model-based map, template"].split()[1]) < 1.0  # K' RMS, % (as validate's)
 
 
 def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, extracted, work):
@@ -301,8 +317,11 @@ def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, ext
     # the preset's 0.15 m laser radius reads the 0.25 m spot's displacement as 0.25/0.15 times the angle
     ratio = rows["amplitude_deg"] / right.loc[rows.index, "amplitude_deg"]
     np.testing.assert_allclose(ratio, 0.25 / preset.sensors.laser.radius_m, rtol=0.01)
-    geometry = {name: _flags(v) - BASE_FLAGS for name, v in rows["flags"].items()}
-    assert all(geometry.values()), [name for name, f in geometry.items() if not f]
+    # every drop the map would use is flagged (a double impact, left out anyway, is not checked)
+    flags = {name: _flags(v) for name, v in rows["flags"].items()}
+    unflagged = [name for name, f in flags.items() if not f - BASE_FLAGS and "double_impact" not in f]
+    assert not unflagged, unflagged
+    assert sum(bool(f - BASE_FLAGS) for f in flags.values()) >= 18
 
 
 def test_the_results_table_reads_back_in_a_fresh_process(extracted, work):
