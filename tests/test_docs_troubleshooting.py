@@ -1,6 +1,7 @@
 """docs/troubleshooting.md cannot rot: every message it quotes is still one the code prints.
 
-A quoted message is a line starting with ``droptower:`` in a ``text`` block of the page; its
+A quoted message is a line of a ``text`` block of the page (``droptower: error:`` and the like
+are the command line's prefix, left out of the comparison); its
 variable parts are written in capitals (``FILE``, ``NAME``, ``N``) or as ``…``, the example
 values the page fills in (a channel's name, a file's) are in quotes or numbers, and flags
 (``--rig``) and bracketed forms (``NAME[:UNIT]``) are taken as variable, since the command line
@@ -33,7 +34,7 @@ GAP = "\x00"
 def quoted_messages() -> list[str]:
     text = PAGE.read_text(encoding="utf-8")
     blocks = re.findall(r"```text\n(.*?)```", text, re.S)
-    return [line.strip() for block in blocks for line in block.splitlines() if line.startswith("droptower:")]
+    return [line.strip() for block in blocks for line in block.splitlines() if line.strip()]
 
 
 def _literal_text(token: str) -> str:
@@ -72,7 +73,8 @@ def package_strings() -> tuple[str, ...]:
 def fixed_parts(message: str) -> list[str]:
     """The fixed text of a quoted message: the parts between its variable ones (≥ 3 characters)."""
     body = PREFIX.sub("", message)
-    return [p.strip() for p in VARIABLE.split(body) if len(p.strip()) >= 3]
+    parts = (p.strip(" ;:,()") for p in VARIABLE.split(body))  # the punctuation around a part may be composed
+    return [p for p in parts if len(p) >= 3]
 
 
 def test_the_page_quotes_messages():
