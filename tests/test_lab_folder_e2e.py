@@ -327,6 +327,6 @@ def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, ext
 def test_the_results_table_reads_back_in_a_fresh_process(extracted, work):
     """One step as a user types it: ``python -m droptower map results.csv`` in its own process."""
     done = subprocess.run([sys.executable, "-m", "droptower", "map", str(work / "results.csv"), "--json", "-q"],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=120, cwd=Path(__file__).resolve().parents[1])
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["fit"]["n_tests"] == 18
