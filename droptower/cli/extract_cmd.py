@@ -9,9 +9,10 @@ from typing import Any
 
 import click
 
-from droptower.cli.options import progress_disabled, quiet_option, renamed_option, wrote
+from droptower.cli.options import (conditions_from_cli, conditions_options, note, progress_disabled, quiet_option,
+                                   renamed_option, rig_for_logs, wrote)
 from droptower.errors import DroptowerError, WriteError, check_positive, make_folder
-from droptower.cli.flags import cli_message
+from droptower.cli.flags import cli_message, cli_text
 
 #: columns of the table printed when neither --out nor --json is given
 SUMMARY = ("file", "drop_index", "t_impact_s", "frequency_hz", "amplitude_deg", "stiffness_nm_per_deg",
@@ -31,24 +32,14 @@ def _summary(rows: list[dict[str, Any]]) -> str:
     return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)) for line in [list(SUMMARY), *table])
 
 
-def _rig_settings(rig: str | None) -> dict[str, float | None]:
-    """Lever length, laser radius and, if the rig has only one lever fixture, its inertia
-    (with several, each log's metadata ``inertia_kgm2`` says which one was used)."""
-    if rig is None:
-        return {}
-    from droptower.rig.config import load_rig
-
-    config = load_rig(rig)
-    inertias = config.inertias_kgm2
-    return {"lever_length_m": config.lever_length_m, "sensor_radius_m": config.sensors.laser.radius_m,
-            "inertia_kgm2": inertias[0] if len(inertias) == 1 else None}
-
-
 @click.command()
 @quiet_option
 # readable=False: an unreadable file is reported by the reader and the batch goes on
 @click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=str, readable=False))
-@click.option("--rig", default=None, help="Rig TOML (or shipped preset name): lever length, laser radius, inertia.")
+@click.option("--rig", default=None, help="Rig TOML (or shipped preset name): lever length, laser radius, fixtures "
+              "(the inertia of a rig with one fixture; with several, --conditions or the logs say which). Make "
+              "your own with `droptower rig new`.")
+@conditions_options
 @renamed_option("--inertia-kgm2", "--inertia", "inertia", type=float,
                 help="Rotating inertia J in kg*m^2 (default: the log's metadata).")
 @renamed_option("--lever-length-m", "--lever-length", "lever_length", type=float,
@@ -64,8 +55,9 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @click.option("--drops", "drop_selection", default=None, metavar="1,3-5",
               help="Evaluate only these drops of each recording (numbered from 1 in time order; default: all).")
 @click.option("--drop-conditions", type=click.Path(dir_okay=False, path_type=str), default=None,
-              help="CSV drop_index,drop_height_m,drop_mass_kg,inertia_kgm2,preload_nm (any of them): each "
-                   "drop's conditions, over the log's metadata.")
+              help="Table (CSV, .xlsx, .parquet) drop_index,drop_height_m,drop_mass_kg,inertia_kgm2,preload_nm "
+                   "(any of them): the conditions of each drop of a recording holding several, by its number; over "
+                   "the log's metadata and --conditions (which are per file).")
 @click.option("--pre-trigger-s", type=float, default=0.005, show_default=True,
               help="Pre-trigger baseline of each drop in a recording with several drops, in s.")
 @click.option("--min-drop-spacing-s", type=float, default=0.5, show_default=True,
@@ -80,7 +72,8 @@ def _rig_settings(rig: str | None) -> dict[str, float | None]:
 @click.option("--decimal", type=click.Choice([".", ","]), default=None, help="CSV decimal separator (default: sniffed).")
 @click.option("--header-lines", type=int, default=None, help="CSV lines above the names row (default: sniffed).")
 @click.option("--unit-row/--no-unit-row", default=None, help="CSV has a units row under the names (default: sniffed).")
-def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, lever_length: float | None,
+def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, condition_columns: tuple[str, ...],
+            conditions_pattern: str | None, inertia: float | None, lever_length: float | None,
             sensor_radius: float | None, channel_specs: tuple[str, ...], sample_rate: float | None, window: str,
             drop_selection: str | None, drop_conditions: str | None, pre_trigger_s: float, min_drop_spacing_s: float,
             out: Path | None, as_json: bool, plot_dir: Path | None, delimiter: str | None, decimal: str | None,
@@ -92,8 +85,17 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     φ̂_ref, f (Rapp et al. 2022, eq. 13-18); the torque fit (eq. 17) and c_dyn,M2; the servo-comparable
     loss factor η and relative damping ψ (docs/theory.md#damping-measures); standard uncertainties (*_std), the fit
     error and flags (double_impact, clipping, too_few_samples_per_period, short_window,
-    poor_fit). J, L and the laser radius: --inertia-kgm2/--lever-length-m/--sensor-radius-m, else
-    the log's metadata, else the rig (its inertia only if it has a single lever fixture).
+    poor_fit) and the geometry cross-checks (stiffness_m2_m1_deviation, laser_torque_amplitude_mismatch,
+    impact_energy_mismatch: a wrong laser radius, lever length or fixture). J, L and the laser
+    radius: --inertia-kgm2/--lever-length-m/--sensor-radius-m, else --conditions (per file: a
+    sheet keyed by file name, or --conditions-from-names), else the log's metadata, else --rig
+    (its inertia only if it has a single lever fixture). The geometry used is printed once and
+    written with every row (rig, lever_length_m, sensor_radius_m), with the fixture and
+    temperature_c.
+
+    A file the conditions table lacks fails on its own; bad rows of the table are warned about
+    once and fail only their files. --drop-conditions is for recordings of several drops: keyed
+    by the drop's number, over --conditions.
 
     Time stamps printed with few decimals (steps that differ only by the printed precision)
     are taken as a constant sample rate estimated from the whole log (a note says so); a truly
@@ -115,12 +117,15 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
           --inertia-kgm2 0.359 --lever-length-m 0.2 --json
       droptower extract logs/*.parquet --rig rapp2022 --window 2-cycles --plot plots/
       droptower extract morning.mf4 --drops 1,3-5 --drop-conditions drops.csv --out morning.csv
+      droptower extract lab/*.csv --rig lab_rig.toml --conditions lab/conditions.xlsx --out results.csv
+      droptower extract lab/*.csv --rig lab_rig.toml \\
+          --conditions-from-names '{fixture}_m{drop_mass_kg}_h{drop_height_mm}_rep{repeat}'
     """
     import pandas as pd
     from tqdm import tqdm
 
     from droptower.extract.drops import parse_drop_selection, read_drop_conditions
-    from droptower.extract.files import Settings, extract_drops, result_row
+    from droptower.extract.files import Settings, dropped_out, extract_drops, result_row
     from droptower.jsonsafe import json_safe
     from droptower.extract.window import Window
     from droptower.io.tables import check_table_path, write_table
@@ -133,10 +138,11 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
         check_positive(value, name, most=most)
     for name, value in (("--pre-trigger-s", pre_trigger_s), ("--min-drop-spacing-s", min_drop_spacing_s)):
         check_positive(value, name, most=3600.0)
-    rig_values = _rig_settings(rig)
+    rig_config = rig_for_logs(rig, paths)
+    table = conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)
     settings = Settings(
         roles=parse_channel_options(channel_specs), inertia_kgm2=inertia, lever_length_m=lever_length,
-        defaults={k: v for k, v in rig_values.items() if v is not None}, sensor_radius_m=sensor_radius,
+        rig=rig_config, conditions=table, sensor_radius_m=sensor_radius,
         sample_rate_hz=sample_rate, window=Window.parse(window),
         reader_options={"delimiter": "\t" if delimiter == "\\t" else delimiter, "decimal": decimal,
                         "header_lines": header_lines, "unit_row": unit_row},
@@ -153,8 +159,11 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
     failures: list[str] = []
     failed: set[str] = set()
     plots: set[str] = set()
+    shared = table.shared_rows(paths) if table is not None else {}
     for path in tqdm(paths, desc="extract", unit="log", file=sys.stderr, disable=progress_disabled()):
         try:
+            if path in shared:  # one row for several logs: which one it means is not known
+                raise DroptowerError(shared[path], file=path)
             for drop in extract_drops(path, settings):
                 for text in drop.signals.notes if drop.span.index == 1 and not progress_disabled() else ():
                     tqdm.write(f"droptower: note: {path}: {text}", file=sys.stderr)
@@ -180,6 +189,12 @@ def extract(paths: tuple[str, ...], rig: str | None, inertia: float | None, leve
             failures.append(f"{path}: internal error ({type(exc).__name__}: {exc})")
             tqdm.write(f"droptower: error: {failures[-1]}", file=sys.stderr)
 
+    for line in dropped_out(rows):
+        click.echo(f"droptower: warning: {cli_text(line)}", err=True)
+    unused = table.unmatched(paths) if table is not None else []
+    if unused:
+        shown = ", ".join(unused[:5]) + (f" and {len(unused) - 5} more" if len(unused) > 5 else "")
+        note(f"note: {len(unused)} row(s) of the conditions table {table.source} name no given log: {shown}")
     if rows and out is not None:
         table = pd.DataFrame(rows)
         wrote(write_table(table, out, "--out"), f"{len(table)} test(s) x {table.shape[1]} columns")

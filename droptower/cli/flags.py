@@ -48,6 +48,7 @@ FLAGS: dict[str, str] = {
     "uncertainty_pct": "--uncertainty-pct",
     "model": "--model",
     "template": "--template",
+    "conditions": "--conditions",
 }
 
 _ROLE = re.compile(r"`roles=\{'(\w+)': '([^']*)'\}`")

@@ -26,6 +26,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "plan": ("droptower.cli.plan_cmd", "plan", "Predict a test plan: amplitudes, frequencies, double impacts."),
     "channels": ("droptower.cli.channels_cmd", "channels", "List the channels a log file holds."),
     "extract": ("droptower.cli.extract_cmd", "extract", "Extract stiffness and damping from drop-test logs."),
+    "rig": ("droptower.cli.rig_cmd", "rig", "Write a rig file from a lab's numbers, or check one."),
     "campaign": ("droptower.cli.campaign_cmd", "campaign", "Simulate, log and extract a whole test plan."),
     "map": ("droptower.cli.map_cmd", "map_command", "Fit the characteristic map (Rapp et al. 2022, eq. 19-20)."),
     "report": ("droptower.cli.report_cmd", "report", "Write an HTML report of a campaign or a results table."),

@@ -75,3 +75,101 @@ def wrote(path: object, what: str) -> None:
     """The one summary line of every file or folder a command writes (stderr, so ``--json`` on
     stdout stays clean; silenced by --quiet): ``droptower: wrote PATH (WHAT)``."""
     note(f"wrote {path} ({what})")
+
+
+# ------------------------------------------------------------------ per-file conditions and the rig
+def conditions_options(f: Callable) -> Callable:
+    """``--conditions TABLE``, ``--condition-column ROLE=COLUMN[:UNIT]`` (repeatable) and
+    ``--conditions-from-names PATTERN``: a command's per-file test conditions (parameters
+    ``conditions``, ``condition_columns``, ``conditions_pattern``; build them with
+    :func:`conditions_from_cli`)."""
+    f = click.option("--conditions-from-names", "conditions_pattern", default=None, metavar="PATTERN",
+                     help="Read each file's conditions from its name, e.g. "
+                          "'{fixture}_m{drop_mass_kg}_h{drop_height_mm}_rep{repeat}' (fields: fixture, inertia_kgm2, "
+                          "drop_mass_kg, drop_height_m, preload_nm, specimen, repeat, temperature_c; a unit suffix "
+                          "like _mm or ':mm' for the name's unit).")(f)
+    f = click.option("--condition-column", "condition_columns", multiple=True, metavar="ROLE=COLUMN[:UNIT]",
+                     help="Map a column of --conditions to a role: file, fixture, inertia_kgm2, drop_mass_kg, "
+                          "drop_height_m, preload_nm, specimen, repeat, temperature_c (repeatable; common English "
+                          "and German names are found without it).")(f)
+    return click.option("--conditions", "conditions", default=None, metavar="TABLE",
+                        type=click.Path(dir_okay=False, path_type=str),
+                        help="Per-file test conditions: a table (CSV in any dialect, .xlsx, .parquet) with one row "
+                             "per log, keyed by file name or path relative to the folder: fixture or inertia, drop "
+                             "mass, drop height, preload, specimen, repeat, temperature. Over each log's metadata.")(f)
+
+
+def _cli_columns_text(exc: Exception) -> Exception:
+    """A conditions error as the command line says it: ``--condition-column`` for ``columns=``."""
+    from droptower.errors import DroptowerError
+
+    if isinstance(exc, DroptowerError) and "`columns=" in exc.problem:
+        import re
+
+        problem = re.sub(r"`columns=\{'(\w+)': '([^']*)'\}`", r"--condition-column \1=\2", exc.problem)
+        return DroptowerError(problem, file=exc.file, where=exc.where)
+    return exc
+
+
+def conditions_from_cli(table: str | None, column_specs: tuple[str, ...] | list[str], pattern: str | None,
+                        rig: Any = None) -> Any:
+    """The :class:`~droptower.io.conditions.Conditions` the flags ask for (None without
+    ``--conditions`` and ``--conditions-from-names``); the table's bad rows are printed once as
+    warnings (each fails only its own file), its notes as notes. ``rig``: a loaded RigConfig
+    whose named fixtures give a fixture's inertia."""
+    from droptower.errors import DroptowerError
+    from droptower.io.conditions import conditions_from_names, parse_condition_columns, read_conditions
+
+    if table is not None and pattern is not None:
+        raise DroptowerError("give --conditions or --conditions-from-names, not both")
+    if column_specs and table is None:
+        raise DroptowerError("--condition-column maps the columns of --conditions, which is not given")
+    if table is None and pattern is None:
+        return None
+    try:
+        if pattern is not None:
+            return conditions_from_names(pattern, rig=rig)
+        conditions = read_conditions(table, columns=parse_condition_columns(column_specs), rig=rig)
+    except DroptowerError as exc:
+        raise _cli_columns_text(exc) from None
+    for line in conditions.problems:
+        click.echo(f"droptower: warning: {line}", err=True)
+    for line in conditions.notes:
+        note(f"note: {line}")
+    return conditions
+
+
+def _written_by_droptower(path: str) -> bool:
+    """True if the log at ``path`` is one droptower wrote (its own log format), False for any
+    other file (or one that cannot be opened: the reader reports that)."""
+    from pathlib import Path
+
+    from droptower.io.droptower_log import is_droptower_csv, parquet_metadata
+
+    p = Path(path)
+    try:
+        if p.suffix.lower() == ".parquet":
+            return parquet_metadata(p) is not None
+        return is_droptower_csv(p)
+    except Exception:  # unreadable: not droptower's; the reader names the problem
+        return False
+
+
+def rig_for_logs(rig: str | None, paths: tuple[str, ...] | list[str] = ()) -> Any:
+    """Load ``--rig`` for a command that reads logs and print the geometry it gives once to
+    stderr (``droptower: geometry: ...``: lever length, laser radius, fixtures and where they
+    came from). A shipped preset used on logs droptower did not write is a warning (a lab's
+    rig is rarely the paper's). Returns the RigConfig, or None without ``--rig``."""
+    if rig is None:
+        return None
+    from droptower.rig.config import load_rig
+
+    config = load_rig(rig)
+    foreign = [p for p in paths if not _written_by_droptower(p)]
+    if config.is_preset and foreign:
+        click.echo(f"droptower: warning: --rig {config.label} is a shipped preset (the rig of its paper), used on "
+                   f"{len(foreign)} log(s) droptower did not write: give your own rig file (droptower rig new) "
+                   f"unless these logs come from that rig; geometry: {config.geometry_text()}", err=True)
+    else:
+        note(f"geometry: {config.geometry_text()}")
+    return config

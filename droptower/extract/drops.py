@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -209,27 +210,37 @@ def parse_drop_selection(text: str) -> set[int]:
 CONDITION_COLUMNS = ("drop_height_m", "drop_mass_kg", "inertia_kgm2", "preload_nm")
 
 
-def read_drop_conditions(path: str) -> dict[int, dict[str, float]]:
-    """A small CSV ``drop_index,drop_height_m,drop_mass_kg,inertia_kgm2,preload_nm`` (any of
-    the condition columns) -> {drop number: {column: value}}; empty cells are left out."""
-    from pathlib import Path
+def read_drop_conditions(path: str | Path) -> dict[int, dict[str, float]]:
+    """A drop-conditions table ``drop_index,drop_height_m,drop_mass_kg,inertia_kgm2,preload_nm``
+    (any of the condition columns; CSV in any dialect, ``.xlsx``, ``.parquet`` or ``.json``, read
+    by its suffix; units in the names converted) -> {drop number: {column: value}}; empty
+    cells are left out. It is keyed by the drop's number in a recording of several drops; a
+    table keyed by file is a per-file conditions table (:func:`droptower.io.read_conditions`)."""
+    from droptower.io.conditions import CONDITION_NAMES, _normalise
+    from droptower.io.table_reader import read_table
 
-    try:
-        table = pd.read_csv(path)
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise DroptowerError(f"cannot read the drop conditions: {exc}", file=Path(path)) from None
+    path = Path(path)
+    wanted = {"drop_index": ("drop", "drop number", "drop no"), **{c: CONDITION_NAMES[c] for c in CONDITION_COLUMNS}}
+    table = read_table(path, wanted, what="drop conditions")
     if "drop_index" not in table.columns:
-        raise DroptowerError("the drop conditions need a 'drop_index' column", file=Path(path))
-    unknown = [c for c in table.columns if c != "drop_index" and c not in CONDITION_COLUMNS]
+
+        if any(_normalise(c) in ("file", *CONDITION_NAMES["file"]) for c in table.columns):
+            raise DroptowerError("the drop conditions are keyed by drop_index (the drop's number in a recording); "
+                                 "this table names files: it is a per-file conditions table, give it as `conditions`",
+                                 file=path)
+        raise DroptowerError("the drop conditions need a 'drop_index' column", file=path)
+    unknown = [c for c in table.columns if c not in wanted]
     if unknown:
         raise DroptowerError(f"unknown column(s) {', '.join(map(repr, unknown))}; expected drop_index and any of "
-                             f"{', '.join(CONDITION_COLUMNS)}", file=Path(path))
+                             f"{', '.join(CONDITION_COLUMNS)}", file=path)
+    from droptower.io.conditions import parse_number
+
     try:
-        values = table.astype(float)
-    except ValueError as exc:
-        raise DroptowerError(f"a value is not a number ({exc})", file=Path(path)) from None
+        values = table.apply(lambda col: col.map(lambda v: np.nan if parse_number(v) is None else parse_number(v))).astype(float)
+    except (ValueError, TypeError) as exc:
+        raise DroptowerError(f"a value is not a number ({exc})", file=path) from None
     index = values["drop_index"]
     if not (index.notna().all() and (index == index.round()).all() and (index >= 1).all()) or index.duplicated().any():
-        raise DroptowerError("drop_index must be distinct whole numbers from 1", file=Path(path))
+        raise DroptowerError("drop_index must be distinct whole numbers from 1", file=path)
     return {int(row.drop_index): {k: float(v) for k, v in row._asdict().items() if k != "drop_index" and np.isfinite(v)}
             for row in values.itertuples(index=False)}

@@ -11,6 +11,7 @@ from typing import Any
 from droptower.errors import DroptowerError, expects
 from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
+from droptower.extract.geometry import geometry_checks
 from droptower.extract.result import ExtractionResult
 from droptower.extract.window import Window
 from droptower.io.logsettings import LogSettings
@@ -25,7 +26,9 @@ class Settings(LogSettings):
     reader_options: CSV settings for :func:`droptower.io.read_any`; drops: the drop numbers
     (from 1) to evaluate in each record (None: all); drop_conditions: drop number -> its
     conditions (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the
-    log's metadata; pre_trigger_s, min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
+    log's metadata and the per-file ``conditions`` (drop conditions apply to one drop of a
+    recording of several; the file's conditions to all its drops); pre_trigger_s,
+    min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
     """
 
     sample_rate_hz: float | None = None
@@ -37,6 +40,7 @@ class Settings(LogSettings):
     min_drop_spacing_s: float = MIN_DROP_SPACING_S
 
     def __post_init__(self):
+        super().__post_init__()
         for name, least in (("sample_rate_hz", "> 0"), ("pre_trigger_s", ">= 0"), ("min_drop_spacing_s", "> 0")):
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value)
@@ -62,6 +66,7 @@ class Drop:
 DECAY_CUT = "decay_cut_by_next_drop"
 
 
+@expects(path=(str, Path), settings=Settings)
 def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
     """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
     samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
@@ -86,6 +91,7 @@ def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
             drop.result = _extract(part, settings)
             if span.cut:
                 drop.result.flags = (*drop.result.flags, DECAY_CUT)
+            _record_geometry(part, drop.result, settings)
         except DroptowerError as exc:
             problem = exc.problem if len(spans) == 1 else f"drop {span.index}: {exc.problem}"
             drop.error = DroptowerError(problem, file=Path(path), where=exc.where)
@@ -94,9 +100,46 @@ def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
 
 
 def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
-    given = {key: value if value is not None or key in signals.metadata else settings.defaults.get(key)
+    defaults = settings.geometry_defaults
+    given = {key: value if value is not None or key in signals.metadata else defaults.get(key)
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
+    if given["inertia_kgm2"] is None and signals.metadata.get("inertia_kgm2") is None:
+        raise DroptowerError(settings.no_inertia_reason(signals.metadata))
     return extract(signals, **given, window=settings.window)
+
+
+def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: Settings) -> None:
+    """What the drop's result needs to say about its geometry: the rig, the lever length and
+    laser radius used (into the drop's metadata, so the row carries them), its fixture (the
+    conditions', else the rig's name for its inertia), its temperature, and the geometry
+    cross-checks (:mod:`droptower.extract.geometry`) as outputs and flags."""
+    meta = signals.metadata
+    rig = settings.rig
+    lever = settings.lever_length_m
+    if lever is None:
+        lever = meta.get("lever_length_m", settings.geometry_defaults.get("lever_length_m"))
+    try:
+        lever = float(lever) if lever is not None else None
+    except (TypeError, ValueError):
+        lever = None
+    if settings.lever_length_m is not None and meta.get("lever_length_m") not in (None, settings.lever_length_m):
+        meta["log_lever_length_m"] = meta["lever_length_m"]
+    meta["rig"] = rig.label if rig is not None else meta.get("rig", "")
+    meta["lever_length_m"] = lever if lever is not None else math.nan
+    meta.setdefault("sensor_radius_m", math.nan)
+    if meta.get("fixture") is None:
+        meta["fixture"] = (rig.fixture_name(result.inertia_kgm2) if rig is not None else None) or ""
+    meta.setdefault("temperature_c", math.nan)
+    restitution = rig.restitution if rig is not None else None
+    if restitution is None and meta.get("restitution") is not None:
+        try:
+            restitution = float(meta["restitution"])
+        except (TypeError, ValueError):
+            restitution = None
+    outputs, flags = geometry_checks(result, meta, lever, restitution,
+                                     rig.gravity_m_per_s2 if rig is not None else 9.81)
+    result.geometry = outputs
+    result.flags = (*result.flags, *flags)
 
 
 def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> tuple[DropSignals, ExtractionResult]:
@@ -106,6 +149,33 @@ def extract_file(path: str | Path, settings: Settings, drop_index: int = 1) -> t
     if drops[0].error is not None:
         raise drops[0].error
     return drops[0].signals, drops[0].result
+
+
+def dropped_out(rows: list[dict[str, Any]]) -> list[str]:
+    """The fixtures (with a drop mass) none of whose drops is usable, each with why: every one a
+    double impact (with the equivalent lever mass J/L², kg, beside the drop mass: the impact law,
+    docs/theory.md#impact) or every one carrying another flag. ``rows``: :func:`result_row`'s. One
+    line per group, so a map over the rest does not quietly cover fewer fixtures."""
+    groups: dict[tuple[str, Any], list[dict[str, Any]]] = {}
+    for row in rows:
+        fixture = row.get("fixture") or (f"J = {row['inertia_kgm2']:g} kg*m^2" if row.get("inertia_kgm2") else "")
+        mass = row.get("drop_mass_kg")
+        groups.setdefault((str(fixture), mass if isinstance(mass, (int, float)) and math.isfinite(mass) else None),
+                          []).append(row)
+    lines = []
+    for (fixture, mass), group in groups.items():
+        label = f"fixture {fixture}" + (f" with the {mass:g} kg drop mass" if mass is not None else "")
+        if all(r.get("double_impact") for r in group):
+            j, lever = group[0].get("inertia_kgm2"), group[0].get("lever_length_m")
+            equivalent = (f" (equivalent lever mass J/L^2 = {j / lever**2:.3g} kg"
+                          + (f" against the {mass:g} kg drop mass)" if mass is not None else ")")
+                          if isinstance(lever, float) and lever > 0 and j else "")
+            lines.append(f"{label}: all {len(group)} drop(s) are double impacts{equivalent}; a lighter drop mass or a "
+                         "heavier fixture avoids it (the planner, droptower plan, predicts which)")
+        elif all(r.get("flags") for r in group):
+            flags = sorted({f for r in group for f in r["flags"]})
+            lines.append(f"{label}: all {len(group)} drop(s) are flagged ({', '.join(flags)})")
+    return lines
 
 
 def _scalar(value: Any) -> Any:

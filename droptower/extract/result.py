@@ -73,6 +73,9 @@ class ExtractionResult:
     height and restitution (lever_rate_after_from: ``"impact_force"``, ``"impact_law"`` or ``""``
     with NaN), impact_energy_j ½·J·φ'(0+)²; decay_fit_initial_rate_rad_per_s |φ'(0)| of the decay
     fitted over the window (it changes with the window). std: standard uncertainties of the SI fields by name.
+    geometry: the geometry cross-checks (:func:`droptower.extract.geometry.geometry_checks`:
+    ``amplitude_laser_torque_deviation_pct``, ``impact_energy_law_j``, ``impact_energy_decay_j``,
+    ``impact_energy_deviation_pct``), filled by :func:`droptower.extract.extract_drops`.
     NaN where a value cannot be computed (no torque or force channel, no lever length).
     """
 
@@ -110,6 +113,7 @@ class ExtractionResult:
     double_impact: bool
     flags: tuple[str, ...]
     std: dict[str, float] = field(default_factory=dict)
+    geometry: dict[str, float] = field(default_factory=dict)
     angle_fit: DecayFit | None = field(default=None, repr=False)
     torque_fit: TorqueFit | None = field(default=None, repr=False)
 
@@ -128,6 +132,7 @@ class ExtractionResult:
             out[name] = float(getattr(self, attr)) * factor
             if attr in self.std:
                 out[f"{name}_std"] = float(self.std[attr]) * abs(factor)
+        out.update(self.geometry)
         out["lever_rate_after_from"] = self.lever_rate_after_from
         out["double_impact"] = bool(self.double_impact)
         out["flags"] = list(self.flags)

@@ -3,13 +3,16 @@
 ``read_any(path)`` reads any supported log; ``map_channels(record, roles, sensor_radius_m=...)``
 turns a drop test into SI :class:`DropSignals`, ``map_servo_channels(record, roles)`` a servo
 record (torsional, or translational: displacement and force) into SI :class:`ServoSignals`;
-``write_log`` / ``read_log`` are the project's own log format (what the virtual rig writes).
+``write_log`` / ``read_log`` are the project's own log format (what the virtual rig writes);
+``read_conditions(table)`` / ``conditions_from_names(pattern)`` give each log its test
+conditions (:class:`Conditions`: a lab's sheet keyed by file, or its file names).
 """
 from droptower.io.channels import Channel, Record
+from droptower.io.conditions import Conditions, conditions_from_names, read_conditions
 from droptower.io.droptower_log import read_log, write_log
 from droptower.io.mapping import map_channels, map_servo_channels, parse_channel_options
 from droptower.io.readers import read_any
 from droptower.io.signals import DropSignals, ServoSignals
 
 __all__ = ["Channel", "Record", "DropSignals", "ServoSignals", "read_any", "read_log", "write_log", "map_channels",
-           "map_servo_channels", "parse_channel_options"]
+           "map_servo_channels", "parse_channel_options", "Conditions", "read_conditions", "conditions_from_names"]

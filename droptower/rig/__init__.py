@@ -2,6 +2,7 @@
 drives the rheological coupling, sampled like the real rig, and a planner for test campaigns.
 
 - :mod:`.config`: rig and test-plan files (:func:`load_rig`, :func:`load_doe`);
+- :mod:`.rigfile`: a lab's rig file from its numbers (:func:`new_rig`, :func:`rig_toml`), the schema reference;
 - :mod:`.impact`: closed forms of the impact law and the free decay, the second-impact check;
 - :mod:`.preload`: the quasi-static pre-twist of the coupling;
 - :mod:`.scene`: the pymunk scene, many tests in one space;
@@ -13,6 +14,8 @@ drives the rheological coupling, sampled like the real rig, and a planner for te
 """
 from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
 from droptower.rig.planner import plan
+from droptower.rig.rigfile import new_rig, rig_toml
 from droptower.rig.simulate import DropResult, DropTest, simulate
 
-__all__ = ["DOE", "DropResult", "DropTest", "RigConfig", "load_doe", "load_rig", "plan", "simulate"]
+__all__ = ["DOE", "DropResult", "DropTest", "RigConfig", "load_doe", "load_rig", "new_rig", "plan", "rig_toml",
+           "simulate"]

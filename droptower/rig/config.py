@@ -46,11 +46,12 @@ def _range(values: list[float], what: str) -> list[float]:
 class Simulation(StrictModel):
     """How the pymunk scene is stepped (see :mod:`droptower.rig.scene`)."""
 
-    steps_per_sample: PositiveInt = 2            # internal steps per output sample
-    solver_iterations: PositiveInt = 10          # pymunk impulse-solver passes per step
-    striker_radius_m: PositiveFloat = 0.005      # radius of the drop mass's round striker
-    preload_ramp_s: PositiveFloat = 2.0          # quasi-static ramp to the preload twist
-    preload_hold_s: PositiveFloat = 30.0         # hold before the drop (rate-dependent parts relax)
+    steps_per_sample: PositiveInt = Field(2, description="Internal simulation steps per output sample (simulation only).")
+    solver_iterations: PositiveInt = Field(10, description="pymunk impulse-solver passes per step (simulation only).")
+    striker_radius_m: PositiveFloat = Field(0.005, description="Radius of the drop mass's round striker, m (simulation only).")
+    preload_ramp_s: PositiveFloat = Field(2.0, description="Quasi-static ramp to the preload twist, s (simulation only).")
+    preload_hold_s: PositiveFloat = Field(30.0, description="Hold before the drop so rate-dependent parts relax, s "
+                                                          "(simulation only).")
 
 
 class Resonance(StrictModel):
@@ -60,66 +61,108 @@ class Resonance(StrictModel):
     with this natural frequency and damping ratio.
     """
 
-    frequency_hz: PositiveFloat
-    damping_ratio: PositiveFloat
-    strength: NonNegativeFloat = 1.0
+    frequency_hz: PositiveFloat = Field(description="Natural frequency of the setup resonance, Hz.")
+    damping_ratio: PositiveFloat = Field(description="Damping ratio of the setup resonance (Lehr's D), dimensionless.")
+    strength: NonNegativeFloat = Field(1.0, description="Share of the resonance in the measured torque, 0 (none) to 1.")
 
 
 class Laser(StrictModel):
-    """Laser distance sensor on the lever: distance = radius * angle (arc length) + noise."""
+    """Laser distance sensor on the lever: it reads the lever's displacement at radius_m from the pivot, radius * tan(angle), plus noise."""
 
-    radius_m: PositiveFloat
-    noise_m: NonNegativeFloat = 0.0
+    radius_m: PositiveFloat = Field(description="Horizontal distance of the laser spot from the pivot, m: the angle "
+                                    "is arctan(distance / radius_m). Used by extraction.")
+    noise_m: NonNegativeFloat = Field(0.0, description="Standard deviation of the laser's noise, m (simulation only).")
 
 
 class TorqueSensor(StrictModel):
     """Flange torque from a force sensor; ``range_nm`` is its full scale (saturates beyond)."""
 
-    noise_nm: NonNegativeFloat = 0.0
-    range_nm: PositiveFloat
-    resonance: Resonance | None = None
+    noise_nm: NonNegativeFloat = Field(0.0, description="Standard deviation of the torque noise, N*m (simulation only).")
+    range_nm: PositiveFloat = Field(description="Full scale of the torque sensor, N*m: the simulated torque saturates "
+                                    "beyond it.")
+    resonance: Resonance | None = Field(None, description="Ringing of the setup on the torque only (table "
+                                        "[sensors.torque.resonance]); none if absent.")
 
 
 class ForceSensor(StrictModel):
     """Piezo impact-force sensor at the lever tip; each contact is a half-sine pulse."""
 
-    contact_duration_s: PositiveFloat = 3e-4
-    noise_n: NonNegativeFloat = 0.0
-    range_n: PositiveFloat
+    contact_duration_s: PositiveFloat = Field(3e-4, description="Duration of one contact's half-sine force pulse, s.")
+    noise_n: NonNegativeFloat = Field(0.0, description="Standard deviation of the force noise, N (simulation only).")
+    range_n: PositiveFloat = Field(description="Full scale of the impact-force sensor, N (simulation only).")
 
 
 class Sensors(StrictModel):
     """The rig's data acquisition: sample rate (Hz), pre-trigger time (s) and its three sensors."""
 
-    sample_rate_hz: PositiveFloat = RIG_SAMPLE_RATE_HZ
-    pre_trigger_s: PositiveFloat = 0.005
-    laser: Laser
-    torque: TorqueSensor
-    impact_force: ForceSensor
+    sample_rate_hz: PositiveFloat = Field(RIG_SAMPLE_RATE_HZ, description="Sample rate of the data acquisition, Hz.")
+    pre_trigger_s: PositiveFloat = Field(0.005, description="Time recorded before the impact, s (the baseline for "
+                                         "offsets and preload); shorter than the fall from the lowest height.")
+    laser: Laser = Field(description="Laser distance sensor on the lever (table [sensors.laser]).")
+    torque: TorqueSensor = Field(description="Flange torque sensor (table [sensors.torque]).")
+    impact_force: ForceSensor = Field(description="Impact-force sensor at the lever tip (table [sensors.impact_force]).")
 
 
 class RigConfig(StrictModel):
     """A drop tower (Rapp et al. 2022, Table 1). SI units; angles in degrees only where named ``_deg``."""
 
-    name: str = ""
-    description: str = ""
-    source: str = ""
-    lever_length_m: PositiveFloat
-    inertias_kgm2: list[PositiveFloat] = Field(min_length=1)   # the rig's lever fixtures
-    drop_masses_kg: list[PositiveFloat] = Field(min_length=1)  # the rig's drop masses
-    drop_height_range_m: list[PositiveFloat]
-    preload_range_nm: list[NonNegativeFloat] = [0.0, 0.0]
-    coupling_limit_deg: PositiveFloat
-    restitution: float = Field(0.5, ge=0.0, le=1.0)
-    gravity_m_per_s2: PositiveFloat = 9.81
-    simulation: Simulation = Simulation()
-    sensors: Sensors
+    name: str = Field("", description="The rig's name (default: the file's stem).")
+    description: str = Field("", description="One line on the rig.")
+    source: str = Field("", description="Where its numbers come from (measured, drawing, paper, assumed).")
+    lever_length_m: PositiveFloat = Field(description="Lever arm L from the rotation axis to the impact point, m. "
+                                          "Used by extraction (impact energy, geometry checks).")
+    inertias_kgm2: list[PositiveFloat] = Field(min_length=1, description="Rotating inertia J of each lever fixture "
+                                               "(lever arm plus the coupling's driven side), kg*m^2. May be left out "
+                                               "when [fixtures] names them.")
+    fixtures: dict[str, PositiveFloat] = Field({}, description="Table [fixtures]: fixture name = its inertia J in "
+                                               "kg*m^2 (e.g. L1 = 0.12); names a conditions table's fixture column "
+                                               "and each result's fixture. Each must be one of inertias_kgm2.")
+    drop_masses_kg: list[PositiveFloat] = Field(min_length=1, description="The rig's drop masses m1, kg.")
+    drop_height_range_m: list[PositiveFloat] = Field(description="[lowest, highest] drop height h, m.")
+    preload_range_nm: list[NonNegativeFloat] = Field([0.0, 0.0], description="[lowest, highest] preload torque, N*m.")
+    coupling_limit_deg: PositiveFloat = Field(description="Largest twist of the coupling the rig may impose, degrees "
+                                              "(planning and simulation).")
+    restitution: float = Field(0.5, ge=0.0, le=1.0, description="Newton's restitution k of the mass-lever contact, "
+                               "0 to 1 (impact law, docs/theory.md#impact; the impact-energy check).")
+    gravity_m_per_s2: PositiveFloat = Field(9.81, description="Gravitational acceleration g, m/s^2.")
+    simulation: Simulation = Field(Simulation(), description="How the virtual rig is stepped (table [simulation]; "
+                                   "simulation only).")
+    sensors: Sensors = Field(description="Data acquisition and sensors (table [sensors]).")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fixture_inertias(cls, data: Any) -> Any:
+        # a rig file may name its fixtures instead of listing their inertias: the list follows
+        if isinstance(data, dict) and isinstance(data.get("fixtures"), dict) and data["fixtures"] \
+                and "inertias_kgm2" not in data:
+            data = {**data, "inertias_kgm2": list(data["fixtures"].values())}
+        return data
 
     @model_validator(mode="after")
     def _check(self):
         _range(self.drop_height_range_m, "drop_height_range_m")
         _range(self.preload_range_nm, "preload_range_nm")
+        for name, inertia in self.fixtures.items():
+            if not any(math.isclose(inertia, j, rel_tol=1e-9) for j in self.inertias_kgm2):
+                raise ValueError(f"fixture '{name}' ({inertia:g} kg*m^2) is not one of inertias_kgm2 "
+                                 f"({', '.join(f'{j:g}' for j in self.inertias_kgm2)}); give one of them or [fixtures] alone")
         return self
+
+    def fixture_inertia_kgm2(self, name: str) -> float:
+        """The inertia (kg*m^2) of the fixture called ``name``; a name the rig does not have is a
+        :class:`DroptowerError` listing its fixtures."""
+        if name not in self.fixtures:
+            have = ", ".join(f"{n} ({j:g} kg*m^2)" for n, j in self.fixtures.items()) or "none named"
+            raise self.error(f"no fixture '{name}' (fixtures: {have})", "field fixtures")
+        return float(self.fixtures[name])
+
+    def fixture_name(self, inertia_kgm2: float) -> str | None:
+        """The name of the fixture whose inertia is ``inertia_kgm2`` (kg*m^2, within 0.5 %), or
+        None (no named fixture has it)."""
+        for name, inertia in self.fixtures.items():
+            if math.isclose(inertia, inertia_kgm2, rel_tol=0.005):
+                return name
+        return None
 
     _path: Path | None = PrivateAttr(None)  # the file it came from (set by the loader)
 
@@ -136,6 +179,20 @@ class RigConfig(StrictModel):
     @property
     def coupling_limit_rad(self) -> float:
         return math.radians(self.coupling_limit_deg)
+
+    @property
+    def is_preset(self) -> bool:
+        """True for a rig shipped with droptower (``rapp2022``), not a lab's own file."""
+        return self.path is not None and display_name(self.path, "rigs") != str(self.path)
+
+    def geometry_text(self) -> str:
+        """The geometry extraction takes from this rig, on one line: where it came from, lever
+        length, laser radius and fixtures."""
+        origin = f"shipped preset {self.label}" if self.is_preset else f"rig file {self.label}"
+        fixtures = (", ".join(f"{n} {j:g}" for n, j in self.fixtures.items()) if self.fixtures
+                    else ", ".join(f"{j:g}" for j in self.inertias_kgm2))
+        return (f"{origin}: lever length {self.lever_length_m:g} m, laser radius {self.sensors.laser.radius_m:g} m, "
+                f"fixtures {fixtures} kg*m^2")
 
     @property
     def label(self) -> str:
@@ -243,11 +300,17 @@ def load_rig(path_or_name: str | Path) -> RigConfig:
     rig = validate(RigConfig, data, path)
     rig._path = path
     rig.name = rig.name or path.stem
+    check_pre_trigger(rig)
+    return rig
+
+
+def check_pre_trigger(rig: RigConfig) -> None:
+    """The pre-trigger must be shorter than the fall from the lowest drop height (else a one-line
+    error naming the field)."""
     fall_time = math.sqrt(2 * rig.drop_height_range_m[0] / rig.gravity_m_per_s2)
     if rig.sensors.pre_trigger_s >= fall_time:
         raise rig.error(f"pre-trigger {rig.sensors.pre_trigger_s} s must be shorter than the fall time "
                         f"{fall_time:.4g} s from the lowest drop height", "field sensors.pre_trigger_s")
-    return rig
 
 
 # ------------------------------------------------------------------ test plan
