@@ -285,7 +285,8 @@ def test_cli_json_keys(table4: pd.DataFrame, capsys: pytest.CaptureFixture[str])
     assert main(["map", str(TABLE4), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert set(data) == {"format", "format_version", "equations", "coefficients", "coefficients_std",
-                         "at_bounds", "not_unique", "fit", "range", "excluded", "source", "form", "cross_validation"}
+                         "at_bounds", "not_unique", "fit", "range", "excluded", "source", "form", "cross_validation",
+                         "fixtures", "temperature_range_c", "coverage"}
     assert list(data["coefficients"]) == [
         "k1_nm_per_deg", "k2_per_deg", "k3_nm_per_deg", "k4_per_deg", "k5_nm_per_deg_per_sqrt_hz",
         "k6_nm_per_deg", "k7_per_hz", "k8_nm_per_deg", "k9_per_deg", "k10_nm_per_deg", "k11_per_deg",

@@ -43,14 +43,21 @@ class InitFile(StrictModel):
 
 
 def drop_options(command):
-    """The drop-test options ``identify`` and ``compare-models`` share."""
+    """The drop-test options ``identify`` and ``compare-models`` share (with the per-file
+    conditions of :func:`~droptower.cli.options.conditions_options`)."""
+    from droptower.cli.options import conditions_options
+
+    command = conditions_options(command)
     for option in reversed([
             click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
                          help="Drop tests: share of the tests held out and predicted."),
-            click.option("--rig", help="Drop tests: rig TOML or preset (lever length; conditioning; a single inertia)."),
+            click.option("--rig", help="Drop tests: rig TOML or preset (lever length, laser radius, conditioning; "
+                                       "the inertia of a single fixture, else --conditions say each log's)."),
             click.option("--inertia-kgm2", type=float, help="Drop tests: lever inertia J, overrides the logs' metadata."),
             click.option("--lever-length-m", type=float,
-                         help="Drop tests: lever length L, overrides the logs' metadata.")]):
+                         help="Drop tests: lever length L, overrides the logs' metadata."),
+            click.option("--sensor-radius-m", type=float,
+                         help="Drop tests: laser spot radius in m for a distance channel, over the logs' and the rig's.")]):
         command = option(command)
     return command
 
@@ -99,8 +106,9 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float)
 def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params_path: str | None,
              holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None, drops: bool,
              template: str | None, holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
-             lever_length_m: float | None, predict_servo: str | None, verbose: bool,
-             accept_poor: bool) -> None:
+             lever_length_m: float | None, sensor_radius_m: float | None, conditions: str | None,
+             condition_columns: tuple[str, ...], conditions_pattern: str | None, predict_servo: str | None,
+             verbose: bool, accept_poor: bool) -> None:
     """Identify a coupling model of family --model from imposed-angle / measured-torque DATA,
     or imposed-displacement / measured-force DATA (translational: mounts, bushings, dampers;
     any length and force units, e.g. mm, in, kN, kip; parameters then named k1_n_per_m, ...
@@ -160,11 +168,16 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     init = _read_init(params_path)
     check_positive(inertia_kgm2, "--inertia-kgm2")
     check_positive(lever_length_m, "--lever-length-m")
+    check_positive(sensor_radius_m, "--sensor-radius-m")
     if drops:
         from droptower.cli.identify_drops_cmd import run as run_drops
 
         return run_drops(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
-                         out, as_json, plot_dir, predict_servo, verbose, accept_poor)
+                         out, as_json, plot_dir, predict_servo, verbose, accept_poor, sensor_radius_m=sensor_radius_m,
+                         conditions=(conditions, condition_columns, conditions_pattern))
+    if conditions is not None or conditions_pattern is not None:
+        raise DroptowerError("--conditions and --conditions-from-names give drop tests' conditions: use them with "
+                             "--from-drop-tests")
     if template is not None:
         init.options["template"] = template
     skip_s = float(init.options.get("skip_s", 0.0))
@@ -225,7 +238,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str | None,
                    out: Path | None, as_json: bool, plot_dir: str | None, drops: bool, template: str | None,
                    holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
-                   budget_s: float, total_budget_s: float, accept_poor: bool) -> None:
+                   sensor_radius_m: float | None, conditions: str | None, condition_columns: tuple[str, ...],
+                   conditions_pattern: str | None, budget_s: float, total_budget_s: float, accept_poor: bool) -> None:
     """Fit every model family on the same DATA (torsional or translational servo records, or with
     --from-drop-tests drop-test logs) and rank them.
 
@@ -282,7 +296,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
         from droptower.cli.identify_drops_cmd import prepare
 
         campaign = prepare(data, None, channels, InitFile(), template, holdout_fraction, rig, inertia_kgm2,
-                           lever_length_m)
+                           lever_length_m, sensor_radius_m=sensor_radius_m,
+                           conditions=(conditions, condition_columns, conditions_pattern))
         decays, options = campaign.decays, campaign.options
         if "template" in kinds and "template" not in options:
             raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")

@@ -20,16 +20,43 @@ EXCLUDED_SHOWN = 5
 
 def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], init: Any, template: str | None,
             holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
-            lever_length_m: float | None, verbose: bool = False) -> Any:
+            lever_length_m: float | None, verbose: bool = False, *, sensor_radius_m: float | None = None,
+            conditions: tuple[str | None, tuple[str, ...], str | None] = (None, (), None)) -> Any:
     """The campaign's logs read (:func:`~droptower.identify.drops.read_drop_tests`) from the
     command line's options, the excluded logs reported on stderr (the first few, or with
-    ``verbose`` all)."""
+    ``verbose`` all). ``conditions``: (--conditions, --condition-column, --conditions-from-names);
+    a lab's folder of logs is searched for logs, the conditions table beside them left out."""
+    from pathlib import Path
+
+    from droptower.cli.options import conditions_from_cli, rig_for_logs
+    from droptower.errors import check_positive
     from droptower.identify.drops import read_drop_tests
     from droptower.io import parse_channel_options
+    from droptower.maps.fromlogs import log_files
 
-    campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
-                               holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
-                               lever_length_m=lever_length_m, roles=parse_channel_options(channels))
+    check_positive(sensor_radius_m, "--sensor-radius-m")
+    table, columns, pattern = conditions
+    files: list[str | Path] = []
+    for d in data:
+        p = Path(d)
+        lab = p.is_dir() and not (p / "logs").is_dir()  # a lab's folder of logs, not a campaign's
+        files += log_files(p, exclude=[x for x in (table, rig) if x]) if lab else [d]
+    rig_config = rig_for_logs(rig, [str(f) for f in files if Path(f).is_file()])
+    conditions_table = conditions_from_cli(table, columns, pattern, rig_config)
+    data = tuple(files)
+    rig = rig_config if rig_config is not None else rig
+    results_table = _results_table(data)
+    if results_table is not None:  # a results table with its logs: each log read with its row's inertia
+        from droptower.compare.model_map import read_logs_for_model
+
+        campaign = read_logs_for_model(data[0], kind, template=template, rig=rig, roles=parse_channel_options(channels),
+                                       sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=results_table,
+                                       holdout_fraction=holdout_fraction, options=init.options)
+    else:
+        campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
+                                   holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
+                                   lever_length_m=lever_length_m, roles=parse_channel_options(channels),
+                                   sensor_radius_m=sensor_radius_m, conditions=conditions_table)
     excluded = campaign.excluded
     for e in excluded if verbose else excluded[:EXCLUDED_SHOWN]:
         click.echo(f"droptower: excluded {e['file']}: {cli_text(e['reason'])}", err=True)
@@ -38,16 +65,34 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
     return campaign
 
 
+def _results_table(data: tuple) -> Any:
+    """The results table DATA is (one table from ``extract --out`` whose ``file`` column names
+    its logs), or None for logs and folders."""
+    from pathlib import Path
+
+    from droptower.maps import read_results
+
+    if len(data) != 1 or not Path(data[0]).is_file() or Path(data[0]).suffix.lower() not in (".csv", ".parquet",
+                                                                                              ".xlsx", ".json"):
+        return None
+    try:
+        table = read_results(data[0])
+    except DroptowerError:
+        return None  # a log, not a results table
+    return table if "file" in table.columns else None
+
+
 def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, template: str | None,
         holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
         out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None,
-        verbose: bool = False, accept_poor: bool = False) -> None:
+        verbose: bool = False, accept_poor: bool = False, *, sensor_radius_m: float | None = None,
+        conditions: tuple[str | None, tuple[str, ...], str | None] = (None, (), None)) -> None:
     from droptower.identify.dropreport import drop_report_text, plot_servo_prediction, servo_prediction
     from droptower.identify.drops import identify_from_drop_tests
     from droptower.identify.verdict import EXIT_POOR_FIT
 
     campaign = prepare(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
-                       verbose)
+                       verbose, sensor_radius_m=sensor_radius_m, conditions=conditions)
     progress(f"identify: fitting {kind} to {len(campaign.decays)} drop test(s) ...")
     result = identify_from_drop_tests(campaign, kind, init=init.initial, bounds=init.bounds)
     poor = result.verdict is not None and result.verdict.poor and not accept_poor

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from droptower.cli import options
-from droptower.cli.options import quiet_option
+from droptower.cli.options import conditions_options, quiet_option
 from droptower.cli.flags import cli_text
 from droptower.errors import DroptowerError
 
@@ -40,15 +40,32 @@ from droptower.errors import DroptowerError
 @click.option("--model-out", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Write the model-based map: model_map.json (what validate --model-map reads) or its grid "
                    "as .csv, .parquet or .xlsx.")
+@click.option("--rig", default=None, help="Rig TOML (or shipped preset) of a lab's logs: lever length, laser radius, "
+                                          "fixtures (for a folder of logs, --model and the double-impact advice).")
+@click.option("--sensor-radius-m", type=float, default=None,
+              help="Laser spot radius in m for a distance channel of a lab's logs (over the rig's).")
+@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="Channel mapping for reading a lab's logs (as droptower extract --channel).")
+@click.option("--inertia-kgm2", type=float, default=None,
+              help="Rotating inertia J in kg*m^2 of every log (a lab's logs; else their metadata, --conditions or a "
+                   "rig with a single fixture).")
+@click.option("--lever-length-m", type=float, default=None,
+              help="Lever arm L in m of a lab's logs (over their metadata and the rig's).")
+@conditions_options
 def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: str, nested_cv: bool,
                 as_json: bool, model_kind: str | None, template: str | None, model_coupling: Path | None,
-                model_out: Path | None, accept_poor: bool) -> None:
+                model_out: Path | None, accept_poor: bool, rig: str | None, sensor_radius_m: float | None,
+                channel_specs: tuple[str, ...], inertia_kgm2: float | None, lever_length_m: float | None,
+                conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> None:
     """Fit stiffness c(amplitude, frequency) (eq. 19) and damping c/d(amplitude) (eq. 20),
     or another --form; the summary gives fit and cross-validated errors.
 
-    RESULTS is a CSV or Parquet table from `droptower extract --out`, a `droptower campaign`
-    folder (its results.parquet), or the paper's Table 4. Flagged tests (double_impact, poor_fit, short_window, clipping)
-    and incomplete rows are excluded and listed.
+    RESULTS is a table from `droptower extract --out` (CSV, Parquet, Excel, JSON), a `droptower campaign`
+    folder (its results.parquet), a lab's folder of logs (extracted first, with --rig, --conditions,
+    --channel, --sensor-radius-m), or the paper's Table 4. Flagged tests (double_impact, poor_fit,
+    short_window, clipping), failed logs and incomplete rows are excluded and listed; a fixture or
+    condition none of whose tests is usable is named with why (for double impacts: the drop mass
+    that would avoid them), and tests spanning more than 5 K of temperature are said to.
 
     \b
     Examples:
@@ -56,9 +73,12 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
       droptower map results.csv --out coefficients.xlsx
       droptower map rapp2022_table4 --form auto --nested-cv
       droptower map runs/table2 --out map.json --model template --template rapp2022_nr60 --model-out model_map.json
+      droptower map lab/ --rig lab_rig.toml --conditions lab/conditions.xlsx --channel distance=Weg:mm \
+          --model zerodim6 --out map.json
     """
     from droptower.io.tables import check_table_path, write_table
-    from droptower.maps import fit_map, read_results, select_tests
+    from droptower.maps import fit_map, select_tests
+    from droptower.maps.fromlogs import is_log_folder
     from droptower.maps.nested import nested_summary
 
     if out is not None:
@@ -71,8 +91,21 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         raise DroptowerError("--model-out writes the model-based map: give --model KIND or --model-coupling FILE")
     if nested_cv and form != "auto":
         raise DroptowerError("--nested-cv cross-validates auto's choice of terms: use it with --form auto")
-    table = read_results(results)
-    fit = fit_map(table, source=results, form=form)
+    geometry = {"inertia_kgm2": inertia_kgm2, "lever_length_m": lever_length_m}
+    table, rig_config, conditions_table = _read_source(results, rig, sensor_radius_m, channel_specs, conditions,
+                                                       condition_columns, conditions_pattern, model_kind is not None,
+                                                       geometry)
+    failed = failed_logs(table) if is_log_folder(results) else 0
+    from droptower.maps.coverage import coverage_notes
+
+    try:
+        fit = fit_map(table, source=results, form=form)
+    except DroptowerError:
+        # no map: still say which fixtures and conditions dropped out, and why (before the error)
+        for line in coverage_notes(table, *select_tests(table, results), rig=rig_config):
+            click.echo(f"droptower: not covered: {line}", err=True)
+        raise
+    fit.coverage = tuple(coverage_notes(table, *select_tests(table, results), rig=rig_config))
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
         options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
@@ -84,8 +117,13 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if model_kind is not None or model_coupling is not None:
         from droptower.compare.model_map import build_model_map
 
+        from droptower.io.mapping import parse_channel_options
+
         model_map = build_model_map(results, fit, model=model_kind, template=template, coupling_file=model_coupling,
-                                    on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress)
+                                    on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress,
+                                    rig=rig_config, roles=parse_channel_options(channel_specs),
+                                    sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table,
+                                    **geometry)
     extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
              **({"model_map": model_map.to_dict()} if model_map is not None else {})}
     if as_json and extra:
@@ -126,3 +164,66 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
+    if failed:
+        click.echo(f"droptower: {failed} log(s) could not be evaluated (listed above); exit code 2", err=True)
+        raise click.exceptions.Exit(2)
+
+
+def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
+                 conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
+                 reads_logs: bool = False, geometry: dict | None = None):
+    """(results table, rig, conditions) of RESULTS: a lab's folder of logs is extracted first
+    (every log, failed ones kept with their error); a conditions table's rows that name no log
+    are warned of (nothing is dropped silently). The flags that read logs are refused where no
+    log is read (a results table without --model): a flag is never ignored silently."""
+    from droptower.errors import check_positive
+    from droptower.io.mapping import parse_channel_options
+    from droptower.maps import read_results
+    from droptower.maps.fromlogs import is_log_folder, log_files, results_from_logs
+
+    geometry = geometry or {}
+    check_positive(sensor_radius_m, "--sensor-radius-m")
+    check_positive(geometry.get("inertia_kgm2"), "--inertia-kgm2")
+    check_positive(geometry.get("lever_length_m"), "--lever-length-m")
+    folder = is_log_folder(results)
+    log_flags = [flag for flag, given in (("--conditions", conditions), ("--conditions-from-names", conditions_pattern),
+                                          ("--channel", channel_specs), ("--sensor-radius-m", sensor_radius_m),
+                                          ("--inertia-kgm2", geometry.get("inertia_kgm2")),
+                                          ("--lever-length-m", geometry.get("lever_length_m"))) if given]
+    if log_flags and not folder and not reads_logs:
+        raise DroptowerError(f"{', '.join(log_flags)} read logs: RESULTS is a results table, whose values are used as "
+                             "they are (give a folder of logs, or --model to read the logs the table names)")
+    logs = log_files(results, exclude=[p for p in (conditions, rig) if p]) if folder else []
+    rig_config = options.rig_for_logs(rig, [str(p) for p in logs])
+    conditions_table = options.conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)
+    if not folder:
+        if results.is_dir() and not (results / "results.parquet").is_file() and not any(results.iterdir()):
+            raise DroptowerError("an empty folder: give a results table, a campaign folder or a folder of logs",
+                                 file=results)
+        return read_results(results), rig_config, conditions_table
+    options.progress(f"map: extracting {len(logs)} log(s) of {results} ...")
+    table = results_from_logs(logs, rig=rig_config, roles=parse_channel_options(channel_specs),
+                              sensor_radius_m=sensor_radius_m, conditions=conditions_table, **geometry)
+    # named as in the folder (the summary lists them), not by the machine's paths
+    table["file"] = [Path(str(f)).relative_to(results).as_posix() if Path(str(f)).is_relative_to(results) else f
+                     for f in table["file"]]
+    if conditions_table is not None:
+        for name in conditions_table.unmatched(logs):
+            click.echo(f"droptower: warning: {conditions_table.source}: row '{name}' names no log of {results}", err=True)
+    return table, rig_config, conditions_table
+
+
+def failed_logs(table) -> int:
+    """Print each log of a folder whose extraction failed, one error line naming it (at once,
+    before the map: a map that cannot be fitted still names them); returns how many. Every log
+    failing for one reason (the geometry or the conditions not given) is one error, not a line
+    per log."""
+    if "status" not in table.columns:
+        return 0
+    rows = table[table["status"].astype(str) == "failed"]
+    reasons = set(rows["error"].astype(str)) if "error" in rows.columns else set()
+    if len(rows) == len(table) and len(rows) > 1 and len(reasons) == 1:
+        raise DroptowerError(f"none of the {len(rows)} logs can be evaluated: {reasons.pop()}")
+    for _, row in rows.iterrows():
+        click.echo(f"droptower: error: {row['file']}: {cli_text(str(row.get('error', 'failed')))}", err=True)
+    return len(rows)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from droptower.cli.options import quiet_option, wrote
+from droptower.cli.options import conditions_options, quiet_option, wrote
 from droptower.configs import DEFAULT_COUPLING
 
 
@@ -43,10 +43,23 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--table-format", type=click.Choice(["csv", "parquet", "json", "xlsx"]), default="csv",
               show_default=True, help="Format of the tables written into --out.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON.")
+@click.option("--rig", default=None, help="With --results a lab's folder of logs: its rig TOML (lever length, laser "
+                                          "radius, fixtures).")
+@click.option("--sensor-radius-m", type=float, default=None,
+              help="With --results a lab's folder of logs: the laser spot radius in m.")
+@click.option("--channel", "channel_specs", multiple=True, metavar="ROLE=NAME[:UNIT]",
+              help="With --results a lab's folder of logs: channel mapping (as droptower extract --channel).")
+@click.option("--inertia-kgm2", type=float, default=None,
+              help="With --results a lab's folder of logs: the inertia J in kg*m^2 of every log.")
+@click.option("--lever-length-m", type=float, default=None,
+              help="With --results a lab's folder of logs: the lever arm L in m.")
+@conditions_options
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,
              results: Path | None, model_map_path: Path | None, quick: bool, out: Path | None, table_format: str,
-             as_json: bool) -> None:
+             as_json: bool, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
+             inertia_kgm2: float | None, lever_length_m: float | None,
+             conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> None:
     """Predict the servo-hydraulic sweeps of docs/theory.md#servo from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
     10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
@@ -73,6 +86,13 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
 
         output_folder(out, create=False)  # before the sweeps: a bad --out fails at once
     columns = parse_column_options(servo_columns, "--servo-column")
+    lab = _lab_logs(results, rig, sensor_radius_m, channel_specs, conditions, condition_columns, conditions_pattern,
+                    inertia_kgm2, lever_length_m)
+    failed = 0
+    if lab is not None:  # a lab's folder, extracted here: its failed logs named, one line each
+        from droptower.cli.map_cmd import failed_logs
+
+        failed, results = failed_logs(lab), lab
     result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
                             reference=reference, results=results, model_map=model_map_path, quick=quick)
     if out is not None:
@@ -82,5 +102,39 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
             wrote(path, described.get(path.stem, "validation"))
     if as_json:
         click.echo(json.dumps(result.to_dict(), indent=1))
-        return
-    click.echo(result.summary())
+    else:
+        click.echo(result.summary())
+    if failed:
+        click.echo(f"droptower: {failed} log(s) of --results could not be evaluated (listed above); exit code 2",
+                   err=True)
+        raise click.exceptions.Exit(2)
+
+
+def _lab_logs(results: Path | None, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
+              conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
+              inertia_kgm2: float | None = None, lever_length_m: float | None = None):
+    """--results, a lab's folder of logs, extracted with the rig, channels, laser radius and
+    conditions (:func:`droptower.maps.fromlogs.results_from_logs`); None for any other --results."""
+    from droptower.cli.options import conditions_from_cli, rig_for_logs
+    from droptower.errors import DroptowerError, check_positive
+    from droptower.io.mapping import parse_channel_options
+    from droptower.maps.fromlogs import is_log_folder, log_files, results_from_logs
+
+    folder = results is not None and is_log_folder(results)
+    given = rig or sensor_radius_m or channel_specs or conditions or conditions_pattern or inertia_kgm2 or lever_length_m
+    if given and not folder:
+        raise DroptowerError("--rig, --sensor-radius-m, --channel, --inertia-kgm2, --lever-length-m and --conditions "
+                             "read the logs of --results: give --results a folder of logs")
+    if not folder:
+        return None
+    for value, flag in ((sensor_radius_m, "--sensor-radius-m"), (inertia_kgm2, "--inertia-kgm2"),
+                        (lever_length_m, "--lever-length-m")):
+        check_positive(value, flag)
+    logs = log_files(results, exclude=[p for p in (conditions, rig) if p])
+    config = rig_for_logs(rig, [str(p) for p in logs])
+    table = conditions_from_cli(conditions, condition_columns, conditions_pattern, config)
+    for name in table.unmatched(logs) if table is not None else []:
+        click.echo(f"droptower: warning: {table.source}: row '{name}' names no log of {results}", err=True)
+    return results_from_logs(logs, rig=config, roles=parse_channel_options(channel_specs),
+                             sensor_radius_m=sensor_radius_m, conditions=table, inertia_kgm2=inertia_kgm2,
+                             lever_length_m=lever_length_m)

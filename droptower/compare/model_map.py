@@ -355,18 +355,22 @@ EXCLUDED_NAMED = 5
 def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, template: str | None = None,
                     coupling_file: str | Path | None = None, campaign: Any = None,
                     on_note: Callable[[str], None] | None = None,
-                    on_progress: Callable[[str], None] | None = None) -> ModelMap:
+                    on_progress: Callable[[str], None] | None = None, rig: Any = None,
+                    roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
+                    conditions: Any = None, table: pd.DataFrame | None = None, inertia_kgm2: float | None = None,
+                    lever_length_m: float | None = None) -> ModelMap:
     """The model-based map beside the paper's map ``fit`` (whose measured range it shares),
     evaluated on its grid.
 
     Parameters
     ----------
     results : str or path
-        The campaign folder (its logs and its rig) the paper's map was fitted to.
+        What the paper's map was fitted to: a campaign folder (its logs and its rig), a lab's
+        folder of logs, or a results table whose ``file`` column names its logs.
     fit : MapFit
         The paper's map.
     model : str, optional
-        Identify this drop-test family from the campaign's logs
+        Identify this drop-test family from the logs
         (:func:`~droptower.identify.drops.identify_from_drop_tests`); the map gets 95 % bands,
         cluster-robust by test.
     template : str, optional
@@ -375,11 +379,24 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         Instead of ``model``: a coupling file as it is, or the JSON of a drop-test
         identification that wrote one (no bands: no covariance).
     campaign : DropCampaign, optional
-        The campaign's logs already read (:func:`~droptower.identify.drops.read_drop_tests`).
+        The logs already read (:func:`~droptower.identify.drops.read_drop_tests`).
     on_note : callable, optional
         Called with a note: the excluded logs, a poor fit.
     on_progress : callable, optional
         Called with a line on what is being done.
+    rig : str or RigConfig, optional
+        The rig of a lab's logs (lever length, laser radius, fixtures; a campaign folder's own
+        by default).
+    roles : dict, optional
+        Channel role -> ``NAME[:UNIT]`` for reading a lab's logs.
+    sensor_radius_m : float, optional
+        Laser spot radius (m) for a distance channel.
+    conditions : Conditions, optional
+        Per-file conditions (each log's fixture or inertia, drop mass and height).
+    table : DataFrame, optional
+        The results table already read (for a results table's per-file inertia).
+    inertia_kgm2, lever_length_m : float, optional
+        Every log's inertia (kg*m^2) and lever length (m), over the logs', the conditions' and the rig's.
 
     Returns
     -------
@@ -403,16 +420,12 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
             family, coupling_file = doc.get("model"), Path(doc["coupling_file"])
         mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
     else:
-        from droptower.campaign.folder import saved_inputs
-        from droptower.identify.drops import identify_from_drop_tests, read_drop_tests
+        from droptower.identify.drops import identify_from_drop_tests
 
-        inputs = saved_inputs(results) if results.is_dir() else {}
-        if not (results / "logs").is_dir() or "rig" not in inputs:
-            raise DroptowerError("`model` identifies from a campaign's logs: this must be a campaign folder",
-                                 file=results)
         if campaign is None:
-            campaign = read_drop_tests(results / "logs", model=model, template=template, holdout_fraction=0.0,
-                                       rig=str(inputs["rig"]))
+            campaign = read_logs_for_model(results, model, template=template, rig=rig, roles=roles,
+                                           sensor_radius_m=sensor_radius_m, conditions=conditions, table=table,
+                                           inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
             for e in campaign.excluded[:EXCLUDED_NAMED] if on_note is not None else []:
                 on_note(f"excluded {e['file']}: {e['reason']}")
             if len(campaign.excluded) > EXCLUDED_NAMED and on_note is not None:
@@ -430,3 +443,91 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
                     "trusted beyond the paper's")
     mm.evaluate_grid()
     return mm
+
+
+def read_logs_for_model(results: str | Path, model: str, *, template: str | None = None, rig: Any = None,
+                        roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
+                        conditions: Any = None, table: pd.DataFrame | None = None, holdout_fraction: float = 0.0,
+                        options: dict[str, Any] | None = None, inertia_kgm2: float | None = None,
+                        lever_length_m: float | None = None) -> Any:
+    """The drop tests a model-based map identifies from (:func:`~droptower.identify.drops.read_drop_tests`):
+    a campaign folder's ``logs/`` with its own rig (unless ``rig``), a lab's folder of logs (the
+    conditions table beside them left out), or the logs a results table names (``file``),
+    each with the inertia its row gives where no ``conditions`` do.
+
+    Parameters
+    ----------
+    results : path
+        Campaign folder, folder of logs or results table.
+    model : str
+        The family to be fitted.
+    template : str, optional
+        With ``model="template"``: the coupling whose structure is fitted.
+    rig : str or RigConfig, optional
+        The rig (lever length m, laser radius m, fixtures).
+    roles : dict, optional
+        Channel role -> ``NAME[:UNIT]``.
+    sensor_radius_m : float, optional
+        Laser spot radius (m).
+    conditions : Conditions, optional
+        Per-file conditions.
+    table : DataFrame, optional
+        The results table already read.
+    holdout_fraction : float
+        Share of the tests held out (0 for a map: every test fits).
+    options : dict, optional
+        The family's, the fit's and the reading's options (as :func:`~droptower.identify.drops.read_drop_tests`).
+    inertia_kgm2, lever_length_m : float, optional
+        Every log's inertia (kg*m^2) and lever length (m), over what the logs, the table and the rig say.
+
+    Returns
+    -------
+    DropCampaign
+        The decays, the excluded logs with their reasons, the settings.
+    """
+    from droptower.identify.drops import DropCampaign, read_drop_tests
+    from droptower.maps.fromlogs import log_files
+
+    results = Path(results)
+    common = dict(model=model, template=template, holdout_fraction=holdout_fraction, roles=roles,
+                  sensor_radius_m=sensor_radius_m, conditions=conditions, options=options, lever_length_m=lever_length_m)
+    if results.is_dir():
+        from droptower.campaign.folder import saved_inputs
+
+        if (results / "logs").is_dir() and (results / "manifest.json").is_file():
+            inputs = saved_inputs(results)
+            own = str(inputs["rig"]) if "rig" in inputs else None
+            return read_drop_tests(results / "logs", rig=rig if rig is not None else own, inertia_kgm2=inertia_kgm2,
+                                   **common)
+        skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
+        return read_drop_tests(log_files(results, exclude=skip), rig=rig, inertia_kgm2=inertia_kgm2, **common)
+    if table is None:
+        from droptower.maps.results import read_results
+
+        table = read_results(results)
+    if "file" not in table.columns:
+        raise DroptowerError("`model` identifies from the logs: the results table has no 'file' column naming them",
+                             file=results)
+    files = [str(f) for f in dict.fromkeys(table["file"].dropna().astype(str)) if f.strip()]
+    found = {f: next((c for c in (Path(f), results.parent / f) if c.is_file()), None) for f in files}
+    missing = [f for f, p in found.items() if p is None]
+    if len(missing) == len(files):
+        raise DroptowerError(f"`model` identifies from the logs the results table names, and none of its {len(files)} "
+                             f"log(s) was found (e.g. {files[0] if files else '-'}; relative to the table's folder or "
+                             "the working folder)", file=results)
+    inertia = {}
+    if conditions is None and inertia_kgm2 is None and "inertia_kgm2" in table.columns:
+        by_file = table.drop_duplicates("file").set_index(table.drop_duplicates("file")["file"].astype(str))
+        inertia = pd.to_numeric(by_file["inertia_kgm2"], errors="coerce").to_dict()
+    groups: dict[float | None, list[Path]] = {}
+    for f, p in found.items():
+        if p is not None:
+            j = inertia.get(f)
+            j = inertia_kgm2 if inertia_kgm2 is not None else j
+            groups.setdefault(float(j) if j is not None and math.isfinite(j) else None, []).append(p)
+    parts = [read_drop_tests(paths, rig=rig, inertia_kgm2=j, **common) for j, paths in groups.items()]
+    first = parts[0]
+    excluded = [e for part in parts for e in part.excluded]
+    excluded += [{"file": f, "reason": "log not found"} for f in missing]
+    return DropCampaign([d for part in parts for d in part.decays], excluded, first.settings, first.options, first.read,
+                        [p for part in parts for p in part.paths])

@@ -1,5 +1,6 @@
 """The model-based map in the paper's figure types (Rapp et al. 2022, Fig. 12 and 13) as PNG files,
-with the paper's map and the drop tests beside it and the 95 % bands shaded.
+with the paper's map and the drop tests beside it and the 95 % bands shaded where the map has
+them (a coupling taken as it is has no covariance: its figures say "no bands", never "shaded").
 
 Fig. 12: the K' surface over amplitude x frequency with the tests' first-cycle stiffness on it,
 and K' over amplitude per grid frequency. Fig. 13: the drop-tower-equivalent damping ratio over
@@ -29,9 +30,16 @@ def plot_model_map(model_map: ModelMap, out_dir: str | Path, tests: pd.DataFrame
     out = make_folder(out_dir)
     grid = model_map.grid if model_map.grid is not None else model_map.evaluate_grid()
     paths = [out / FIG12, out / FIG13]
-    _stiffness(model_map, grid, paths[0], tests, paper)
-    _damping(model_map, grid, paths[1], tests, paper)
+    save_figure(_stiffness(model_map, grid, tests, paper), paths[0], 110)
+    save_figure(_damping(model_map, grid, tests, paper), paths[1], 110)
     return paths
+
+
+def _band_text(model_map: ModelMap) -> str:
+    """What a figure says of the bands: shaded only where the grid carries them."""
+    grid = model_map.grid
+    drawn = model_map.has_bands and grid is not None and any(c.endswith("_band_lo") for c in grid.columns)
+    return "95 % band shaded" if drawn else "no bands: no parameter covariance"
 
 
 def _curves(ax, model_map: ModelMap, grid: pd.DataFrame, q: str, paper_q, paper: object | None) -> None:
@@ -47,8 +55,7 @@ def _curves(ax, model_map: ModelMap, grid: pd.DataFrame, q: str, paper_q, paper:
     ax.grid(True, alpha=0.3)
 
 
-def _stiffness(model_map: ModelMap, grid: pd.DataFrame, path: Path, tests: pd.DataFrame | None,
-               paper: object | None) -> None:
+def _stiffness(model_map: ModelMap, grid: pd.DataFrame, tests: pd.DataFrame | None, paper: object | None) -> Figure:
     fig = Figure(figsize=(12, 5), layout="constrained")
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     n_a = grid["amplitude_deg"].nunique()
@@ -62,14 +69,13 @@ def _stiffness(model_map: ModelMap, grid: pd.DataFrame, path: Path, tests: pd.Da
                     depthshade=False, label="drop tests (first cycle)")
         ax.plot(tests["amplitude_deg"], tests["stiffness_nm_per_deg"], "k.", ms=4, label="drop tests (first cycle)")
     ax3.set(xlabel="amplitude [deg]", ylabel="frequency [Hz]", zlabel="K' [N·m/deg]")
-    ax.set(xlabel="amplitude [deg]", ylabel="stiffness [N·m/deg]", title="K' (model, 95 % band shaded) and c (paper map)")
+    ax.set(xlabel="amplitude [deg]", ylabel="stiffness [N·m/deg]", title=f"K' (model, {_band_text(model_map)}) and c (paper map)")
     ax.legend(fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.15))
     fig.suptitle(f"Stiffness map (Fig. 12 type): {model_map.route}")
-    save_figure(fig, path, 110)
+    return fig
 
 
-def _damping(model_map: ModelMap, grid: pd.DataFrame, path: Path, tests: pd.DataFrame | None,
-             paper: object | None) -> None:
+def _damping(model_map: ModelMap, grid: pd.DataFrame, tests: pd.DataFrame | None, paper: object | None) -> Figure:
     fig = Figure(figsize=(12, 4.8), layout="constrained")
     ax_d, ax_eta = fig.subplots(1, 2)
     _curves(ax_d, model_map, grid, "drop_tower_equivalent_damping_ratio", "damping_ratio", paper)
@@ -77,9 +83,10 @@ def _damping(model_map: ModelMap, grid: pd.DataFrame, path: Path, tests: pd.Data
     if tests is not None and len(tests):
         ax_d.plot(tests["amplitude_deg"], tests["damping_ratio"], "k.", ms=4, label="drop tests (first cycle)")
     ax_d.set(xlabel="amplitude [deg]", ylabel="damping ratio d [-]",
-             title="d = E_diss/E_el: the model's (of its loss factor) and the paper map's")
-    ax_eta.set(xlabel="amplitude [deg]", ylabel="loss factor [-]", title="the model's loss factor K''/K'")
+             title=f"d = E_diss/E_el: the model's (of its loss factor; {_band_text(model_map)}) and the paper map's")
+    ax_eta.set(xlabel="amplitude [deg]", ylabel="loss factor [-]",
+               title=f"the model's loss factor K''/K' ({_band_text(model_map)})")
     ax_d.legend(fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.15))  # below: off the curves
     ax_eta.legend(fontsize=6)
     fig.suptitle(f"Damping map (Fig. 13 type): {model_map.route}")
-    save_figure(fig, path, 110)
+    return fig

@@ -105,7 +105,9 @@ class MapValidation:
 def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLING, *,
              servo_results: str | Path | None = None, servo_columns: Mapping[str, str] | None = None,
              reference: str | Path | None = None, results: str | Path | pd.DataFrame | None = None,
-             model_map: Any = None, quick: bool = False) -> MapValidation:
+             model_map: Any = None, quick: bool = False, rig: Any = None,
+             roles: Mapping[str, str] | None = None, sensor_radius_m: float | None = None,
+             conditions: Any = None) -> MapValidation:
     """Validate a characteristic map against servo-hydraulic sweeps (Rapp et al. 2022, Fig. 14).
 
     Parameters
@@ -121,13 +123,22 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     reference : path, optional
         A measured map table (e.g. Rapp et al. 2022, Table 4) to compare with as well.
     results : path or DataFrame, optional
-        With ``reference``: the campaign (folder, results table or DataFrame) interpolated at
-        each reference row.
+        With ``reference``: the campaign (folder, results table, DataFrame, or a lab's folder of
+        logs, extracted with ``rig``, ``roles``, ``sensor_radius_m`` and ``conditions``)
+        interpolated at each reference row.
     model_map : ModelMap or path, optional
         A model-based map (:class:`~droptower.compare.model_map.ModelMap` or its
         ``model_map.json``): both routes against the same servo points.
     quick : bool
         Fewer sweep steps.
+    rig : RigConfig, optional
+        The rig of a lab's logs given as ``results``: lever length (m), laser radius (m), fixtures.
+    roles : dict, optional
+        Channel role -> ``NAME[:UNIT]`` for reading those logs.
+    sensor_radius_m : float, optional
+        Laser spot radius (m) for their distance channel.
+    conditions : Conditions, optional
+        Their per-file conditions (fixture or inertia, drop mass and height, temperature).
 
     Returns
     -------
@@ -150,7 +161,15 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
         raise DroptowerError("`servo_columns` needs `servo_results` (the table whose columns it names)")
     fit = map_fit if isinstance(map_fit, MapFit) else MapFit.from_json(map_fit)
     reference_table = read_reference(reference) if reference is not None else None
-    campaign = results if isinstance(results, pd.DataFrame) or results is None else read_results(results)
+    if isinstance(results, pd.DataFrame) or results is None:
+        campaign = results
+    else:
+        from droptower.maps.fromlogs import is_log_folder, results_from_logs
+
+        skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
+        campaign = (results_from_logs(results, rig=rig, roles=roles, sensor_radius_m=sensor_radius_m,
+                                      conditions=conditions, exclude=skip)
+                    if is_log_folder(results) else read_results(results))
     points = (read_servo_results(servo_results, dict(servo_columns or {})) if servo_results is not None
               else run_sweeps(coupling, reduced=quick))
     validation = validate_map(fit, points)

@@ -138,10 +138,10 @@ def format_summary(validation: Validation) -> str:
               "all": "all points"}
     for region in REGIONS:
         x = s[region]
-        lines.append(f"{labels[region]:<24}{x['n_points']:>7}{x['stiffness_rms_deviation_pct']:>15.2f}"
-                     f"{x['stiffness_max_deviation_pct']:>8.2f}{x['damping_rms_deviation_pct']:>8.2f}"
-                     f"{x['damping_max_deviation_pct']:>8.2f}{x.get('loss_factor_rms_deviation_pct', math.nan):>9.2f}"
-                     f"{x.get('decay_ratio_rms_deviation_pct', math.nan):>8.2f}")
+        lines.append(f"{labels[region]:<24}{x['n_points']:>7}{_pct(x['stiffness_rms_deviation_pct'], 15)}"
+                     f"{_pct(x['stiffness_max_deviation_pct'], 8)}{_pct(x['damping_rms_deviation_pct'], 8)}"
+                     f"{_pct(x['damping_max_deviation_pct'], 8)}{_pct(x.get('loss_factor_rms_deviation_pct', math.nan), 9)}"
+                     f"{_pct(x.get('decay_ratio_rms_deviation_pct', math.nan), 8)}")
     return "\n".join(lines)
 
 
@@ -190,6 +190,15 @@ def format_routes(validations: dict[str, Validation]) -> str:
     lines = [f"{'route':<{width}}{'region':<9}{'points':>7}{'K rms':>8}{'eta rms':>9}{'d rms':>8}   (deviation from "
              "the servo bench, %)"]
     for r in table.itertuples():
-        lines.append(f"{r.route:<{width}}{r.region:<9}{r.n_points:>7}{r.stiffness_rms_deviation_pct:>8.2f}"
-                     f"{r.loss_factor_rms_deviation_pct:>9.2f}{r.damping_rms_deviation_pct:>8.2f}")
+        lines.append(f"{r.route:<{width}}{r.region:<9}{r.n_points:>7}{_pct(r.stiffness_rms_deviation_pct, 8)}"
+                     f"{_pct(r.loss_factor_rms_deviation_pct, 9)}{_pct(r.damping_rms_deviation_pct, 8)}")
     return "\n".join(lines)
+
+
+def _pct(value: float, width: int) -> str:
+    """A deviation (%) right-aligned in ``width`` characters: two decimals, or powers of ten where
+    those would not fit (a map extrapolated far out of its range: the columns stay columns)."""
+    text = f"{value:.2f}"
+    if len(text) >= width:
+        text = f"{value:.1e}"
+    return f"{text:>{width}}"

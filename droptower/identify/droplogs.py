@@ -78,6 +78,9 @@ class ReadSettings(LogSettings):
 
     cycles: float = 3.0
     rate: str = "auto"
+    #: the rig's lever fixtures as named in messages, where the rig has several (so it gives no
+    #: single inertia): a log without its inertia is then told that its conditions must say which
+    rig_fixtures: str | None = None
 
 
 def _slope_rate(t: np.ndarray, y: np.ndarray, start: int, period_s: float) -> tuple[float, float]:
@@ -98,8 +101,13 @@ def _slope_rate(t: np.ndarray, y: np.ndarray, start: int, period_s: float) -> tu
 def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropDecay:
     """The free decay of one test's :class:`~droptower.io.signals.DropSignals`."""
     inertia = metadata_value(signals, settings.inertia_kgm2, "inertia_kgm2") or settings.defaults.get("inertia_kgm2")
+    if inertia is None and settings.rig_fixtures is not None:
+        raise DroptowerError(f"no rotating inertia: the rig has several lever fixtures ({settings.rig_fixtures}) and "
+                             "nothing says which one this log is: give `conditions` (a table with its fixture or "
+                             "inertia per file) or `inertia_kgm2`")
     if inertia is None:
-        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2` or `rig`")
+        raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2`, "
+                             "`conditions` (per file) or a `rig` with a single fixture")
     lever = metadata_value(signals, settings.lever_length_m, "lever_length_m") or settings.defaults.get("lever_length_m")
     force = signals.impact_force_n if settings.rate != "slope" else None
     if settings.rate == "impulse" and (signals.impact_force_n is None or lever is None):
@@ -170,7 +178,7 @@ def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[li
     decays, excluded = [], []
     for f in files:
         try:
-            signals = settings.read_signals(f, radius_flags="`rig`", sample_rate_flag=None)
+            signals = settings.read_signals(f, radius_flags="`sensor_radius_m` or `rig`", sample_rate_flag=None)
             decays.append(decay_from_signals(signals, settings, f.name))
         except DroptowerError as exc:
             excluded.append({"file": str(f), "reason": ": ".join(p for p in (exc.where, exc.problem) if p)})

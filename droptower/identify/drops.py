@@ -57,8 +57,9 @@ def log_paths(data: Iterable[str | Path]) -> list[Path]:
 
 def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | None = None,
                     options: Mapping[str, Any] | None = None, template: str | None = None,
-                    holdout_fraction: float = 0.2, rig: str | None = None, inertia_kgm2: float | None = None,
-                    lever_length_m: float | None = None, roles: Mapping[str, str] | None = None) -> DropCampaign:
+                    holdout_fraction: float = 0.2, rig: Any = None, inertia_kgm2: float | None = None,
+                    lever_length_m: float | None = None, roles: Mapping[str, str] | None = None,
+                    sensor_radius_m: float | None = None, conditions: Any = None) -> DropCampaign:
     """Read drop-test logs for an identification.
 
     Parameters
@@ -76,12 +77,18 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
     holdout_fraction
         Share of the tests held out and predicted.
     rig
-        Rig TOML or preset: its lever length (m), sensor radius (m), inertia (kg*m^2, when it
-        has one) and preload conditioning fill what the logs do not say.
+        Rig TOML, preset or :class:`~droptower.rig.config.RigConfig`: its lever length (m),
+        sensor radius (m), inertia (kg*m^2, when it has one lever fixture) and preload
+        conditioning fill what the logs do not say.
     inertia_kgm2, lever_length_m
         Overrides of the logs' inertia (kg*m^2) and lever length (m).
     roles
         Channel role -> ``NAME[:UNIT]`` (e.g. ``{"angle": "Winkel:deg"}``).
+    sensor_radius_m
+        Laser spot radius (m) for a distance channel, over the logs' and the rig's.
+    conditions
+        Per-file test conditions (:class:`~droptower.io.conditions.Conditions`): each log's
+        fixture or inertia, drop mass and height, preload, temperature.
 
     Returns
     -------
@@ -95,14 +102,19 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
         raise DroptowerError("`model=template` needs `template` (a preset name or a coupling TOML)")
     defaults: dict[str, float] = {}
     conditioning: tuple[float, float] | None = DropFitSettings.conditioning
+    fixtures = None
     if rig is not None:
-        from droptower.rig.config import load_rig
+        from droptower.rig.config import RigConfig, load_rig
 
-        config = load_rig(rig)
+        config = rig if isinstance(rig, RigConfig) else load_rig(rig)
         defaults["lever_length_m"] = config.lever_length_m
         defaults["sensor_radius_m"] = config.sensors.laser.radius_m
         if len(config.inertias_kgm2) == 1:
             defaults["inertia_kgm2"] = config.inertias_kgm2[0]
+        else:
+            named = getattr(config, "fixtures", None) or {}
+            fixtures = ", ".join(f"{n} {j:g} kg*m^2" for n, j in named.items()) if named else (
+                ", ".join(f"{j:g}" for j in config.inertias_kgm2) + " kg*m^2")
         conditioning = (config.simulation.preload_ramp_s, config.simulation.preload_hold_s)
     fit_opts = {k: options.pop(k) for k in list(options) if k in FIT_KEYS}
     options.pop("skip_s", None)
@@ -117,8 +129,10 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
                                torque_weight=float(fit_opts.get("torque_weight", 0.5)), conditioning=conditioning,
                                holdout_fraction=holdout_fraction, max_nfev=int(fit_opts.get("max_nfev", 0)),
                                seed=int(fit_opts.get("seed", 0)))
+    extra = {"conditions": conditions} if conditions is not None else {}  # LogSettings merges them per file
     read = ReadSettings(roles=dict(roles or {}), inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m,
-                        defaults=defaults, cycles=cycles, rate=rate)
+                        defaults=defaults, sensor_radius_m=sensor_radius_m, cycles=cycles, rate=rate,
+                        rig_fixtures=fixtures if inertia_kgm2 is None else None, **extra)
     paths = [data] if isinstance(data, (str, Path)) else list(data)
     decays, excluded = read_decays(paths, read)
     return DropCampaign(decays, excluded, settings, options, read, [str(p) for p in log_paths(paths)])
@@ -128,9 +142,10 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
                              init: Mapping[str, float] | Parameters | None = None,
                              bounds: Mapping[str, tuple[float, float]] | None = None,
                              options: Mapping[str, Any] | None = None, template: str | None = None,
-                             holdout_fraction: float = 0.2, rig: str | None = None,
+                             holdout_fraction: float = 0.2, rig: Any = None,
                              inertia_kgm2: float | None = None, lever_length_m: float | None = None,
-                             roles: Mapping[str, str] | None = None) -> Identification:
+                             roles: Mapping[str, str] | None = None, sensor_radius_m: float | None = None,
+                             conditions: Any = None) -> Identification:
     """Identify a coupling model from drop-test logs alone.
 
     Parameters
@@ -150,7 +165,7 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
         With ``model="template"``: the coupling (preset or TOML) whose structure is fitted.
     holdout_fraction : float
         Share of the tests held out and predicted.
-    rig : str, optional
+    rig : str or RigConfig, optional
         Rig TOML or preset (lever length, sensor radius, a single inertia, conditioning).
     inertia_kgm2 : float, optional
         Lever inertia (kg*m^2), overriding the logs'.
@@ -158,6 +173,10 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
         Lever length (m), overriding the logs'.
     roles : dict, optional
         Channel role -> ``NAME[:UNIT]``.
+    sensor_radius_m : float, optional
+        Laser spot radius (m) for a distance channel.
+    conditions : Conditions, optional
+        Per-file test conditions (each log's inertia or fixture, drop mass and height, ...).
 
     Returns
     -------
@@ -175,6 +194,7 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
     else:
         campaign = read_drop_tests(data, model=model, options=options, template=template,
                                    holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
-                                   lever_length_m=lever_length_m, roles=roles)
+                                   lever_length_m=lever_length_m, roles=roles, sensor_radius_m=sensor_radius_m,
+                                   conditions=conditions)
     return identify_drops(model, campaign.decays, excluded=campaign.excluded, settings=campaign.settings,
                           init=init, bounds=bounds, options=campaign.options)

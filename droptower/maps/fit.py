@@ -104,7 +104,28 @@ def fit_map(results: pd.DataFrame | str | Path, source: str | Path | None = None
         source=str(source) if source is not None else None,
         form=fitted.form,
         cross_validation=cv_method,
+        fixtures=_fixtures(usable),
+        temperature_range_c=_temperatures(usable),
     )
+
+
+def _fixtures(usable: pd.DataFrame) -> tuple[str, ...]:
+    """The lever fixtures of the tests used: their names, else their inertias (kg*m^2)."""
+    named = sorted({str(v).strip() for v in usable["fixture"].dropna()} - {""}) if "fixture" in usable.columns else []
+    if named:
+        return tuple(named)
+    if "inertia_kgm2" in usable.columns:
+        j = pd.to_numeric(usable["inertia_kgm2"], errors="coerce").dropna().unique()
+        return tuple(f"{v:g} kg*m^2" for v in sorted(j))
+    return ()
+
+
+def _temperatures(usable: pd.DataFrame) -> tuple[float, float] | None:
+    """(min, max) of the tests' ``temperature_c`` (degC), None without temperatures."""
+    if "temperature_c" not in usable.columns:
+        return None
+    t = pd.to_numeric(usable["temperature_c"], errors="coerce").dropna()
+    return (float(t.min()), float(t.max())) if len(t) else None
 
 
 def _check_design(a: np.ndarray, f: np.ndarray, excluded: list[ExcludedTest], source: str | Path | None) -> None:

@@ -29,6 +29,10 @@ measured, and the ``map.json`` file that carries them.
   the vertices of the convex hull of the tested points in (log amplitude, frequency), where the
   map interpolates (outside it, it extrapolates).
 - ``excluded``: ``[{"test": file or "row N", "reason": ...}]``; ``source``: the results file.
+- ``fixtures``: the lever fixtures of the tests used (a lab's names, else "J kg*m^2");
+  ``temperature_range_c``: [min, max] of their temperatures in degC (null without);
+  ``coverage``: one line per fixture or condition left out entirely, with why, and a
+  temperature span over 5 K (:mod:`droptower.maps.coverage`). Absent in older files.
 """
 from __future__ import annotations
 
@@ -135,7 +139,10 @@ class MapFit:
     another form: ``form.units``);
     an uncertainty is ``inf`` where the tests do not identify the coefficient. at_bounds: names
     of coefficients on their bound (zero); not_unique: names of coefficients that another
-    equally consistent solution places elsewhere (see the module docstring). Predictions take amplitude in deg and frequency in Hz
+    equally consistent solution places elsewhere (see the module docstring). fixtures: the lever
+    fixtures of the tests used (a lab's names, else the inertias in kg*m^2); temperature_range_c:
+    (min, max) temperature of the tests used (degC), None where the results have none; coverage:
+    what the map does not cover (:func:`~droptower.maps.coverage.coverage_notes`). Predictions take amplitude in deg and frequency in Hz
     (arrays broadcast) and return N·m/deg and the damping ratio (-).
     """
 
@@ -149,6 +156,9 @@ class MapFit:
     source: str | None = None
     form: MapForm = PAPER
     cross_validation: str | None = None
+    fixtures: tuple[str, ...] = ()
+    temperature_range_c: tuple[float, float] | None = None
+    coverage: tuple[str, ...] = ()
 
     @property
     def stiffness_params(self) -> np.ndarray:
@@ -208,6 +218,9 @@ class MapFit:
                       "hull_amplitude_deg_frequency_hz": [list(v) for v in self.range.hull]},
             "excluded": [asdict(e) for e in self.excluded],
             "source": self.source,
+            "fixtures": list(self.fixtures),
+            "temperature_range_c": list(self.temperature_range_c) if self.temperature_range_c else None,
+            "coverage": list(self.coverage),
         }
 
     def coefficient_table(self) -> "pd.DataFrame":
@@ -274,6 +287,9 @@ class MapFit:
             source=doc.source,
             form=form,
             cross_validation=doc.cross_validation,
+            fixtures=tuple(doc.fixtures),
+            temperature_range_c=tuple(doc.temperature_range_c) if doc.temperature_range_c else None,
+            coverage=tuple(doc.coverage),
         )
 
     @classmethod
@@ -304,7 +320,10 @@ class MapFit:
             f"characteristic map ({'Rapp et al. 2022, eq. 19, eq. 20' if paper else f'form {form.name}'}) from "
             f"{self.source or 'results'}: {s.n_tests} tests used, {len(self.excluded)} excluded",
             f"measured range: amplitude {r.amplitude_deg_min:.3g}-{r.amplitude_deg_max:.3g} deg, "
-            f"frequency {r.frequency_hz_min:.4g}-{r.frequency_hz_max:.4g} Hz",
+            f"frequency {r.frequency_hz_min:.4g}-{r.frequency_hz_max:.4g} Hz"
+            + (f"; fixtures {', '.join(self.fixtures)}" if self.fixtures else "")
+            + (f"; temperature {self.temperature_range_c[0]:.1f}-{self.temperature_range_c[1]:.1f} degC"
+               if self.temperature_range_c else ""),
             f"{'eq. 19  ' if paper else ''}c(a, f) = {form.stiffness.text(form.stiffness_names)}  [N*m/deg]",
             *self._coefficient_lines(form.stiffness_names),
             f"  stiffness error: rms {s.stiffness_rms_error_pct:.2f} %{_cv_text(s.stiffness_cv_rms_error_pct)}, "
@@ -324,6 +343,9 @@ class MapFit:
         if self.excluded:
             lines.append("excluded tests:")
             lines += [f"  {e.test}: {e.reason}" for e in self.excluded]
+        if self.coverage:
+            lines.append("not covered by the map:")
+            lines += [f"  {line}" for line in self.coverage]
         return "\n".join(lines)
 
     def _coefficient_lines(self, names: list[str]) -> list[str]:
@@ -392,3 +414,6 @@ class _MapFile(StrictModel):
     excluded: list[_Excluded] = []
     source: Optional[str] = None
     cross_validation: Optional[str] = None
+    fixtures: list[str] = []                               # absent in older files
+    temperature_range_c: Optional[tuple[float, float]] = None
+    coverage: list[str] = []

@@ -8,6 +8,7 @@ inertia, drop mass, drop height, flags and file are used when present.
 """
 from __future__ import annotations
 
+import csv
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.data import TABLE4_NAME, table4_path
-from droptower.errors import DroptowerError, expects, missing_file, no_file_or_preset
+from droptower.errors import DroptowerError, expects, missing_file, no_file_or_preset, readable_file, unreadable_file
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: Columns the map is fitted from (the extractor's output names).
@@ -26,6 +27,8 @@ REQUIRED = ("amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ra
 #: a second impact restarts the decay, a poor fit or a window shorter than the paper's three
 #: quarters of a period does not determine δ and ω, a clipped channel cuts the peaks.
 UNUSABLE_FLAGS = frozenset({"double_impact", "poor_fit", "short_window", "clipping"})
+#: Lines of a text table searched for its names row when the required columns were not found.
+NAMES_SEARCH_LINES = 20
 
 
 @dataclass(frozen=True)
@@ -68,9 +71,78 @@ def read_results(path: str | Path) -> pd.DataFrame:
         if not path.exists() and not path.suffix and len(path.parts) == 1:  # a name, as of a shipped table
             raise no_file_or_preset(path, "table", [TABLE4_NAME])
         raise missing_file(path)
-    table = read_table(path, COMMON_ALIASES, what="results table")
+    readable_file(path)
+    if _is_own_csv(path):
+        # the extractor's own CSV (comma-separated, names in its first line): read as written.
+        # The lab's dialect sniffing would take the ';' of its copied `delimiter` column for the separator
+        table = _read_own_csv(path)
+    else:
+        table = read_table(path, COMMON_ALIASES, what="results table")
+    misread = _misread_separator(table, path)
+    if misread is not None:
+        raise DroptowerError(f"the results table's separator was misread: {misread}", file=path)
     check_columns(table, path)
     return table
+
+
+def _first_line(path: Path) -> str:
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
+        for line in fh:
+            if line.strip():
+                return line
+    return ""
+
+
+def _is_own_csv(path: Path) -> bool:
+    """A CSV whose first line, split at commas, holds every :data:`REQUIRED` name: as
+    :func:`~droptower.io.tables.write_table` writes the extractor's results."""
+    if path.suffix.lower() not in (".csv", ".txt"):
+        return False
+    names = next(csv.reader([_first_line(path)]), [])
+    return all(c in [n.strip() for n in names] for c in REQUIRED)
+
+
+def _read_own_csv(path: Path) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path, encoding="utf-8-sig", keep_default_na=True)
+    except Exception as exc:  # pandas raises many types for a broken file
+        raise unreadable_file(path, f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0]}",
+                              "results table") from None
+
+
+def _misread_separator(table: pd.DataFrame, path: Path) -> str | None:
+    """Why the table lacks its columns when the names are there but were split at the wrong
+    separator: a line of the file (of the first :data:`NAMES_SEARCH_LINES`) holding every
+    :data:`REQUIRED` name at one separator, while the table was read at another (a column whose
+    values hold that other separator, such as a copied ``delimiter`` column, misleads the
+    sniffing); or column names that are mostly numbers (a data row taken for the names).
+    None where neither."""
+    if all(c in table.columns for c in REQUIRED):
+        return None
+    if path.suffix.lower() in (".csv", ".txt", ".dat", ".tsv", ".asc", ""):
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
+            lines = [line for _, line in zip(range(NAMES_SEARCH_LINES), fh)]
+        for number, line in enumerate(lines, 1):
+            for delimiter in (",", ";", "\t", "|"):
+                fields = [f.strip() for f in next(csv.reader([line], delimiter=delimiter), [])]
+                if all(c in fields for c in REQUIRED):
+                    return (f"line {number} holds the names separated by {delimiter!r}, but the rows do not split "
+                            f"alike at it (a value holding another separator, or a line above the names?): "
+                            f"write the table with one separator and quoted text, or give the names in the first line")
+    names = [str(c) for c in table.columns]
+    numbers = [n for n in names if _is_number_text(n)]
+    if names and len(numbers) * 2 >= len(names):
+        return (f"{len(numbers)} of its {len(names)} column names are numbers (e.g. {numbers[0]!r}): a data row was "
+                "taken for the names")
+    return None
+
+
+def _is_number_text(text: str) -> bool:
+    try:
+        float(text.replace(",", "."))
+    except ValueError:
+        return False
+    return True
 
 
 def check_columns(table: pd.DataFrame, source: str | Path | None = None) -> None:
@@ -123,7 +195,12 @@ def select_tests(table: pd.DataFrame, source: str | Path | None = None) -> tuple
     bad_flag = np.array([any(f in UNUSABLE_FLAGS for f in row) for row in flags], dtype=bool)
     keep = ~bad_flag & np.all(np.isfinite(v), axis=1) & np.all(v > 0, axis=1)
     excluded = []
+    failed = (table["status"].astype(str).to_numpy() == "failed") if "status" in table.columns else np.zeros(len(table), bool)
+    errors = table["error"].tolist() if "error" in table.columns else [None] * len(table)
     for i in np.flatnonzero(~keep):
+        if failed[i]:  # a log that could not be evaluated: its error says why, not its missing values
+            excluded.append(ExcludedTest(names.iloc[i], f"failed: {errors[i]}" if isinstance(errors[i], str) else "failed"))
+            continue
         reasons = [f"flag {f}" for f in flags[i] if f in UNUSABLE_FLAGS]
         for col, x in zip(REQUIRED, v[i]):
             if not np.isfinite(x):

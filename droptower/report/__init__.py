@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 from urllib.parse import quote
 
 import numpy as np
@@ -19,6 +20,7 @@ from threadpoolctl import threadpool_limits
 from droptower.errors import DroptowerError, make_folder
 from droptower.io.droptower_log import atomic_write
 from droptower.maps import MapFit, fit_map, select_tests
+from droptower.maps.coverage import coverage_notes
 from droptower.maps.results import flag_list
 from droptower.report import figures
 from droptower.report.decays import Drawing
@@ -27,8 +29,8 @@ from droptower.report.run import FLAG_REASONS, Run, load_run
 
 #: Columns of the per-test table, in order, where the results have them (name shown: unit in brackets).
 TEST_COLUMNS = {
-    "case": "case", "inertia_kgm2": "J [kg·m²]", "drop_mass_kg": "m [kg]", "drop_height_m": "h [m]",
-    "preload_nm": "preload [N·m]", "amplitude_deg": "amplitude [deg]",
+    "case": "case", "fixture": "fixture", "inertia_kgm2": "J [kg·m²]", "drop_mass_kg": "m [kg]", "drop_height_m": "h [m]",
+    "preload_nm": "preload [N·m]", "temperature_c": "T [°C]", "amplitude_deg": "amplitude [deg]",
     "frequency_hz": "f [Hz]", "stiffness_nm_per_deg": "c [N·m/deg]", "damping_ratio": "d [-]",
     "fit_error": "fit error [-]",
 }
@@ -50,19 +52,30 @@ def default_out(source: str | Path) -> Path:
 def write_report(source: str | Path, out: str | Path | None = None, form: str = "paper",
                  channels: dict[str, str] | None = None, extra_sections: list[tuple[str, str]] | None = None,
                  title: str | None = None, progress: bool = False, inline_max_tests: int = INLINE_MAX_TESTS,
-                 workers: int | None = None) -> Path:
-    """Write the report of ``source`` (campaign folder or results table) to ``out``.
+                 workers: int | None = None, *, rig: Any = None, sensor_radius_m: float | None = None,
+                 conditions: Any = None, run: Run | None = None, strict: bool = True,
+                 inertia_kgm2: float | None = None, lever_length_m: float | None = None) -> Path:
+    """Write the report of ``source`` (campaign folder, results table or a lab's folder of logs) to ``out``.
 
     form: the map form (``paper``, ``velocity``, ``auto``); channels: role -> ``NAME[:UNIT]``
     for reading real logs (as the extraction's channel roles); extra_sections: (heading, HTML) pairs
     appended (the study's); inline_max_tests: more tests than this put their decay figures in
     side files in ``<out stem>_files/`` beside the page; workers: processes drawing the decay
-    figures (None: every local core, 1: this process); returns the path of the page."""
-    run = load_run(source)
+    figures (None: every local core, 1: this process); rig (RigConfig), sensor_radius_m (m),
+    conditions (:class:`~droptower.io.conditions.Conditions`), inertia_kgm2 (kg*m^2), lever_length_m (m):
+    how real logs are read
+    (:func:`~droptower.report.run.load_run`); run: the run already loaded; strict: a usable test
+    (one the map uses) whose decay cannot be drawn is a DroptowerError saying why, and no page is
+    written (else the page lists it); returns the path of the page."""
+    if run is None:
+        run = load_run(source, rig=rig, roles=channels, sensor_radius_m=sensor_radius_m, conditions=conditions,
+                       inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
     out = Path(out) if out is not None else default_out(source)
     with Drawing(run, channels or {}, progress, workers) as drawing:  # the decay figures, meanwhile the rest
         fit, map_error, usable_mask, excluded_reason, sections = _map_and_tests(run, source, form)
         fits = drawing.result()
+    if strict:
+        check_drawn(run, usable_mask, fits)
     problems = _problems(run, usable_mask, excluded_reason, fits)
     fit_files = None
     if len(fits) > inline_max_tests:
@@ -72,6 +85,21 @@ def write_report(source: str | Path, out: str | Path | None = None, form: str = 
     make_folder(out.parent)
     atomic_write(out, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     return out
+
+
+def check_drawn(run: Run, usable: np.ndarray, fits: dict[str, object]) -> None:
+    """Raise a one-line DroptowerError when a test the map uses has no decay figure: how many,
+    and the first one's reason (its log missing, or the geometry to read it with)."""
+    missing = [(name, fits.get(name)) for name, ok in zip(run.test, usable) if ok and isinstance(fits.get(name), str)]
+    if not missing and fits and all(isinstance(f, str) for f in fits.values()):
+        # not one decay drawn (no test usable either): the logs could not be read, say why
+        name, why = next(iter(fits.items()))
+        raise DroptowerError(f"none of the {len(fits)} decays can be drawn, e.g. {name}: {why}; no report written")
+    if not missing:
+        return
+    name, why = missing[0]
+    raise DroptowerError(f"{len(missing)} of {int(np.sum(usable))} usable decays cannot be drawn, e.g. {name}: {why}; "
+                         "no report written")
 
 
 def _map_and_tests(run: Run, source: str | Path, form: str) -> tuple[MapFit | None, str | None, np.ndarray,
@@ -90,6 +118,7 @@ def _map_and_tests(run: Run, source: str | Path, form: str) -> tuple[MapFit | No
         # 4 500 tests ten times slower (54 s against 5 s, measured on 2 loaded cores)
         with threadpool_limits(limits=1, user_api="blas"):
             fit = fit_map(table, source=_shown_source(source), form=form)
+        fit.coverage = tuple(coverage_notes(table, usable, excluded, rig=run.rig))
     except DroptowerError as exc:
         map_error = exc.message
     map_figure = figures.map_figure(usable, [n for n, ok in zip(run.test, usable_mask) if ok], fit) if fit else None

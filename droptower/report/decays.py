@@ -91,17 +91,22 @@ class Job:
     drop_index: int
     inertia_kgm2: float | None
     stored: dict[str, Any] | None
+    error: str | None = None
 
 
 def jobs(run: Run) -> list[Job]:
-    """The figures a run's report draws: one job per test. A campaign's rows carry their stored
-    fits (its logs hold one drop each and were extracted with the campaign's settings)."""
+    """The figures a run's report draws: one job per test. A campaign's rows, and a lab folder's
+    extracted here, carry their stored fits (extracted with the run's settings); a lab folder's
+    row whose extraction failed carries its error (not extracted a second time)."""
     table = run.table
     n = len(table)
     inertia = pd.to_numeric(table.get("inertia_kgm2", pd.Series(np.nan, index=table.index)), errors="coerce")
     drop_index = pd.to_numeric(table.get("drop_index", pd.Series(1, index=table.index)), errors="coerce")
     wanted = [c for c in (*ANGLE_COLUMNS, *TORQUE_COLUMNS, "flags") if c in table.columns]
-    rows = table[wanted].to_dict(orient="records") if run.kind == "campaign" else [None] * n
+    rows = table[wanted].to_dict(orient="records") if run.kind in ("campaign", "log folder") else [None] * n
+    errors = [None] * n
+    if run.kind == "log folder" and "error" in table.columns:
+        errors = [e if isinstance(e, str) and e else None for e in table["error"]]
     out = []
     for i, (name, log) in enumerate(zip(run.test, run.logs)):
         j, k = float(inertia.iloc[i]), float(drop_index.iloc[i])
@@ -109,7 +114,7 @@ def jobs(run: Run) -> list[Job]:
         if row is not None and not (stored_fit(row) is not None and "flags" in row):
             row = None
         out.append(Job(name, log, int(k) if math.isfinite(k) and k >= 1 else 1,
-                       j if math.isfinite(j) and j > 0 else None, row))
+                       j if math.isfinite(j) and j > 0 else None, row, errors[i]))
     return out
 
 
@@ -124,6 +129,9 @@ def draw(task: tuple[list[Job], dict[str, Any]]) -> list[tuple[str, object]]:
     for job in batch:
         if job.log is None:
             out.append((job.name, "log not found"))
+            continue
+        if job.error is not None:
+            out.append((job.name, f"extraction failed: {job.error}"))
             continue
         fit = stored_fit(job.stored) if job.stored is not None else None
         try:

@@ -140,6 +140,14 @@ def map_section(fit: MapFit | None, error: str | None, figure: Any | None) -> st
         plain_table(errors),
         plain_table(coefficients),
     ]
+    if fit.fixtures or fit.temperature_range_c:
+        parts.insert(1, "<p>" + "; ".join(
+            ([f"fixtures {html.escape(', '.join(fit.fixtures))}"] if fit.fixtures else [])
+            + ([f"temperature {fit.temperature_range_c[0]:.1f}–{fit.temperature_range_c[1]:.1f} °C"]
+               if fit.temperature_range_c else [])) + ".</p>")
+    if fit.coverage:  # what the map does not cover, said where the map is
+        items = "".join(f"<li>{html.escape(line)}</li>" for line in fit.coverage)
+        parts.insert(1, f"<div id='not-covered' class='warn'><p>Not covered by the map:</p><ul>{items}</ul></div>")
     if figure is not None:
         parts.append(pio.to_html(figure, include_plotlyjs=False, full_html=False, default_height="420px",
                                  config={"responsive": True, "displaylogo": False}))

@@ -1,5 +1,5 @@
 """The report's two-routes section: the paper's map (eq. 19/20) and the model-based map side by
-side, each named, over amplitude per frequency (95 % bands shaded), and both validated against
+side, each named, over amplitude per frequency (95 % bands shaded where the map has them), and both validated against
 the servo bench inside and outside the drop tests' hull (docs/routes.md).
 
 Kept in its own module and handed to :func:`droptower.report.write_report` as an extra section,
@@ -82,10 +82,15 @@ def routes_section(model_map: ModelMap, paper: Any | None, validations: dict[str
 
 
 def routes_report_section(source: str | Path, model_map: ModelMap, form: str = "paper",
-                          coupling: Any | None = None, reduced: bool = True) -> tuple[str, str]:
-    """The section for a campaign folder or results table: the paper's map fitted to its tests,
-    and, given the ``coupling`` the servo sweeps run on (a campaign's own), both routes validated."""
-    from droptower.compare import run_sweeps
+                          coupling: Any | None = None, reduced: bool = True, *,
+                          servo_results: str | Path | None = None, servo_columns: dict[str, str] | None = None,
+                          table: Any = None) -> tuple[str, str]:
+    """The section for a campaign folder, results table or lab's folder: the paper's map fitted
+    to its tests (``table``: the run's results, else read from ``source``), and both routes
+    validated against the servo points: the lab's measured ``servo_results`` (a table, with
+    ``servo_columns`` as :func:`~droptower.compare.servo_points.read_servo_results` takes them),
+    else the sweeps run on ``coupling`` (a campaign's own), else not validated."""
+    from droptower.compare import read_servo_results, run_sweeps
     from droptower.compare.validation import validate_routes
     from droptower.errors import DroptowerError
     from droptower.maps import fit_map, read_results
@@ -93,13 +98,18 @@ def routes_report_section(source: str | Path, model_map: ModelMap, form: str = "
 
     paper = None
     try:
-        paper = fit_map(load_run(source).table if Path(source).is_dir() else read_results(source), source=str(source),
-                        form=form)
+        if table is None:
+            table = load_run(source).table if Path(source).is_dir() else read_results(source)
+        paper = fit_map(table, source=str(source), form=form)
     except DroptowerError:
         paper = None  # the report's map section says why
     validations = None
-    if coupling is not None:
+    points = None
+    if servo_results is not None:
+        points = read_servo_results(servo_results, dict(servo_columns or {}))
+    elif coupling is not None:
         points = run_sweeps(coupling, reduced=reduced)
+    if points is not None:
         routes = {PAPER_ROUTE: paper, model_map.route: model_map} if paper is not None else {model_map.route: model_map}
         validations = validate_routes(routes, points, hull=paper)
     return routes_section(model_map, paper, validations)

@@ -37,7 +37,8 @@ class Run:
     pairs for the summary; table: one row per test (the extractor's columns); test: a short
     name per row (``test_00042`` or the log's file name); logs: the log per row (None: not
     found); extract: keyword arguments of :class:`droptower.extract.files.Settings` that
-    extract the logs as the run did.
+    extract the logs as the run did; rig: the lab's rig (RigConfig) given for real logs, None
+    otherwise.
     """
 
     kind: str
@@ -47,21 +48,77 @@ class Run:
     test: list[str]
     logs: list[Path | None]
     extract: dict[str, Any] = field(default_factory=dict)
+    rig: Any = None
 
 
-def load_run(source: str | Path) -> Run:
-    """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``) or a results table
-    (any format ``droptower map`` reads) whose ``file`` column names the logs; one-line errors
-    otherwise."""
+def load_run(source: str | Path, *, rig: Any = None, roles: dict[str, str] | None = None,
+             sensor_radius_m: float | None = None, conditions: Any = None, inertia_kgm2: float | None = None,
+             lever_length_m: float | None = None) -> Run:
+    """A campaign folder (``manifest.json``, ``results.parquet``, ``logs/``), a results table
+    (any format ``droptower map`` reads) whose ``file`` column names the logs, or a lab's folder
+    of logs (extracted here, :func:`droptower.maps.fromlogs.results_from_logs`); one-line errors
+    otherwise.
+
+    rig (RigConfig), sensor_radius_m (m), conditions (:class:`~droptower.io.conditions.Conditions`),
+    roles (channel mapping), inertia_kgm2 (kg*m^2, every log's) and lever_length_m (m): how a lab's logs are read, for the folder's extraction and for
+    drawing the decays of a results table again (where its rows do not store the geometry)."""
+    from droptower.maps.fromlogs import is_log_folder, rig_defaults
+
     source = Path(source)
     if source.is_dir():
         if (source / "manifest.json").is_file():
             return _campaign(source)
-        raise DroptowerError("a folder without manifest.json (not a campaign folder); give a results table "
-                             "of the extraction (its results file) or a campaign folder", file=source)
+        if is_log_folder(source):
+            return _log_folder(source, rig, roles, sensor_radius_m, conditions, inertia_kgm2, lever_length_m)
+        raise DroptowerError("a folder without manifest.json (not a campaign folder) and without logs; give a results table of the "
+                             "extraction (its results file), a campaign folder or a folder of logs", file=source)
     if not source.is_file():
         raise missing_file(source)
-    return _results_table(source)
+    run = _results_table(source)
+    defaults = {**_table_geometry(run.table), **rig_defaults(rig)}
+    if lever_length_m is not None:
+        defaults["lever_length_m"] = lever_length_m
+    run.extract = {"defaults": defaults, "sensor_radius_m": sensor_radius_m,
+                   **({"conditions": conditions} if conditions is not None else {})}
+    if rig is not None:
+        run.facts.insert(1, ("geometry", rig.geometry_text() if hasattr(rig, "geometry_text") else str(rig.name)))
+    run.rig = rig
+    return run
+
+
+def _table_geometry(table: pd.DataFrame) -> dict[str, float]:
+    """The lever length and laser radius (m) a results table's rows store, where all agree."""
+    out = {}
+    for column in ("lever_length_m", "sensor_radius_m"):
+        if column in table.columns:
+            values = pd.to_numeric(table[column], errors="coerce").dropna().unique()
+            if len(values) == 1:
+                out[column] = float(values[0])
+    return out
+
+
+def _log_folder(folder: Path, rig: Any, roles: dict[str, str] | None, sensor_radius_m: float | None,
+                conditions: Any, inertia_kgm2: float | None = None, lever_length_m: float | None = None) -> Run:
+    from droptower.maps.fromlogs import log_files, results_from_logs, rig_defaults
+
+    skip = [conditions.source] if conditions is not None and Path(str(conditions.source)).is_file() else []
+    logs = log_files(folder, exclude=skip)
+    table = results_from_logs(logs, rig=rig, roles=roles, sensor_radius_m=sensor_radius_m, conditions=conditions,
+                              inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
+    drops = table["drop_index"] if "drop_index" in table.columns else [None] * len(table)
+    names = [Path(str(f)).name + (f" drop {int(k)}" if k is not None and pd.notna(k) and k > 1 else "")
+             for f, k in zip(table["file"], drops)]
+    paths = [Path(str(f)) for f in table["file"]]
+    failed = int((table.get("status") == "failed").sum()) if "status" in table.columns else 0
+    facts = [("folder", folder.resolve().name), ("logs", f"{len(logs)} real log(s), {failed} failed extraction")]
+    if rig is not None:
+        facts.append(("geometry", rig.geometry_text() if hasattr(rig, "geometry_text") else str(rig.name)))
+    if conditions is not None:
+        facts.append(("conditions", Path(str(conditions.source)).name))
+    extract = {"defaults": {**rig_defaults(rig), **({"lever_length_m": lever_length_m} if lever_length_m else {})},
+               "sensor_radius_m": sensor_radius_m,
+               **({"conditions": conditions} if conditions is not None else {})}
+    return Run("log folder", folder.resolve().name, facts, table, names, paths, extract, rig)
 
 
 def _campaign(root: Path) -> Run:
