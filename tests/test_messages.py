@@ -37,6 +37,7 @@ def commands(file: dict[str, Path], out: Path) -> dict[str, list[str]]:
         "plan --doe": ["plan", "--doe", toml],
         "campaign --doe": ["campaign", "--doe", toml, "--out", str(out / "c")],
         "servo": ["servo", toml],
+        "evaluate-servo": ["evaluate-servo", csv],
     }
 
 

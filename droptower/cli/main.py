@@ -20,6 +20,8 @@ from droptower.cli.flags import cli_message
 #: name -> (module, attribute, one-line help). Data flows top to bottom.
 COMMANDS: dict[str, tuple[str, str, str]] = {
     "servo": ("droptower.cli.servo_cmd", "servo", "Drive a coupling on the virtual servo-hydraulic bench."),
+    "evaluate-servo": ("droptower.cli.servo_records_cmd", "evaluate_servo",
+                       "Evaluate raw servo time records: K', K'', loss factor per block."),
     "simulate": ("droptower.cli.simulate_cmd", "simulate", "Simulate one drop test on the virtual drop tower."),
     "design": ("droptower.cli.design_cmd", "design", "Design a campaign that covers a target amplitude-frequency region."),
     "planner": ("droptower.cli.planner_cmd", "planner", "Write the interactive planner page (offline HTML)."),

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import click
 
 from droptower.cli.options import conditions_options, quiet_option, wrote
+from droptower.cli.servo_records_cmd import name_servo_source, servo_record_options, servo_records_table
 from droptower.configs import DEFAULT_COUPLING
 
 
@@ -54,12 +56,14 @@ from droptower.configs import DEFAULT_COUPLING
 @click.option("--lever-length-m", type=float, default=None,
               help="With --results a lab's folder of logs: the lever arm L in m.")
 @conditions_options
+@servo_record_options
 def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_columns: tuple[str, ...],
              reference: Path | None,
              results: Path | None, model_map_path: Path | None, quick: bool, out: Path | None, table_format: str,
              as_json: bool, rig: str | None, sensor_radius_m: float | None, channel_specs: tuple[str, ...],
              inertia_kgm2: float | None, lever_length_m: float | None,
-             conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None) -> None:
+             conditions: str | None, condition_columns: tuple[str, ...], conditions_pattern: str | None,
+             **servo_records: Any) -> None:
     """Predict the servo-hydraulic sweeps of docs/theory.md#servo from the map and compare: frequency
     sweeps at 0.5, 1.5, 2.5 deg up to 100, 60, 20 Hz and amplitude sweeps at 1, 10, 30 Hz up to
     10, 6, 2 deg, run on the virtual servo bench with --coupling (or read from --servo-results).
@@ -74,6 +78,7 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
     Examples:
       droptower validate --map map.json --coupling rapp2022_nr60 --out validation/
       droptower validate --map map.json --servo-results measured.csv --out validation/ --table-format xlsx
+      droptower validate --map map.json --servo-records sweep1.csv --servo-records sweep2.csv --out validation/
     """
     from droptower.compare.validate import validate as run_validation
     from droptower.errors import DroptowerError
@@ -93,8 +98,10 @@ def validate(map_path: Path, coupling: str, servo_results: Path | None, servo_co
         from droptower.cli.map_cmd import failed_logs
 
         failed, results = failed_logs(lab), lab
-    result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
-                            reference=reference, results=results, model_map=model_map_path, quick=quick)
+    with servo_records_table(servo_records, servo_results, out) as servo_results:
+        result = run_validation(map_path, coupling, servo_results=servo_results, servo_columns=columns,
+                                reference=reference, results=results, model_map=model_map_path, quick=quick)
+    name_servo_source(result, servo_records)
     if out is not None:
         described = {"validation_routes": "the two routes vs the servo points",
                      "validation_model_map": f"the {result.model_route} at every servo point"}
