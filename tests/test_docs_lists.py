@@ -77,13 +77,16 @@ def test_every_element_kind_has_its_theory():
 
 
 def _raised_flags() -> set[str]:
-    """The flags the extractor raises: the literals it appends to a result's ``flags`` and the
-    named flag constants of droptower/extract (``NAME = "flag"`` under a ``#:`` comment naming a flag)."""
+    """The flags the extractor raises: the literals it appends to a result's ``flags``, the
+    named flag constants of droptower/extract (``NAME = "flag"`` under a ``#:`` comment naming a
+    flag) and a module's ``FLAGS`` tuple."""
     flags = set()
     for path in (ROOT / "droptower" / "extract").glob("*.py"):
         text = path.read_text(encoding="utf-8")
         flags |= set(re.findall(r"flags\.append\(\"([a-z_]+)\"\)", text))
         flags |= set(re.findall(r"#:[^\n]*\bflag\b[^\n]*\n[A-Z_]+ = \"([a-z_]+)\"", text))
+        for listed in re.findall(r"^FLAGS = \(([^)]*)\)", text, re.M):  # a module's tuple of the flags it raises
+            flags |= set(re.findall(r"\"([a-z_0-9]+)\"", listed))
     return flags
 
 
