@@ -5,9 +5,9 @@ it under the names the tests use."""
 from __future__ import annotations
 
 from droptower.campaign.lab_export import (FIXTURES, GERMAN, HEIGHTS_MM, IMPERIAL, LAB_RIG_TOML, MASSES, REPEATS,
-                                           LabDialect, LabFolder, write_lab_folder)
+                                           LabDialect, LabFolder, _write_csv, _write_sheet, write_lab_folder)
 
 Dialect = LabDialect  # the name the tests knew it by
 
 __all__ = ["Dialect", "FIXTURES", "GERMAN", "HEIGHTS_MM", "IMPERIAL", "LAB_RIG_TOML", "LabDialect", "LabFolder", "MASSES",
-           "REPEATS", "write_lab_folder"]
+           "REPEATS", "write_lab_folder", "_write_csv", "_write_sheet"]
