@@ -4,9 +4,10 @@ A lab's drop tower does not write droptower's logs: it writes one CSV per drop i
 (header lines, separators, decimal commas, its own channel names and units, the laser's
 displacement instead of an angle), a conditions sheet keyed by file name, and it has its own rig.
 :func:`write_lab_folder` simulates every fixture x drop mass x drop height x repeat on such a rig
-and writes the folder as that lab would, so the whole evaluation (``extract --conditions --rig``,
-``map``, ``map --model``, ``validate``, ``report``) can be rehearsed on data whose truth is known
-(:attr:`LabFolder.truth`). Two dialects ship: :data:`GERMAN` (``;``, decimal commas, cp1252,
+and writes the folder as that lab would, so the whole evaluation of a lab's folder (per-file
+conditions from the sheet, the lab's rig, per-drop results, the map, the model-based map, the
+validation against a bench, the report) can be rehearsed on data whose truth is known
+(:attr:`LabFolder.truth`; docs/tutorials/lab-folder.md). Two dialects ship: :data:`GERMAN` (``;``, decimal commas, cp1252,
 ``Zeit [s];Weg [mm];Moment [Nm];Kraft [kN]``) and :data:`IMPERIAL` (tabs, ms, inches, kN*m, lbf).
 """
 from __future__ import annotations
