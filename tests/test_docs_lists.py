@@ -107,7 +107,8 @@ def _options(command: str) -> list[list[str]]:
             for p in cmd.params if isinstance(p, click.Option) and not p.hidden]
 
 
-@pytest.mark.parametrize("command, page", [("extract", "guide/extraction.md"), ("servo", "guide/servo.md")])
+@pytest.mark.parametrize("command, page", [("extract", "guide/extraction.md"), ("servo", "guide/servo.md"),
+                                           ("evaluate-servo", "guide/servo.md")])
 def test_every_option_is_documented_in_its_guide(command, page):
     """Each visible option of the command is named on its guide page (``--quiet``, common to all
     commands, on the conventions page)."""
