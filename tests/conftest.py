@@ -62,7 +62,7 @@ def heavy_files_first(node_ids: list[str], slow: set[str]) -> list[str]:
     Under ``--dist worksteal`` (pyproject's addopts) a worker that runs out of tests takes the
     second half of the other's queue, from its end: the long tests start first and the short ones
     fill the tail, so no worker waits at the end on a long test that started late
-    (docs/conventions.md#test-suite-timeline).
+    (CONTRIBUTING.md#test-suite-timeline).
     """
     count = Counter(node.split("::")[0] for node in node_ids if node in slow)
     return sorted(node_ids, key=lambda node: -count[node.split("::")[0]])  # stable: their order among equals

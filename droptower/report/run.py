@@ -26,6 +26,13 @@ FLAG_REASONS = {
     "poor_fit": "the decay fit's RMS residual exceeds 5 % of the amplitude",
     "double_impact_unchecked": "no impact-force channel: a second impact could not be checked (warning)",
     "decay_cut_by_next_drop": "the next drop of the recording came before this drop's oscillation died out",
+    # the geometry cross-checks (droptower.extract.geometry; docs/guide/extraction.md#the-geometry-used)
+    "stiffness_m2_m1_deviation": "the torque's stiffness (M2) and the angle's (M1) differ by more than 20 %: "
+                                 "the inertia, the lever length or the laser radius used is not the rig's",
+    "laser_torque_amplitude_mismatch": "the laser's amplitude disagrees with the torque's amplitude over the "
+                                       "fitted stiffness by more than 20 %: the laser radius used is not the rig's",
+    "impact_energy_mismatch": "the lever's speed after the impact from the decay disagrees with the impulse's or "
+                              "the impact law's (drop mass, height, inertia, lever length) by more than 25 %",
 }
 
 
