@@ -275,7 +275,8 @@ def check_energy(coupling, element_dicts, x, dt):
 
 
 KINDS = ["spring", "spring_table", "cubic_spring", "dashpot", "maxwell", "prony", "prandtl", "masing",
-         "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law", "filler_network"]
+         "elastoslide", "mullins", "variable_maxwell", "pfeffer", "payne", "power_law", "filler_network",
+         "large_strain_network"]
 
 
 def test_every_kind_is_covered():

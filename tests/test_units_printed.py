@@ -20,6 +20,7 @@ ALLOWED = {
     ("units.py", ""): "the unit spellings the parser reads (a log's 'Nm' header) and the field-name tokens",
     ("cli/validate_cmd.py", "[Nm/°]"): "the German column header of a servo table the command reads",
     ("rig/scene.py", "1 nm"): "a length: the physics engine's collision slop is one nanometre",
+    ("campaign/lab_export.py", "Moment [Nm]"): "the German lab dialect's torque header, written as such labs write it",
 }
 #: whole-string constants that are unit tokens of field names (torque_nm), not printed text
 TOKENS = {"nm", "nms"}

@@ -37,7 +37,9 @@ def _relative_inputs(row: pd.Series, u: RigUncertainty) -> dict[str, dict[str, f
     """quantity -> input -> relative standard uncertainty of one condition (module docstring)."""
     out: dict[str, dict[str, float]] = {q: {} for q in BUDGET_QUANTITIES}
     j = float(row.get("inertia_kgm2", math.nan))
-    entry = u.inertia(j) if math.isfinite(j) else None
+    entry = None
+    if math.isfinite(j):  # a condition without an inertia has no J term
+        entry = u.inertia(j)
     if entry is not None:
         out["stiffness_nm_per_deg"]["inertia_kgm2"] = entry.standard / j
     fs = float(row.get("sample_rate_hz", math.nan))
