@@ -798,9 +798,13 @@ class LargeStrainNetwork(ElementSpec):
     elements of ``network_stiffness`` in all, slipping at s_i = ``slip`` ((i + 1/2) / n)^``spread``,
     whose energy carries the factor 1 + ``friction_gain`` x^2. The damage D grows with the
     travel |dx| over ``damage_travel`` towards ``damage`` (1 - exp(-(x_max / ``damage_angle``)^
-    ``damage_exponent``)), x_max the largest |x| seen, and does not recover. Every gain may be 0:
+    ``damage_exponent``)), x_max the largest |x| seen, and does not recover. The spring's ``stiffness``
+    further softens with the travel c = sum |dx| as exp(-``travel_softening`` c^``travel_exponent``),
+    and the slips widen to s_i (1 + ``slip_hardening`` r^2), r the |x| at the motion's last reversal
+    (Gallardo et al. 2023's scragging with the travel and temporary hardening). Every gain may be 0:
     ``gain`` 0 no stiffening, ``network_stiffness`` 0 no network, ``friction_gain`` 0 a plain Iwan
-    network, ``damage`` 0 no softening (the element is then a linear spring || an Iwan network).
+    network, ``damage`` 0 no softening, ``travel_softening`` 0 none with the travel, ``slip_hardening``
+    0 fixed slips (all of them 0: a linear spring || an Iwan network).
     """
 
     SETTINGS: ClassVar[frozenset[str]] = frozenset({"n"})
@@ -816,6 +820,10 @@ class LargeStrainNetwork(ElementSpec):
     damage_angle: PositiveFloat = 1.0         # rad, x_D: the largest angle seen that sets D_inf
     damage_exponent: PositiveFloat = 1.0      # -, r: D_inf = D_max (1 - exp(-(x_max/x_D)^r))
     damage_travel: PositiveFloat = 1.0        # rad, L: the damage approaches D_inf over this travel
+    travel_softening: NonNegativeFloat = 0.0  # rad^-travel_exponent, f: the spring's k times exp(-f c^p), c the travel
+    travel_exponent: PositiveFloat = 0.5      # -, p of the travel softening
+    slip_hardening: NonNegativeFloat = 0.0    # 1/rad, h: the slips times 1 + h r, r the |x| at the last reversal
+    damage_sides: bool = False                # True: D and x_max of each side of x = 0 apart
     n: PositiveInt = 24                       # -, Jenkins elements of the network
 
     _n_limit = field_validator("n")(_at_most_max_n)
@@ -827,7 +835,8 @@ class LargeStrainNetwork(ElementSpec):
     def compile(self):
         params = np.concatenate([[self.n, self.stiffness, self.gain, self.exponent, self.network_stiffness / self.n,
                                   self.friction_gain, self.damage, self.damage_angle, self.damage_exponent,
-                                  self.damage_travel], self.slips()])
+                                  self.damage_travel, self.travel_softening, self.travel_exponent,
+                                  self.slip_hardening, float(self.damage_sides)], self.slips()])
         return [KernelElement(K.LARGE_STRAIN_NETWORK, params)]
 
 
