@@ -214,7 +214,7 @@ def test_published_law_predicted_from_four_blocks(tmp_path):
     assert fit[0].units == "translational"
     rubber = identify("filled_rubber", fit, holdout=prediction)
     assert not rubber.verdict.poor
-    assert rubber.fit.nrmse < 0.022 and rubber.holdout.nrmse < 0.03
+    assert rubber.fit.nrmse < 0.022 and rubber.holdout.nrmse <= 0.02
     for kind in ("masing", "elastoslide"):
         assert identify(kind, fit, holdout=prediction).holdout.nrmse > 2 * rubber.holdout.nrmse
 
@@ -242,9 +242,17 @@ def test_the_large_strain_network_is_off_for_drop_tests_and_free_to_vanish():
     rich = plain.with_large_strain()
     extra = {p.name: p for p in rich.parameters[13:]}
     assert all(extra[n].lower == 0.0 for n in ("ks_nm_per_rad", "ks_hardening_nm_per_rad", "kn_nm_per_rad",
-                                               "network_hardening", "scragging"))
+                                               "network_hardening", "scragging", "travel_softening",
+                                               "slip_hardening"))
     kinds = [e["kind"] for e in rich.elements(rich.guess())]
     assert "large_strain_network" in kinds and "variable_maxwell" not in kinds
+    # the travel softening and the slip hardening at 0 and the sides shared: the network as it was
+    shared = FilledRubberFamily(scale, {"large_strain": True, "large_strain_sides": False})
+    v = shared.guess()
+    v[[shared.names.index(n) for n in ("travel_softening", "slip_hardening")]] = 0.0
+    element = next(e for e in shared.elements(v) if e["kind"] == "large_strain_network")
+    assert element["travel_softening"] == 0.0 and element["slip_hardening"] == 0.0 and not element["damage_sides"]
+    assert rich.elements(rich.guess())[-1]["damage_sides"]
 
 
 # ------------------------------------------------------------------ the record on the command line

@@ -142,7 +142,8 @@ class FilledRubberFamily(Family):
     ``stiffening_branch`` (the stiffening Maxwell branch), ``large_strain`` (the large-strain
     network, docs/theory.md#large-strain-network: None, the default, lets the servo strategy
     turn it on and a drop-test fit leave it off; True or False force it) and
-    ``large_strain_sliders`` (its Jenkins elements).
+    ``large_strain_sliders`` (its Jenkins elements) and ``large_strain_sides`` (True, the
+    default: the network's scragging kept apart on each side of 0; False: shared, as before).
     """
 
     kind = "filled_rubber"
@@ -150,7 +151,8 @@ class FilledRubberFamily(Family):
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
     OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
-               "stiffening_branch": True, "large_strain": None, "large_strain_sliders": 16}
+               "stiffening_branch": True, "large_strain": None, "large_strain_sliders": 16,
+               "large_strain_sides": True}
 
     def _parameters(self) -> list[FitVariable]:
         s = self.scale
@@ -286,7 +288,7 @@ class FilledRubberFamily(Family):
                 "spread": spread, "friction_gain": network_hardening / amp ** 2, "damage": scragging,
                 "damage_angle": scragging_angle, "damage_exponent": scragging_exponent, "damage_travel": travel,
                 "travel_softening": travel_softening / amp ** travel_exponent, "travel_exponent": travel_exponent,
-                "slip_hardening": slip_hardening / amp, "damage_sides": True,
+                "slip_hardening": slip_hardening / amp, "damage_sides": bool(self.options["large_strain_sides"]),
                 "n": int(self.options["large_strain_sliders"])}
 
     def _element_fields(self, k: Any, a: Any, kf: Any, ac: Any, m: Any, ab: Any, kp: Any, eta: Any, f_min: float,
