@@ -800,14 +800,16 @@ class LargeStrainNetwork(ElementSpec):
     travel |dx| over ``damage_travel`` towards ``damage`` (1 - exp(-(x_max / ``damage_angle``)^
     ``damage_exponent``)), x_max the largest |x| seen, and does not recover. The spring's ``stiffness``
     further softens with the travel c = sum |dx| as exp(-``travel_softening`` c^``travel_exponent``),
-    and the slips widen to s_i (1 + ``slip_hardening`` r^2), r the |x| at the motion's last reversal
-    (Gallardo et al. 2023's scragging with the travel and temporary hardening). Every gain may be 0:
-    ``gain`` 0 no stiffening, ``network_stiffness`` 0 no network, ``friction_gain`` 0 a plain Iwan
-    network, ``damage`` 0 no softening, ``travel_softening`` 0 none with the travel, ``slip_hardening``
-    0 fixed slips (all of them 0: a linear spring || an Iwan network).
+    and the slips widen to s_i (1 + ``slip_hardening`` r), r the |x| at the motion's last reversal
+    (Gallardo et al. 2023's scragging with the travel and temporary hardening). ``damage_sides``
+    True keeps D and x_max apart for x > 0 and x < 0 (Gallardo et al. 2023's Mullins strain of
+    each side). Every gain may be 0: ``gain`` 0 no stiffening, ``network_stiffness`` 0 no network,
+    ``friction_gain`` 0 a plain Iwan network, ``damage`` 0 no softening, ``travel_softening`` 0 none
+    with the travel, ``slip_hardening`` 0 fixed slips (all of them 0: a linear spring || an Iwan
+    network).
     """
 
-    SETTINGS: ClassVar[frozenset[str]] = frozenset({"n"})
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"n", "damage_sides"})
     kind: Literal["large_strain_network"]
     stiffness: NonNegativeFloat = 0.0         # N*m/rad, the virgin spring's linear stiffness
     gain: NonNegativeFloat = 0.0              # N*m/rad^(1+exponent), the stiffening term's coefficient

@@ -1033,18 +1033,22 @@ def large_strain_network(p, po, s, so, x0, x1, h):
       linear term times k_M = exp(-f c^p), c the travel sum |dx| from rest: a softening that goes
       on, ever slower, while the rubber is cycled, where D stops at D_inf(x_max) (f = 0: none);
     - **the friction's temporary hardening** (Gallardo et al. 2023's phi, set at each reversal by
-      the excursion there): the slips s_i (1 + h r^2), r the |x| at the motion's last reversal: a
+      the excursion there): the slips s_i (1 + h r), r the |x| at the motion's last reversal: a
       half-cycle after a large excursion slips later (a larger loop force), one after a small
       excursion sooner (h = 0: none). Only the limits change at a reversal, not the elongations:
-      no energy is created; a smaller limit clips the elongations (the energy released is dissipated).
+      no energy is created; a smaller limit clips the elongations (the energy released is dissipated);
+    - **the scragging of each side** (Gallardo et al. 2023's Mullins strain per side; sides > 0):
+      D and x_max of x < 0 in their own slots, those of x >= 0 in the shared ones (sides 0: one
+      D for both). The spring's torque is 0 at x = 0, so the switch between them is continuous.
 
     Energy: the stored energy is psi plus the spring's (1 - D) (k x^2 / 2 + a |x|^(q+2) / (q+2));
     the dissipated energy is booked as the trapezoidal work of the step minus the change of the
     stored energy, so the books balance to round-off; what it books is the sliders' slip and the
     damage's released energy, plus the trapezoid's O(h^3) error on the nonlinear spring.
 
-    params: [n, k, a, q, k_n, g, D_max, x_D, r, L, f, p, h, s_1..s_n].
-    internal (after the common header): [D, x_max, c, r, the motion's direction (+1, -1, 0 at rest), e_1..e_n].
+    params: [n, k, a, q, k_n, g, D_max, x_D, r, L, f, p, h, sides, s_1..s_n].
+    internal (after the common header): [D, x_max, c, r, the motion's direction (+1, -1, 0 at rest),
+    D and x_max of x < 0, e_1..e_n].
     """
     n = int(p[po + P_LARGE_STRAIN_NETWORK_N])
     dx = x1 - x0
