@@ -67,9 +67,10 @@ def test_the_shipped_record_is_the_published_test():
 def test_bearing_predicted_from_its_first_three_blocks():
     """Fitted to the 3.8, 7.6 and 15.2 cm blocks, the whole record predicted from rest (the 23 cm
     block unseen): filled_rubber within 4 % nRMSE and better than every other family, and
-    compare-models ranks it first by that prediction (measured: filled_rubber 3.21 % when the
-    network was built, 3.66 % re-measured on 2026-11-28 (3.39 % from the record written to CSV
-    and read back: neighbouring minima by the last digits), masing 5.56 %, elastoslide 5.88 %,
+    compare-models ranks it first by that prediction (measured: filled_rubber 2.05 % with the
+    network's sided scragging, travel softening and reversal-set slips; 3.21 % when the
+    network was built, 3.66 % re-measured on 2026-11-28 before those parts (3.39 % from the record
+    written to CSV and read back: neighbouring minima by the last digits), masing 5.56 %, elastoslide 5.88 %,
     pfeffer 11.37 %; without the large-strain network filled_rubber was 6.78 %)."""
     d, f, cuts = bearing()
     t = np.arange(d.size) * DT_S
@@ -206,15 +207,17 @@ def _law_records(tmp_path: Path) -> tuple[Path, Path, dict[str, slice]]:
 def test_published_law_predicted_from_four_blocks(tmp_path):
     """filled_rubber fitted to the law's four blocks (records in mm and kN) predicts the unseen
     amplitude and the decaying sine better than the simpler families, with a verdict that is not
-    poor. Measured on this tree: filled_rubber fit 1.89 %, prediction 2.63 % (fitted blocks 1.9 %,
-    unseen 1.75 strain 3.5 %, decaying sine 3.4 %; good fit); masing 8.0 %, elastoslide 8.0 %.
-    The issue's target for the prediction, 2 %, is not met (docs/guide/choosing-a-family.md)."""
+    poor, within the issue's 2 %. Measured on this tree: filled_rubber fit 1.32 %, prediction
+    1.72 % (fitted blocks 1.30 %, unseen 1.75 strain 2.13 %, decaying sine 2.17 %; good fit);
+    masing 8.0 %, elastoslide 8.0 %. Before the network's sided scragging, travel softening and
+    reversal-set slips and the held scragging limit: fit 1.89 %, prediction 2.63 %
+    (docs/theory.md#large-strain-network)."""
     fit_path, prediction_path, parts = _law_records(tmp_path)
     fit, prediction = segments_from_files([fit_path]), segments_from_files([prediction_path])
     assert fit[0].units == "translational"
     rubber = identify("filled_rubber", fit, holdout=prediction)
     assert not rubber.verdict.poor
-    assert rubber.fit.nrmse < 0.022 and rubber.holdout.nrmse < 0.03
+    assert rubber.fit.nrmse < 0.022 and rubber.holdout.nrmse <= 0.02
     for kind in ("masing", "elastoslide"):
         assert identify(kind, fit, holdout=prediction).holdout.nrmse > 2 * rubber.holdout.nrmse
 
@@ -242,9 +245,17 @@ def test_the_large_strain_network_is_off_for_drop_tests_and_free_to_vanish():
     rich = plain.with_large_strain()
     extra = {p.name: p for p in rich.parameters[13:]}
     assert all(extra[n].lower == 0.0 for n in ("ks_nm_per_rad", "ks_hardening_nm_per_rad", "kn_nm_per_rad",
-                                               "network_hardening", "scragging"))
+                                               "network_hardening", "scragging", "travel_softening",
+                                               "slip_hardening"))
     kinds = [e["kind"] for e in rich.elements(rich.guess())]
     assert "large_strain_network" in kinds and "variable_maxwell" not in kinds
+    # the travel softening and the slip hardening at 0 and the sides shared: the network as it was
+    shared = FilledRubberFamily(scale, {"large_strain": True, "large_strain_sides": False})
+    v = shared.guess()
+    v[[shared.names.index(n) for n in ("travel_softening", "slip_hardening")]] = 0.0
+    element = next(e for e in shared.elements(v) if e["kind"] == "large_strain_network")
+    assert element["travel_softening"] == 0.0 and element["slip_hardening"] == 0.0 and not element["damage_sides"]
+    assert rich.elements(rich.guess())[-1]["damage_sides"]
 
 
 # ------------------------------------------------------------------ the record on the command line

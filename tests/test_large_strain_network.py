@@ -67,3 +67,45 @@ def test_every_gain_may_vanish():
     assert np.all(_coupling().respond(_cycles(0.2, 1), H) == 0.0)
     with pytest.raises(ValueError, match="damage"):
         LargeStrainNetwork(kind="large_strain_network", damage=1.0)
+
+
+def test_each_side_scrags_on_its_own_travel():
+    """With ``damage_sides`` the positive and the negative side keep their own D and x_max (Gallardo
+    et al. 2023's Mullins strain of each side): after many cycles from 0 to A only, the spring
+    is k (1 - D_inf(A)) on that side and, at the first step below 0, k softened only by that
+    step's own travel; shared, it is softened on both alike."""
+    k, d_max, x_d, r, travel, amplitude = 1e3, 0.6, 0.2, 1.5, 0.05, 0.3
+    x = np.concatenate([amplitude * 0.5 * (1 - np.cos(2 * np.pi * np.arange(1, 2401) / 400)), [-1e-3]])
+    d_inf = d_max * (1 - np.exp(-(amplitude / x_d) ** r))
+    tip = 5 * 400 + 200
+    fresh = d_max * (1 - np.exp(-(1e-3 / x_d) ** r)) * (1 - np.exp(-1e-3 / travel))  # the step's own scragging
+    for sides, below in ((True, 1 - fresh), (False, 1 - d_inf)):
+        torque = _coupling(stiffness=k, damage=d_max, damage_angle=x_d, damage_exponent=r, damage_travel=travel,
+                           damage_sides=sides).respond(x, H)
+        assert torque[tip] / x[tip] == pytest.approx(k * (1 - d_inf), rel=1e-9)
+        assert torque[-1] / x[-1] == pytest.approx(k * below, rel=1e-12)
+
+
+def test_the_spring_softens_with_the_travel():
+    """``travel_softening`` f: the spring's linear stiffness is k exp(-f c^p) at every sample, c the
+    travel sum |dx| from rest (Gallardo et al. 2023's k_M), going on at a fixed amplitude."""
+    k, f, p = 2e3, 0.4, 0.6
+    x = _cycles(0.3, 3)
+    torque = _coupling(stiffness=k, travel_softening=f, travel_exponent=p).respond(x, H)
+    travel = np.cumsum(np.abs(np.diff(np.concatenate([[0.0], x]))))
+    assert np.allclose(torque, k * np.exp(-f * travel ** p) * x, rtol=1e-12, atol=0)
+    assert torque[3 * 400 - 300] < torque[400 - 300]  # the third cycle's tip below the first's
+
+
+def test_the_slips_widen_with_the_last_reversal():
+    """``slip_hardening`` h: beyond every slip the network's torque is k_n sum s_i (1 + h r), r the |x|
+    at the motion's last reversal (0 before the first): Gallardo et al. 2023's temporary hardening
+    of the friction, set by the excursion there."""
+    n, kf, slip, h = 8, 4e3, 0.02, 3.0
+    element = LargeStrainNetwork(kind="large_strain_network", network_stiffness=kf, slip=slip, slip_hardening=h, n=n)
+    s = element.slips()
+    x = np.concatenate([np.linspace(0, 0.2, 201)[1:], np.linspace(0.2, -0.1, 301)[1:], np.linspace(-0.1, 0.3, 401)[1:]])
+    torque = Coupling([element]).respond(x, H)
+    assert torque[199] == pytest.approx(kf / n * s.sum(), rel=1e-12)  # first loading: no reversal yet
+    assert torque[499] == pytest.approx(-kf / n * s.sum() * (1 + h * 0.2), rel=1e-12)  # reversed at 0.2
+    assert torque[-1] == pytest.approx(kf / n * s.sum() * (1 + h * 0.1), rel=1e-12)  # reversed at -0.1

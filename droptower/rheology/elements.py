@@ -798,12 +798,18 @@ class LargeStrainNetwork(ElementSpec):
     elements of ``network_stiffness`` in all, slipping at s_i = ``slip`` ((i + 1/2) / n)^``spread``,
     whose energy carries the factor 1 + ``friction_gain`` x^2. The damage D grows with the
     travel |dx| over ``damage_travel`` towards ``damage`` (1 - exp(-(x_max / ``damage_angle``)^
-    ``damage_exponent``)), x_max the largest |x| seen, and does not recover. Every gain may be 0:
-    ``gain`` 0 no stiffening, ``network_stiffness`` 0 no network, ``friction_gain`` 0 a plain Iwan
-    network, ``damage`` 0 no softening (the element is then a linear spring || an Iwan network).
+    ``damage_exponent``)), x_max the largest |x| seen, and does not recover. The spring's ``stiffness``
+    further softens with the travel c = sum |dx| as exp(-``travel_softening`` c^``travel_exponent``),
+    and the slips widen to s_i (1 + ``slip_hardening`` r), r the |x| at the motion's last reversal
+    (Gallardo et al. 2023's scragging with the travel and temporary hardening). ``damage_sides``
+    True keeps D and x_max apart for x > 0 and x < 0 (Gallardo et al. 2023's Mullins strain of
+    each side). Every gain may be 0: ``gain`` 0 no stiffening, ``network_stiffness`` 0 no network,
+    ``friction_gain`` 0 a plain Iwan network, ``damage`` 0 no softening, ``travel_softening`` 0 none
+    with the travel, ``slip_hardening`` 0 fixed slips (all of them 0: a linear spring || an Iwan
+    network).
     """
 
-    SETTINGS: ClassVar[frozenset[str]] = frozenset({"n"})
+    SETTINGS: ClassVar[frozenset[str]] = frozenset({"n", "damage_sides"})
     kind: Literal["large_strain_network"]
     stiffness: NonNegativeFloat = 0.0         # N*m/rad, the virgin spring's linear stiffness
     gain: NonNegativeFloat = 0.0              # N*m/rad^(1+exponent), the stiffening term's coefficient
@@ -816,6 +822,10 @@ class LargeStrainNetwork(ElementSpec):
     damage_angle: PositiveFloat = 1.0         # rad, x_D: the largest angle seen that sets D_inf
     damage_exponent: PositiveFloat = 1.0      # -, r: D_inf = D_max (1 - exp(-(x_max/x_D)^r))
     damage_travel: PositiveFloat = 1.0        # rad, L: the damage approaches D_inf over this travel
+    travel_softening: NonNegativeFloat = 0.0  # rad^-travel_exponent, f: the spring's k times exp(-f c^p), c the travel
+    travel_exponent: PositiveFloat = 0.5      # -, p of the travel softening
+    slip_hardening: NonNegativeFloat = 0.0    # 1/rad, h: the slips times 1 + h r, r the |x| at the last reversal
+    damage_sides: bool = False                # True: D and x_max of each side of x = 0 apart
     n: PositiveInt = 24                       # -, Jenkins elements of the network
 
     _n_limit = field_validator("n")(_at_most_max_n)
@@ -827,7 +837,8 @@ class LargeStrainNetwork(ElementSpec):
     def compile(self):
         params = np.concatenate([[self.n, self.stiffness, self.gain, self.exponent, self.network_stiffness / self.n,
                                   self.friction_gain, self.damage, self.damage_angle, self.damage_exponent,
-                                  self.damage_travel], self.slips()])
+                                  self.damage_travel, self.travel_softening, self.travel_exponent,
+                                  self.slip_hardening, float(self.damage_sides)], self.slips()])
         return [KernelElement(K.LARGE_STRAIN_NETWORK, params)]
 
 

@@ -141,10 +141,19 @@ P_LARGE_STRAIN_NETWORK_DAMAGE_MAX = 6
 P_LARGE_STRAIN_NETWORK_DAMAGE_ANGLE = 7
 P_LARGE_STRAIN_NETWORK_DAMAGE_EXPONENT = 8
 P_LARGE_STRAIN_NETWORK_DAMAGE_TRAVEL = 9
-P_LARGE_STRAIN_NETWORK_TABLES = 10
+P_LARGE_STRAIN_NETWORK_TRAVEL_SOFTENING = 10
+P_LARGE_STRAIN_NETWORK_TRAVEL_EXPONENT = 11
+P_LARGE_STRAIN_NETWORK_SLIP_HARDENING = 12
+P_LARGE_STRAIN_NETWORK_DAMAGE_SIDES = 13
+P_LARGE_STRAIN_NETWORK_TABLES = 14
 S_LARGE_STRAIN_NETWORK_DAMAGE = 3
 S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD = 4
-S_LARGE_STRAIN_NETWORK_BLOCKS = 5
+S_LARGE_STRAIN_NETWORK_TRAVEL_RAD = 5
+S_LARGE_STRAIN_NETWORK_REVERSAL_ANGLE_RAD = 6
+S_LARGE_STRAIN_NETWORK_DIRECTION = 7
+S_LARGE_STRAIN_NETWORK_DAMAGE_NEGATIVE = 8
+S_LARGE_STRAIN_NETWORK_PEAK_NEGATIVE_ANGLE_RAD = 9
+S_LARGE_STRAIN_NETWORK_BLOCKS = 10
 # ---------------------------------------------------------------- end of the generated slot offsets
 
 CACHE = cache_available()  # False where no cache folder is writable: compiled at every start instead
@@ -1019,32 +1028,60 @@ def large_strain_network(p, po, s, so, x0, x1, h):
       faster than one Coulomb bank (Grant, Fenves & Whittaker's (2004) (b1 + b2 |x|^2) z), and its torque
       d psi / dx = H k_n sum e_i + g x k_n sum e_i^2 is the gradient of a potential: the sliders,
       whose limits in force scale with H, slip at the elongations s_i whatever x (a return
-      mapping, exact).
+      mapping, exact);
+    - **the scragging's progress with the travel** (Gallardo et al. 2023's k_M): the spring's
+      linear term times k_M = exp(-f c^p), c the travel sum |dx| from rest: a softening that goes
+      on, ever slower, while the rubber is cycled, where D stops at D_inf(x_max) (f = 0: none);
+    - **the friction's temporary hardening** (Gallardo et al. 2023's phi, set at each reversal by
+      the excursion there): the slips s_i (1 + h r), r the |x| at the motion's last reversal: a
+      half-cycle after a large excursion slips later (a larger loop force), one after a small
+      excursion sooner (h = 0: none). Only the limits change at a reversal, not the elongations:
+      no energy is created; a smaller limit clips the elongations (the energy released is dissipated);
+    - **the scragging of each side** (Gallardo et al. 2023's Mullins strain per side; sides > 0):
+      D and x_max of x < 0 in their own slots, those of x >= 0 in the shared ones (sides 0: one
+      D for both). The spring's torque is 0 at x = 0, so the switch between them is continuous.
 
     Energy: the stored energy is psi plus the spring's (1 - D) (k x^2 / 2 + a |x|^(q+2) / (q+2));
     the dissipated energy is booked as the trapezoidal work of the step minus the change of the
     stored energy, so the books balance to round-off; what it books is the sliders' slip and the
     damage's released energy, plus the trapezoid's O(h^3) error on the nonlinear spring.
 
-    params: [n, k, a, q, k_n, g, D_max, x_D, r, L, s_1..s_n].
-    internal (after the common header): [D, x_max, e_1..e_n].
+    params: [n, k, a, q, k_n, g, D_max, x_D, r, L, f, p, h, sides, s_1..s_n].
+    internal (after the common header): [D, x_max, c, r, the motion's direction (+1, -1, 0 at rest),
+    D and x_max of x < 0, e_1..e_n].
     """
     n = int(p[po + P_LARGE_STRAIN_NETWORK_N])
     dx = x1 - x0
     ax = abs(x1)
-    peak = s[so + S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD]
+    slot_d = so + S_LARGE_STRAIN_NETWORK_DAMAGE
+    slot_peak = so + S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD
+    if p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_SIDES] > 0.0 and x1 < 0.0:  # the negative side's own D, x_max
+        slot_d = so + S_LARGE_STRAIN_NETWORK_DAMAGE_NEGATIVE
+        slot_peak = so + S_LARGE_STRAIN_NETWORK_PEAK_NEGATIVE_ANGLE_RAD
+    peak = s[slot_peak]
     if ax > peak:
         peak = ax
-        s[so + S_LARGE_STRAIN_NETWORK_PEAK_ANGLE_RAD] = peak
-    damage = s[so + S_LARGE_STRAIN_NETWORK_DAMAGE]
+        s[slot_peak] = peak
+    damage = s[slot_d]
     d_max = p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_MAX]
     if d_max > 0.0 and dx != 0.0:
         d_inf = d_max * (1.0 - np.exp(-(peak / p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_ANGLE])
                                       ** p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_EXPONENT]))
         if damage < d_inf:
             damage = d_inf - (d_inf - damage) * np.exp(-abs(dx) / p[po + P_LARGE_STRAIN_NETWORK_DAMAGE_TRAVEL])
-            s[so + S_LARGE_STRAIN_NETWORK_DAMAGE] = damage
+            s[slot_d] = damage
+    travel = s[so + S_LARGE_STRAIN_NETWORK_TRAVEL_RAD] + abs(dx)
+    s[so + S_LARGE_STRAIN_NETWORK_TRAVEL_RAD] = travel
+    if dx != 0.0:
+        direction = 1.0 if dx > 0.0 else -1.0
+        if direction != s[so + S_LARGE_STRAIN_NETWORK_DIRECTION]:
+            if s[so + S_LARGE_STRAIN_NETWORK_DIRECTION] != 0.0:  # a reversal at x0 (the first motion is none)
+                s[so + S_LARGE_STRAIN_NETWORK_REVERSAL_ANGLE_RAD] = abs(x0)
+            s[so + S_LARGE_STRAIN_NETWORK_DIRECTION] = direction
     k = p[po + P_LARGE_STRAIN_NETWORK_STIFFNESS]
+    f_travel = p[po + P_LARGE_STRAIN_NETWORK_TRAVEL_SOFTENING]
+    if f_travel > 0.0 and travel > 0.0:
+        k *= np.exp(-f_travel * travel ** p[po + P_LARGE_STRAIN_NETWORK_TRAVEL_EXPONENT])
     a = p[po + P_LARGE_STRAIN_NETWORK_GAIN]
     q = p[po + P_LARGE_STRAIN_NETWORK_EXPONENT]
     hard = ax ** q if a != 0.0 else 0.0
@@ -1056,11 +1093,13 @@ def large_strain_network(p, po, s, so, x0, x1, h):
         g = p[po + P_LARGE_STRAIN_NETWORK_FRICTION_GAIN]
         base = so + S_LARGE_STRAIN_NETWORK_BLOCKS
         limits = po + P_LARGE_STRAIN_NETWORK_TABLES
+        r = s[so + S_LARGE_STRAIN_NETWORK_REVERSAL_ANGLE_RAD]
+        widen = 1.0 + p[po + P_LARGE_STRAIN_NETWORK_SLIP_HARDENING] * r
         sum_e = 0.0
         sum_e2 = 0.0
         for i in range(n):
             e = s[base + i] + dx
-            lim = p[limits + i]
+            lim = p[limits + i] * widen
             if e > lim:
                 e = lim
             elif e < -lim:

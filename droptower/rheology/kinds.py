@@ -261,8 +261,9 @@ def _large_strain_network_stiffness(v: dict[str, float], p: np.ndarray, motion: 
 LARGE_STRAIN_NETWORK = KernelKind(
     "large_strain_network", K.LARGE_STRAIN_NETWORK, K.large_strain_network,
     params=("n", "stiffness", "gain", "exponent", "network_stiffness", "friction_gain", "damage_max", "damage_angle",
-            "damage_exponent", "damage_travel"),
-    internal=("damage", "peak_angle_rad"),  # then e_1..e_n
+            "damage_exponent", "damage_travel", "travel_softening", "travel_exponent", "slip_hardening", "damage_sides"),
+    internal=("damage", "peak_angle_rad", "travel_rad", "reversal_angle_rad", "direction", "damage_negative",
+              "peak_negative_angle_rad"),  # then e_1..e_n
     stiffness_bound=_large_strain_network_stiffness,
     n_params=lambda v: K.P_LARGE_STRAIN_NETWORK_TABLES + int(v["n"]),  # then the slips s_1..s_n
     n_internal=lambda v: K.S_LARGE_STRAIN_NETWORK_BLOCKS - K.N_HEADER + int(v["n"]))

@@ -142,7 +142,8 @@ class FilledRubberFamily(Family):
     ``stiffening_branch`` (the stiffening Maxwell branch), ``large_strain`` (the large-strain
     network, docs/theory.md#large-strain-network: None, the default, lets the servo strategy
     turn it on and a drop-test fit leave it off; True or False force it) and
-    ``large_strain_sliders`` (its Jenkins elements).
+    ``large_strain_sliders`` (its Jenkins elements) and ``large_strain_sides`` (True, the
+    default: the network's scragging kept apart on each side of 0; False: shared, as before).
     """
 
     kind = "filled_rubber"
@@ -150,7 +151,8 @@ class FilledRubberFamily(Family):
     source = ("Berg 1998; Sjöberg 2002; García Tárrago et al. 2007 (elastic + friction + fractional); "
               "Bagley & Torvik 1983; docs/theory.md#filled-rubber")
     OPTIONS = {"n": 32, "recovery_time_s": 10.0, "centre_relaxation_time_s": 5.0, "terms": 12,
-               "stiffening_branch": True, "large_strain": None, "large_strain_sliders": 16}
+               "stiffening_branch": True, "large_strain": None, "large_strain_sliders": 16,
+               "large_strain_sides": True}
 
     def _parameters(self) -> list[FitVariable]:
         s = self.scale
@@ -214,7 +216,10 @@ class FilledRubberFamily(Family):
                 FitVariable("scragging", 0.0, 0.999, log=False, scale=1.0),
                 FitVariable("scragging_angle_rad", 0.05 * amp, 5.0 * amp),
                 FitVariable("scragging_exponent", 0.3, 4.0),
-                FitVariable("scragging_travel_rad", 0.05 * amp, 30.0 * amp)]
+                FitVariable("scragging_travel_rad", 0.05 * amp, 30.0 * amp),
+                FitVariable("travel_softening", 0.0, 3.0, log=False, scale=1.0),
+                FitVariable("travel_exponent", 0.2, 1.5),
+                FitVariable("slip_hardening", 0.0, 10.0, log=False, scale=1.0)]
 
     #: The stiffening Maxwell branch's parameters: a drop-test fit searches first with the branch
     #: off (:meth:`branch_off`) and frees them in its wider search after a poor verdict, so a
@@ -244,7 +249,8 @@ class FilledRubberFamily(Family):
         base = [0.3 * k, 0.0, 0.6 * k, 0.1 * amp, 0.5, 0.4 * amp, 0.1 * k, 0.5, 0.01 * f, 3.0,
                 0.05 * k, 0.0, 1.0 / (2 * math.pi * f)]
         # the large-strain network: a scragged spring, a network of slips up to A/4, a little of each
-        large = [1.0 * k, 0.2 * k, 1.7, 10.0 * k, 0.12 * amp, 4.0, 0.5, 0.8, 1.5 * amp, 1.0, 5.0 * amp]
+        large = [1.0 * k, 0.2 * k, 1.7, 10.0 * k, 0.12 * amp, 4.0, 0.5, 0.8, 1.5 * amp, 1.0, 5.0 * amp,
+                 0.05, 0.5, 0.5]
         return np.array(base + (large if self.large_strain else []))
 
     def elements(self, v: np.ndarray) -> list[dict[str, Any]]:
@@ -266,18 +272,23 @@ class FilledRubberFamily(Family):
         off = {p.name: val <= IDLE_SHARE * p.scale for p, val in zip(params, values)}
         idle = {"ks_hardening_nm_per_rad": ("ks_hardening_order",),
                 "kn_nm_per_rad": ("slip_angle_rad", "slip_spread", "network_hardening"),
-                "scragging": ("scragging_angle_rad", "scragging_exponent", "scragging_travel_rad")}
+                "scragging": ("scragging_angle_rad", "scragging_exponent", "scragging_travel_rad"),
+                "travel_softening": ("travel_exponent",)}
         return [name for gain, names in idle.items() if off[gain] for name in names]
 
     def _large_strain_fields(self, ks: float, hardening: float, order: float, kn: float, slip: float, spread: float,
                              network_hardening: float, scragging: float, scragging_angle: float,
-                             scragging_exponent: float, travel: float) -> dict[str, Any]:
-        """The large-strain network's element of its parameters (:meth:`_large_strain_parameters`)."""
+                             scragging_exponent: float, travel: float, travel_softening: float,
+                             travel_exponent: float, slip_hardening: float) -> dict[str, Any]:
+        """The large-strain network's element of its parameters (:meth:`_large_strain_parameters`):
+        the travel and the reversal's angle read over the data's amplitude A."""
         amp = self.scale.amplitude_rad
         return {"kind": "large_strain_network", "name": "large_strain", "stiffness": ks,
                 "gain": hardening / amp ** order, "exponent": order, "network_stiffness": kn, "slip": slip,
                 "spread": spread, "friction_gain": network_hardening / amp ** 2, "damage": scragging,
                 "damage_angle": scragging_angle, "damage_exponent": scragging_exponent, "damage_travel": travel,
+                "travel_softening": travel_softening / amp ** travel_exponent, "travel_exponent": travel_exponent,
+                "slip_hardening": slip_hardening / amp, "damage_sides": bool(self.options["large_strain_sides"]),
                 "n": int(self.options["large_strain_sliders"])}
 
     def _element_fields(self, k: Any, a: Any, kf: Any, ac: Any, m: Any, ab: Any, kp: Any, eta: Any, f_min: float,
@@ -499,6 +510,13 @@ def _with_large_strain(s: Setup) -> FilledRubberFamily:
     if held[cubic]:
         s.x0[cubic] = 0.0
     s.given = s.given | held
+    # the scragging's limit held at its bound: D_inf = 1 - exp(-(x_max / x_D)^r), the stretched
+    # exponential of Gallardo et al. 2023's Mullins factor, goes on softening at a larger amplitude
+    # where a free D_max < 1 is spent on the fitted blocks and stops it (docs/theory.md#large-strain-network)
+    scragging = fam.names.index("scragging")
+    if not (s.given[scragging] or s.bounded[scragging]):
+        s.x0[scragging] = fam.parameters[scragging].upper
+        s.given[scragging] = True
     return fam
 
 
