@@ -181,6 +181,17 @@ def element(draw, kind):
         return {"kind": kind, "storage_stiffness": draw(stiffness), "loss_factor": draw(log_float(1e-2, 3.0)),
                 "reference_frequency": draw(log_float(0.1, 1e3)), "min_frequency": lo,
                 "max_frequency": lo * draw(log_float(1.5, 1e5)), "terms_per_decade": draw(st.floats(0.5, 3.0))}
+    if kind == "large_strain_network":
+        el = {"kind": kind, "stiffness": draw(st.floats(0.0, 1e5)), "gain": draw(st.floats(0.0, 1e6)),
+              "exponent": draw(st.floats(0.5, 4.0)), "network_stiffness": draw(st.floats(0.0, 1e5)),
+              "slip": draw(log_float(1e-4, 1.0)), "spread": draw(st.floats(0.2, 4.0)),
+              "friction_gain": draw(st.floats(0.0, 1e3)), "damage": draw(st.floats(0.0, 0.95)),
+              "damage_angle": draw(log_float(1e-3, 1.0)), "damage_exponent": draw(st.floats(0.2, 4.0)),
+              "damage_travel": draw(log_float(1e-3, 10.0)), "n": draw(st.integers(1, 40))}
+        if draw(st.booleans()):
+            el.update(travel_softening=draw(st.floats(0.0, 5.0)), travel_exponent=draw(st.floats(0.2, 2.0)),
+                      slip_hardening=draw(st.floats(0.0, 50.0)), damage_sides=draw(st.booleans()))
+        return el
     raise ValueError(kind)
 
 

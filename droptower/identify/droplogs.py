@@ -24,7 +24,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from droptower.errors import DroptowerError, missing_file
+from droptower.errors import DroptowerError, expects, missing_file
 from droptower.damped_cosine import start_frequency_and_decay
 from droptower.extract.extractor import metadata_value
 from droptower.extract.impact_detection import find_impact
@@ -157,6 +157,7 @@ def decay_from_signals(signals: Any, settings: ReadSettings, name: str) -> DropD
                      1.0 / period, float(np.max(np.abs(y[first]))), dt, dict(signals.metadata), noise)
 
 
+@expects(settings="droptower.identify.droplogs.ReadSettings")
 def read_decays(paths: Iterable[str | Path], settings: ReadSettings) -> tuple[list[DropDecay], list[dict[str, str]]]:
     """The free decays of drop-test logs and campaign folders (their ``logs/``), and the
     excluded ones as {file, reason}. Every problem of one log excludes that log only; a path that

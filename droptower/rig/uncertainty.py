@@ -28,6 +28,7 @@ from typing import Literal
 from pydantic import Field, NonNegativeFloat, PositiveFloat
 
 from droptower.config_validation import StrictModel
+from droptower.errors import expects
 
 #: relative tolerance within which a drop's inertia or mass is the fixture of an entry's ``nominal``
 FIXTURE_MATCH_REL = 1e-6
@@ -153,6 +154,7 @@ def parse_uncertainty_spec(spec: str) -> tuple[str, float | None, InputUncertain
     return field, nominal, entry
 
 
+@expects(base=("droptower.rig.uncertainty.RigUncertainty", type(None)), specs=(list, tuple))
 def override_uncertainty(base: RigUncertainty | None, specs: "list[str] | tuple[str, ...]") -> RigUncertainty | None:
     """``base`` (a rig file's ``[uncertainty]``, or None) with the inputs of ``specs``
     (:func:`parse_uncertainty_spec` each) over it: a later spec for the same input (the same

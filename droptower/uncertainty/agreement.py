@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
 
-from droptower.errors import DroptowerError, finite_values
+from droptower.errors import DroptowerError, expects, finite_values
 
 #: the verdicts of :func:`en_verdicts`
 VERDICTS: tuple[str, ...] = ("agrees", "disagrees", "bench uncertainty not given")
@@ -83,6 +83,7 @@ def en_verdicts(x_lab: ArrayLike, u95_lab: ArrayLike, x_ref: ArrayLike, u95_ref:
 AGREEMENT_QUANTITIES: tuple[str, ...] = ("stiffness_nm_per_deg", "damping_ratio")
 
 
+@expects(table=pd.DataFrame, map_u95=dict)
 def route_agreement(table: pd.DataFrame, map_u95: dict[str, ArrayLike], *, servo_u95: dict[str, ArrayLike] | None = None,
                     u95_ref_rel: float | None = None) -> pd.DataFrame:
     """E_n per servo point of one route (a validation table: ``map_<q>`` and ``servo_<q>`` per
@@ -128,6 +129,7 @@ def route_agreement(table: pd.DataFrame, map_u95: dict[str, ArrayLike], *, servo
     return out
 
 
+@expects(agreements=dict)
 def format_agreement(agreements: dict[str, pd.DataFrame]) -> str:
     """Per route and quantity: how many servo points agree (|E_n| ≤ 1), disagree, or have no
     bench uncertainty, inside the hull and in all; the largest |E_n|."""

@@ -21,7 +21,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rig.uncertainty import RigUncertainty
 from droptower.uncertainty.budget import COVERAGE_FACTOR
 
@@ -54,6 +54,7 @@ def _relative_inputs(row: pd.Series, u: RigUncertainty) -> dict[str, dict[str, f
     return out
 
 
+@expects(results=pd.DataFrame)
 def condition_budgets(results: pd.DataFrame, uncertainty: RigUncertainty | None = None) -> pd.DataFrame:
     """The budget of every condition's mean.
 
