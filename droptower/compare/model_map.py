@@ -402,7 +402,7 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
                     on_progress: Callable[[str], None] | None = None, rig: Any = None,
                     roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
                     conditions: Any = None, table: pd.DataFrame | None = None, inertia_kgm2: float | None = None,
-                    lever_length_m: float | None = None) -> ModelMap:
+                    lever_length_m: float | None = None, uncertainty: Any = None) -> ModelMap:
     """The model-based map beside the paper's map ``fit`` (whose measured range it shares),
     evaluated on its grid.
 
@@ -441,6 +441,9 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         The results table already read (for a results table's per-file inertia).
     inertia_kgm2, lever_length_m : float, optional
         Every log's inertia (kg*m^2) and lever length (m), over the logs', the conditions' and the rig's.
+    uncertainty : RigUncertainty, optional
+        The rig's input uncertainties: with ``model``, the map holds each input's shift of the
+        identification and its ``<q>_U95`` the inputs' share (:mod:`droptower.uncertainty.route`).
 
     Returns
     -------
@@ -480,8 +483,14 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         if not ident.converged:
             raise DroptowerError(f"model {model}: the fit to the drop tests did not converge ({ident.message}); "
                                  "no model-based map")
+        lever, laser = (None, None)
+        if uncertainty is not None:
+            from droptower.uncertainty.route import nominal_geometry
+
+            lever, laser = nominal_geometry(campaign.decays, campaign.read)
         mm = model_map_from_identification(ident, campaign.decays, campaign.settings, tested=fit.range,
-                                           source=str(results))
+                                           source=str(results), uncertainty=uncertainty, lever_length_m=lever,
+                                           laser_radius_m=laser)
         if ident.verdict is not None and ident.verdict.poor and on_note is not None:
             on_note(f"note: model {model} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
                     "trusted beyond the paper's")

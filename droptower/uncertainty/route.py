@@ -166,3 +166,18 @@ def route_input_shares(model_map: Any, input_sets: dict[str, np.ndarray], amplit
     nominal = _quantities(k[0])
     moved = [_quantities(row) for row in k[1:]]
     return {q: {key: m[q] - nominal[q] for key, m in zip(keys, moved)} for q in QUANTITIES}
+
+
+def nominal_geometry(decays: list, read: Any = None) -> tuple[float | None, float | None]:
+    """The nominal lever length and laser radius (m) drop-test logs were read with: the reading's
+    overrides (:class:`~droptower.identify.droplogs.ReadSettings`), else the first decay's
+    metadata, else the rig's defaults the reading holds; None where nothing says."""
+    def first(*values: Any) -> float | None:
+        return next((float(v) for v in values if v is not None), None)
+
+    meta = decays[0].metadata if decays else {}
+    defaults = getattr(read, "defaults", None) or {}
+    lever = first(getattr(read, "lever_length_m", None), meta.get("lever_length_m"), defaults.get("lever_length_m"))
+    laser = first(getattr(read, "sensor_radius_m", None), meta.get("sensor_radius_m"), meta.get("laser_radius_m"),
+                  defaults.get("sensor_radius_m"))
+    return lever, laser
