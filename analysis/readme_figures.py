@@ -375,13 +375,35 @@ def routes_table(stored: dict[str, Any], outside: bool = True) -> Block:
         rows.append(f"| {name} | {{k{i}}} % | {{l{i}}} % | {{d{i}}} % |" + (f" {{ok{i}}} % / {{ol{i}}} % |" if outside else "")
                     + f" {tail} |\n")
     figures["campaign"] = timed(fig["campaign_s"], ".1f")
+    judged = [(i, name, row["agreement"]) for i, (name, row) in enumerate(fig["routes"].items()) if row.get("agreement")]
+    en_block = ""
+    if judged:  # E_n per servo row against the bench (ISO 13528), stored by bench_routes.py
+        bench = judged[0][2]["bench_u95_rel"]
+        s_in = fig.get("stated_inputs", {})
+        en_rows = []
+        for i, name, a in judged:
+            cells = []
+            for q, label in (("stiffness_nm_per_deg", "s"), ("damping_ratio", "d")):
+                st = a["inside"][q]
+                figures[f"e{label}a{i}"] = exact(st["agree"], "d")
+                figures[f"e{label}n{i}"] = exact(st["n_points"], "d")
+                figures[f"e{label}m{i}"] = exact(st["max_abs_en"], ".2f")
+                cells.append(f"{{e{label}a{i}}} of {{e{label}n{i}}} (max \\|E_n\\| {{e{label}m{i}}})")
+            en_rows.append(f"| {name} | " + " | ".join(cells) + " |\n")
+        figures["bench"] = exact(100 * bench, "g")
+        stated = ", ".join(f"{k.replace('_rel', '')} {100 * v:g} %" for k, v in s_in.items())
+        en_block = ("\nAgreement with the bench (ISO 13528: E_n = (x_route − x_bench)/√(U_route² + U_bench²), "
+                    "|E_n| ≤ 1 agrees), the servo rows inside the hull; the bench's U95 stated as {bench} %, the "
+                    f"rig's inputs as standard uncertainties ({stated}; `bench_routes.py`'s STATED_FIGURES):\n\n"
+                    "| route | stiffness: rows agreeing | damping ratio: rows agreeing |\n|---|---|---|\n"
+                    + "".join(en_rows))
     plan = " (Table 2's cases and heights, one repeat, no preload: `--quick`)" if fig["plan"] == "quick" else " of Table 2"
     intro = (f"The {fig['tests']}-test campaign{plan}, {first} servo points inside the hull; measured {m['date']} on "
              f"{m['cores']} shared cores at load average {{lo}}–{{hi}}, which stretches wall times (the campaign itself "
              "took {campaign} s in the same run; compare the ratios).\n\n")
     loads = (m["load_average_start"], m["load_average_end"])
     figures.update(lo=timed(min(loads), ".1f"), hi=timed(max(loads), ".1f"))
-    return fill(intro + head + "".join(rows), **figures)
+    return fill(intro + head + "".join(rows) + en_block, **figures)
 
 
 def at_scale(stored: dict[str, Any]) -> Block:

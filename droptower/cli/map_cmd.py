@@ -112,6 +112,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         from droptower.uncertainty import map_uncertainty
 
         bands = map_uncertainty(table, input_u, map_fit=fit)
+        fit.input_uncertainty = input_u.model_dump(exclude_none=True)  # stored in map.json: validate reuses them
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
         options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")

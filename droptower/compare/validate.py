@@ -157,9 +157,10 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
         The rig's input uncertainties (:class:`droptower.uncertainty.RigUncertainty`): with it
         (or with ``servo_u95_rel``) each route gets E_n numbers per servo point
         (``agreement``). The paper's map's U95 (:func:`droptower.uncertainty.map_uncertainty`)
-        needs ``results``, the tests it was fitted to; the model-based map's is 2·std of its
-        bands with the inertia's share on K' (J scales every identified stiffness, not the loss
-        factor: see :func:`model_route_u95`).
+        needs ``results``, the tests it was fitted to; the model-based map's is its own U95 where
+        it was built with the inputs (its bands and each input's shift), else 2·std of its bands
+        with the inertia's share on K' (see :func:`model_route_u95`). Not given: the inputs the
+        map (``map.json``'s ``input_uncertainty``) or the model map was computed with, if any.
     servo_u95_rel : float, optional
         The bench's own relative expanded uncertainty (0.02: 2 %) for every point where the servo
         table gives none (columns ``servo_stiffness_nm_per_deg_U95``, ``servo_damping_ratio_U95``).
@@ -186,6 +187,17 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     if servo_columns and servo_results is None:
         raise DroptowerError("`servo_columns` needs `servo_results` (the table whose columns it names)")
     fit = map_fit if isinstance(map_fit, MapFit) else MapFit.from_json(map_fit)
+    mm = None
+    if model_map is not None:
+        from droptower.compare.model_map import ModelMap
+
+        mm = model_map if isinstance(model_map, ModelMap) else ModelMap.from_json(model_map)
+    if uncertainty is None and judged:  # the inputs the maps were computed with (map.json, model_map.json)
+        stored = fit.input_uncertainty or (mm.input_uncertainty if mm is not None else None)
+        if stored:
+            from droptower.rig.uncertainty import RigUncertainty
+
+            uncertainty = RigUncertainty.model_validate(stored)
     reference_table = read_reference(reference) if reference is not None else None
     if isinstance(results, pd.DataFrame) or results is None:
         campaign = results
@@ -200,12 +212,11 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
               else run_sweeps(coupling, reduced=quick))
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
-    routes = route = mm = None
-    if model_map is not None:
-        from droptower.compare.model_map import PAPER_ROUTE, ModelMap
+    routes = route = None
+    if mm is not None:
+        from droptower.compare.model_map import PAPER_ROUTE
         from droptower.compare.validation import validate_routes
 
-        mm = model_map if isinstance(model_map, ModelMap) else ModelMap.from_json(model_map)
         route = mm.route
         routes = validate_routes({PAPER_ROUTE: fit, mm.route: mm}, points, hull=fit)
     agreement = _agreement(fit, validation, routes, mm, campaign, uncertainty, servo_u95_rel, points) \
