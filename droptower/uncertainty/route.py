@@ -94,32 +94,12 @@ def _stated(uncertainty: RigUncertainty, decays: list, lever_length_m: float | N
     return out
 
 
-def route_input_sets(ident: Any, decays: list, settings: Any, uncertainty: RigUncertainty, *,
-                     lever_length_m: float | None = None,
-                     laser_radius_m: float | None = None) -> dict[str, np.ndarray]:
-    """Each given input's shifted parameter set of a drop-test identification.
-
-    Parameters
-    ----------
-    ident : Identification
-        A drop-test identification (:func:`~droptower.identify.drops.identify_from_drop_tests`).
-    decays : list of DropDecay
-        The decays it was fitted to (its ``tests_used`` among them).
-    settings : DropFitSettings
-        The fit's settings (``DropCampaign.settings``).
-    uncertainty : RigUncertainty
-        The rig's input uncertainties; a fixture's J is matched to the decays' inertia.
-    lever_length_m, laser_radius_m : float, optional
-        The nominal lever length and laser radius (m) the logs were read with; needed only when
-        their uncertainty is given (relative: u/L, u/r).
-
-    Returns
-    -------
-    dict
-        Input key (``inertia_kgm2@0.359``, ``lever_length_m``, ...) -> the raw parameter set
-        (n,) of the identified coupling at ẑ + Δz, Δz the identification's shift for one
-        standard uncertainty of that input.
-    """
+def route_input_values(ident: Any, decays: list, settings: Any, uncertainty: RigUncertainty, *,
+                       lever_length_m: float | None = None,
+                       laser_radius_m: float | None = None) -> dict[str, np.ndarray]:
+    """Each given input's shifted parameter values of a drop-test identification (the family's
+    parameters, as ``ident.params``): input key -> values (n,) at ẑ + Δz, Δz the identification's
+    shift for one standard uncertainty of that input. Arguments as :func:`route_input_sets`."""
     from droptower.identify.dropfit import DropProblem
 
     used = set(ident.tests_used)
@@ -146,8 +126,61 @@ def route_input_sets(ident: Any, decays: list, settings: Any, uncertainty: RigUn
         dz = -pinv @ (DropProblem(ident.family_model, moved, settings).residuals(values[None])[0] - res[0])
         v = np.array(values, float)
         v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z0 + dz)]
-        out[key] = ident.family_model.coupling(v).params[0]
+        out[key] = v
     return out
+
+
+def route_input_sets(ident: Any, decays: list, settings: Any, uncertainty: RigUncertainty, *,
+                     lever_length_m: float | None = None,
+                     laser_radius_m: float | None = None) -> dict[str, np.ndarray]:
+    """Each given input's shifted parameter set of a drop-test identification.
+
+    Parameters
+    ----------
+    ident : Identification
+        A drop-test identification (:func:`~droptower.identify.drops.identify_from_drop_tests`).
+    decays : list of DropDecay
+        The decays it was fitted to (its ``tests_used`` among them).
+    settings : DropFitSettings
+        The fit's settings (``DropCampaign.settings``).
+    uncertainty : RigUncertainty
+        The rig's input uncertainties; a fixture's J is matched to the decays' inertia.
+    lever_length_m, laser_radius_m : float, optional
+        The nominal lever length and laser radius (m) the logs were read with; needed only when
+        their uncertainty is given (relative: u/L, u/r).
+
+    Returns
+    -------
+    dict
+        Input key (``inertia_kgm2@0.359``, ``lever_length_m``, ...) -> the identified coupling's
+        raw parameter set (n,) at ẑ + Δz, Δz the identification's shift for one standard
+        uncertainty of that input.
+    """
+    values = route_input_values(ident, decays, settings, uncertainty, lever_length_m=lever_length_m,
+                                laser_radius_m=laser_radius_m)
+    return {key: ident.family_model.coupling(v).params[0] for key, v in values.items()}
+
+
+def route_parameter_budget(ident: Any, input_values: dict[str, np.ndarray]) -> "pd.DataFrame":
+    """The identified parameters' budget: one row per free parameter with its ``value``, the
+    fit's ``u_fit`` (the identification's standard error), each input's share ``u_<input>``
+    (|shift| for one standard uncertainty, :func:`route_input_values`), ``u_inputs``, ``u_c``,
+    ``U95`` (k = 2) and the ``dominant`` term (``fit`` or an input key)."""
+    import pandas as pd
+
+    values, std = ident.params.vector(), ident.params.stderr_vector()
+    rows = []
+    for i, name in enumerate(ident.params):  # vector() is in the dict's order
+        if not np.isfinite(std[i]):
+            continue
+        shares = {key: abs(float(v[i] - values[i])) for key, v in input_values.items()}
+        u_in = math.sqrt(sum(x * x for x in shares.values()))
+        terms = {"fit": float(std[i]), **shares}
+        rows.append({"parameter": name, "value": float(values[i]), "u_fit": float(std[i]),
+                     **{f"u_{k}": x for k, x in shares.items()}, "u_inputs": u_in,
+                     "u_c": math.hypot(float(std[i]), u_in), "U95": 2.0 * math.hypot(float(std[i]), u_in),
+                     "dominant": max(terms, key=terms.get)})
+    return pd.DataFrame(rows)
 
 
 def route_input_shares(model_map: Any, input_sets: dict[str, np.ndarray], amplitude_deg: ArrayLike,
