@@ -42,7 +42,9 @@ BENCHMARKS = {"core": "bench_core.py", "rig": "bench_rig.py", "extract": "bench_
 #: rendered into their own blocks, not into the benchmark table's machine line
 BENCHMARK_RUNS = {"identify_hard": ("bench_identify.py", "--random", "--hard"),
                   "report": ("bench_report.py", "--n", "4500"),
-                  "campaign_dask": ("bench_campaign.py", "--dask", "--n", "45000")}
+                  "campaign_dask": ("bench_campaign.py", "--dask", "--n", "45000"),
+                  "uncertainty_coverage": ("bench_uncertainty_coverage.py", "--campaigns", "2000"),
+                  "uncertainty_route": ("bench_uncertainty_route.py", "--campaigns", "1000", "--workers", "2")}
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
 #: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
 #: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
@@ -446,6 +448,38 @@ def at_scale(stored: dict[str, Any]) -> Block:
         b_wm=timed(base["worker_peak_mb"], ".0f"))
 
 
+def uncertainty_coverage(stored: dict[str, Any]) -> Block:
+    """The coverage of the model route's 95 % intervals (docs/guide/uncertainty.md): the package's
+    identification (bench_uncertainty_route.py) and the closed-form route (bench_uncertainty_coverage.py)."""
+    route, closed = stored["uncertainty_route"], stored["uncertainty_coverage"]
+    r, c = route["figures"], closed["figures"]
+    def share(v: float) -> Figure:
+        return exact(100 * v, ".1f")
+
+    dom = r["dominant_storage_stiffness"]
+    top = max(dom, key=dom.get)
+    return fill(
+        "| route of the campaigns | campaigns (drops each) | K' covered | loss factor covered | fit-only: K' / loss factor "
+        "| CPU per campaign |\n|---|---|---|---|---|---|\n"
+        f"| identified from the drops, {r['family']}, the virtual bench at {r['servo_frequency_hz']:g} Hz, every input "
+        "| {rn} ({rd}) | {rk} % | {re} % | {rkf} % / {ref} % | {rcpu} s |\n"
+        "| closed forms of a linear coupling, J and the clock | {cn} ({cd}) | {ck} % | {ce} % | {ckf} % / {cef} % "
+        "| {ccpu} s |\n\n"
+        "Target: 95 % ± 2.5 % with the inputs (binomial standard deviation {rstd} % and {cstd} %); measured "
+        f"{route['machine']['date']} and {closed['machine']['date']}. The identified route's K' is dominated by "
+        f"`{top}` in {{rdom}} of the campaigns; its loss factor by the lever length (the initial rate L·∫F dt/J "
+        "sets the decay's amplitude) in {rlev} (`python analysis/readme_figures.py --render-only` writes this "
+        "table from benchmarks/results/uncertainty_route.json and uncertainty_coverage.json).\n",
+        rn=exact(r["campaigns"], "d"), rd=exact(r["drops_per_campaign"], "d"), rk=share(r["coverage_storage_stiffness"]),
+        re=share(r["coverage_loss_factor"]), rkf=share(r["coverage_storage_stiffness_fit_only"]),
+        ref=share(r["coverage_loss_factor_fit_only"]), rcpu=on_cpu(r["cpu_s_per_campaign"], ".2f"),
+        cn=exact(c["campaigns"], "d"), cd=exact(c["drops_per_campaign"], "d"), ck=share(c["coverage_storage_stiffness"]),
+        ce=share(c["coverage_loss_factor"]), ckf=share(c["coverage_storage_stiffness_fit_only"]),
+        cef=share(c["coverage_loss_factor_fit_only"]), ccpu=on_cpu(c["cpu_s_per_campaign"], ".3f"),
+        rstd=exact(100 * r["binomial_std_at_95pct"], ".2f"), cstd=exact(100 * c["binomial_std_at_95pct"], ".2f"),
+        rdom=exact(dom[top], "d"), rlev=exact(r["dominant_loss_factor"].get("lever_length_m", 0), "d"))
+
+
 #: every block: name -> (file relative to the repository, renderer)
 BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "map_auto": ("docs/guide/map.md", map_auto),
@@ -457,6 +491,7 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "study_results": ("analysis/README.md", study_results),
     "routes": ("docs/routes.md", routes_table),
     "routes_readme": ("README.md", lambda stored: routes_table(stored, outside=False)),
+    "uncertainty_coverage": ("docs/guide/uncertainty.md", uncertainty_coverage),
 }
 
 
