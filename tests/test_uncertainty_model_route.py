@@ -137,3 +137,57 @@ def test_route_campaigns_machinery():
             assert r[f"{q}_U95_fit"] < r[f"{q}_U95"]
             assert abs(r[q] / r[f"{q}_true"] - 1) < 0.05
     assert sum(abs(r["k"] - r["k_true"]) <= r["k_U95"] for r in rows) >= 3
+
+
+@pytest.fixture(scope="module")
+def kv_campaign(tmp_path_factory):
+    """`campaign --uncertainty` on a Kelvin-Voigt coupling: three drops, one per fixture."""
+    from droptower.cli.main import main
+    from droptower.rheology import coupling_to_toml, parse_coupling
+
+    root = tmp_path_factory.mktemp("kv_campaign")
+    (root / "kv.toml").write_text(coupling_to_toml(parse_coupling(
+        {"element": [{"kind": "spring", "stiffness": K}, {"kind": "dashpot", "damping": C}]})))
+    (root / "plan.toml").write_text('name = "kv"\nbase_seed = 3\nrepeats = 1\nheights_m = [0.5]\npreloads_nm = [0.0]\n'
+                                    + "".join(f'[[group]]\nname = "J{j}"\ninertia_kgm2 = {j}\ndrop_mass_kg = 2.0\n'
+                                              for j in FIXTURES))
+    code = main(["campaign", "--doe", str(root / "plan.toml"), "--coupling", str(root / "kv.toml"), "--out",
+                 str(root / "camp"), "--workers", "1", "--duration-s", "0.1", "--uncertainty",
+                 "inertia_kgm2@0.359=0.00359", "--uncertainty", "sample_rate_hz=4"])
+    assert code == 0
+    return root
+
+
+@pytest.mark.slow  # a campaign and an identification (~10 s on a loaded machine)
+def test_campaign_and_identify_state_the_inputs(kv_campaign, capsys):
+    """campaign --uncertainty writes the per-drop columns (the fixture without a stated J names it
+    as not given); identify --from-drop-tests --uncertainty gives each parameter's budget, J the
+    stiffness's dominant input (1 % against a fit of ~0.1 %)."""
+    import json
+
+    import pandas as pd
+
+    from droptower.cli.main import main
+
+    table = pd.read_csv(kv_campaign / "camp" / "results_uncertainty.csv")
+    assert len(table) == 3 and table["stiffness_nm_per_deg_U95"].notna().all()
+    j = table.set_index("inertia_kgm2")
+    assert "inertia_kgm2" in j.loc[0.1557, "uncertainty_not_given"]
+    assert "inertia_kgm2" not in j.loc[0.359, "uncertainty_not_given"]
+    capsys.readouterr()
+    code = main(["identify", "--from-drop-tests", str(kv_campaign / "camp"), "--model", "template", "--template",
+                 str(kv_campaign / "kv.toml"), "--holdout-fraction", "0", "--json",
+                 *[a for f in FIXTURES for a in ("--uncertainty", f"inertia_kgm2@{f}={0.01 * f}")]])
+    assert code == 0
+    rows = {r["parameter"]: r for r in json.loads(capsys.readouterr().out)["uncertainty"]["parameters"]}
+    k = rows["e1_spring_stiffness_factor"]
+    assert k["dominant"].startswith("inertia_kgm2@") and k["U95"] == pytest.approx(2 * k["u_c"])
+    assert 0.003 < k["u_inputs"] / k["value"] < 0.01  # each fixture's 1 %, on a third of the drops each
+
+
+def test_uncertainty_on_identify_needs_drop_tests(capsys):
+    from droptower.cli.main import main
+
+    code = main(["identify", "x.csv", "--model", "zerodim6", "--uncertainty", "sample_rate_hz=4"])
+    _, err = capsys.readouterr()
+    assert code == 2 and "--from-drop-tests" in err and "Traceback" not in err
