@@ -28,13 +28,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from droptower.errors import DroptowerError
 from droptower.rig.uncertainty import RigUncertainty
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: the inputs that move a drop-test identification (the drop mass and height do not: the rate
 #: after the impact comes from the force impulse or the angle's slope, not the impact law)
