@@ -34,7 +34,7 @@ measured, and the ``map.json`` file that carries them.
   ``coverage``: one line per fixture or condition left out entirely, with why, and a
   temperature span over 5 K (:mod:`droptower.maps.coverage`). Absent in older files.
 - ``input_uncertainty``: the rig's input uncertainties the map's expanded uncertainties were
-  computed with (:class:`~droptower.rig.uncertainty.RigUncertainty`'s fields; null: none given);
+  computed with (:class:`~droptower.rig.uncertainty.RigUncertainty`'s fields; absent: none given);
   ``validate`` reuses them where it is given none. Absent in older files.
 """
 from __future__ import annotations
@@ -225,7 +225,7 @@ class MapFit:
             "fixtures": list(self.fixtures),
             "temperature_range_c": list(self.temperature_range_c) if self.temperature_range_c else None,
             "coverage": list(self.coverage),
-            "input_uncertainty": json_safe(self.input_uncertainty),
+            **({"input_uncertainty": json_safe(self.input_uncertainty)} if self.input_uncertainty else {}),
         }
 
     def coefficient_table(self) -> "pd.DataFrame":
