@@ -58,13 +58,13 @@ from droptower.campaign import run_campaign
 from droptower.compare import run_sweeps, validate_map
 from droptower.compare.reference_map import compare_reference
 from droptower.data import table4_path
-from droptower.decayfit import fit_decay, start_frequency_and_decay
+from droptower.damped_cosine import fit_decay, start_frequency_and_decay
 from droptower.maps import fit_map
 from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, coupling_to_toml, parse_coupling
 from droptower.rig.config import load_rig
-from droptower.rig.impact import impact_velocities
-from droptower.rig.planner import free_decay
+from droptower.rig.impact_law import impact_velocities
+from droptower.rig.predictions import free_decay
 from droptower.rig.preload import pretwist
 from droptower.sdof import damping_ratio, drop_tower_equivalent_damping_ratio, stiffness
 from droptower.servo.steady import rubber_figures, steady_state

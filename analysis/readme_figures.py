@@ -44,7 +44,8 @@ BENCHMARK_RUNS = {"identify_hard": ("bench_identify.py", "--random", "--hard"),
                   "report": ("bench_report.py", "--n", "4500"),
                   "campaign_dask": ("bench_campaign.py", "--dask", "--n", "45000"),
                   "uncertainty_coverage": ("bench_uncertainty_coverage.py", "--campaigns", "2000"),
-                  "uncertainty_route": ("bench_uncertainty_route.py", "--campaigns", "1000", "--workers", "2")}
+                  "uncertainty_route": ("bench_uncertainty_route.py", "--campaigns", "1000", "--workers", "2"),
+                  "fresh": ("bench_fresh.py", "--large")}
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
 #: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
 #: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
@@ -168,7 +169,8 @@ def bench_table(stored: dict[str, Any]) -> Block:
         "| core vs `scipy.integrate.solve_ivp` (Radau, analytic Jacobian) on the elastoslide composition, equal "
         "peak-torque accuracy (≤ 0.5 %), CPU time, best of N each | {ivp}× faster | ≥ 100× |\n"
         "| rig, one 0.25 s drop test at 38.4 kHz, reference coupling | {rig1} s | ≤ 0.3 s |\n"
-        f"| rig, {rig['tests']} tests batched, {rig['workers']} workers | {{rigb}} s | ≤ 30 s |\n"
+        f"| rig, {rig['tests']} tests of 0.25 s each batched (longer records than a campaign's), {rig['workers']} workers "
+        "| {rigb} s | ≤ 30 s |\n"
         "| extraction, 10 000-sample CSV logs, parsing included | {ext} logs/s ({ext_cpu} on CPU time; parsing {share} %) "
         "| ≥ 100 logs/s |\n"
         "| campaign, Table 2 (450 tests simulated, logged, extracted) | {camp} s, peak memory ≤ {mem} GB "
@@ -178,7 +180,7 @@ def bench_table(stored: dict[str, Any]) -> Block:
         "| identification from 12 drop tests (elastoslide, zerodim6-type, masing-type) | {dlo}–{dhi} s each "
         "({rlo}–{rhi}× the rig simulating the same tests) | ≤ 60 s |\n"
         "| identification from the Table-2 campaign (450 tests), `template rapp2022_nr60` | {t2} s "
-        "({t2r}× the campaign itself) | ≤ 5 min |\n",
+        "({t2r}× the campaign itself, {t2c} s in the same run) | ≤ 5 min |\n",
         c_ms=timed(core["composition_single_1s_ms"], ".1f"), c_rt=timed(core["composition_real_time_factor"], ".0f"),
         n_ms=timed(core["coupling_single_1s_ms"], ".1f"), n_rt=timed(core["coupling_real_time_factor"], ".0f"),
         c_cpu=on_cpu(core["composition_single_1s_cpu_ms"], ".1f"), n_cpu=on_cpu(core["coupling_single_1s_cpu_ms"], ".1f"),
@@ -191,7 +193,8 @@ def bench_table(stored: dict[str, Any]) -> Block:
         es=timed(ident["servo"]["elastoslide_wall_s"], ".1f"), ese=on_cpu(ident["servo"]["elastoslide_evaluations"], "d"),
         dlo=timed(min(walls), ".0f"), dhi=timed(max(walls), ".0f"), rlo=timed(min(ratios), ".1f"),
         rhi=timed(max(ratios), ".1f"), t2=timed(ident["table2"]["wall_s"], ".0f"),
-        t2r=timed(ident["table2"]["wall_s"] / ident["table2"]["campaign_s"], ".1f"))
+        t2r=timed(ident["table2"]["wall_s"] / ident["table2"]["campaign_s"], ".1f"),
+        t2c=timed(ident["table2"]["campaign_s"], ".1f"))
 
 
 def identify_drops(stored: dict[str, Any]) -> Block:
@@ -480,6 +483,128 @@ def uncertainty_coverage(stored: dict[str, Any]) -> Block:
         rdom=exact(dom[top], "d"), rlev=exact(r["dominant_loss_factor"].get("lever_length_m", 0), "d"))
 
 
+def _loads(m: dict[str, Any]) -> dict[str, Figure]:
+    return {"lo": timed(min(m["load_average_start"], m["load_average_end"]), ".1f"),
+            "hi": timed(max(m["load_average_start"], m["load_average_end"]), ".1f")}
+
+
+def fresh_table(stored: dict[str, Any]) -> Block:
+    """The commands as a user meets them (fresh processes), against the previous release in the same run."""
+    run = stored["fresh"]
+    f, m = run["figures"], run["machine"]
+    base = f["baseline_label"]
+    rows, figures = [], {}
+    for key, what, target in (
+            ("import", "`python -c \"from droptower.extract import extract_file\"`", "≤ 0.5 s"),
+            ("extract", "`droptower extract ONE_FILE --out r.csv` (one 10 000-sample log)", "≤ 1.0 s"),
+            ("campaign", "`droptower campaign --out DIR --workers 2` (Table 2, 450 tests)", "≤ 5 s")):
+        rows.append(f"| {what} | {{{key}_w}} s ({{{key}_c}} s CPU) | {{{key}_bw}} s ({{{key}_bc}} s CPU) "
+                    f"| {{{key}_r}}× ({{{key}_rc}}× on CPU) | {target} |\n")
+        figures.update({f"{key}_w": timed(f[f"{key}_wall_s"], ".2f"), f"{key}_c": on_cpu(f[f"{key}_cpu_s"], ".2f"),
+                        f"{key}_bw": timed(f[f"{key}_baseline_wall_s"], ".2f"),
+                        f"{key}_bc": on_cpu(f[f"{key}_baseline_cpu_s"], ".2f"),
+                        f"{key}_r": timed(f[f"{key}_speed_up_wall"], ".1f"), f"{key}_rc": on_cpu(f[f"{key}_speed_up_cpu"], ".1f")})
+    rows.append("| core, `rapp2022_nr60` driven 1 s at 38.4 kHz (1 deg, 10 Hz), fresh process | {core_rt}× real time "
+                "({core_rtc}× on CPU time) | {core_brt}× ({core_brtc}×) | | ≥ 200× |\n")
+    figures.update({"core_rt": timed(f["core_real_time_factor"], ".0f"), "core_rtc": on_cpu(f["core_real_time_factor_cpu"], ".0f"),
+                    "core_brt": timed(f["core_baseline_real_time_factor"], ".0f"),
+                    "core_brtc": on_cpu(f["core_baseline_real_time_factor_cpu"], ".0f")})
+    if "campaign_large_wall_s" in f:
+        n = f"{f['campaign_large_tests']:,}".replace(",", " ")
+        rows.append(f"| the same campaign, {n} tests | " + "{large_w} s ({large_c} s CPU): {large_r}× the 450-test run "
+                    "(CPU {large_rc}×) | | | ≤ 10× |\n")
+        figures.update({"large_w": timed(f["campaign_large_wall_s"], ".1f"), "large_c": on_cpu(f["campaign_large_cpu_s"], ".1f"),
+                        "large_r": timed(f["campaign_large_over_450"], ".1f"),
+                        "large_rc": on_cpu(f["campaign_large_over_450_cpu"], ".1f")})
+    return fill(
+        f"Fresh processes, as a user runs the commands (`bench_fresh.py --large`, measured {m['date']} on "
+        f"{m['cores']} shared cores at load average " + "{lo}–{hi}): best-of-N wall time and the CPU time of the "
+        f"process and its workers, against the previous release ({base}, `{f['baseline_ref']}`) run the same way, "
+        "interleaved, in the same run.\n\n"
+        f"| command | this version | {base} | speed-up | target |\n|---|---|---|---|---|\n" + "".join(rows),
+        **_loads(m), **figures)
+
+
+def campaign_time(stored: dict[str, Any]) -> Block:
+    """One sentence of docs/guide/campaign.md: the README's campaign as a fresh command."""
+    run = stored["fresh"]
+    return fill("The 450 tests of Table 2 take {wall} s on two cores as a fresh `droptower campaign --workers 2` "
+                f"(measured {run['machine']['date']} at load average " + "{lo}–{hi}; [benchmarks](../benchmarks.md)).\n",
+                wall=timed(run["figures"]["campaign_wall_s"], ".1f"), **_loads(run["machine"]))
+
+
+def zerodim20_times(stored: dict[str, Any]) -> Block:
+    """zerodim20's fit times on stepped sines (docs/guide/identification.md)."""
+    z = stored["identify"]["figures"]["zerodim20"]
+    good, far = z["stepped sines (9 bench records, 0.3/1/2 deg x 2/8/20 Hz)"], \
+        z["test types whose zerodim6 branch stages end far off (ranking test's draw)"]
+    m = stored["identify"]["machine"]
+    return fill(
+        f"Measured (`bench_identify.py --zerodim20`, {m['date']}, load average " + "{lo}–{hi} on the 2 cores): "
+        "`zerodim20` on the virtual bench's stepped sines of a random zerodim6-type coupling (9 records, 0.3/1/2 deg "
+        "at 2/8/20 Hz, 25 s at 2048 Hz, 0.5 % noise) {cmp} s per fit in `compare-models` ({cmp_c} s CPU), {alone} s "
+        "alone ({alone_c} s CPU; its zerodim6 start included), a good fit at the noise; on records whose branch "
+        "stages end far from the optimum (the ranking test's first zerodim6 draw) {far} s alone.\n",
+        cmp=timed(good["zerodim20_wall_s"], ".1f"), cmp_c=on_cpu(good["zerodim20_cpu_s"], ".1f"),
+        alone=timed(good["zerodim20_alone_wall_s"], ".1f"), alone_c=on_cpu(good["zerodim20_alone_cpu_s"], ".1f"),
+        far=timed(far["zerodim20_alone_wall_s"], ".1f"), **_loads(m))
+
+
+def random_fits(path: Path | None = None) -> dict[str, list[dict[str, float]]]:
+    """Per family, the fits of ``bench_identify.py --random`` as stored in its text output
+    (``benchmarks/results/identify_random.txt``: one line per coupling, ``key value`` pairs)."""
+    fits: dict[str, list[dict[str, float]]] = {}
+    for line in (path or BENCH_RESULTS / "identify_random.txt").read_text().splitlines():
+        match = re.match(r"\s+(\w+) #\d+: (.*)", line)
+        if match is None:
+            continue
+        pairs = dict(item.strip().split(" ", 1) for item in match.group(2).split(","))
+        numbers = {}
+        for key, value in pairs.items():
+            try:
+                numbers[key] = float(value)
+            except ValueError:  # a verdict, a flag
+                pass
+        fits.setdefault(match.group(1), []).append(numbers)
+    return fits
+
+
+def identify_random_times(stored: dict[str, Any]) -> Block:
+    """Times per fit of the randomised acceptance (docs/guide/identification.md), from its stored output."""
+    import statistics
+
+    fits = random_fits()
+    medians = [statistics.median(f["drop_cpu_s"] for f in rows) for rows in fits.values()]
+    slowest = max(((f["drop_wall_s"], family) for family, rows in fits.items() for f in rows))
+    servo = [statistics.median(f["servo_wall_s"] for f in rows if "servo_wall_s" in f) for rows in fits.values()]
+    servo_max = max(f["servo_wall_s"] for rows in fits.values() for f in rows if "servo_wall_s" in f)
+    return fill(f"Time per drop-test fit (`benchmarks/results/identify_random.txt`): median {{lo}}–{{hi}} s CPU by "
+                f"family, the slowest {{slow}} s wall ({slowest[1]}); servo fits: median ≤ {{servo}} s, the slowest "
+                "{servo_max} s wall.\n",
+                lo=on_cpu(min(medians), ".1f"), hi=on_cpu(max(medians), ".1f"), slow=timed(slowest[0], ".0f"),
+                servo=timed(max(servo), ".1f"), servo_max=timed(servo_max, ".0f"))
+
+
+def refit_time(stored: dict[str, Any]) -> Block:
+    """What one refit of a model-based route costs (docs/routes.md), from the stored route benchmark."""
+    routes = [r for name, r in stored["routes"]["figures"]["routes"].items()
+              if name.startswith("model-based") and r.get("available") and "wall_s" in r]
+    walls = [r["wall_s"] for r in routes]
+    return fill("Each refit is a whole nonlinear identification, {lo_s}–{hi_s} s on the Table-2 campaign "
+                f"(the {len(walls)} model-based routes of `bench_routes.py`, measured "
+                f"{stored['routes']['machine']['date']}), so the bootstrap takes hours.\n",
+                lo_s=timed(min(walls), ".0f"), hi_s=timed(max(walls), ".0f"))
+
+
+def report_size(stored: dict[str, Any]) -> Block:
+    """The size of a campaign's report (docs/guide/report.md), from the stored report benchmark."""
+    r = stored["report"]
+    n = f"{r['figures']['tests']:,}".replace(",", " ")
+    return fill(f"The page with its side files measured {{mb}} MB for a campaign of {n} tests (`bench_report.py "
+                f"--n {r['figures']['tests']}`, {r['machine']['date']}; [benchmarks](../benchmarks.md)).\n",
+                mb=timed(r["figures"]["size_mb"], ".1f"))
+
+
 #: every block: name -> (file relative to the repository, renderer)
 BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "map_auto": ("docs/guide/map.md", map_auto),
@@ -487,6 +612,12 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "identify_hard": ("docs/guide/identification.md", identify_hard),
     "bench_table": ("docs/benchmarks.md", bench_table),
     "at_scale": ("docs/benchmarks.md", at_scale),
+    "fresh": ("docs/benchmarks.md", fresh_table),
+    "campaign_time": ("docs/guide/campaign.md", campaign_time),
+    "zerodim20": ("docs/guide/identification.md", zerodim20_times),
+    "identify_random_times": ("docs/guide/identification.md", identify_random_times),
+    "refit_time": ("docs/routes.md", refit_time),
+    "report_size": ("docs/guide/report.md", report_size),
     "study_targets": ("docs/study.md", study_targets),
     "study_results": ("analysis/README.md", study_results),
     "routes": ("docs/routes.md", routes_table),
@@ -539,12 +670,29 @@ def run(command: list[str]) -> None:
     subprocess.run([str(c) for c in command], cwd=ROOT, check=True)
 
 
+#: the reduced study's workers when its fingerprint is stored: as tests/test_study.py runs it
+FINGERPRINT_WORKERS = 2
+
+
 def rerun_study() -> None:
-    """The full study into a scratch folder; its stored files copied to ``analysis/results/``."""
+    """The full study into a scratch folder, its stored files copied to ``analysis/results/``; and
+    the reduced study, whose exact figures are stored beside them as the fingerprint that keys the
+    stored study to the code (``analysis/provenance.py``)."""
+    sys.path.insert(0, str(ROOT / "analysis"))
+    from provenance import FINGERPRINT_FILE, REGENERATE, figures  # analysis/provenance.py
+
     with tempfile.TemporaryDirectory(prefix="study_") as tmp:
         run([sys.executable, ROOT / "analysis" / "run_study.py", "--out", Path(tmp) / "report"])
+        run([sys.executable, ROOT / "analysis" / "run_study.py", "--reduced", "--out", Path(tmp) / "reduced",
+             "--workers", str(FINGERPRINT_WORKERS)])
         for name in STUDY_FILES:
             shutil.copy2(Path(tmp) / "report" / name, STUDY_RESULTS / name)
+        reduced = json.loads((Path(tmp) / "reduced" / "summary.json").read_text())
+        fingerprint = {"what": "the reduced study's figures (run_study.py --reduced): the stored study is current while "
+                               "the reduced study reproduces them and its inputs hash the same",
+                       "regenerate": REGENERATE, "workers": FINGERPRINT_WORKERS,
+                       "inputs_sha256": reduced["provenance"]["inputs_sha256"], "figures": figures(reduced)}
+        (STUDY_RESULTS / FINGERPRINT_FILE).write_text(json.dumps(fingerprint, indent=1, allow_nan=True) + "\n")
 
 
 def rerun_benchmarks() -> None:

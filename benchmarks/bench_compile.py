@@ -61,10 +61,10 @@ njit(nogil=True, error_model="numpy")(lambda x: x)(1.0)  # numba's one-time set-
 records.clear()
 njit(nogil=True, error_model="numpy")(baseline)(np.ones(3))
 import droptower as dt
-from droptower.decayfit import fit_decay
+from droptower.damped_cosine import fit_decay
 from droptower.identify.families import filled_rubber
 from droptower.rig.config import load_rig
-from droptower.rig.planner import free_decay
+from droptower.rig.predictions import free_decay
 from droptower.rig.preload import Pretwist
 from droptower.rig.simulate import DropTest, simulate
 

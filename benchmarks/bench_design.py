@@ -40,7 +40,7 @@ from droptower.identify.droplogs import ReadSettings, read_decays
 from droptower.identify.families import family_class
 from droptower.identify.families.base import DataScale
 from droptower.rig.config import load_doe, load_rig
-from droptower.rig.planner import plan
+from droptower.rig.predictions import plan
 
 TARGET = Target((0.3, 3.0), (22.0, 50.0))
 #: The identification benchmark's couplings of three families (none a preset).

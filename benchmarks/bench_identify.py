@@ -524,7 +524,7 @@ def filled_rubber_table2(campaign: str | None) -> dict[str, dict[str, float]]:
 
     from droptower.campaign import run_campaign
     from droptower.compare.servo_points import run_sweeps
-    from droptower.compare.validation import validate_map
+    from droptower.compare.map_vs_servo import validate_map
     from droptower.identify.dropfit import identify_drops
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.maps import fit_map

@@ -107,7 +107,7 @@ def main() -> None:
     from droptower.campaign import run_campaign
     from droptower.compare import run_sweeps, validate_map
     from droptower.compare.model_map import PAPER_ROUTE, model_map_from_identification, route_name
-    from droptower.compare.validation import validate_routes
+    from droptower.compare.map_vs_servo import validate_routes
     from droptower.identify.dropfit import DROP_KINDS, DropFitSettings, identify_drops
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.maps import fit_map, read_results

@@ -12,28 +12,14 @@ read logs start fast.
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from droptower import _moved
 from droptower.errors import DroptowerError
 
-if TYPE_CHECKING:
-    from droptower.campaign import CampaignRun, run_campaign
-    from droptower.compare import MapValidation, run_sweeps, validate, validate_map
-    from droptower.design import design_campaign
-    from droptower.extract import Settings as ExtractSettings
-    from droptower.extract import extract_file
-    from droptower.fmu import build_fmu
-    from droptower.identify import (Comparison, Identification, Parameter, Parameters, compare_models,
-                                    identify_from_drop_tests, make_segment, segments_from_files)
-    from droptower.identify.dropfit import identify_drops
-    from droptower.identify.droplogs import read_decays
-    from droptower.io import read_log
-    from droptower.maps import MapFit, fit_map, read_results
-    from droptower.rheology import Coupling, CouplingState, load_coupling
-    from droptower.rig import DropTest, load_doe, load_rig, plan, simulate
-    from droptower.servo import run_grid, run_records
+_moved.install()  # the old import paths of renamed modules, with a DeprecationWarning
 
-#: the package version (the one in ``pyproject.toml``)
+#: the package version (pyproject.toml reads it from here: one definition)
 __version__ = "0.1.0"
 
 #: the curated namespace: name -> (module, name there), imported on first use. The functions
@@ -83,12 +69,7 @@ _LAZY: dict[str, tuple[str, str]] = {
     "build_fmu": ("droptower.fmu", "build_fmu"),
 }
 
-__all__ = ["DroptowerError", "__version__", "Coupling", "CouplingState", "load_coupling", "load_rig",
-          "load_doe", "DropTest", "simulate", "plan", "read_log", "extract_file", "ExtractSettings",
-          "run_campaign", "CampaignRun", "read_results", "fit_map", "MapFit", "run_sweeps", "validate_map",
-          "design_campaign", "run_grid", "run_records", "make_segment", "segments_from_files", "read_decays",
-          "identify_drops", "identify_from_drop_tests", "compare_models", "Comparison", "Identification", "Parameters",
-          "Parameter", "validate", "MapValidation", "build_fmu"]
+__all__ = ["DroptowerError", "__version__", *_LAZY]  # the table above is the one list of names
 
 
 def __getattr__(name: str) -> Any:

@@ -15,6 +15,10 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 
+#: the acceleration of gravity (m/s^2) of Rapp et al. 2022's impact law: the rig file's default
+#: (``gravity_m_per_s2``) and what the extraction uses when no rig is given
+GRAVITY_M_PER_S2 = 9.81
+
 #: kind -> the SI unit values are converted to.
 SI_UNITS: dict[str, str] = {"time": "s", "angle": "rad", "torque": "N*m", "force": "N", "length": "m"}
 
@@ -52,11 +56,21 @@ def _refuse_ambiguous(unit: str, text: str) -> None:
         raise ValueError(f"unit '{unit}' {AMBIGUOUS_GRAD}")
 
 
+#: Units pint's default registry lacks that published records use: the metric tonne-force
+#: ``tonf`` (1000 kgf = 9806.65 N exactly; pint's ``tf``, its ``metric_ton_force``), the force
+#: unit of Chilean and Japanese isolator tests (Gallardo et al. 2023's bearing record). Pint's
+#: own ``ton_force`` is the US short ton-force (8896 N): ``tonf`` is deliberately the metric one.
+EXTRA_UNITS = ("tonf = metric_ton_force",)
+
+
 @lru_cache(maxsize=None)
 def _registry():
     import pint
 
-    return pint.UnitRegistry()
+    registry = pint.UnitRegistry()
+    for definition in EXTRA_UNITS:
+        registry.define(definition)
+    return registry
 
 
 def normalise_unit(unit: str) -> str:

@@ -138,7 +138,7 @@ def test_a_map_and_its_validation_print_and_convert():
     coupling calibrated to it: the result's table is the validation's points, its dict is JSON,
     its summary the command's text."""
     import droptower as dt
-    from droptower.compare.validation import format_summary
+    from droptower.compare.map_vs_servo import format_summary
 
     fit = dt.fit_map(dt.read_results("rapp2022_table4"))
     assert repr(fit).startswith("<MapFit paper: ") and fit.to_frame().equals(fit.coefficient_table())

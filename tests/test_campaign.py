@@ -132,6 +132,12 @@ def test_two_workers_give_the_same_results(inputs, reference, tmp_path):
     run = run_campaign(tmp_path / "two", coupling=inputs["coupling"], doe=inputs["doe"], workers=2, **SETTINGS)
     assert run.executor == "2 local worker processes"
     pd.testing.assert_frame_equal(run.results, reference.results, check_exact=True)
+    # the summary's modules were imported on a thread while the workers ran; it ended with the run
+    # (a thread alive at the next pool's fork would leave the child holding its import locks)
+    import threading
+
+    assert not [t for t in threading.enumerate() if t.name == "droptower-warm-summary"]
+    assert (tmp_path / "two" / "summary.csv").is_file()
 
 
 def test_dask_cluster_gives_the_same_results(inputs, reference, tmp_path):

@@ -84,11 +84,11 @@ def test_processes_that_reach_an_uncached_kernel_together_compile_it_once(tmp_pa
 def test_the_dispatchers_of_the_package_share_their_compilations() -> None:
     from numba.core.caching import FunctionCache
 
-    from droptower import decayfit
+    from droptower import damped_cosine_kernels
     from droptower.rheology import kernels as K
-    from droptower.rig import flight, lever
+    from droptower.rig import flight, lever_decay as lever
 
-    for module in (K, lever, flight, decayfit):
+    for module in (K, lever, flight, damped_cosine_kernels):
         dispatchers = [v for v in vars(module).values() if hasattr(v, "_cache") and hasattr(v, "py_func")]
         assert dispatchers, module.__name__
         for d in dispatchers:

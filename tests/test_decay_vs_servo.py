@@ -18,10 +18,10 @@ import pytest
 
 from droptower.compare.mapfree import format_check, run_check
 from droptower.configs import resolve
-from droptower.decayfit import fit_decay, start_frequency_and_decay
+from droptower.damped_cosine import fit_decay, start_frequency_and_decay
 from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.rig.config import load_rig
-from droptower.rig.planner import free_decay
+from droptower.rig.predictions import free_decay
 from droptower.rig.preload import Pretwist
 from droptower.sdof import damping_ratio, drop_tower_equivalent_damping_ratio, stiffness
 from droptower.servo import run_grid

@@ -1,10 +1,11 @@
-"""The decay fit's compiled Levenberg-Marquardt finds the minimum MINPACK finds (droptower/decayfit.py)."""
+"""The decay fit's compiled Levenberg-Marquardt finds the minimum MINPACK finds (droptower/damped_cosine.py, droptower/damped_cosine_kernels.py)."""
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from droptower import decayfit as D
+from droptower import damped_cosine as D
+from droptower import damped_cosine_kernels as DK
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)
@@ -38,7 +39,7 @@ def test_minpack_takes_over_where_it_does_not_converge():
     t = np.arange(500) / 38400.0
     y = np.full(500, 0.01)
     scale = np.array([1.0, 500.0, 500.0, 1.0])
-    _, converged = D._levenberg_marquardt(t, y, np.array([0.01, 0.0, 500.0, 0.0]), scale, D.STEP_TOLERANCE, 3)
+    _, converged = DK.levenberg_marquardt(t, y, np.array([0.01, 0.0, 500.0, 0.0]), scale, D.STEP_TOLERANCE, 3)
     assert not converged
     fit = D.fit_decay(t, y, 500.0, 0.0)
     assert np.all(np.isfinite(fit.params))
@@ -60,7 +61,7 @@ def test_small_solve_equals_lapack(n, seed, lam, permute):
         m[np.arange(n), np.arange(n)] = 0.0
     b = rng.normal(size=n)
     x, mm = b.copy(), m.copy()
-    assert D._solve_in_place(mm, x)
+    assert DK.solve_in_place(mm, x)
     ref = np.linalg.solve(m, b)
     cond = np.linalg.cond(m)
     assert np.allclose(x, ref, rtol=0.0, atol=1e-14 * cond * np.max(np.abs(ref)))
@@ -69,6 +70,6 @@ def test_small_solve_equals_lapack(n, seed, lam, permute):
 def test_small_solve_reports_a_singular_matrix():
     """A zero pivot (a column of zeros, or a row equal to another) is reported, not divided by."""
     m = np.array([[1.0, 0.0, 2.0], [3.0, 0.0, 1.0], [0.5, 0.0, 4.0]])
-    assert not D._solve_in_place(m.copy(), np.ones(3))
+    assert not DK.solve_in_place(m.copy(), np.ones(3))
     m = np.array([[1.0, 2.0], [1.0, 2.0]])
-    assert not D._solve_in_place(m.copy(), np.ones(2))
+    assert not DK.solve_in_place(m.copy(), np.ones(2))

@@ -14,7 +14,7 @@ import pytest
 from droptower import sdof
 from droptower.cli.main import main
 from droptower.extract import Settings, SyntheticDrop, extract_file
-from droptower.extract.drops import find_drops, parse_drop_selection
+from droptower.extract.drop_spans import find_drops, parse_drop_selection
 from droptower.extract.files import DECAY_CUT, extract_drops
 from droptower.errors import DroptowerError
 from droptower.io import write_log

@@ -19,7 +19,7 @@ from droptower.identify.dropfit import SERVO_GRID, DropFitSettings, identify_dro
 from droptower.identify.droplogs import ReadSettings, read_decays
 from droptower.identify.lever import at_times, free_decay
 from droptower.rig.config import load_rig
-from droptower.rig.impact import linear_free_decay
+from droptower.rig.impact_law import linear_free_decay
 from droptower.rig.simulate import DropTest, simulate
 from shared_fits import share_fits
 

@@ -15,6 +15,7 @@
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -66,9 +67,10 @@ def test_the_shipped_record_is_the_published_test():
 def test_bearing_predicted_from_its_first_three_blocks():
     """Fitted to the 3.8, 7.6 and 15.2 cm blocks, the whole record predicted from rest (the 23 cm
     block unseen): filled_rubber within 4 % nRMSE and better than every other family, and
-    compare-models ranks it first by that prediction (measured on this tree: filled_rubber
-    3.21 %, masing 5.56 %, elastoslide 5.88 %, pfeffer 11.37 %; without the large-strain
-    network filled_rubber was 6.78 %)."""
+    compare-models ranks it first by that prediction (measured: filled_rubber 3.21 % when the
+    network was built, 3.66 % re-measured on 2026-11-28 (3.39 % from the record written to CSV
+    and read back: neighbouring minima by the last digits), masing 5.56 %, elastoslide 5.88 %,
+    pfeffer 11.37 %; without the large-strain network filled_rubber was 6.78 %)."""
     d, f, cuts = bearing()
     t = np.arange(d.size) * DT_S
     fit = make_segment(t[:cuts[2]], d[:cuts[2]], f[:cuts[2]], name="blocks 1-3", units="translational")
@@ -243,3 +245,74 @@ def test_the_large_strain_network_is_off_for_drop_tests_and_free_to_vanish():
                                                "network_hardening", "scragging"))
     kinds = [e["kind"] for e in rich.elements(rich.guess())]
     assert "large_strain_network" in kinds and "variable_maxwell" not in kinds
+
+
+# ------------------------------------------------------------------ the record on the command line
+def _published_csv(path: Path, rows: np.ndarray) -> Path:
+    """``rows`` (cm, tonf) written as the record is published: displacement and force, no time."""
+    np.savetxt(path, rows, delimiter=",", header="displacement [cm],force [tonf]", comments="", fmt="%.8g")
+    return path
+
+
+def _cli(capsys, argv: list[str]) -> tuple[int, str, str]:
+    from droptower.cli.main import main
+
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err and "internal error" not in err, err
+    return code, out, err
+
+
+def test_a_record_without_time_is_read_with_its_sample_interval(tmp_path, capsys):
+    """The published record (cm, tonf, no time vector) read for identification: the time is
+    uniform at dt, the force 9806.65 N per tonf, the displacement 0.01 m per cm, exactly; without
+    a time base, with two, or with the drop-test route, a one-line error naming the file or the flags."""
+    from droptower.errors import DroptowerError
+    from droptower.identify.data import segments_from_files
+
+    rows = np.loadtxt(DATA, delimiter=",", skiprows=1)[:2000]
+    path = _published_csv(tmp_path / "bearing.csv", rows)
+    written = np.loadtxt(path, delimiter=",", skiprows=1)
+    for kw in ({"sample_interval_s": DT_S}, {"sample_rate_hz": 1.0 / DT_S}):
+        (seg,) = segments_from_files([path], **kw)
+        assert seg.units == "translational" and seg.lead_in == 0 and seg.dt_s == pytest.approx(DT_S, rel=1e-12)
+        np.testing.assert_allclose(seg.angle_rad, written[:, 0] * CM, rtol=1e-15)
+        np.testing.assert_allclose(seg.torque_nm, written[:, 1] * TONF, rtol=1e-15)
+    with pytest.raises(DroptowerError, match=r"bearing\.csv: no time channel; give `sample_rate_hz` or `sample_interval_s`"):
+        segments_from_files([path])
+    with pytest.raises(DroptowerError, match="not both"):
+        segments_from_files([path], sample_rate_hz=100.0, sample_interval_s=DT_S)
+    for command in (["identify", "--model", "filled_rubber"], ["compare-models"]):
+        code, _, err = _cli(capsys, command + [str(path)])
+        assert code == 2 and "bearing.csv" in err and "--sample-rate-hz or --sample-interval-s" in err, err
+        code, _, err = _cli(capsys, command + [str(path), "--sample-interval-s", "0.01", "--sample-rate-hz", "100"])
+        assert code == 2 and "--sample-rate-hz or --sample-interval-s, not both" in err, err
+        code, _, err = _cli(capsys, command + [str(tmp_path), "--from-drop-tests", "--sample-interval-s", "0.01"])
+        assert code == 2 and "--sample-interval-s gives the time base of servo records" in err, err
+
+
+@pytest.mark.slow
+def test_the_published_record_through_identify_and_compare_models_on_the_command_line(tmp_path, capsys):
+    """The bearing's record as published (displacement in cm, force in tonf, no time vector; its
+    first three blocks to fit, the whole as the hold-out, every 4th sample) through
+    ``droptower identify --model filled_rubber --sample-interval-s`` and ``compare-models``: read
+    in SI (the largest force 39.8 tonf = 390 kN), fitted and the whole predicted from rest within
+    the issue's 4 % (measured: fit 2.09 %, hold-out 3.39 %; 4 s each), ranked by the hold-out. The
+    verdict on real data is "poor fit" (the error is 26 times the record's noise floor, which a
+    bearing's 8-digit record makes tiny): exit 3, unless --accept-poor."""
+    d, f, cuts = bearing()
+    rows = np.column_stack([d / CM, f / TONF])
+    blocks = _published_csv(tmp_path / "blocks.csv", rows[:cuts[2]])
+    whole = _published_csv(tmp_path / "whole.csv", rows)
+    records = [str(blocks), "--sample-interval-s", str(DT_S), "--holdout", str(whole), "--json"]
+    code, out, err = _cli(capsys, ["compare-models", *records, "--models", "filled_rubber"])
+    (row,) = json.loads(out)["ranking"]
+    assert code == 3 and "poor fit" in err and row["model"] == "filled_rubber" and row["holdout_nrmse_percent"] <= 4.0
+    code, out, _ = _cli(capsys, ["identify", *records, "--model", "filled_rubber", "--accept-poor",
+                                 "--out", str(tmp_path / "bearing.toml")])
+    report = json.loads(out)
+    assert code == 0 and report["units"] == "translational" and (tmp_path / "bearing.toml").exists()
+    assert report["holdout"]["n_samples"] == d.size and report["fit"]["n_samples"] == cuts[2]
+    assert report["holdout"]["max_force_n"] == pytest.approx(np.max(np.abs(f)), rel=1e-7)
+    assert report["holdout"]["nrmse_percent"] <= 4.0 and report["fit"]["nrmse_percent"] < report["holdout"]["nrmse_percent"]
+    assert report["holdout"]["nrmse_percent"] == pytest.approx(row["holdout_nrmse_percent"], rel=1e-6)

@@ -41,6 +41,16 @@ def test_unit_factors(unit, kind, factor):
     assert si_factor(unit, kind) == pytest.approx(factor, rel=1e-15)
 
 
+def test_tonf_is_the_metric_tonne_force():
+    """``tonf`` (published isolator records: Gallardo et al. 2023's bearing) is 1000 kgf =
+    9806.65 N exactly (the standard gravity's definition), in any spelling the files use; pint's
+    own ``ton_force`` stays the US short ton-force (2000 lbf = 8896.443230521 N), a different unit."""
+    assert si_factor("tonf", "force") == 9806.65 == si_factor("[tonf]", "force") == 1000 * si_factor("kgf", "force")
+    assert si_factor("tonf*m", "torque") == 9806.65 and si_factor("ton_force", "force") == pytest.approx(8896.443230521, rel=1e-12)
+    with pytest.raises(ValueError, match="not a length unit"):
+        si_factor("tonf", "length")
+
+
 def test_to_si_converts_values():
     np.testing.assert_allclose(to_si(np.array([0.0, 90.0, -180.0]), "deg", "angle"), [0.0, math.pi / 2, -math.pi])
     np.testing.assert_array_equal(to_si(np.array([1.5, 2.0]), "kNm", "torque"), [1500.0, 2000.0])

@@ -83,14 +83,14 @@ def test_a_kernel_is_rebuilt_when_a_module_it_is_built_from_changes(tmp_path: Pa
 def test_the_sources_of_a_kernel_module_are_the_modules_it_names() -> None:
     """The rig's lever kernel is built around the core's step and reads its slot constants: its
     key covers ``rheology/kernels.py``; the core's key does not cover the rig."""
-    from droptower.rig import lever
+    from droptower.rig import lever_decay as lever
     from droptower.rheology import kernels
 
     root = Path(kernels.__file__).resolve().parents[1]
     lever_files = {p.relative_to(root).as_posix() for p in numba_cache.kernel_sources(vars(lever))}
     kernel_files = {p.relative_to(root).as_posix() for p in numba_cache.kernel_sources(vars(kernels))}
-    assert {"rig/lever.py", "rheology/kernels.py"} <= lever_files
-    assert "rheology/kernels.py" in kernel_files and "rig/lever.py" not in kernel_files
+    assert {"rig/lever_decay.py", "rheology/kernels.py"} <= lever_files
+    assert "rheology/kernels.py" in kernel_files and "rig/lever_decay.py" not in kernel_files
     assert numba_cache.sources_key(vars(lever)) != numba_cache.sources_key(vars(kernels))
     assert numba_cache.sources_key({"__name__": "plain_module"}) is None  # outside a package: numba's places
 
@@ -99,10 +99,10 @@ LOAD = """
 import json, sys
 sys.path.insert(0, sys.argv[1])
 import numpy as np
-from droptower import decayfit
+from droptower import damped_cosine as decayfit, damped_cosine_kernels
 t = np.linspace(0.0, 0.5, 400)
 fit = decayfit.fit_decay(t, np.exp(-3.0 * t) * np.sin(2 * np.pi * 20.0 * t), 2 * np.pi * 20.0, 3.0)
-stats = decayfit._levenberg_marquardt.stats
+stats = damped_cosine_kernels.levenberg_marquardt.stats
 print(json.dumps({"file": decayfit.__file__, "fit": [float(v) for v in fit.params],
                   "hits": sum(stats.cache_hits.values()), "misses": sum(stats.cache_misses.values())}))
 """

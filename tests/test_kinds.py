@@ -16,7 +16,7 @@ from droptower.identify.lever import free_decay
 from droptower.rheology import Coupling, kinds
 from droptower.rheology import kernels as K
 from droptower.rheology.elements import ELEMENT_KINDS, ElementUnion, KernelElement
-from droptower.rig.lever import SYMPLECTIC_EULER, VERLET, LeverDecay
+from droptower.rig.lever_decay import SYMPLECTIC_EULER, VERLET, LeverDecay
 from pydantic import TypeAdapter
 
 SPEC = TypeAdapter(ElementUnion)

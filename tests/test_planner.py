@@ -23,7 +23,7 @@ from droptower.errors import DroptowerError
 from droptower.planner.grid import GRID_HEIGHTS, REFINE_TOLERANCE, _grid
 from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
-from droptower.rig.planner import plan
+from droptower.rig.predictions import plan
 from test_report import _chrome  # Debian's chromium via selenium, or a skip naming what is missing
 from droptower.cli.flags import cli_text
 

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, seed, settings
 from hypothesis import strategies as st
 
-from droptower.decayfit import DecayFit, TorqueFit
+from droptower.damped_cosine import DecayFit, TorqueFit
 from droptower.extract.files import Settings, extract_file
 from droptower.extract.result import DEG
 from droptower.extract.window import Window

@@ -119,6 +119,28 @@ def test_simulate_continues_from_a_state():
     assert np.allclose(np.r_[first.torque_nm, second.torque_nm], whole, rtol=1e-12, atol=1e-12)
 
 
+def test_rows_taken_advanced_apart_and_merged_equal_the_whole_batch():
+    """CouplingState.take / merge: rows advanced on their own and put back are the rows the whole
+    batch reaches (instances are independent), bit for bit; a taken part is a copy."""
+    coupling, dt = _variant(1.0), 1 / 38400
+    x = _histories(5, n=600)
+    first = coupling.simulate(x[:, :300], dt)
+    whole = coupling.simulate(x[:, 300:], dt, state=first.state.copy())
+    rows = np.array([3, 0, 4])
+    part = first.state.take(rows)
+    before = first.state.copy()
+    coupling.simulate(x[rows, 300:], dt, state=part)
+    assert np.array_equal(first.state.values, before.values)  # advancing the part left the batch alone
+    first.state.merge(rows, part)
+    assert np.array_equal(first.state.values[rows], whole.state.values[rows])
+    assert np.array_equal(first.state.torque_nm[rows], whole.state.torque_nm[rows])
+    rest = np.array([1, 2])
+    assert np.array_equal(first.state.values[rest], before.values[rest])  # other rows untouched
+    assert not np.array_equal(first.state.values[rows], before.values[rows])
+    mask = np.array([True, False, False, True, False])
+    assert np.array_equal(first.state.take(mask).angle_rad, first.state.angle_rad[[0, 3]])
+
+
 def test_trial_does_not_commit():
     coupling = _variant(1.0)
     x = _histories(1, n=300)[0]

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from droptower.decayfit import fit_decay, start_frequency_and_decay
+from droptower.damped_cosine import fit_decay, start_frequency_and_decay
 from droptower.rheology import parse_coupling
 from droptower.rheology.elements import Payne, PowerLaw
-from droptower.rig.planner import free_decay
+from droptower.rig.predictions import free_decay
 from droptower.rig.preload import Pretwist
 from droptower.sdof import damping_ratio, drop_tower_equivalent_damping_ratio
 from droptower.servo.steady import steady_state

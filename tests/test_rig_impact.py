@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from droptower.sdof import damping_ratio
-from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
-                                  lever_tip_path, linear_free_decay, second_impact_time)
+from droptower.rig.impact_law import (drop_mass_path, first_period, impact_velocities,
+                                      lever_tip_path, linear_free_decay, second_impact_time)
 
 L = 0.2
 CASES = [(1.0, 0.1557), (2.0, 0.1557), (2.0, 0.359), (2.0, 0.5233)]

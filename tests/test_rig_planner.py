@@ -10,8 +10,8 @@ from droptower.configs import preset_dir, read_toml
 from droptower.rheology import load_coupling
 from droptower.rheology.loader import parse_coupling
 from droptower.rig.config import load_doe, load_rig
-from droptower.rig.impact import impact_velocities, linear_free_decay
-from droptower.rig.planner import plan
+from droptower.rig.impact_law import impact_velocities, linear_free_decay
+from droptower.rig.predictions import plan
 
 K, D = 14000.0, 15.55
 

@@ -12,8 +12,8 @@ from droptower.errors import DroptowerError
 from droptower.rheology import load_coupling
 from droptower.rheology.loader import parse_coupling
 from droptower.rig.config import load_rig
-from droptower.rig.impact import impact_velocities
-from droptower.rig.planner import plan
+from droptower.rig.impact_law import impact_velocities
+from droptower.rig.predictions import plan
 from droptower.rig.simulate import DropTest, simulate
 
 K_LIN = 14000.0                          # N*m/rad, docs/theory.md#impact

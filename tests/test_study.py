@@ -1,8 +1,8 @@
 """The end-to-end study (analysis/run_study.py): the reduced version runs here, so the whole data
 path (campaign -> logs -> extraction -> map -> servo validation -> map-free check -> Table 4)
 cannot rot, and it recomputes the stored full study's headline figures within tolerances that
-say why they differ; the stored full study must come from the current presets and code (its
-hashes), and is held to the targets it meets and to its stored level on the ones it misses (the
+say why they differ; the stored full study must come from the current presets (their hashes) and
+code (the reduced study reproduces the exact figures stored beside it), and is held to the targets it meets and to its stored level on the ones it misses (the
 trade-off, analysis/README.md). The documentation renders its figures from it (tests/test_readme_figures.py)."""
 from __future__ import annotations
 
@@ -156,40 +156,85 @@ def test_stored_full_study_targets(stored):
     assert check["stiffness_rms_deviation_pct"] <= 3.0
 
 
-def test_stored_full_study_is_current():
-    """The stored full study was computed from the presets (rig, coupling, test plan), the shipped
-    Table 4 and the package source the repository holds now: a stale one fails, naming what changed."""
+FINGERPRINT = ROOT / "analysis" / "results" / "reduced_study.json"
+
+
+def test_stored_full_study_inputs_are_current():
+    """The stored full study (and its fingerprint) ran the presets (rig, coupling, test plan) and
+    the shipped Table 4 the repository holds now; a changed input fails, naming it."""
     summary = json.loads(STORED_SUMMARY.read_text())
     assert not summary["reduced"] and summary["tests"] == 450
     provenance = _analysis_module("provenance")
     stored = summary.get("provenance")
     assert stored is not None, f"{STORED_SUMMARY.relative_to(ROOT)} carries no hashes: regenerate with {provenance.REGENERATE}"
     current = provenance.provenance(summary["rig"], summary["coupling"], summary["plan"])
-    stale = provenance.stale_reasons(stored, current)
-    assert not stale, (f"the stored study in analysis/results/ is stale ({'; '.join(stale[:8])}"
-                       f"{f'; and {len(stale) - 8} more' if len(stale) > 8 else ''}): regenerate it (and the documentation's "
-                       f"figures) with {provenance.REGENERATE}")
-    assert stored["source_sha256"] == current["source_sha256"]
+    stale = provenance.input_reasons(stored, current)
+    assert not stale, (f"the stored study in analysis/results/ is stale ({'; '.join(stale)}): regenerate it (and the "
+                       f"documentation's figures) with {provenance.REGENERATE}")
+    fingerprint = json.loads(FINGERPRINT.read_text())
+    shared = {k: v for k, v in fingerprint["inputs_sha256"].items() if not k.startswith("doe ")}  # its plan: reduced
+    assert shared and all(current["inputs_sha256"][k] == v for k, v in shared.items())
 
 
-def test_a_changed_preset_or_source_makes_the_stored_study_stale():
+@pytest.mark.slow
+def test_stored_full_study_is_current(reduced):
+    """The stored full study is what the code computes now: the reduced study, computed here,
+    reproduces the fingerprint stored beside it (its exact figures, to 1e-9 relative). An edit that
+    changes no figure passes; one that moves a figure fails, naming the figures and the source
+    files changed since the study was stored."""
+    provenance = _analysis_module("provenance")
+    out, _ = reduced
+    small = json.loads((out / "summary.json").read_text())
+    fingerprint = json.loads(FINGERPRINT.read_text())
+    assert fingerprint["workers"] == 2  # as the fixture runs it
+    assert provenance.input_reasons(fingerprint, small["provenance"]) == []
+    moved = provenance.figure_differences(fingerprint["figures"], provenance.figures(small))
+    if moved:
+        summary = json.loads(STORED_SUMMARY.read_text())
+        edited = [r for r in provenance.stale_reasons(summary["provenance"], small["provenance"])
+                  if not r.startswith(("doe ", "the stored study ran doe"))]
+        pytest.fail(f"the stored study in analysis/results/ is stale: the reduced study moved {len(moved)} figure(s) "
+                    f"({'; '.join(moved[:6])}{'; ...' if len(moved) > 6 else ''}); changed since it was stored: "
+                    f"{', '.join(edited[:8]) or 'nothing hashed'}; regenerate it with {provenance.REGENERATE}")
+
+
+def test_a_changed_figure_or_input_makes_the_stored_study_stale_and_an_edit_alone_does_not():
+    """The keying: equal figures and inputs are current whatever the source files' hashes; one
+    figure moved by 1e-8 relative, a figure missing or added, or a changed preset is stale."""
     provenance = _analysis_module("provenance")
     current = provenance.provenance("rapp2022", "rapp2022_nr60", "rapp2022_table2")
-    assert provenance.stale_reasons(current, current) == []
+    assert provenance.input_reasons(current, current) == [] and provenance.stale_reasons(current, current) == []
     assert "analysis/run_study.py" in current["source_files_sha256"]
     assert any(f.endswith("rheology/kernels.py") for f in current["source_files_sha256"])
     assert not any(f.startswith(("droptower/cli/", "droptower/report/")) for f in current["source_files_sha256"])
+
     edited = json.loads(json.dumps(current))
-    edited["inputs_sha256"]["coupling rapp2022_nr60"] = "0" * 64
     kernel = next(f for f in edited["source_files_sha256"] if f.endswith("rheology/kernels.py"))
-    edited["source_files_sha256"][kernel] = "0" * 64
-    del edited["source_files_sha256"][next(iter(edited["source_files_sha256"]))]
-    reasons = provenance.stale_reasons(edited, current)
-    assert "coupling rapp2022_nr60 changed" in reasons and f"{kernel} changed" in reasons
-    assert any(r.endswith("added") for r in reasons)
+    edited["source_files_sha256"][kernel] = "0" * 64  # an edit: informative, not stale by itself
+    assert provenance.input_reasons(edited, current) == []
+    assert f"{kernel} changed" in provenance.stale_reasons(edited, current)
+    edited["inputs_sha256"]["coupling rapp2022_nr60"] = "0" * 64
+    assert provenance.input_reasons(edited, current) == ["coupling rapp2022_nr60 changed"]
     other = provenance.provenance("rapp2022", "seed001_specimen", "rapp2022_table2")
-    assert provenance.stale_reasons(other, current)[:2] == ["coupling rapp2022_nr60 is not among the stored study's inputs",
-                                                           "the stored study ran coupling seed001_specimen"]
+    assert provenance.input_reasons(other, current) == ["coupling rapp2022_nr60 is not among the stored study's inputs",
+                                                        "the stored study ran coupling seed001_specimen"]
+
+    stored = json.loads(STORED_SUMMARY.read_text())
+    figures = provenance.figures(stored)
+    assert "map_fit.stiffness_rms_error_pct" in figures and "study_wall_s" not in figures
+    assert not any("real_time_factor" in k for k in figures)  # a speed, not a figure of the study
+    speed = next(i for i, t in enumerate(stored["targets"]) if t["target"].startswith("real-time factor"))
+    assert f"targets.{speed}.value" not in figures and f"targets.{speed - 1}.value" in figures
+    assert not any(k.startswith(("provenance", "campaign_hashes")) for k in figures)
+    assert provenance.figure_differences(figures, dict(figures)) == []
+    key = "table4.campaign.stiffness_rms_deviation_pct"
+    for factor, stale in ((1 + 1e-8, True), (1 + 1e-11, False)):
+        moved = dict(figures, **{key: figures[key] * factor})
+        assert bool(provenance.figure_differences(figures, moved)) == stale, factor
+    assert provenance.figure_differences(figures, {k: v for k, v in figures.items() if k != key}) == \
+        [f"{key}: no longer computed"]
+    assert provenance.figure_differences(figures, dict(figures, extra=1.0)) == ["extra: not in the stored fingerprint"]
+    assert provenance.figure_differences({"a": float("nan")}, {"a": float("nan")}) == []
 
 
 #: The reduced study against the stored full study: (summary path, tolerance in points of the

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from droptower.campaign.executors import _one_thread
 from droptower.rheology import Coupling
 from droptower.rheology import threads as T
-from droptower.rig.lever import SYMPLECTIC_EULER, VERLET, LeverDecay
+from droptower.rig.lever_decay import SYMPLECTIC_EULER, VERLET, LeverDecay
 from test_kinds import _element, _history
 
 #: kinds whose parameter layout does not depend on the random draw (variable_maxwell's does), so

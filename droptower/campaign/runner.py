@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import resource
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,7 @@ import pandas as pd
 
 from droptower.campaign.chunk import ChunkOutcome, ChunkTask, peak_rss_mb, run_chunk
 from droptower.campaign.estimate import Estimate, estimate
-from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, local_cores, make_executor
+from droptower.campaign.executors import SCHEDULER_TIMEOUT_S, DaskCluster, InProcess, local_cores, make_executor
 from droptower.campaign.folder import (Layout, finished, finished_batches, folder_lock, layout_for, open_folder,
                                        saved_inputs, saved_settings, write_manifest)
 from droptower.campaign.results import assemble_batches, write_results
@@ -205,9 +206,12 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
             bar = tqdm(total=len(spec.tests), initial=len(status), unit="test", desc="campaign", file=sys.stderr,
                        disable=None if progress else True)
             stopped = False
+            warm = None
             next_manifest = time.monotonic() + MANIFEST_EVERY_S
             try:
                 for task, outcome in executor.run(run_chunk, tasks):
+                    if warm is None and not isinstance(executor, InProcess):  # the workers are forked by now
+                        warm = _warm_summary(spec)
                     if isinstance(outcome, ChunkOutcome):
                         status.update(outcome.status)
                         run.ran_tests += len(outcome.status)
@@ -231,6 +235,8 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
                                                                20.0 * (time.monotonic() - t_manifest))
             finally:
                 bar.close()
+                if warm is not None:  # no thread outlives the run (a later pool forks this process)
+                    warm.join()
                 try:
                     write_manifest(layout, spec, status, created)
                 except WriteError:
@@ -251,6 +257,29 @@ def _run(spec: CampaignSpec, layout: Layout, resume: bool, workers: int | None, 
     run.peak_rss_worker_mb = max(run.peak_rss_worker_mb, peak_rss_mb(resource.RUSAGE_CHILDREN))
     run.wall_s = time.perf_counter() - t_start
     return run
+
+
+def _warm_summary(spec: CampaignSpec) -> threading.Thread:
+    """Import what :func:`write_condition_summary` needs (the maps package; matplotlib where the plan
+    varies the preload, for Fig. 11) on a thread while the workers run the chunks: this process
+    only waits for them then, so the imports (~0.5 s of CPU) leave the time after the last chunk.
+    Started only once the pool has forked its workers (a fork while a thread imports would leave
+    the child holding the import locks)."""
+
+    def load() -> None:
+        try:
+            import droptower.io.tables  # noqa: F401
+            import droptower.maps.summary  # noqa: F401
+
+            if spec.tests["preload_nm"].nunique() > 1:
+                import matplotlib.backends.backend_agg  # noqa: F401
+                import matplotlib.pyplot  # noqa: F401
+        except Exception:  # noqa: BLE001  an import that fails here fails again, and is reported, where it is used
+            pass
+
+    thread = threading.Thread(target=load, name="droptower-warm-summary", daemon=True)
+    thread.start()
+    return thread
 
 
 def write_condition_summary(run: CampaignRun) -> list[tuple[Path, str]]:

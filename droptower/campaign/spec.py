@@ -93,8 +93,8 @@ class CampaignSpec:
 
 
 def _record_length(rig: Any, coupling: Any, doe: Any, window: Any) -> float:
-    """The record the planner's periods ask for (:func:`droptower.rig.planner.record_length_s`)."""
-    from droptower.rig.planner import plan, record_length_s
+    """The record the planner's periods ask for (:func:`droptower.rig.predictions.record_length_s`)."""
+    from droptower.rig.predictions import plan, record_length_s
 
     return record_length_s(plan(rig, coupling, doe.conditions())["first_period_s"], window.length_s)
 
@@ -105,7 +105,7 @@ def prepare(rig: str | Path = DEFAULT_RIG, coupling: str | Path = DEFAULT_COUPLI
     """Load and check the inputs (files or shipped preset names) and fix the settings.
 
     duration_s: record length after the impact (s); None: twice the longest first period the planner
-    predicts (:func:`droptower.rig.planner.record_length_s`). chunk_size (default :data:`CHUNK_SIZE`), log_format (``parquet``)
+    predicts (:func:`droptower.rig.predictions.record_length_s`). chunk_size (default :data:`CHUNK_SIZE`), log_format (``parquet``)
     and window (``first-cycle``, the extractor's fit window). Every problem is a one-line
     :class:`DroptowerError`.
     """

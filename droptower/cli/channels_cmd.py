@@ -161,7 +161,7 @@ def channels(file: str, channel_specs: tuple[str, ...], as_json: bool, delimiter
 
 def _drops_line(record: Record, roles: dict[str, str]) -> str:
     """The drops ``extract`` would find in the record (a continuous recording holds several)."""
-    from droptower.extract.drops import find_drops
+    from droptower.extract.drop_spans import find_drops
     from droptower.io.mapping import map_channels
 
     try:

@@ -173,7 +173,7 @@ def extract(paths: tuple[str, ...], rig: str | None, conditions: str | None, con
     import pandas as pd
     from tqdm import tqdm
 
-    from droptower.extract.drops import parse_drop_selection, read_drop_conditions
+    from droptower.extract.drop_spans import parse_drop_selection, read_drop_conditions
     from droptower.extract.files import Settings, extract_drops, result_row
     from droptower.jsonsafe import json_safe
     from droptower.extract.window import Window

@@ -24,7 +24,7 @@ from pydantic import Field
 
 from droptower.cli.options import note, progress, quiet_option, uncertainty_option, wrote
 from droptower.errors import DroptowerError, check_positive
-from droptower.validation import StrictModel, validate
+from droptower.config_validation import StrictModel, validate
 from droptower.cli.flags import cli_text
 
 
@@ -70,12 +70,37 @@ def _read_init(path: str | None) -> InitFile:
     return validate(InitFile, read_toml(path), path)
 
 
-def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float):
+def record_time_options(command):
+    """``--sample-rate-hz`` and ``--sample-interval-s``: the time base of servo records without a
+    time channel (published large-strain tests: displacement and force only), as
+    ``evaluate-servo`` takes them."""
+    for option in reversed([
+            click.option("--sample-rate-hz", type=float, default=None,
+                         help="Records without a time channel: their sample rate (Hz)."),
+            click.option("--sample-interval-s", type=float, default=None,
+                         help="Records without a time channel: their sample interval (s); instead of "
+                              "--sample-rate-hz.")]):
+        command = option(command)
+    return command
+
+
+def _refuse_time_base_for_drops(sample_rate_hz: float | None, sample_interval_s: float | None) -> None:
+    """The servo records' time base is no drop-test flag: given with --from-drop-tests it is refused, never ignored."""
+    given = [flag for flag, value in (("--sample-rate-hz", sample_rate_hz), ("--sample-interval-s", sample_interval_s))
+             if value is not None]
+    if given:
+        raise DroptowerError(f"{' and '.join(given)} give{'s' if len(given) == 1 else ''} the time base of servo "
+                             "records without a time channel; drop-test logs take theirs from the logs or --rig")
+
+
+def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float,
+               sample_rate_hz: float | None = None, sample_interval_s: float | None = None):
     from droptower.identify.data import segments_from_files
     from droptower.io.mapping import SERVO_ROLES, parse_channel_options
 
     notes: list[str] = []
-    segments = segments_from_files(paths, parse_channel_options(channels, SERVO_ROLES), skip_s=skip_s, notes=notes)
+    segments = segments_from_files(paths, parse_channel_options(channels, SERVO_ROLES), skip_s=skip_s, notes=notes,
+                                   sample_rate_hz=sample_rate_hz, sample_interval_s=sample_interval_s)
     for text in notes:
         note(f"note: {text}")
     return segments
@@ -90,6 +115,7 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float)
 @click.option("--params", "params_path", type=click.Path(),
               help="TOML with [initial], [bounds], [options] (see below).")
 @click.option("--holdout", type=click.Path(), help="Record kept out of the fit, for the hold-out RMSE.")
+@record_time_options
 @click.option("--out", type=click.Path(dir_okay=False), help="Write the identified coupling (TOML) here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), help="Write torque and loop plots to this folder.")
@@ -105,7 +131,8 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float)
               help="Exit 0 and write --out even when the verdict is 'poor fit' (default: exit code 3, nothing written).")
 @uncertainty_option
 def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params_path: str | None,
-             holdout: str | None, out: str | None, as_json: bool, plot_dir: str | None, drops: bool,
+             holdout: str | None, sample_rate_hz: float | None, sample_interval_s: float | None, out: str | None,
+             as_json: bool, plot_dir: str | None, drops: bool,
              template: str | None, holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
              lever_length_m: float | None, sensor_radius_m: float | None, conditions: str | None,
              condition_columns: tuple[str, ...], conditions_pattern: str | None, predict_servo: str | None,
@@ -145,6 +172,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
     Time stamps printed with few decimals (steps that differ only by the printed precision)
     are taken as a constant sample rate estimated from the whole record (a note says so).
+    Records without a time channel (published quasi-static tests: displacement and force
+    only, amplitude blocks ramping up from rest) take --sample-interval-s or --sample-rate-hz,
+    read as evaluate-servo reads them.
 
     --params INIT.toml (parameter names as in the report; for translational records either
     naming, k1_n_per_m or k1_nm_per_rad):
@@ -164,6 +194,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
           --channel torque=Md:kN*m --holdout check.csv --plot fits/
       droptower identify damper_sine_*.csv --model elastoslide --channel displacement=Stroke:in \\
           --channel force=Load:kip --holdout damper_random.csv --out damper.toml
+      droptower identify bearing_blocks.csv --model filled_rubber --sample-interval-s 0.01 \\
+          --channel displacement=d:cm --channel force=f:tonf --holdout bearing_whole.csv
       droptower identify --from-drop-tests runs/table2 --model template \\
           --template rapp2022_nr60 --out fitted.toml --predict-servo servo.csv
     """
@@ -177,6 +209,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     if drops:
         from droptower.cli.identify_drops_cmd import run as run_drops
 
+        _refuse_time_base_for_drops(sample_rate_hz, sample_interval_s)
+
         return run_drops(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
                          out, as_json, plot_dir, predict_servo, verbose, accept_poor, sensor_radius_m=sensor_radius_m,
                          conditions=(conditions, condition_columns, conditions_pattern),
@@ -189,8 +223,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     if template is not None:
         init.options["template"] = template
     skip_s = float(init.options.get("skip_s", 0.0))
-    segments = _read_data(data, channels, skip_s)
-    held = _read_data((holdout,), channels, skip_s) if holdout else None
+    segments = _read_data(data, channels, skip_s, sample_rate_hz, sample_interval_s)
+    held = _read_data((holdout,), channels, skip_s, sample_rate_hz, sample_interval_s) if holdout else None
     progress(f"identify: fitting {kind} to {len(segments)} record(s) ...")
     start = time.perf_counter()
     result = run(kind, segments, init=init.initial, bounds=init.bounds, options=init.options, holdout=held,
@@ -221,8 +255,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque; or displacement, force); repeatable.")
 @click.option("--holdout", type=click.Path(),
-              help="Record kept out of every fit: its nRMSE is reported next to the fit's, as a check; the ranking "
-                   "stays on the fitting data (BIC).")
+              help="Record kept out of every fit: the families are ranked by their nRMSE on it (the BIC on the "
+                   "fitting data beside it).")
+@record_time_options
 @click.option("--models", default=None,
               help=f"Families to fit, comma-separated (default: {', '.join(MODEL_KINDS)}; with --from-drop-tests "
                    f"{', '.join(DROP_MODEL_KINDS)}, and template with --template).")
@@ -243,7 +278,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="Wall-time budget of all the fits together (s): each family gets at most an equal share of what "
                    "is left (the cheaper families first).")
 @click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
-def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None, models: str | None,
+def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: str | None,
+                   sample_rate_hz: float | None, sample_interval_s: float | None, models: str | None,
                    out: Path | None, as_json: bool, plot_dir: str | None, drops: bool, template: str | None,
                    holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
                    sensor_radius_m: float | None, conditions: str | None, condition_columns: tuple[str, ...],
@@ -282,6 +318,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     Examples:
       droptower compare-models sweep_*.csv --holdout check.csv --plot compare/
       droptower compare-models sweep.csv --models zerodim6,elastoslide --out ranking.xlsx
+      droptower compare-models bearing_blocks.csv --holdout bearing_whole.csv --sample-interval-s 0.01 \\
+          --channel displacement=d:cm --channel force=f:tonf --models filled_rubber,elastoslide,masing
       droptower compare-models --from-drop-tests runs/campaign --template rapp2022_nr60
     """
     from droptower.identify.compare import compare_models as run
@@ -304,6 +342,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     if drops:
         from droptower.cli.identify_drops_cmd import prepare
 
+        _refuse_time_base_for_drops(sample_rate_hz, sample_interval_s)
         campaign = prepare(data, None, channels, InitFile(), template, holdout_fraction, rig, inertia_kgm2,
                            lever_length_m, sensor_radius_m=sensor_radius_m,
                            conditions=(conditions, condition_columns, conditions_pattern))
@@ -317,8 +356,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
                      on_skip=on_skip)
         segments, held = [], None
     else:
-        segments = _read_data(data, channels, 0.0)
-        held = _read_data((holdout,), channels, 0.0) if holdout else None
+        segments = _read_data(data, channels, 0.0, sample_rate_hz, sample_interval_s)
+        held = _read_data((holdout,), channels, 0.0, sample_rate_hz, sample_interval_s) if holdout else None
         result = run(segments, kinds, holdout=held, budget_s=budget_s, total_budget_s=total_budget_s,
                      on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(segments)} record(s) ..."),
                      on_skip=on_skip)

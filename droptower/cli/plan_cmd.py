@@ -49,7 +49,7 @@ def plan(rig: str, coupling: str, doe: str, duration_s: float, out: str | None, 
     from droptower.io.tables import check_table_path, write_table
     from droptower.rheology import load_coupling
     from droptower.rig.config import load_doe, load_rig
-    from droptower.rig.planner import plan as predict
+    from droptower.rig.predictions import plan as predict
 
     check_positive(duration_s, "--duration-s")
     if out:

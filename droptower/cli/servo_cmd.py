@@ -10,6 +10,7 @@ from droptower.cli.options import note, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive
 from droptower.jsonsafe import json_safe
 from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
+from droptower.rig.config import PRELOAD_HOLD_S
 
 #: Columns of the default table (all are in the JSON output).
 TABLE_COLUMNS = ["amplitude_deg", "frequency_hz", "preload_nm", "offset_deg", "storage_stiffness_nm_per_rad",
@@ -39,7 +40,7 @@ def _float_list(option: str, text: str) -> list[float]:
 @click.option("--amplitude-mm", default=None,
               help="Translational coupling: amplitudes (mm), comma-separated [default: 0.1,0.5].")
 @click.option("--preload-n", default=None, type=float, help="Translational coupling: mean force (N) [default: 0].")
-@click.option("--preload-hold-s", default=60.0, show_default=True, type=float,
+@click.option("--preload-hold-s", default=PRELOAD_HOLD_S, show_default=True, type=float,
               help="With a preload: how long the mean angle is held, after a quasi-static ramp, before the sine.")
 @click.option("--sample-rate-hz", default=SERVO_SAMPLE_RATE_HZ, show_default=True, type=float,
               help="Acquisition rate of the evaluated record (default: the paper's bench).")

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from droptower.compare.validation import Validation
+from droptower.compare.map_vs_servo import Validation
 from droptower.errors import make_folder
 from droptower.io.droptower_log import save_figure
 from droptower.maps import MapFit

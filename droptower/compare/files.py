@@ -1,6 +1,6 @@
 """The files a validation writes into its output folder (:func:`write_validation`; the ``validate`` command's) (also used by ``analysis/run_study.py``).
 
-- ``validation.csv`` (or the table format asked for): one row per servo point (:data:`droptower.compare.validation.COLUMNS`);
+- ``validation.csv`` (or the table format asked for): one row per servo point (:data:`droptower.compare.map_vs_servo.COLUMNS`);
 - ``validation_summary.json``: RMS / max deviations inside and outside the range, definitions;
 - ``servo_results.csv``: the servo points as measured or simulated (read back by
   :func:`droptower.compare.servo_points.read_servo_results`);
@@ -17,7 +17,7 @@ import pandas as pd
 from droptower.campaign.folder import write_json
 from droptower.compare.fig14 import FIG14, plot_fig14
 from droptower.compare.servo_points import ServoPoints
-from droptower.compare.validation import Validation
+from droptower.compare.map_vs_servo import Validation
 from droptower.errors import DroptowerError, make_folder
 from droptower.io.tables import write_table
 from droptower.maps import MapFit

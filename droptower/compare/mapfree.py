@@ -1,6 +1,6 @@
 """The map-free check of the drop-tower method: drop tests placed on servo points.
 
-The map-vs-servo validation (:mod:`droptower.compare.validation`) mixes two errors: the map's
+The map-vs-servo validation (:mod:`droptower.compare.map_vs_servo`) mixes two errors: the map's
 misfit and the drop tower's own bias. Here the map is taken out: for every servo point
 (amplitude A, frequency f) a virtual drop test is designed whose decay lands on it — the
 lever inertia J sets the frequency, the lever's rate after the impact sets the amplitude (both
@@ -27,15 +27,14 @@ import pandas as pd
 import tomli_w
 
 from droptower import sdof
-from droptower.compare.validation import deviation_stats
+from droptower.compare.map_vs_servo import deviation_stats
 from droptower.errors import DroptowerError
-from droptower.decayfit import fit_decay, start_frequency_and_decay
+from droptower.damped_cosine import fit_decay, start_frequency_and_decay
 from droptower.maps import MapFit
 from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.impact import G
-from droptower.rig.planner import free_decay
+from droptower.rig.predictions import free_decay
 from droptower.rig.preload import pretwist
 from droptower.servo.steady import steady_state
 
@@ -105,7 +104,7 @@ def place_drop_tests(coupling: Coupling, rig: RigConfig, amplitude_deg: np.ndarr
     m1 = np.array([masses[masses <= 0.5 * k * m].max() if np.any(masses <= 0.5 * k * m) else 0.5 * k * m for m in m2])
     v1 = rate * lever * (m1 + m2) / (m1 * (1 + k))                          # docs/theory.md#impact solved for v1
     return Placement(pd.DataFrame({"inertia_kgm2": inertia, "rate_rad_per_s": rate, "drop_mass_kg": m1,
-                                   "drop_height_m": v1 ** 2 / (2 * G), "amplitude_deg": reached[:, 0],
+                                   "drop_height_m": v1 ** 2 / (2 * rig.gravity_m_per_s2), "amplitude_deg": reached[:, 0],
                                    "frequency_hz": reached[:, 1]}))
 
 

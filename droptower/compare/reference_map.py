@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from droptower.compare.validation import deviation_stats
+from droptower.compare.map_vs_servo import deviation_stats
 from droptower.errors import DroptowerError, expects
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 from droptower.maps import MapFit, select_tests

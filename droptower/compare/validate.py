@@ -16,7 +16,7 @@ from typing import Any, Mapping
 import pandas as pd
 
 from droptower.compare.servo_points import ServoPoints
-from droptower.compare.validation import Validation
+from droptower.compare.map_vs_servo import Validation
 from droptower.configs import DEFAULT_COUPLING
 from droptower.errors import DroptowerError
 from droptower.maps.mapfit import MapFit
@@ -28,7 +28,7 @@ class MapValidation:
 
     validation: the map vs the servo points (table and summary); fit: the map; points: the servo
     points; reference: (rows, summary) of the comparison with a measured map, or None;
-    routes: route name -> its :class:`~droptower.compare.validation.Validation` (the paper's map
+    routes: route name -> its :class:`~droptower.compare.map_vs_servo.Validation` (the paper's map
     and the model-based map against the same points), or None; model_route: the model-based
     map's route name; reference_name: the measured map's file name; agreement: route name -> its
     E_n per servo point (:func:`droptower.uncertainty.route_agreement`), where the routes'
@@ -46,7 +46,11 @@ class MapValidation:
 
     @property
     def summary_dict(self) -> dict[str, Any]:
-        """Per region (inside, outside, all of the map's range): points, RMS and max deviations (%)."""
+        """Deprecated (removed in the next release): ``to_dict()["summary"]``, the same dict."""
+        import warnings
+
+        warnings.warn("MapValidation.summary_dict is deprecated: use MapValidation.to_dict()['summary']",
+                      DeprecationWarning, stacklevel=2)
         return self.validation.summary
 
     def to_frame(self) -> pd.DataFrame:
@@ -71,7 +75,7 @@ class MapValidation:
     def summary(self) -> str:
         """The deviations as text (and the routes' and the reference comparison's)."""
         from droptower.compare.reference_map import format_comparison
-        from droptower.compare.validation import format_routes, format_summary
+        from droptower.compare.map_vs_servo import format_routes, format_summary
 
         lines = [format_summary(self.validation)]
         if self.routes is not None:
@@ -94,7 +98,7 @@ class MapValidation:
         files = write_validation(out, self.validation, self.fit, self.points, self.reference,
                                  table_suffix=f".{table_format}")
         if self.routes is not None:
-            from droptower.compare.validation import route_table
+            from droptower.compare.map_vs_servo import route_table
 
             out = Path(out)
             files.append(write_table(route_table(self.routes), out / f"validation_routes.{table_format}", "out"))
@@ -177,7 +181,7 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     """
     from droptower.compare.reference_map import compare_reference, read_reference
     from droptower.compare.servo_points import read_servo_results, run_sweeps
-    from droptower.compare.validation import validate_map
+    from droptower.compare.map_vs_servo import validate_map
     from droptower.maps import read_results
 
     judged = uncertainty is not None or servo_u95_rel is not None
@@ -215,7 +219,7 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     routes = route = None
     if mm is not None:
         from droptower.compare.model_map import PAPER_ROUTE
-        from droptower.compare.validation import validate_routes
+        from droptower.compare.map_vs_servo import validate_routes
 
         route = mm.route
         routes = validate_routes({PAPER_ROUTE: fit, mm.route: mm}, points, hull=fit)

@@ -2,7 +2,7 @@
 
 Every drop the rig can make is predicted first (the planner's batched free decay on the
 nonlinear coupling: impact law, preload, double-impact check, sensor ranges, twist limit,
-samples per period; :func:`droptower.rig.planner.plan`). A lever fixture traces one curve in the
+samples per period; :func:`droptower.rig.predictions.plan`). A lever fixture traces one curve in the
 (amplitude, frequency) plane as the drop height rises (the coupling softens, so the frequency
 falls), and the drop mass only moves the heights along it. The campaign then takes:
 
@@ -29,7 +29,7 @@ from droptower.design.coverage import Target, covered_fraction, in_hull, plane
 from droptower.errors import DroptowerError, expects
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.planner import plan, record_length_s
+from droptower.rig.predictions import plan, record_length_s
 
 #: Candidate drop heights per lever and mass, log-spaced over the rig's height range.
 CANDIDATE_HEIGHTS = 16

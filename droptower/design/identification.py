@@ -193,7 +193,7 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
                              f"{a0:g}-{a1:g} deg x {f0:g}-{f1:g} Hz", where="for_identification")
     pool = pool.reset_index(drop=True)
     if reference is not None:
-        from droptower.rig.planner import plan
+        from droptower.rig.predictions import plan
 
         ref = plan(rig, coupling, reference.assign(case="reference", preload_nm=0.0, repeats=1))
         pool = pd.concat([pool, ref], ignore_index=True)

@@ -1,7 +1,7 @@
 """Stiffness and damping of one drop test from its signals (Rapp et al. 2022, Fig. 9, eq. 13-18;
 docs/theory.md#decay, #extraction, #damping-measures).
 
-Steps: impact onset and pre-trigger baseline (:mod:`.impact`; the pre-trigger means remove
+Steps: impact onset and pre-trigger baseline (:mod:`.impact_detection`; the pre-trigger means remove
 sensor offsets and the preload), starting frequency and decay from the angle after the impact,
 the fit window (:mod:`.window`), the angle fit and the torque fit (:mod:`.decay`), then eq.
 15-18 (:mod:`droptower.sdof`) with standard uncertainties propagated from the fits.
@@ -14,12 +14,13 @@ import numpy as np
 
 from droptower.errors import DroptowerError, finite_values, not_in_range
 from droptower import sdof
-from droptower.decayfit import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
-from droptower.extract.impact import find_impact
+from droptower.damped_cosine import TorqueFit, fit_decay, fit_torque, start_frequency_and_decay
+from droptower.extract.impact_detection import find_impact
 from droptower.extract.result import ExtractionResult
 from droptower.propagation import propagate
 from droptower.extract.window import MIN_PERIODS, Window
 from droptower.io.signals import DropSignals
+from droptower.units import GRAVITY_M_PER_S2
 
 POOR_FIT_ERROR = 0.05           # fit_error above this flags poor_fit (5 % of the amplitude)
 MIN_SAMPLES_PER_PERIOD = 20     # fewer flags too_few_samples_per_period
@@ -77,10 +78,11 @@ IMPACT_LAW_KEYS = ("drop_mass_kg", "drop_height_m", "restitution")
 
 
 def lever_rate_after(signals: DropSignals, inertia: float, lever_length_m: float | None,
-                     impulse_ns: float) -> tuple[float, str]:
+                     impulse_ns: float, gravity_m_per_s2: float = GRAVITY_M_PER_S2) -> tuple[float, str]:
     """The lever's angular rate just after the impact (rad/s) and where it comes from:
     ``"impact_force"`` (L·∫F dt / J), else ``"impact_law"`` (the log's drop mass, height and
-    restitution; Rapp et al. 2022 with momentum conservation), else NaN and ``""``."""
+    restitution, the free fall under ``gravity_m_per_s2``; Rapp et al. 2022 with momentum
+    conservation), else NaN and ``""``."""
     if lever_length_m is None:
         return math.nan, ""
     if math.isfinite(impulse_ns):
@@ -91,9 +93,10 @@ def lever_rate_after(signals: DropSignals, inertia: float, lever_length_m: float
         return math.nan, ""
     if not (m1 > 0 and h > 0 and 0 <= k <= 1):
         return math.nan, ""
-    from droptower.rig.impact import impact_velocities  # here: the rig package imports pymunk
+    from droptower.rig.impact_law import impact_velocities  # here: the rig package imports numba
 
-    return float(impact_velocities(m1, inertia, lever_length_m, h, k).rate_after_rad_per_s), "impact_law"
+    return float(impact_velocities(m1, inertia, lever_length_m, h, k, gravity_m_per_s2).rate_after_rad_per_s), \
+        "impact_law"
 
 
 def _derived(theta: np.ndarray, inertia: float, window_s: float, t_from: float, has_torque: bool) -> np.ndarray:
@@ -123,14 +126,16 @@ _DERIVED_NAMES = ("frequency_hz", "omega_rad_per_s", "delta_per_s", "amplitude_r
 
 
 def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_length_m: float | None = None,
-            window: str | Window = "first-cycle") -> ExtractionResult:
+            window: str | Window = "first-cycle", gravity_m_per_s2: float | None = None) -> ExtractionResult:
     """Extract stiffness and damping from one drop test (Rapp et al. 2022, eq. 13-18, docs/theory.md#extraction).
 
     signals: SI signals of the test; inertia_kgm2: rotating inertia J (default: the log's
     metadata ``inertia_kgm2``); lever_length_m: lever arm L (default: metadata
     ``lever_length_m``), used only for the lever's rate after the impact (L·∫F dt / J, else the
     impact law) and the impact energy; window: ``first-cycle``,
-    ``N-cycles`` or seconds. Raises :class:`DroptowerError` (naming the source file) for input
+    ``N-cycles`` or seconds; gravity_m_per_s2: g of the impact law's free fall (m/s^2; default:
+    the log's metadata ``gravity_m_per_s2``, else :data:`droptower.units.GRAVITY_M_PER_S2`; a rig
+    file's value when the extraction is given a rig). Raises :class:`DroptowerError` (naming the source file) for input
     that cannot give a result; :class:`TypeError` for anything but signals.
     """
     signals = _as_signals(signals, inertia_kgm2)
@@ -140,7 +145,8 @@ def extract(signals: DropSignals, *, inertia_kgm2: float | None = None, lever_le
             raise DroptowerError("no rotating inertia: the log has no 'inertia_kgm2' metadata; give `inertia_kgm2` "
                                  "(the lever fixture's J; `rig` gives it only for a rig with a single fixture)")
         lever = metadata_value(signals, lever_length_m, "lever_length_m")
-        return _extract(signals, inertia, lever, Window.parse(window))
+        gravity = metadata_value(signals, gravity_m_per_s2, "gravity_m_per_s2") or GRAVITY_M_PER_S2
+        return _extract(signals, inertia, lever, Window.parse(window), gravity)
     except DroptowerError as exc:
         raise exc.with_file(signals.source) if signals.source is not None else exc from None
 
@@ -159,7 +165,8 @@ def _as_signals(signals: object, inertia_kgm2: float | None) -> DropSignals:
                     f"got {type(signals).__name__}")
 
 
-def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None, window: Window) -> ExtractionResult:
+def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None, window: Window,
+             gravity_m_per_s2: float = GRAVITY_M_PER_S2) -> ExtractionResult:
     _check(signals)
     time, angle, torque = signals.time_s, signals.angle_rad, signals.torque_nm
     impact = find_impact(time, angle, signals.impact_force_n)
@@ -210,7 +217,7 @@ def _extract(signals: DropSignals, inertia: float, lever_length_m: float | None,
     # pulse's angular momentum J·φ'(0) = L·∫F dt, else the impact law on the log's m1, h, k, L
     # (Rapp et al. 2022, section "Theory of Impact Investigation")
     fit_rate = abs(float(amp * (omega * np.sin(phase) - delta * np.cos(phase))))
-    rate_after, rate_from = lever_rate_after(signals, inertia, lever_length_m, impact.impulse_ns)
+    rate_after, rate_from = lever_rate_after(signals, inertia, lever_length_m, impact.impulse_ns, gravity_m_per_s2)
 
     # a second contact counts as a double impact within the first period (docs/theory.md#double-impact, as the
     # rig's check) or the fit window; a later one is reported but does not disturb the fit

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from droptower.errors import DroptowerError, expects
-from droptower.extract.drops import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
+from droptower.extract.drop_spans import MIN_DROP_SPACING_S, PRE_TRIGGER_S, DropSpan, drop_signals, find_drops
 from droptower.extract.extractor import extract
 from droptower.extract.geometry import geometry_checks
 from droptower.extract.result import ExtractionResult
@@ -17,6 +17,7 @@ from droptower.extract.window import Window
 from droptower.io.logsettings import LogSettings
 from droptower.io.signals import DropSignals
 from droptower.jsonsafe import json_safe
+from droptower.units import GRAVITY_M_PER_S2
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,7 @@ class Settings(LogSettings):
     conditions (``drop_height_m``, ``drop_mass_kg``, ``inertia_kgm2``, ``preload_nm``) over the
     log's metadata and the per-file ``conditions`` (drop conditions apply to one drop of a
     recording of several; the file's conditions to all its drops); pre_trigger_s,
-    min_drop_spacing_s: see :func:`droptower.extract.drops.find_drops`.
+    min_drop_spacing_s: see :func:`droptower.extract.drop_spans.find_drops`.
     """
 
     sample_rate_hz: float | None = None
@@ -69,7 +70,7 @@ DECAY_CUT = "decay_cut_by_next_drop"
 @expects(path=(str, Path), settings=Settings)
 def extract_drops(path: str | Path, settings: Settings) -> list[Drop]:
     """Every drop of one log (or those ``settings.drops`` names), each evaluated on its own
-    samples (:func:`droptower.extract.drops.find_drops`). A problem of the whole file (unreadable,
+    samples (:func:`droptower.extract.drop_spans.find_drops`). A problem of the whole file (unreadable,
     a drop number it does not have) is a DroptowerError naming the file; a drop that cannot be
     evaluated carries its error (naming the file and, in a recording of several, the drop)."""
     signals = settings.read_signals(path, sample_rate_hz=settings.sample_rate_hz, reader_options=settings.reader_options)
@@ -105,7 +106,8 @@ def _extract(signals: DropSignals, settings: Settings) -> ExtractionResult:
              for key, value in (("inertia_kgm2", settings.inertia_kgm2), ("lever_length_m", settings.lever_length_m))}
     if given["inertia_kgm2"] is None and signals.metadata.get("inertia_kgm2") is None:
         raise DroptowerError(settings.no_inertia_reason(signals.metadata))
-    return extract(signals, **given, window=settings.window)
+    gravity = settings.rig.gravity_m_per_s2 if settings.rig is not None else None  # the rig's g, when given
+    return extract(signals, **given, window=settings.window, gravity_m_per_s2=gravity)
 
 
 def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: Settings) -> None:
@@ -137,7 +139,7 @@ def _record_geometry(signals: DropSignals, result: ExtractionResult, settings: S
         except (TypeError, ValueError):
             restitution = None
     outputs, flags = geometry_checks(result, meta, lever, restitution,
-                                     rig.gravity_m_per_s2 if rig is not None else 9.81)
+                                     rig.gravity_m_per_s2 if rig is not None else GRAVITY_M_PER_S2)
     result.geometry = outputs
     result.flags = (*result.flags, *flags)
 

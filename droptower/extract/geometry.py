@@ -28,6 +28,7 @@ from typing import Any
 
 from droptower.errors import expects
 from droptower.extract.result import ExtractionResult
+from droptower.units import GRAVITY_M_PER_S2
 
 #: |c_dyn,M2 / c_dyn,M1 - 1| beyond this flags stiffness_m2_m1_deviation (the right geometry: within
 #: 1.6 % on the Table-2 campaign, 0.7 % on the lab folder; Rapp et al. 2022 measured within 5 %)
@@ -50,7 +51,7 @@ def _float(value: Any) -> float:
 
 
 def impact_law_energy_j(drop_mass_kg: float, drop_height_m: float, inertia_kgm2: float, lever_length_m: float,
-                        restitution: float, gravity_m_per_s2: float = 9.81) -> float:
+                        restitution: float, gravity_m_per_s2: float = GRAVITY_M_PER_S2) -> float:
     """½ J φ'(0+)² after a drop of ``drop_mass_kg`` (kg) from ``drop_height_m`` (m) on a lever of
     inertia ``inertia_kgm2`` (kg*m^2) and length ``lever_length_m`` (m) with restitution k
     (docs/theory.md#impact: φ'(0+) = v1 m1 (1 + k) / ((m1 + J/L²) L), v1 = √(2 g h)); J."""
@@ -62,7 +63,7 @@ def impact_law_energy_j(drop_mass_kg: float, drop_height_m: float, inertia_kgm2:
 
 @expects(result=ExtractionResult, metadata=dict)
 def geometry_checks(result: ExtractionResult, metadata: dict[str, Any], lever_length_m: float | None,
-                    restitution: float | None = None, gravity_m_per_s2: float = 9.81) -> tuple[dict[str, float], tuple[str, ...]]:
+                    restitution: float | None = None, gravity_m_per_s2: float = GRAVITY_M_PER_S2) -> tuple[dict[str, float], tuple[str, ...]]:
     """The geometry cross-checks of one drop: outputs (NaN where a check lacks its inputs) and
     the flags they raise (:data:`FLAGS`).
 

@@ -5,7 +5,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from droptower.decayfit import DecayFit, TorqueFit
+from droptower.damped_cosine import DecayFit, TorqueFit
 
 DEG = math.pi / 180.0
 

@@ -128,7 +128,8 @@ def make_segment(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.ndarra
 
 
 def segments_from_files(paths: Iterable[str | Path], roles: dict[str, str] | None = None, *,
-                        skip_s: float = 0.0, notes: list[str] | None = None) -> list[Segment]:
+                        skip_s: float = 0.0, notes: list[str] | None = None, sample_rate_hz: float | None = None,
+                        sample_interval_s: float | None = None) -> list[Segment]:
     """Read servo records from files of any format the readers take: imposed angle and measured
     torque, or imposed displacement and measured force (a translational record).
 
@@ -136,19 +137,17 @@ def segments_from_files(paths: Iterable[str | Path], roles: dict[str, str] | Non
     ``torque``, ``displacement``, ``force``); missing roles are found by name and units
     converted to SI (see :func:`droptower.io.mapping.map_servo_channels`). Every record must be
     of the same kind. notes: gets ``"<file>: <note>"`` for what was assumed in reading a file
-    (rounded time stamps taken as a constant rate).
+    (rounded time stamps taken as a constant rate). sample_rate_hz (Hz) or sample_interval_s
+    (s): the time base of records without a time channel, as published large-strain tests
+    often are (the time is then ``arange(n) * sample_interval_s``); the records are read as
+    :func:`droptower.servo.records.read_servo_signals` reads them for the bench's evaluation.
     """
-    from droptower.io import read_any
-    from droptower.io.mapping import SERVO_KINDS, map_servo_channels
+    from droptower.servo.records import read_servo_signals, time_base_rate
 
+    rate = time_base_rate(sample_rate_hz, sample_interval_s)
     out = []
     for path in paths:
-        record = read_any(path)
-        signals = map_servo_channels(record, roles)
-        if signals.load_si is None:
-            role = SERVO_KINDS[signals.units][1]
-            raise DroptowerError(f"no {role} channel found; name it with `roles={{'{role}': 'NAME[:UNIT]'}}` "
-                                 f"(the file has: {', '.join(repr(n) for n in record.channels)})", file=path)
+        signals = read_servo_signals(path, roles, rate)
         if out and signals.units != out[0].units:
             raise DroptowerError(f"a {signals.units} record among {out[0].units} ones ({out[0].name}): "
                                  "identify from records of one kind", file=path)

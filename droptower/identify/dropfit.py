@@ -51,6 +51,7 @@ from droptower.identify.search import basin_hops, global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.rates import SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, CouplingState
+from droptower.rig.config import PRELOAD_HOLD_S, PRELOAD_RAMP_S
 from droptower.rig.preload import hold_at
 
 #: Model kinds a drop-test campaign can identify (the servo-only families need steady sine blocks).
@@ -95,7 +96,7 @@ class DropFitSettings:
 
     substeps: int = 1
     torque_weight: float = 0.5
-    conditioning: tuple[float, float] | None = (2.0, 30.0)
+    conditioning: tuple[float, float] | None = (PRELOAD_RAMP_S, PRELOAD_HOLD_S)  # the rig file's defaults
     holdout_fraction: float = 0.2
     max_nfev: int = 0
     seed: int = 0

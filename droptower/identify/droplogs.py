@@ -1,7 +1,7 @@
 """Drop-test logs -> the measured free decays a coupling model is fitted to (docs/theory.md#decay, #extraction).
 
 Per log: channels mapped as for ``droptower extract``; the impact located by the extractor's
-:func:`~droptower.extract.impact.find_impact`; pre-trigger means removed (sensor offsets and
+:func:`~droptower.extract.impact_detection.find_impact`; pre-trigger means removed (sensor offsets and
 the preload); the lever's rate just after the impact from
 
 - the impact-force channel: omega0 = L * (integral of F dt over the pulse) / J, the impulse's
@@ -25,9 +25,9 @@ from typing import Any, Iterable
 import numpy as np
 
 from droptower.errors import DroptowerError, missing_file
-from droptower.decayfit import start_frequency_and_decay
+from droptower.damped_cosine import start_frequency_and_decay
 from droptower.extract.extractor import metadata_value
-from droptower.extract.impact import find_impact
+from droptower.extract.impact_detection import find_impact
 from droptower.io.logsettings import LogSettings
 
 #: A later contact of the drop mass ends the compared window; one within this many periods excludes the test.

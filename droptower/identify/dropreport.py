@@ -87,7 +87,7 @@ def servo_prediction(result: Identification, campaign: DropCampaign) -> tuple[pd
     Returns the table and a note on the map."""
     from droptower.extract.files import Settings, extract_file, result_row
     from droptower.identify.dropfit import servo_grid, tested_grid
-    from droptower.maps.fit import fit_map
+    from droptower.maps.fitting import fit_map
 
     decays, paths, settings = campaign.decays, campaign.paths, campaign.read
     grid = servo_grid(result.coupling, *tested_grid(decays))

@@ -3,7 +3,7 @@
 J phi'' + T(phi, history) = 0, phi(0) = 0, phi'(0) = the rate the impact gave the lever. The
 coupling's state advances with the lever for every row (a test under one parameter set), so all
 tests of all candidate parameter sets decay in one call. The integrator is the rig's
-(:mod:`droptower.rig.lever`), with velocity Verlet: second order for the elastic torque (first
+(:mod:`droptower.rig.lever_decay`), with velocity Verlet: second order for the elastic torque (first
 order where the core's rate-dependent elements see the step's mean rate: 0.1 % of the peak at
 38.4 kHz, tested); the rig's pymunk scene integrates the same equation with symplectic Euler at
 the same step, and the two agree far below the fit errors that matter (tested).
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from droptower.rheology import Coupling, CouplingState
-from droptower.rig.lever import VERLET, LeverDecay
+from droptower.rig.lever_decay import VERLET, LeverDecay
 
 
 def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, n_steps: int | np.ndarray,
@@ -52,27 +52,20 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
         if end > done:
             a, q = lever.advance(end - done)
             angle[running, done + 1:end + 1] = a
-            torque[running, done + 1:end + 1] = q - lever.rest[:, None]
+            torque[running, done + 1:end + 1] = lever.torque_from_rest(q)  # the convention of rig.lever_decay
             done = end
         ended = steps[running] == end
         rows = running[ended]
         angle[rows, end + 1:] = angle[rows, end][:, None]
         torque[rows, end + 1:] = torque[rows, end][:, None]
         if lever.state is not state:  # a subset's copy: its rows' states back into the caller's
-            _store(state, running, lever.state)
+            state.merge(running, lever.state)
         running = running[~ended]
         if not running.size:
             break
         if ended.any():
             lever = lever.rows(~ended)
     return angle, torque
-
-
-def _store(state: CouplingState, rows: np.ndarray, sub: CouplingState) -> None:
-    """The rows ``rows`` of ``state`` set to ``sub``'s (one row each)."""
-    state.values[rows] = sub.values
-    state.angle_rad[rows] = sub.angle_rad
-    state.torque_nm[rows] = sub.torque_nm
 
 
 def at_times(history: np.ndarray, step_s: float, times_s: np.ndarray) -> np.ndarray:

@@ -7,12 +7,37 @@ record (torsional, or translational: displacement and force) into SI :class:`Ser
 ``read_conditions(table)`` / ``conditions_from_names(pattern)`` give each log its test
 conditions (:class:`Conditions`: a lab's sheet keyed by file, or its file names).
 """
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from droptower.io.channels import Channel, Record
-from droptower.io.conditions import Conditions, conditions_from_names, read_conditions
 from droptower.io.droptower_log import read_log, write_log
 from droptower.io.mapping import map_channels, map_servo_channels, parse_channel_options
 from droptower.io.readers import read_any
 from droptower.io.signals import DropSignals, ServoSignals
 
+if TYPE_CHECKING:
+    from droptower.io.conditions import Conditions, conditions_from_names, read_conditions
+
+#: names imported on first use: the conditions tables need pandas, which reading and extracting a
+#: log does not
+_LAZY: dict[str, str] = {"Conditions": "droptower.io.conditions", "conditions_from_names": "droptower.io.conditions",
+                         "read_conditions": "droptower.io.conditions"}
+
 __all__ = ["Channel", "Record", "DropSignals", "ServoSignals", "read_any", "read_log", "write_log", "map_channels",
            "map_servo_channels", "parse_channel_options", "Conditions", "read_conditions", "conditions_from_names"]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name on first use (PEP 562)."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

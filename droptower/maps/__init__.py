@@ -8,7 +8,7 @@ table; ``coverage_notes`` names what the map does not cover (a fixture or condit
 test was left out, with the drop mass that would avoid its double impacts; a temperature span).
 """
 from droptower.maps.coverage import TEMPERATURE_SPAN_K, coverage_notes, double_impact_advice
-from droptower.maps.fit import fit_map
+from droptower.maps.fitting import fit_map
 from droptower.maps.fromlogs import results_from_logs
 from droptower.maps.mapfit import FitStats, MapFit, MapRange
 from droptower.maps.results import ExcludedTest, read_results, select_tests

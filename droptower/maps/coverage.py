@@ -8,7 +8,7 @@ much lighter than the lever's equivalent mass J/L²). :func:`coverage_notes` nam
 and for double impacts the planner's advice: the drop masses and heights at which the
 closed-form decay of the fixture's own measured frequency and decay (docs/theory.md#decay)
 leaves the lever's tip before the drop mass catches up within one period
-(:func:`droptower.rig.impact.second_impact_time`, the criterion of ``droptower plan``).
+(:func:`droptower.rig.impact_law.second_impact_time`, the criterion of ``droptower plan``).
 """
 from __future__ import annotations
 
@@ -83,7 +83,7 @@ def double_impact_advice(inertia_kgm2: float, frequency_hz: float, decay_per_s: 
     t = np.linspace(0.0, period, ADVICE_SAMPLES_PER_PERIOD + 1)
 
     def strikes_twice(mass: float) -> bool:
-        from droptower.rig.impact import drop_mass_path, impact_velocities, lever_tip_path, second_impact_time
+        from droptower.rig.impact_law import drop_mass_path, impact_velocities, lever_tip_path, second_impact_time
 
         iv = impact_velocities(mass, inertia_kgm2, lever_length_m, heights, restitution)
         angle = (iv.rate_after_rad_per_s[:, None] / omega) * np.exp(-decay_per_s * t) * np.sin(omega * t)
@@ -119,7 +119,7 @@ def _restitution(rows: pd.DataFrame, lever_length_m: float) -> float | None:
     v = v[(v > 0).all(axis=1)]
     if v.empty:
         return None
-    from droptower.rig.impact import G
+    from droptower.rig.impact_law import G
 
     m1, m2 = v["drop_mass_kg"], v["inertia_kgm2"] / lever_length_m ** 2
     v1 = np.sqrt(2.0 * G * v["drop_height_m"])

@@ -55,7 +55,7 @@ from droptower.errors import DroptowerError, WriteError, readable_file, unreadab
 from droptower.jsonsafe import json_safe
 from droptower.maps.forms import PAPER, UNIT_TEXT, Equation, MapForm
 from droptower.maps.results import ExcludedTest
-from droptower.validation import StrictModel, validate
+from droptower.config_validation import StrictModel, validate
 
 if TYPE_CHECKING:
     import pandas as pd

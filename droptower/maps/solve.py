@@ -2,7 +2,7 @@
 NNLS for the factors on a grid of the exponents, the best grid points polished jointly with
 every parameter ≥ 0, and how well the result is determined.
 
-Shared by the paper's fit (:mod:`droptower.maps.fit`) and the fit of any form and its term
+Shared by the paper's fit (:mod:`droptower.maps.fitting`) and the fit of any form and its term
 selection (:mod:`droptower.maps.select`).
 """
 from __future__ import annotations

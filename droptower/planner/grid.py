@@ -2,7 +2,7 @@
 
 The page has no Python: every lever x drop mass x height x preload of the rig is predicted here
 (the nonlinear free decay, impact law, double-impact check and limits of
-:func:`droptower.rig.planner.plan`, in batches) on heights log-spaced over the rig's range, and
+:func:`droptower.rig.predictions.plan`, in batches) on heights log-spaced over the rig's range, and
 where linear interpolation in log height misses a direct prediction at an interval's middle
 by more than :data:`REFINE_TOLERANCE`, the interval is halved (amplitude and frequency vary
 smoothly with height, about as its square root and slowly, except where the coupling's
@@ -24,7 +24,7 @@ from droptower.errors import DroptowerError, expects
 from droptower.jsonsafe import json_safe
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.planner import MIN_SAMPLES_PER_PERIOD, plan
+from droptower.rig.predictions import MIN_SAMPLES_PER_PERIOD, plan
 
 #: Heights the grid starts from per lever, mass and preload, log-spaced over the rig's range ...
 GRID_HEIGHTS = 41

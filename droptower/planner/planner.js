@@ -1,6 +1,6 @@
 // The droptower planner page: predictions of one drop and the design of a campaign, offline.
 //
-// The predictions are droptower.rig.planner.plan's, computed by the package on a grid of
+// The predictions are droptower.rig.predictions.plan's, computed by the package on a grid of
 // heights (the JSON in #planner-data) and interpolated here linearly in log height. The design
 // repeats droptower/design/choose.py step by step (_levels, _lever_drops, _choose and the
 // --max-tests loop of design_campaign) on the same candidates, so the page chooses the drops
@@ -62,7 +62,7 @@ function predict(lever, mass, preload, h) {
   return out;
 }
 
-// What limits this prediction hits (droptower.rig.planner's warnings and the design's margin)
+// What limits this prediction hits (droptower.rig.predictions's warnings and the design's margin)
 function problems(p) {
   const r = D.rig, out = [];
   if (Number.isNaN(p.frequency_hz)) out.push("no complete oscillation");

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from droptower.decayfit import DecayFit, TorqueFit
+from droptower.damped_cosine import DecayFit, TorqueFit
 from droptower.errors import DroptowerError
 from droptower.extract.result import DEG
 from droptower.maps.results import flag_list

@@ -16,7 +16,7 @@ import pandas as pd
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from droptower.decayfit import DecayFit, TorqueFit
+from droptower.damped_cosine import DecayFit, TorqueFit
 from droptower.extract.result import DEG, ExtractionResult
 from droptower.io.signals import DropSignals
 from droptower.maps import MapFit

@@ -58,7 +58,7 @@ def routes_figure(model_map: ModelMap, paper: Any | None) -> go.Figure:
 def routes_section(model_map: ModelMap, paper: Any | None, validations: dict[str, Any] | None = None
                    ) -> tuple[str, str]:
     """(heading, HTML) of the section: what each route is, the figure, and the route table."""
-    from droptower.compare.validation import route_table
+    from droptower.compare.map_vs_servo import route_table
 
     ident = model_map.identification
     verdict = ident.get("verdict")
@@ -91,7 +91,7 @@ def routes_report_section(source: str | Path, model_map: ModelMap, form: str = "
     ``servo_columns`` as :func:`~droptower.compare.servo_points.read_servo_results` takes them),
     else the sweeps run on ``coupling`` (a campaign's own), else not validated."""
     from droptower.compare import read_servo_results, run_sweeps
-    from droptower.compare.validation import validate_routes
+    from droptower.compare.map_vs_servo import validate_routes
     from droptower.errors import DroptowerError
     from droptower.maps import fit_map, read_results
     from droptower.report.run import load_run

@@ -7,7 +7,32 @@
 - :mod:`.coupling`: :class:`Coupling`, explicit state and time step, batch axis first;
 - :mod:`.loader`: TOML files -> :class:`Coupling`.
 """
-from droptower.rheology.coupling import Coupling, CouplingState, Response
-from droptower.rheology.loader import coupling_to_toml, load_coupling, parse_coupling
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from droptower.rheology.coupling import Coupling, CouplingState, Response
+    from droptower.rheology.loader import coupling_to_toml, load_coupling, parse_coupling
+
+#: name -> module, imported on first use: a module that needs only the kernel cache
+#: (:mod:`.numba_cache`, e.g. the decay fit's kernels) loads no coupling, pydantic or core kernels
+_LAZY: dict[str, str] = {"Coupling": "droptower.rheology.coupling", "CouplingState": "droptower.rheology.coupling",
+                         "Response": "droptower.rheology.coupling", "coupling_to_toml": "droptower.rheology.loader",
+                         "load_coupling": "droptower.rheology.loader", "parse_coupling": "droptower.rheology.loader"}
 
 __all__ = ["Coupling", "CouplingState", "Response", "load_coupling", "parse_coupling", "coupling_to_toml"]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name on first use (PEP 562)."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -43,7 +43,23 @@ class CouplingState:
         return self.values.shape[0]
 
     def copy(self) -> "CouplingState":
+        """An independent copy of the committed state (a pending trial is not carried)."""
         return CouplingState(self.values.copy(), self.angle_rad.copy(), self.torque_nm.copy())
+
+    def take(self, rows: np.ndarray) -> "CouplingState":
+        """The committed state of some rows of the batch, as an independent state (copies).
+
+        rows: integer indices (repeats allowed: one row may start several) or a boolean mask of
+        the batch. Advance the result on its own and put it back with :meth:`merge`.
+        """
+        return CouplingState(self.values[rows], self.angle_rad[rows], self.torque_nm[rows])
+
+    def merge(self, rows: np.ndarray, part: "CouplingState") -> None:
+        """Set the rows ``rows`` of this state to ``part``'s (in place; one row of ``part`` per
+        selected row, in order): the inverse of :meth:`take` for a part advanced on its own."""
+        self.values[rows] = part.values
+        self.angle_rad[rows] = part.angle_rad
+        self.torque_nm[rows] = part.torque_nm
 
     def commit(self) -> None:
         """Make the last trial (:meth:`Coupling.trial`) the committed state."""

@@ -21,7 +21,7 @@ from pydantic import Field, PositiveFloat, NonNegativeFloat, PositiveInt, field_
 from droptower.limits import MAX_ELEMENT_N
 from droptower.rheology import kernels as K
 from droptower.rheology import kinds
-from droptower.validation import StrictModel
+from droptower.config_validation import StrictModel
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from droptower.errors import DroptowerError, expects
 from droptower.limits import MAX_ELEMENTS
 from droptower.rheology.coupling import Coupling
 from droptower.rheology.elements import ELEMENT_KINDS, ElementUnion
-from droptower.validation import StrictModel, validate
+from droptower.config_validation import StrictModel, validate
 
 
 class CouplingFile(StrictModel):

@@ -5,7 +5,7 @@ A kernel module's kernels are cached in one folder of the user's cache
 hash of the contents of every file of the package the module's code reaches
 (:func:`kernel_sources`): the rig's kernels are built around the core's element steps and read
 the generated slot constants of ``rheology/kernels.py``, which numba's own cache, keyed on the
-kernel's own file, does not see (an edited ``kernels.py`` left ``rig/lever.py``'s cached kernel
+kernel's own file, does not see (an edited ``kernels.py`` left ``rig/lever_decay.py``'s cached kernel
 stale). The same sources compiled once serve every copy of them: a checkout and its installed
 copy, a reinstall, an FMU's host process. Where that folder is not writable numba's own places
 are used (beside the source in ``__pycache__``, then the user's numba cache).

@@ -1,7 +1,7 @@
 """A batch kernel's rows spread over threads: the serial build run on contiguous chunks of rows.
 
 The batch kernels (:func:`droptower.rheology.kernels.run_history`, the lever's free decay in
-:mod:`droptower.rig.lever`) compute every row of a batch independently and release the GIL
+:mod:`droptower.rig.lever_decay`) compute every row of a batch independently and release the GIL
 (``nogil``), so chunks of rows on as many threads compute what one call computes, row by row
 with the same code: the results are bit-identical. This replaces numba parallel builds
 (``parallel=True``, ``prange``), each a second compilation of a large kernel (8-10 s of CPU on

@@ -21,7 +21,8 @@ from droptower.errors import DroptowerError, not_in_range
 from droptower.limits import MAX_CAMPAIGN_TESTS, MAX_PLAN_CONDITIONS
 from droptower.rates import RIG_SAMPLE_RATE_HZ
 from droptower.rig.uncertainty import RigUncertainty
-from droptower.validation import StrictModel, validate
+from droptower.units import GRAVITY_M_PER_S2
+from droptower.config_validation import StrictModel, validate
 
 if TYPE_CHECKING:
     from droptower.rheology import Coupling
@@ -43,6 +44,17 @@ def _range(values: list[float], what: str) -> list[float]:
     return values
 
 
+#: The preload's quasi-static ramp to the twist (s), on the drop tower (:mod:`droptower.rig.preload`),
+#: the servo bench (:mod:`droptower.servo.bench`) and in identification's re-simulated drops.
+PRELOAD_RAMP_S = 2.0
+#: The hold at the preload twist before the test (s), everywhere the preload is set: long against
+#: the slowest relaxation of the reference coupling (its filler network recovers with
+#: tau_r = 10 s, docs/theory.md#filler-network: after 60 s within e^-6 = 0.25 % of settled). With
+#: 30 s a 1 kN*m preload still moved rapp2022_nr60's decay period by 0.3 % (60 s: 4e-6), where
+#: Rapp et al. 2022 (Fig. 11) see no influence of the preload.
+PRELOAD_HOLD_S = 60.0
+
+
 # ------------------------------------------------------------------ rig
 class Simulation(StrictModel):
     """How the pymunk scene is stepped (see :mod:`droptower.rig.scene`)."""
@@ -50,8 +62,8 @@ class Simulation(StrictModel):
     steps_per_sample: PositiveInt = Field(2, description="Internal simulation steps per output sample (simulation only).")
     solver_iterations: PositiveInt = Field(10, description="pymunk impulse-solver passes per step (simulation only).")
     striker_radius_m: PositiveFloat = Field(0.005, description="Radius of the drop mass's round striker, m (simulation only).")
-    preload_ramp_s: PositiveFloat = Field(2.0, description="Quasi-static ramp to the preload twist, s (simulation only).")
-    preload_hold_s: PositiveFloat = Field(30.0, description="Hold before the drop so rate-dependent parts relax, s "
+    preload_ramp_s: PositiveFloat = Field(PRELOAD_RAMP_S, description="Quasi-static ramp to the preload twist, s (simulation only).")
+    preload_hold_s: PositiveFloat = Field(PRELOAD_HOLD_S, description="Hold before the drop so rate-dependent parts relax, s "
                                                           "(simulation only).")
 
 
@@ -125,7 +137,7 @@ class RigConfig(StrictModel):
                                               "(planning and simulation).")
     restitution: float = Field(0.5, ge=0.0, le=1.0, description="Newton's restitution k of the mass-lever contact, "
                                "0 to 1 (impact law, docs/theory.md#impact; the impact-energy check).")
-    gravity_m_per_s2: PositiveFloat = Field(9.81, description="Gravitational acceleration g, m/s^2.")
+    gravity_m_per_s2: PositiveFloat = Field(GRAVITY_M_PER_S2, description="Gravitational acceleration g, m/s^2.")
     simulation: Simulation = Field(Simulation(), description="How the virtual rig is stepped (table [simulation]; "
                                    "simulation only).")
     sensors: Sensors = Field(description="Data acquisition and sensors (table [sensors]).")

@@ -46,9 +46,7 @@ class Pretwist:
 
     def take(self, rows: np.ndarray) -> "Pretwist":
         """The pretwist of some rows of the batch (copies)."""
-        s = self.state
-        return Pretwist(self.angle_rad[rows], self.torque_nm[rows],
-                        CouplingState(s.values[rows], s.angle_rad[rows], s.torque_nm[rows]))
+        return Pretwist(self.angle_rad[rows], self.torque_nm[rows], self.state.take(rows))
 
 
 def _history(angle_end: np.ndarray, ramp_s: float, hold_s: float) -> tuple[np.ndarray, float, float]:
@@ -90,10 +88,7 @@ def pretwist(coupling: Coupling, preload_nm: np.ndarray, ramp_s: float, hold_s: 
     if np.any(active):
         angle[active] = _solve(coupling, target[active], ramp_s, hold_s)
     state = hold_at(coupling, angle, ramp_s, hold_s)
-    full = coupling.new_state(preload.size)
-    full.values[...] = state.values[inverse]
-    full.angle_rad[...] = state.angle_rad[inverse]
-    full.torque_nm[...] = state.torque_nm[inverse]
+    full = state.take(inverse)  # each distinct preload's state, once per row that asked for it
     return Pretwist(angle_rad=angle[inverse], torque_nm=full.torque_nm.copy(), state=full)
 
 

@@ -20,7 +20,7 @@ from pydantic import BaseModel
 
 from droptower.errors import DroptowerError, expects
 from droptower.rig.config import RigConfig, check_pre_trigger
-from droptower.validation import validate
+from droptower.config_validation import validate
 
 #: what ``rig new`` assumes for the fields only the simulation (or planning) uses, and why
 ASSUMED: dict[str, tuple[Any, str]] = {

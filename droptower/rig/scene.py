@@ -508,8 +508,7 @@ class DropTowerScenes:
             """Scenes leave the space (their state goes to the flight carriers) or enter it."""
             nonlocal members, bodies, sub, sub_coupling, sub_torque, twist_arg, screw_arg, pred
             if sub is not None:  # the members' coupling state back into the batch's
-                state.values[members], state.angle_rad[members], state.torque_nm[members] = \
-                    sub.values, sub.angle_rad, sub.torque_nm
+                state.merge(members, sub)
                 torque[members] = sub_torque
             if leaving.size:
                 local = bodies.local[leaving]
@@ -527,7 +526,7 @@ class DropTowerScenes:
                 bodies = sub = None
                 return
             bodies = self._bodies(members)
-            sub = CouplingState(state.values[members], state.angle_rad[members], state.torque_nm[members])
+            sub = state.take(members)
             sub_coupling = coupling
             if coupling.n_sets > 1:
                 sub_coupling = copy.copy(coupling)

@@ -14,7 +14,7 @@ import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 import pandas as pd
@@ -25,10 +25,12 @@ from droptower.io.droptower_log import write_log
 from droptower.io.signals import DropSignals
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.impact import ImpactVelocities, first_period, impact_velocities, lever_tip_path
+from droptower.rig.impact_law import ImpactVelocities, first_period, impact_velocities, lever_tip_path
 from droptower.rig.preload import Pretwist, pretwist
-from droptower.rig.scene import Contact, DropTowerScenes
 from droptower.rig.sensors import Channels, force_pulses, sample
+
+if TYPE_CHECKING:
+    from droptower.rig.scene import Contact
 
 ENERGY_SAMPLE_S = 5e-4    # energies are sampled this often
 
@@ -120,6 +122,8 @@ class DropResult:
 
     def summary(self) -> dict[str, Any]:
         """The figures of the test, every key with its unit (what ``droptower simulate`` prints as JSON)."""
+        from droptower.rig.scene import Contact  # pymunk, loaded when a simulation runs
+
         first = self.contacts[0] if self.contacts else Contact(start_s=math.nan)
         L = self.rig.lever_length_m
         rate = first.lever_rate_after_rad_per_s
@@ -283,6 +287,7 @@ def simulate(rig: RigConfig, coupling: Coupling, tests: Sequence[DropTest] | pd.
 def _run_batch(rig: RigConfig, coupling: Coupling, tests: list[DropTest], duration_s: float,
                twist: Pretwist, fly_between_contacts: bool = True) -> list[DropResult]:
     """The tests in one scene batch (``fly_between_contacts``: see :meth:`DropTowerScenes.run`)."""
+    from droptower.rig.scene import DropTowerScenes  # pymunk: imported by the simulation only
     g = rig.gravity_m_per_s2
     inertia = np.array([t.inertia_kgm2 for t in tests])
     mass = np.array([t.drop_mass_kg for t in tests])

@@ -27,7 +27,7 @@ from typing import Literal
 
 from pydantic import Field, NonNegativeFloat, PositiveFloat
 
-from droptower.validation import StrictModel
+from droptower.config_validation import StrictModel
 
 #: relative tolerance within which a drop's inertia or mass is the fixture of an entry's ``nominal``
 FIXTURE_MATCH_REL = 1e-6

@@ -41,6 +41,7 @@ from droptower.errors import DroptowerError
 from droptower.limits import require_memory, require_steps
 from droptower.rates import RIG_SAMPLE_RATE_HZ, SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling, load_coupling
+from droptower.rig.config import PRELOAD_HOLD_S, PRELOAD_RAMP_S
 from droptower.servo import histories
 from droptower.servo.evaluate import MIN_SAMPLES_PER_CYCLE, CycleEvaluation, evaluate_cycles
 
@@ -54,11 +55,9 @@ AMPLITUDE_RANGE_RAD = (math.radians(1e-6), math.radians(90.0))
 MAX_PRELOAD_NM = 1e6
 #: Samples per simulate() call and batch row bound the memory of long, finely stepped runs.
 CHUNK_SAMPLES = 1 << 21
-#: The preload is set like the drop tower's (droptower.rig.preload): a quasi-static ramp to the
-#: mean angle, then a hold long against the slowest relaxation of the reference coupling (its
-#: filler network's structure recovers with 10 s: after 60 s within e^-6 = 0.25 % of settled).
-PRELOAD_RAMP_S = 2.0
-PRELOAD_HOLD_S = 60.0
+#: The preload is set like the drop tower's (droptower.rig.preload), with its ramp and hold
+#: (droptower.rig.config.PRELOAD_RAMP_S, PRELOAD_HOLD_S: one definition): a quasi-static ramp to
+#: the mean angle, then a hold long against the slowest relaxation of the reference coupling.
 PRELOAD_RAMP_STEPS = 200
 PRELOAD_HOLD_STEPS = 600
 

@@ -38,13 +38,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError, check_positive, finite_values
 from droptower.servo.evaluate import MIN_SAMPLES_PER_CYCLE, evaluate_cycles, smoothing_window
+
+if TYPE_CHECKING:
+    from droptower.io.mapping import ServoSignals
 
 #: Cycles evaluated per block (the last ones), as the virtual bench evaluates 5 (:func:`droptower.servo.run_grid`).
 CYCLES = 5
@@ -297,10 +300,37 @@ def evaluate_record(time_s: np.ndarray, motion: np.ndarray, load: np.ndarray, *,
     return translate_table(table, units)
 
 
-def _read_record(path: str | Path, roles: dict[str, str] | None, sample_rate_hz: float | None,
-                 lever_arm_m: float | None):
-    """(time_s, motion, load, units, notes) of one file, in SI; a lever arm turns a
-    translational record torsional (module docstring)."""
+def time_base_rate(sample_rate_hz: float | None, sample_interval_s: float | None) -> float | None:
+    """The sample rate (Hz) of records without a time channel, from ``sample_rate_hz`` or
+    ``sample_interval_s`` (s; at most one of the two, each > 0); None where neither is given."""
+    if sample_rate_hz is not None and sample_interval_s is not None:
+        raise DroptowerError("give `sample_rate_hz` or `sample_interval_s`, not both")
+    check_positive(sample_rate_hz, "sample_rate_hz")
+    check_positive(sample_interval_s, "sample_interval_s")
+    return 1.0 / sample_interval_s if sample_interval_s is not None else sample_rate_hz
+
+
+def read_servo_signals(path: str | Path, roles: dict[str, str] | None = None,
+                       sample_rate_hz: float | None = None) -> "ServoSignals":
+    """One raw servo record's imposed motion and measured load in SI, as the lab's bench reads it.
+
+    Parameters
+    ----------
+    path : path
+        A record in any format the readers take (:func:`droptower.io.read_any`).
+    roles : dict, optional
+        Channel role -> ``NAME[:UNIT]`` (:func:`droptower.io.map_servo_channels`).
+    sample_rate_hz : float, optional
+        The time base (Hz) of a record without a time channel (the time is then
+        ``arange(n) / sample_rate_hz``, s); a record with one must run at this rate.
+
+    Returns
+    -------
+    ServoSignals
+        :func:`droptower.io.map_servo_channels`' signals (time s, motion rad or m, load N*m or
+        N); a record without a time channel and no rate, or without a load channel, or whose own
+        time base disagrees with the given rate, is a :class:`DroptowerError` naming ``path``.
+    """
     from droptower.io import read_any
     from droptower.io.mapping import SERVO_KINDS, find_servo_roles, map_servo_channels
 
@@ -326,6 +356,14 @@ def _read_record(path: str | Path, roles: dict[str, str] | None, sample_rate_hz:
         role = SERVO_KINDS[signals.units][1]
         raise DroptowerError(f"no {role} channel found; name it with `roles={{'{role}': 'NAME[:UNIT]'}}` "
                              f"(the file has: {', '.join(repr(n) for n in record.channels)})", file=path)
+    return signals
+
+
+def _read_record(path: str | Path, roles: dict[str, str] | None, sample_rate_hz: float | None,
+                 lever_arm_m: float | None):
+    """(time_s, motion, load, units, notes) of one file, in SI (:func:`read_servo_signals`); a
+    lever arm turns a translational record torsional (module docstring)."""
+    signals = read_servo_signals(path, roles, sample_rate_hz)
     motion, load, units = signals.motion_si, signals.load_si, signals.units
     if lever_arm_m is not None:
         if units != "translational":
@@ -378,12 +416,8 @@ def evaluate_records(paths: str | Path | Iterable[str | Path], roles: dict[str, 
     >>> table = evaluate_records(["sweep.csv"], sample_rate_hz=2048.0)  # doctest: +SKIP
     >>> table[["amplitude_deg", "frequency_hz", "storage_stiffness_nm_per_deg", "loss_factor"]]  # doctest: +SKIP
     """
-    if sample_rate_hz is not None and sample_interval_s is not None:
-        raise DroptowerError("give `sample_rate_hz` or `sample_interval_s`, not both")
-    check_positive(sample_rate_hz, "sample_rate_hz")
-    check_positive(sample_interval_s, "sample_interval_s")
+    rate = time_base_rate(sample_rate_hz, sample_interval_s)
     check_positive(lever_arm_m, "lever_arm_m")
-    rate = 1.0 / sample_interval_s if sample_interval_s is not None else sample_rate_hz
     paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     if not paths:
         raise DroptowerError("give at least one record")

@@ -26,6 +26,7 @@ from scipy.special import erfinv
 from droptower.errors import DroptowerError, expects
 from droptower.extract.result import ExtractionResult
 from droptower.rig.uncertainty import RigUncertainty
+from droptower.units import GRAVITY_M_PER_S2
 from droptower.uncertainty.gum import propagate_gum
 from droptower.uncertainty.inputs import DropInputs, drop_inputs
 from droptower.uncertainty.model import QUANTITIES, DropModel
@@ -164,7 +165,7 @@ def drop_budget(result: ExtractionResult, uncertainty: RigUncertainty | None = N
     k = _nominal("restitution", restitution, metadata, getattr(rig, "restitution", None))
     model = DropModel.from_result(result, lever_length_m=lever, laser_radius_m=radius, drop_mass_kg=mass,
                                   drop_height_m=height, restitution=k,
-                                  gravity_m_per_s2=getattr(rig, "gravity_m_per_s2", 9.81))
+                                  gravity_m_per_s2=getattr(rig, "gravity_m_per_s2", GRAVITY_M_PER_S2))
     inputs = drop_inputs(uncertainty, inertia_kgm2=result.inertia_kgm2, lever_length_m=model.nominal.get("lever_length_m"),
                          laser_radius_m=radius, drop_mass_kg=mass, drop_height_m=height,
                          sample_rate_hz=result.sample_rate_hz)

@@ -29,6 +29,7 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.extract.extractor import _derived
 from droptower.extract.result import ExtractionResult
+from droptower.units import GRAVITY_M_PER_S2
 
 #: the per-drop quantities (SI fields of :class:`~droptower.extract.ExtractionResult`) the model gives
 QUANTITIES: tuple[str, ...] = ("frequency_hz", "stiffness_nm_per_rad", "damping_ratio", "loss_factor",
@@ -59,7 +60,7 @@ class DropModel:
     def from_result(cls, result: ExtractionResult, *, lever_length_m: float | None = None,
                     laser_radius_m: float | None = None, drop_mass_kg: float | None = None,
                     drop_height_m: float | None = None, restitution: float | None = None,
-                    gravity_m_per_s2: float = 9.81) -> "DropModel":
+                    gravity_m_per_s2: float = GRAVITY_M_PER_S2) -> "DropModel":
         """The model of an extraction (it must keep its fits: ``result.angle_fit``).
 
         The nominal values are those the extraction used: J and the sample rate from ``result``,
@@ -134,7 +135,7 @@ class DropModel:
             # J·φ'(0+) = L·∫F dt (Rapp et al. 2022, "Theory of Impact Investigation"), impulse read through κ_F
             return 0.5 * (lever * self.impulse_ns / value("force_calibration_rel")) ** 2 / inertia
         if self.energy_route == "impact_law":
-            from droptower.rig.impact import impact_velocities  # the rig package imports pymunk
+            from droptower.rig.impact_law import impact_velocities  # the rig package imports pymunk
 
             return impact_velocities(value("drop_mass_kg"), inertia, lever, value("drop_height_m"), self.restitution,
                                      self.gravity_m_per_s2).impact_energy_j

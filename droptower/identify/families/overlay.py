@@ -67,7 +67,7 @@ def identify_overlay(s: Setup, segments: list[Segment], start: float, **_) -> Id
     """Rapp et al.'s (2022) map as a model. Every steady sine block is evaluated like a servo test
     (K', loss factor); the map (eq. 19 for the stiffness K', eq. 20 for the drop-tower damping
     ratio equivalent to the loss factor, :func:`droptower.servo.drop_tower_equivalent_damping_ratio`)
-    is fitted with :func:`droptower.maps.fit.fit_map`. The model's torque is k theta + c dtheta/dt
+    is fitted with :func:`droptower.maps.fitting.fit_map`. The model's torque is k theta + c dtheta/dt
     with k, c from the map at the amplitude and frequency of the half cycle each sample lies in
     (the same as the core's spring + dashpot, which have no memory). Limits: a Kelvin-Voigt
     coupling has one stiffness for the mean load and the oscillation (a preload is carried at
@@ -75,7 +75,7 @@ def identify_overlay(s: Setup, segments: list[Segment], start: float, **_) -> Id
     the measured amplitude/frequency range the map is held at its edge."""
     import pandas as pd
 
-    from droptower.maps.fit import fit_map
+    from droptower.maps.fitting import fit_map
     from droptower.servo import drop_tower_equivalent_damping_ratio
 
     fam: OverlayFamily = s.family  # type: ignore[assignment]

@@ -11,10 +11,16 @@ the rig's step against 2); the coupling's own updates have none:
 
 - ``SYMPLECTIC_EULER``: the angle advances with the old rate, the torque is taken at the angle
   reached, then the rate: exactly what the pymunk scene does (:mod:`droptower.rig.scene`), so
-  the plan (:mod:`droptower.rig.planner`) agrees with the simulation;
+  the plan (:mod:`droptower.rig.predictions`) agrees with the simulation;
 - ``VERLET``: velocity Verlet, second order for the elastic torque (first order where the
   core's rate-dependent elements see the step's mean rate): the identification's
   (``droptower.identify.lever``), which compares decays sampled more coarsely than the rig steps.
+
+Torque convention (one for the package): :meth:`LeverDecay.advance` returns the coupling torque
+itself, T (what the flange sensor reads, the preload included: the rig's
+:func:`droptower.rig.predictions.free_decay`); :func:`torque_from_rest` gives T - T_rest, the
+torque that moves the lever and what a pre-trigger baseline leaves of a measured torque (the
+identification's ``free_decay``). Both sides compute it here, so they cannot drift apart.
 
 The pymunk scene cannot use this integrator (the impact is pymunk's contact solver); it is
 tested against it (``tests/test_rig_scene.py``, ``tests/test_rig_planner.py``).
@@ -73,6 +79,18 @@ def _decay_steps(codes, p_off, s_off, params, state, x_rest, rest, inertia, phi,
 _decay_steps = njit(**row_loop_options(__file__), **K.JIT)(_decay_steps)
 
 
+def torque_from_rest(torque_nm: np.ndarray, rest_torque_nm: np.ndarray) -> np.ndarray:
+    """The coupling torque's change from rest, T - T_rest (N*m).
+
+    torque_nm: the coupling torque T, (B,) or (B, N); rest_torque_nm: (B,) the torque the
+    coupling carried at rest (the screw's, the preload; 0 without one). The lever feels exactly
+    this, since the screw keeps holding T_rest.
+    """
+    torque = np.asarray(torque_nm, float)
+    rest = np.asarray(rest_torque_nm, float)
+    return torque - (rest[:, None] if torque.ndim == 2 else rest)
+
+
 class LeverDecay:
     """A batch of levers decaying on their coupling instances, advanced in chunks of steps.
 
@@ -98,13 +116,18 @@ class LeverDecay:
         their coupling rows, state, rest torque and carried angle, rate and acceleration (copies)."""
         c, s = self.coupling, self.state
         coupling = c.with_params(c.params[keep]) if c.n_sets > 1 else c
-        sub = LeverDecay(coupling, CouplingState(s.values[keep], s.angle_rad[keep], s.torque_nm[keep]),
+        sub = LeverDecay(coupling, s.take(keep),
                          self.inertia[keep], self.rate[keep], self.step_s, self.scheme, rest_torque_nm=self.rest[keep])
         sub.x_rest, sub.phi, sub.acc = self.x_rest[keep], self.phi[keep], self.acc[keep]
         return sub
 
+    def torque_from_rest(self, torque_nm: np.ndarray) -> np.ndarray:
+        """T - T_rest (N*m) of torques :meth:`advance` returned for these levers (B, N)."""
+        return torque_from_rest(torque_nm, self.rest)
+
     def advance(self, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """The next ``n_steps`` steps: rotation from rest (rad) and coupling torque (N*m), each (B, n_steps)."""
+        """The next ``n_steps`` steps: rotation from rest (rad) and the coupling torque T itself
+        (N*m, the preload included; :meth:`torque_from_rest` for T - T_rest), each (B, n_steps)."""
         c, s = self.coupling, self.state
         angle = np.empty((s.batch, n_steps))
         torque = np.empty((s.batch, n_steps))

@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-G = 9.81  # m/s^2, Rapp et al. 2022
+from droptower.units import GRAVITY_M_PER_S2
+
+G = GRAVITY_M_PER_S2  # m/s^2: defined once, in droptower.units (a rig file may give its own)
 
 
 @dataclass(frozen=True)

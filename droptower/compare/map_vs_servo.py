@@ -121,7 +121,7 @@ def region_rows(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
             "outside": table[~table["in_range"]], "all": table}
 
 
-@expects(validation="droptower.compare.validation.Validation")
+@expects(validation="droptower.compare.map_vs_servo.Validation")
 def format_summary(validation: Validation) -> str:
     """The summary as text: definitions, then RMS / max deviations per region."""
     s = validation.summary

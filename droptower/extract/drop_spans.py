@@ -23,11 +23,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
-from scipy.signal import savgol_coeffs, savgol_filter
 
 from droptower.errors import DroptowerError
-from droptower.extract.impact import IMPACT_SNR, NOISE_FACTOR, PEAK_FRACTION, MIN_PRETRIGGER
+from droptower.extract.impact_detection import IMPACT_SNR, NOISE_FACTOR, PEAK_FRACTION, MIN_PRETRIGGER
 from droptower.io.signals import DropSignals
 
 PRE_TRIGGER_S = 0.005        # pre-trigger per drop in a continuous recording (the rig's default)
@@ -90,6 +88,8 @@ def _angular_velocity(angle: np.ndarray, fs: float) -> tuple[np.ndarray, float]:
     and the standard deviation of its noise: the angle's white noise, estimated from its second
     difference (std √6 σ; an oscillation's is orders of magnitude smaller at these sample
     rates), through the filter."""
+    from scipy.signal import savgol_coeffs, savgol_filter  # here: scipy.signal takes ~0.7 s to import
+
     width = min(max(5, int(round(VELOCITY_S * fs)) | 1), (angle.size - 1) | 1 if angle.size % 2 == 0 else angle.size)
     if width < 5:
         raise DroptowerError(f"the record has only {angle.size} samples")
@@ -110,6 +110,8 @@ def _velocity_onsets(velocity: np.ndarray, noise: float, pre: int, rise: int) ->
                              f"{IMPACT_SNR:g}x the noise ({noise:.3g} rad/s)")
     band = max(NOISE_FACTOR * noise, PEAK_FRACTION * height)
     above = speed > band
+    import pandas as pd  # here: importing the extractor loads no pandas
+
     recent = pd.Series(above.astype(float)).rolling(pre, min_periods=1).max().shift(1, fill_value=1.0).to_numpy()
     starts = np.flatnonzero(above & (recent == 0.0))
     return np.array([i for i in starts if speed[i:i + rise].max() >= JUMP_RATIO * band], dtype=int)
@@ -129,6 +131,8 @@ def _settled(velocity: np.ndarray, noise: float, onset: int, stop: int) -> int |
     if not turning.size:
         return None
     need = max(2 * (first + int(turning[0])), 4)
+    import pandas as pd
+
     trend = pd.Series(part).rolling(2 * need, center=True, min_periods=1).median().to_numpy()
     quiet = np.abs(part - trend) <= max(NOISE_FACTOR * noise, PEAK_FRACTION * abs(float(part[first])))
     runs = np.convolve(quiet, np.ones(need, dtype=int), mode="valid")  # quiet samples in each stretch

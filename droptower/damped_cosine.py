@@ -4,7 +4,7 @@ Shared by the extractor (measured logs), the planner (predicted decays: a plan p
 extractor will report), identification and the comparisons, so they all read a decay the same way.
 
 Angle: φ(t) = φ̂·e^(−δt)·cos(ωt − Φ), fitted over (φ̂, δ, ω, Φ) by a compiled Levenberg-Marquardt
-from robust starting values, to the minimum :func:`scipy.optimize.least_squares` (MINPACK) finds, which
+from robust starting values (:mod:`droptower.damped_cosine_kernels`), to the minimum :func:`scipy.optimize.least_squares` (MINPACK) finds, which
 takes over where it does not converge. Torque (eq. 17): δ and ω
 fixed from the angle fit, T(t) = T̂·e^(−δt)·cos(ωt − Φ_T) + offset, which is linear in
 (T̂ cos Φ_T, T̂ sin Φ_T, offset) and so solved exactly by linear least squares.
@@ -18,17 +18,11 @@ deterministic disturbance such as the torque ringing an overestimate.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
-from scipy.optimize import least_squares
 
 from droptower.errors import DroptowerError
-from droptower.rheology.numba_cache import cache_available, compile_once_across_processes
-
-_JIT = dict(cache=cache_available(), nogil=True, fastmath=False, error_model="numpy")
 
 HYSTERESIS_FRACTION = 0.05   # zero-crossing band: this fraction of the first peak ...
 HYSTERESIS_NOISE = 5.0       # ... or this many noise standard deviations, whichever is larger
@@ -151,133 +145,6 @@ def _residual_and_jacobian(p: np.ndarray, t: np.ndarray, y: np.ndarray) -> tuple
     return amp * c - y, np.column_stack([c, -t * amp * c, -t * amp * s, amp * s])
 
 
-def _normal_equations(p, t, y, a, g):
-    """Sum of squares of decay(p, t) - y; fills a = JᵀJ (4, 4) and g = Jᵀr (4,) in one pass."""
-    amp, delta, omega, phase = p[0], p[1], p[2], p[3]
-    a[:] = 0.0
-    g[:] = 0.0
-    cost = 0.0
-    col = np.empty(4)
-    for i in range(t.size):
-        e = math.exp(-delta * t[i])
-        arg = omega * t[i] - phase
-        c = e * math.cos(arg)
-        s = e * math.sin(arg)
-        r = amp * c - y[i]
-        col[0] = c
-        col[1] = -t[i] * amp * c
-        col[2] = -t[i] * amp * s
-        col[3] = amp * s
-        cost += r * r
-        for j in range(4):
-            g[j] += col[j] * r
-            for k in range(j + 1):
-                a[j, k] += col[j] * col[k]
-    for j in range(4):
-        for k in range(j):
-            a[k, j] = a[j, k]
-    return cost
-
-
-def _solve_in_place(m, b):
-    """Solve m x = b (n x n, n small) by Gaussian elimination with partial pivoting, the method of
-    LAPACK's ``gesv`` (``np.linalg.solve``): m is overwritten, x is left in b. False where a pivot is
-    zero (m singular). Written out because numba's binding of ``np.linalg.solve`` costs seconds of
-    compilation for a 4 x 4 system."""
-    n = b.size
-    for k in range(n):
-        pivot = k
-        largest = abs(m[k, k])
-        for i in range(k + 1, n):
-            if abs(m[i, k]) > largest:
-                pivot, largest = i, abs(m[i, k])
-        if not largest > 0.0:
-            return False
-        if pivot != k:
-            for j in range(n):
-                m[k, j], m[pivot, j] = m[pivot, j], m[k, j]
-            b[k], b[pivot] = b[pivot], b[k]
-        for i in range(k + 1, n):
-            f = m[i, k] / m[k, k]
-            for j in range(k + 1, n):
-                m[i, j] -= f * m[k, j]
-            b[i] -= f * b[k]
-    for k in range(n - 1, -1, -1):
-        x = b[k]
-        for j in range(k + 1, n):
-            x -= m[k, j] * b[j]
-        b[k] = x / m[k, k]
-    return True
-
-
-def _levenberg_marquardt(t, y, x0, scale, tolerance, max_iterations):
-    """The least-squares decay parameters from x0: Gauss-Newton steps, damped by Marquardt's
-    (scaled) diagonal only where a step would raise the sum of squares. Returns (params, True)
-    once no parameter moves by more than ``tolerance`` of its ``scale``, (x0, False) if that
-    does not happen. (Element by element in loops: numba compiles numpy's array expressions
-    for seconds, the loops in a fraction of that, with the same arithmetic.)"""
-    p = x0.copy()
-    a = np.empty((4, 4))
-    g = np.empty(4)
-    a_trial = np.empty((4, 4))
-    g_trial = np.empty(4)
-    a_scaled = np.empty((4, 4))
-    g_scaled = np.empty(4)
-    d = np.empty(4)
-    m = np.empty((4, 4))
-    step = np.empty(4)
-    trial = np.empty(4)
-    cost = _normal_equations(p, t, y, a, g)
-    lam = 0.0
-    for _ in range(max_iterations):
-        if not math.isfinite(cost):
-            return x0, False
-        for j in range(4):
-            d[j] = math.sqrt(a[j, j])
-            if not d[j] > 0.0:
-                return x0, False
-        for j in range(4):
-            for k in range(4):
-                a_scaled[j, k] = a[j, k] / (d[j] * d[k])
-            g_scaled[j] = g[j] / d[j]
-        while True:
-            for j in range(4):
-                for k in range(4):
-                    m[j, k] = a_scaled[j, k]
-                m[j, j] += lam
-                step[j] = -g_scaled[j]
-            if not _solve_in_place(m, step):  # singular: MINPACK takes over
-                return x0, False
-            small = True
-            for j in range(4):
-                step[j] /= d[j]
-                small = small and abs(step[j]) <= tolerance * scale[j]
-                trial[j] = p[j] + step[j]
-            cost_trial = _normal_equations(trial, t, y, a_trial, g_trial)
-            if cost_trial <= cost:
-                break
-            if small:  # at the minimum up to rounding
-                return p, True
-            lam = max(10.0 * lam, 1e-3)
-            if lam > 1e10:
-                return x0, False
-        for j in range(4):
-            p[j] = trial[j]
-            g[j] = g_trial[j]
-            for k in range(4):
-                a[j, k] = a_trial[j, k]
-        cost = cost_trial
-        lam = 0.1 * lam if lam > 1e-6 else 0.0
-        if small:
-            return p, True
-    return x0, False
-
-
-_normal_equations = njit(**_JIT)(_normal_equations)
-_solve_in_place = njit(**_JIT)(_solve_in_place)
-_levenberg_marquardt = njit(**_JIT)(_levenberg_marquardt)
-
-
 def fit_decay(t: np.ndarray, y: np.ndarray, omega0: float, delta0: float, baseline_var: float = 0.0) -> DecayFit:
     """Least-squares fit of φ̂ e^(−δt) cos(ωt − Φ) to (t, y) (Rapp et al. 2022, eq. 13-14).
 
@@ -294,10 +161,15 @@ def fit_decay(t: np.ndarray, y: np.ndarray, omega0: float, delta0: float, baseli
     scale = np.array([abs(x0[0]), abs(x0[2]), abs(x0[2]), 1.0])  # φ̂ of the amplitude, δ and ω of the frequency
     converged = False
     if np.all(np.isfinite(x0)) and np.all(scale > 0):
-        params, converged = _levenberg_marquardt(np.ascontiguousarray(t, np.float64),
+        # compiled on first use: importing this module (every command that reads a log) loads no numba
+        from droptower.damped_cosine_kernels import levenberg_marquardt
+
+        params, converged = levenberg_marquardt(np.ascontiguousarray(t, np.float64),
                                                  np.ascontiguousarray(y, np.float64), x0, scale, STEP_TOLERANCE,
                                                  MAX_ITERATIONS)
     if not converged:  # a signal far from a decay: MINPACK's safeguarded search
+        from scipy.optimize import least_squares  # here: scipy.optimize takes ~0.3 s to import
+
         sol = least_squares(lambda p: _residual_and_jacobian(p, t, y)[0], x0,
                             jac=lambda p: _residual_and_jacobian(p, t, y)[1], method="lm", x_scale="jac")
         params = sol.x
@@ -320,5 +192,3 @@ def fit_torque(t: np.ndarray, y: np.ndarray, delta: float, omega: float) -> Torq
     r = basis @ params - y
     cov = _residual_variance(r, 3) * _normal_inverse(basis)
     return TorqueFit(params, cov, float(np.sqrt(np.mean(r**2))), delta, omega)
-
-compile_once_across_processes(globals())  # a kernel no cache holds is compiled by one process at a time

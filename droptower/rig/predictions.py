@@ -5,7 +5,7 @@ the impact; a free decay of the lever on the *nonlinear* coupling, preload twist
 gives the first period, peaks, decay and peak torque; the drop mass's free flight against the
 lever tip's path gives the double-impact check of Rapp et al. 2022 (docs/theory.md#double-impact: a second impact
 within the first oscillation period). All conditions advance together through the coupling's
-batch axis, integrated by :mod:`droptower.rig.lever` exactly like the pymunk scene
+batch axis, integrated by :mod:`droptower.rig.lever_decay` exactly like the pymunk scene
 (symplectic Euler at the rig's internal step), so plan and simulation agree.
 """
 from __future__ import annotations
@@ -16,13 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from droptower.decayfit import fit_decay, start_frequency_and_decay
+from droptower.damped_cosine import fit_decay, start_frequency_and_decay
 from droptower.errors import DroptowerError, expects
 from droptower.rheology import Coupling
 from droptower.rig.config import RigConfig
-from droptower.rig.impact import (drop_mass_path, first_period, impact_velocities,
-                                  lever_tip_path, second_impact_time)
-from droptower.rig.lever import SYMPLECTIC_EULER, LeverDecay
+from droptower.rig.impact_law import (drop_mass_path, first_period, impact_velocities,
+                                      lever_tip_path, second_impact_time)
+from droptower.rig.lever_decay import SYMPLECTIC_EULER, LeverDecay, torque_from_rest
 from droptower.rig.preload import Pretwist, pretwist
 from droptower.sdof import damping_ratio, reference_amplitude
 
@@ -42,20 +42,28 @@ MAX_DECAY_S = 2.0             # give up looking for a first period after this lo
 @dataclass
 class FreeDecay:
     """The lever's free decay after the impact: time_s (N,) from the impact; angle_rad (B, N)
-    rotation from rest; torque_nm (B, N) coupling torque (preload included); period_s (B,)
-    time of the angle's second zero crossing (NaN if it never came)."""
+    rotation from rest; torque_nm (B, N) the coupling torque itself (preload included, what the
+    flange sensor reads; :attr:`torque_from_rest_nm` is T - T_rest, the convention of
+    :mod:`droptower.rig.lever_decay`); period_s (B,) time of the angle's second zero crossing
+    (NaN if it never came); rest_torque_nm (B,) the torque at rest (the screw's)."""
 
     time_s: np.ndarray
     angle_rad: np.ndarray
     torque_nm: np.ndarray
     period_s: np.ndarray
+    rest_torque_nm: np.ndarray
+
+    @property
+    def torque_from_rest_nm(self) -> np.ndarray:
+        """T - T_rest (B, N) (N*m): the torque that moves the lever, zero at the impact."""
+        return torque_from_rest(self.torque_nm, self.rest_torque_nm)
 
 
 def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np.ndarray, twist: Pretwist,
                dt_s: float, min_duration_s: float = 0.0, periods: float = 1.25) -> FreeDecay:
     """Integrate J phi'' = T_screw - T_coupling(twist + phi) from phi = 0, phi' = rate0 (B,).
 
-    Same scheme as the pymunk scene (:data:`droptower.rig.lever.SYMPLECTIC_EULER`); runs until
+    Same scheme as the pymunk scene (:data:`droptower.rig.lever_decay.SYMPLECTIC_EULER`); runs until
     every condition has completed ``periods`` of its first period (at least one and a quarter)
     and ``min_duration_s`` has passed (at most :data:`MAX_DECAY_S`).
     """
@@ -76,7 +84,8 @@ def free_decay(coupling: Coupling, inertia_kgm2: np.ndarray, rate0_rad_per_s: np
         done = np.all(np.isfinite(period)) and time[-1] >= max(min_duration_s, periods * float(np.max(period)))
         if done or angle.shape[1] > n_max:
             break
-    return FreeDecay(time_s=time, angle_rad=angle, torque_nm=np.concatenate(t_parts, axis=1), period_s=period)
+    return FreeDecay(time_s=time, angle_rad=angle, torque_nm=np.concatenate(t_parts, axis=1), period_s=period,
+                     rest_torque_nm=screw.copy())
 
 
 def record_length_s(period_s: np.ndarray, window_length_s=lambda period: period) -> float:
