@@ -99,3 +99,120 @@ def coverage(campaigns: int, seed: int = 0, drops_per_fixture: int = 2) -> dict[
             hits[q] += err <= r[f"{q}_U95"]
             hits[f"{q}_fit"] += err <= r[f"{q}_U95_fit"]
     return {name: n / campaigns for name, n in hits.items()}
+
+
+# ---- the model route for real: identification from the drops, the virtual bench -------------------
+#: the rig a route campaign's extraction reads with (nominal lever length and laser radius, m)
+LEVER_M, LASER_M = 0.2, 0.25
+#: the stated input uncertainties of a route campaign: J per fixture, lever, laser, flange, force sensor, clock
+ROUTE_STATED = RigUncertainty(
+    inertias_kgm2=[FixtureUncertainty(nominal=j, value=0.01 * j) for j in FIXTURES],       # 1 % each
+    lever_length_m=InputUncertainty(value=0.005 * LEVER_M),                                   # 0.5 %
+    laser_radius_m=InputUncertainty(value=0.005 * LASER_M),                                   # 0.5 %
+    laser_calibration_rel=InputUncertainty(value=0.005),
+    torque_calibration_rel=InputUncertainty(value=0.01),
+    force_calibration_rel=InputUncertainty(value=0.005),
+    sample_rate_hz=InputUncertainty(value=2e-3 * FS),                                         # 0.2 % clock
+)
+
+
+def _template(folder) -> str:
+    """A Kelvin-Voigt coupling file as the template family's structure (its numbers only a start)."""
+    from pathlib import Path
+
+    from droptower.rheology import coupling_to_toml, parse_coupling
+
+    path = Path(folder) / "kelvin_voigt.toml"
+    if not path.exists():
+        path.write_text(coupling_to_toml(parse_coupling({"element": [{"kind": "spring", "stiffness": 1.5e4},
+                                                                       {"kind": "dashpot", "damping": 10.0}]})))
+    return str(path)
+
+
+def route_campaign(seed: int, drops_per_fixture: int = 1, stated: RigUncertainty = ROUTE_STATED,
+                   folder: str | None = None, duration_s: float = 0.06) -> dict[str, float]:
+    """One virtual campaign through the package's model route: a Kelvin-Voigt coupling's drops on
+    a rig drawn from ``stated`` (J per fixture, lever, laser radius and calibration, flange, force
+    sensor, clock: one draw shared by every drop), read with the NOMINAL rig, identified with the
+    template family (:func:`~droptower.identify.drops.identify_from_drop_tests`), run on the
+    virtual bench at :data:`SERVO_HZ` (:func:`~droptower.compare.model_map.model_map_from_identification`,
+    its cluster-robust band) with the inputs' shares (:func:`droptower.uncertainty.route.route_input_sets`).
+    Returns K' (N·m/deg) and η with their U95 with the inputs and fit-only, and the truth."""
+    import tempfile
+
+    from droptower.compare.model_map import model_map_from_identification
+    from droptower.identify.dropfit import DropFitSettings
+    from droptower.identify.droplogs import ReadSettings, decay_from_signals
+    from droptower.identify.drops import DropCampaign, identify_from_drop_tests
+    from droptower.uncertainty.route import route_input_shares
+
+    rng = np.random.default_rng(seed)
+    k = rng.uniform(1.2e4, 2.5e4)
+    c = rng.uniform(8.0, 25.0)
+    true_j = {j: rng.normal(j, stated.inertia(j).standard) for j in FIXTURES}
+    lever = rng.normal(LEVER_M, stated.lever_length_m.standard)
+    laser = rng.normal(LASER_M, stated.laser_radius_m.standard)
+    kappa = {name: rng.normal(1.0, getattr(stated, name).standard)
+             for name in ("laser_calibration_rel", "torque_calibration_rel", "force_calibration_rel")}
+    fs = rng.normal(FS, stated.sample_rate_hz.standard)
+    decays, amps = [], []
+    for j_nom in FIXTURES:
+        j = true_j[j_nom]
+        delta = c / (2 * j)
+        omega = math.sqrt(k / j - delta ** 2)
+        d = 0.5 * (math.exp(4 * math.pi * delta / omega) - 1)
+        for r in range(drops_per_fixture):
+            drop = SyntheticDrop(inertia_kgm2=j, stiffness_nm_per_rad=k, damping_ratio=d, lever_length_m=lever,
+                                 amplitude_deg=rng.uniform(0.5, 2.5), sample_rate_hz=fs, duration_s=duration_s,
+                                 pretrigger_s=0.01, seed=int(rng.integers(2 ** 31)))
+            time, ch = drop.channels()
+            # the logger labels its samples at the nominal rate; the laser's distance s = r·φ read
+            # through r_0 and its calibration, the flange and the force sensor through theirs
+            signals = DropSignals(np.arange(time.size) / FS, ch["angle_rad"] * laser / LASER_M * kappa["laser_calibration_rel"],
+                                  ch["torque_nm"] * kappa["torque_calibration_rel"],
+                                  ch["impact_force_n"] * kappa["force_calibration_rel"],
+                                  metadata={"inertia_kgm2": j_nom, "lever_length_m": LEVER_M})
+            decays.append(decay_from_signals(signals, ReadSettings(), f"drop_{j_nom:g}_{r}"))
+            amps.append(math.degrees(decays[-1].amplitude_rad))
+    with tempfile.TemporaryDirectory() if folder is None else _Keep(folder) as where:
+        campaign = DropCampaign(decays, [], DropFitSettings(holdout_fraction=0.0, conditioning=None),
+                                {"template": _template(where)}, ReadSettings())
+        ident = identify_from_drop_tests(campaign, "template")
+    mm = model_map_from_identification(ident, decays, campaign.settings, uncertainty=stated, lever_length_m=LEVER_M,
+                                       laser_radius_m=LASER_M)
+    a = float(np.median(amps))
+    row = mm.evaluate([a], [SERVO_HZ]).iloc[0]
+    shares = route_input_shares(mm, mm.input_sets, [a], [SERVO_HZ])
+    out = {"k_true": math.radians(k), "eta_true": c * 2 * math.pi * SERVO_HZ / k}
+    for name, q in (("k", "storage_stiffness_nm_per_deg"), ("eta", "loss_factor")):
+        out[name] = float(row[q])
+        out[f"{name}_U95_fit"] = 2 * float(row[f"{q}_std"])
+        out[f"{name}_U95"] = float(row[f"{q}_U95"])
+        out[f"{name}_dominant"] = max(shares[q], key=lambda key: abs(shares[q][key][0]))
+    out["converged"] = float(ident.converged)
+    return out
+
+
+class _Keep:
+    """A folder kept (the template written once for many campaigns)."""
+
+    def __init__(self, folder: str) -> None:
+        self.folder = folder
+
+    def __enter__(self) -> str:
+        return self.folder
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+
+def route_coverage(campaigns: int, seed: int = 0, drops_per_fixture: int = 1, folder: str | None = None) -> dict[str, float]:
+    """Share of ``campaigns`` route campaigns whose interval holds the truth (K', η; with the inputs, fit-only)."""
+    hits = {"k": 0, "eta": 0, "k_fit": 0, "eta_fit": 0}
+    for i in range(campaigns):
+        r = route_campaign(seed + i, drops_per_fixture, folder=folder)
+        for q in ("k", "eta"):
+            err = abs(r[q] - r[f"{q}_true"])
+            hits[q] += err <= r[f"{q}_U95"]
+            hits[f"{q}_fit"] += err <= r[f"{q}_U95_fit"]
+    return {name: n / campaigns for name, n in hits.items()}

@@ -189,3 +189,32 @@ def test_the_model_maps_k_band_holds_the_fits_and_js_shares(routes):
     np.testing.assert_allclose(half, Z95 * np.hypot(mm.grid[f"{q}_std"], 0.01 * mm.grid[q]), rtol=1e-12)
     np.testing.assert_allclose(wide.grid["loss_factor_band_hi"], mm.grid["loss_factor_band_hi"])  # no J in η
     assert "J's 1 %" in wide.band_method and mm.grid is not wide.grid
+
+
+@pytest.mark.slow
+def test_map_stores_the_inputs_and_validate_reuses_them(routes, capsys):
+    """map --model with input uncertainties: model_map.json holds each input's shift of the
+    identification and map.json the uncertainties; validate given only the bench's U95 reuses
+    them: the model route's K' U95 is its own (bands and inputs, wider than the bands alone) and
+    agrees inside the hull, the paper route's damping ratio does not."""
+    root = routes["root"]
+    specs = [arg for j in (0.1557, 0.359, 0.5233) for arg in ("--uncertainty", f"inertia_kgm2@{j}={0.01 * j}")]
+    specs += ["--uncertainty", "torque_calibration_rel=0.01", "--uncertainty", "sample_rate_hz=4"]
+    code = main(["map", str(routes["campaign"]), "--out", str(root / "map_u.json"), "--model", "template", "--template",
+                 str(root / "template.toml"), "--model-out", str(root / "model_map_u.json"), *specs])
+    assert code == 0
+    mm = ModelMap.from_json(root / "model_map_u.json")
+    assert set(mm.input_sets) >= {"inertia_kgm2@0.359", "torque_calibration_rel", "sample_rate_hz"}
+    assert json.loads((root / "map_u.json").read_text())["input_uncertainty"]["sample_rate_hz"]["value"] == 4
+    q = "storage_stiffness_nm_per_deg"
+    assert np.all(mm.grid[f"{q}_U95"] > 2 * mm.grid[f"{q}_std"])
+    capsys.readouterr()
+    code = main(["validate", "--map", str(root / "map_u.json"), "--model-map", str(root / "model_map_u.json"),
+                 "--coupling", str(routes["truth"]), "--quick", "--results", str(routes["campaign"]),
+                 "--servo-u95-rel", "0.02", "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)["agreement"]
+    model = [p for p in doc[ROUTE] if p["in_range"]]
+    assert model and all(p["stiffness_nm_per_deg_verdict"] == "agrees" for p in model)
+    assert all(p["damping_ratio_verdict"] == "agrees" for p in model)
+    assert all(p["damping_ratio_verdict"] == "disagrees" for p in doc[PAPER_ROUTE] if p["in_range"])

@@ -97,3 +97,26 @@ def test_map_command_prints_writes_and_plots_the_expanded_uncertainties(tmp_path
     assert "expanded uncertainties (k = 2" in capsys.readouterr().out
     assert {"u_fit", "u_inertia_kgm2@0.359", "U95", "dominant"} <= set(pd.read_csv(out).columns)
     assert (tmp_path / "figs" / "fig13_damping_map.png").is_file()
+
+
+def test_map_json_keeps_the_input_uncertainties_it_was_computed_with(tmp_path):
+    """map.json stores the rig's input uncertainties (validate reuses them); a malformed entry is
+    a one-line error naming the file; an older file without them reads as none given."""
+    import json
+
+    from droptower.errors import DroptowerError
+    from droptower.maps.mapfit import MapFit
+
+    m = fit_map(synthetic_table(0.02))
+    u = override_uncertainty(None, ["inertia_kgm2@0.359=0.00359", "sample_rate_hz=20:rectangular"])
+    m.input_uncertainty = u.model_dump(exclude_none=True)
+    back = MapFit.from_json(m.to_json(tmp_path / "map.json") and tmp_path / "map.json")
+    assert type(u).model_validate(back.input_uncertainty) == u
+    doc = json.loads((tmp_path / "map.json").read_text())
+    doc["input_uncertainty"] = {"sample_rate_hz": {"value": -1}}
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(DroptowerError, match="bad.json"):
+        MapFit.from_json(tmp_path / "bad.json")
+    del doc["input_uncertainty"]
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    assert MapFit.from_json(tmp_path / "old.json").input_uncertainty is None

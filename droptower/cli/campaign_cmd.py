@@ -42,9 +42,10 @@ from droptower.cli.flags import cli_text
 @click.option("--estimate", is_flag=True,
               help="Only estimate the campaign's time and disk (runs its first chunk in a temporary folder); "
                    "--out is not written.")
+@options.uncertainty_option
 def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, workers: int | None, scheduler: str | None,
              scheduler_timeout_s: float, resume: bool, duration_s: float | None, log_format: str | None,
-             chunk_size: int | None, estimate: bool) -> None:
+             chunk_size: int | None, estimate: bool, uncertainty_specs: tuple[str, ...] = ()) -> None:
     """Simulate every test of a plan on the virtual drop tower, write its log and extract it
     from the log on disk with the code that evaluates real logs (as `droptower extract`).
 
@@ -56,6 +57,10 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     them again); a folder holding another campaign is never touched. Same plan and seeds, same results,
     whatever the number of workers.
 
+    With --uncertainty (the rig's stated input uncertainties: hypotheses on a virtual rig) the
+    finished tests' logs are read again for their budgets and OUT/results_uncertainty.csv
+    holds the results with each output's _u, _U95 (k = 2) and _dominant columns, as
+    `droptower extract --uncertainty` writes them.
     A test whose simulation or extraction fails is listed at the end (exit code 2, as for
     any user error); the others are still written. Unfinished tests: exit code 2 as well.
 
@@ -99,6 +104,9 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
     click.echo(run.summary())
     for path, what in run.outputs:
         options.wrote(path, what)
+    if uncertainty_specs and not run.results.empty:
+        path = _with_uncertainty(out, run, uncertainty_specs)
+        options.wrote(path, "the results with each output's uncertainty (_u, _U95, _dominant)")
     if run.failed:
         click.echo(f"droptower: {len(run.failed)} of {n} test(s) failed:", err=True)
         for test_id, error in run.failed:
@@ -109,3 +117,30 @@ def campaign(rig: str | None, coupling: str | None, doe: str | None, out: Path, 
         click.echo(f"droptower: {run.pending} test(s) not finished; run again with --resume to continue", err=True)
     if run.failed or run.errors or run.pending:
         raise click.exceptions.Exit(2)
+
+
+def _with_uncertainty(out: Path, run, specs: tuple[str, ...]) -> Path:
+    """The campaign's results with the per-drop uncertainty columns of ``extract --uncertainty``
+    (the logs read again: the budgets need the fits), written to OUT/results_uncertainty.csv."""
+    import pandas as pd
+
+    from droptower.cli.extract_cmd import _uncertainty_rows
+    from droptower.cli.options import note_uncertainty, uncertainty_from_cli
+    from droptower.extract.files import Settings, extract_drops
+    from droptower.extract.window import Window
+    from droptower.io.tables import write_table
+
+    uncertainty = uncertainty_from_cli(specs, run.spec.rig)
+    note_uncertainty(uncertainty)
+    results = run.results.reset_index(drop=True)
+    settings = Settings(rig=run.spec.rig, window=Window.parse(run.spec.window))
+    drops = []
+    for i, name in enumerate(results["log_file"]):
+        if not isinstance(name, str) or not name:
+            continue
+        for drop in extract_drops(str(out / name), settings):
+            if drop.error is None:
+                drops.append((i, str(out / name), drop))
+    columns = _uncertainty_rows(drops, uncertainty, run.spec.rig, "auto", None, None) if drops else []
+    extra = pd.DataFrame(columns, index=[i for i, _, _ in drops])
+    return write_table(results.join(extra), out / "results_uncertainty.csv", "--out")

@@ -22,7 +22,7 @@ from typing import Any
 import click
 from pydantic import Field
 
-from droptower.cli.options import note, progress, quiet_option, wrote
+from droptower.cli.options import note, progress, quiet_option, uncertainty_option, wrote
 from droptower.errors import DroptowerError, check_positive
 from droptower.config_validation import StrictModel, validate
 from droptower.cli.flags import cli_text
@@ -129,13 +129,14 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float,
               help="Drop tests: a line per test (its error) and every excluded test; else a summary line.")
 @click.option("--accept-poor", is_flag=True,
               help="Exit 0 and write --out even when the verdict is 'poor fit' (default: exit code 3, nothing written).")
+@uncertainty_option
 def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params_path: str | None,
              holdout: str | None, sample_rate_hz: float | None, sample_interval_s: float | None, out: str | None,
              as_json: bool, plot_dir: str | None, drops: bool,
              template: str | None, holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
              lever_length_m: float | None, sensor_radius_m: float | None, conditions: str | None,
              condition_columns: tuple[str, ...], conditions_pattern: str | None, predict_servo: str | None,
-             verbose: bool, accept_poor: bool) -> None:
+             verbose: bool, accept_poor: bool, uncertainty_specs: tuple[str, ...] = ()) -> None:
     """Identify a coupling model of family --model from imposed-angle / measured-torque DATA,
     or imposed-displacement / measured-force DATA (translational: mounts, bushings, dampers;
     any length and force units, e.g. mm, in, kN, kip; parameters then named k1_n_per_m, ...
@@ -163,7 +164,11 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     from the impact-force impulse or the angle's slope) and the model (elastoslide, zerodim6,
     masing, pfeffer, or template with --template COUPLING) is fitted to the measured angle (and
     torque) decays; a fraction of the tests is held out; --predict-servo writes the fitted
-    model's servo K' and loss factor next to the drop tower's first-cycle values.
+    model's servo K' and loss factor next to the drop tower's first-cycle values. With
+    --uncertainty (or the rig file's [uncertainty]) each parameter also gets its budget: the
+    fit's standard error, each input's share (the identification's shift when that input is off
+    by its standard uncertainty: J, lever, laser, flange, force sensor, clock), U95 (k = 2) and
+    the dominant term.
 
     Time stamps printed with few decimals (steps that differ only by the printed precision)
     are taken as a constant sample rate estimated from the whole record (a note says so).
@@ -208,7 +213,10 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
         return run_drops(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
                          out, as_json, plot_dir, predict_servo, verbose, accept_poor, sensor_radius_m=sensor_radius_m,
-                         conditions=(conditions, condition_columns, conditions_pattern))
+                         conditions=(conditions, condition_columns, conditions_pattern),
+                         uncertainty_specs=uncertainty_specs)
+    if uncertainty_specs:
+        raise DroptowerError("--uncertainty gives the drop tower's input uncertainties: use it with --from-drop-tests")
     if conditions is not None or conditions_pattern is not None:
         raise DroptowerError("--conditions and --conditions-from-names give drop tests' conditions: use them with "
                              "--from-drop-tests")

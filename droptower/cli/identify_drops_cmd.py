@@ -86,7 +86,8 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         holdout_fraction: float, rig: str | None, inertia_kgm2: float | None, lever_length_m: float | None,
         out: str | None, as_json: bool, plot_dir: str | None, predict_servo: str | None,
         verbose: bool = False, accept_poor: bool = False, *, sensor_radius_m: float | None = None,
-        conditions: tuple[str | None, tuple[str, ...], str | None] = (None, (), None)) -> None:
+        conditions: tuple[str | None, tuple[str, ...], str | None] = (None, (), None),
+        uncertainty_specs: tuple[str, ...] = ()) -> None:
     from droptower.identify.dropreport import drop_report_text, plot_servo_prediction, servo_prediction
     from droptower.identify.drops import identify_from_drop_tests
     from droptower.identify.verdict import EXIT_POOR_FIT
@@ -98,7 +99,15 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
     poor = result.verdict is not None and result.verdict.poor and not accept_poor
     if result.converged and out and not poor:
         result.coupling_file = str(out)
-    click.echo(json.dumps(result.to_dict(), indent=1) if as_json else cli_text(drop_report_text(result, verbose)))
+    budget = _budget(result, campaign, rig, uncertainty_specs) if result.converged else None
+    doc = result.to_dict() if as_json else None
+    if doc is not None and budget is not None:
+        from droptower.jsonsafe import json_safe
+
+        doc["uncertainty"] = json_safe({"coverage_factor": 2.0, "parameters": budget.to_dict(orient="records")})
+    click.echo(json.dumps(doc, indent=1) if as_json else cli_text(drop_report_text(result, verbose)))
+    if budget is not None and not as_json:
+        click.echo(_budget_text(budget))
     if predict_servo or plot_dir:
         from droptower.io.tables import write_table
 
@@ -118,3 +127,35 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
     if out:
         result.write_coupling(out)
         wrote(out, f"coupling {kind}, for simulate, campaign, servo")
+
+
+def _budget(result: Any, campaign: Any, rig: str | None, specs: tuple[str, ...]) -> Any:
+    """The parameters' budget with the rig's input uncertainties (--uncertainty over the rig
+    file's [uncertainty]; :func:`droptower.uncertainty.route.route_parameter_budget`), or None
+    where none is given."""
+    from droptower.cli.options import note_uncertainty, uncertainty_from_cli
+    from droptower.uncertainty.route import nominal_geometry, route_input_values, route_parameter_budget
+
+    if not specs and rig is None:
+        return None
+    if rig is not None:  # its geometry was printed when the logs were read
+        from droptower.rig.config import load_rig
+
+        rig = load_rig(rig)
+    uncertainty = uncertainty_from_cli(specs, rig)
+    if uncertainty is None:
+        return None
+    note_uncertainty(uncertainty)
+    lever, laser = nominal_geometry(campaign.decays, campaign.read)
+    values = route_input_values(result, campaign.decays, campaign.settings, uncertainty, lever_length_m=lever,
+                                laser_radius_m=laser)
+    return route_parameter_budget(result, values)
+
+
+def _budget_text(budget: Any) -> str:
+    """One line per parameter: value, u_fit, u_inputs, U95 (k = 2) and the dominant term."""
+    lines = ["uncertainty (GUM; U95 = 2*u_c, u_c^2 = u_fit^2 + the inputs' shares^2):"]
+    for _, r in budget.iterrows():
+        lines.append(f"  {r['parameter']}: {r['value']:.6g} +- {r['U95']:.3g} (U95; fit {r['u_fit']:.3g}, inputs "
+                     f"{r['u_inputs']:.3g}; dominant: {r['dominant']})")
+    return "\n".join(lines)

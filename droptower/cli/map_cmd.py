@@ -112,6 +112,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
         from droptower.uncertainty import map_uncertainty
 
         bands = map_uncertainty(table, input_u, map_fit=fit)
+        fit.input_uncertainty = input_u.model_dump(exclude_none=True)  # stored in map.json: validate reuses them
     if out is not None and out.suffix.lower() == ".json":
         fit.to_json(out)
         options.wrote(out, f"the map: {len(fit.form.units)} coefficients, errors, range; validate --map reads it")
@@ -134,7 +135,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
                                     on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress,
                                     rig=rig_config, roles=parse_channel_options(channel_specs),
                                     sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table,
-                                    **geometry)
+                                    uncertainty=input_u, **geometry)
     extra = {**({"nested_cross_validation": nested} if nested is not None else {}),
              **({"uncertainty": _uncertainty_json(bands)} if bands is not None else {}),
              **({"model_map": model_map.to_dict()} if model_map is not None else {})}
@@ -154,7 +155,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if model_map is not None:
         if not as_json:
             click.echo(model_map.summary())
-            if bands is not None and model_map.has_bands:
+            if bands is not None and model_map.has_bands and not model_map.input_sets:
                 from droptower.compare.validate import inertia_u_rel
 
                 click.echo(f"inputs on the model-based map: J's {100 * inertia_u_rel(input_u, table):.3g} % on K' "

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import re
 import tempfile
 from pathlib import Path
@@ -74,9 +75,14 @@ def _steadiness_warnings(table: Any) -> None:
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the table (.csv, .parquet, .json, .xlsx): what `validate --servo-results` reads.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON list of objects (one per block) instead of a table.")
+@click.option("--uncertainty", "uncertainty_specs", multiple=True, metavar="INPUT=VALUE",
+              help="The bench's own uncertainty: a channel's calibration as a relative standard uncertainty, "
+                   "torque_calibration_rel=0.005 or angle_calibration_rel=0.003 (repeatable). With it (or "
+                   "without VALUE pairs: --uncertainty scatter) each block gains its U95 (k = 2) from the "
+                   "cycles' scatter and the calibrations, in the columns validate --servo-results reads.")
 def evaluate_servo(records: tuple[str, ...], channels: tuple[str, ...], sample_rate_hz: float | None,
                    sample_interval_s: float | None, lever_arm_m: float | None, cycles: int, settle_cycles: int,
-                   no_smoothing: bool, out: Path | None, as_json: bool) -> None:
+                   no_smoothing: bool, out: Path | None, as_json: bool, uncertainty_specs: tuple[str, ...] = ()) -> None:
     """Evaluate raw servo-hydraulic time RECORDS as a lab's bench software does: per
     amplitude/frequency block (found from the imposed motion: plateaus of amplitude, also when
     the blocks ramp up from rest), the first --settle-cycles cycles skipped and the last --cycles
@@ -106,8 +112,13 @@ def evaluate_servo(records: tuple[str, ...], channels: tuple[str, ...], sample_r
 
     if out is not None:
         check_table_path(out, "--out")  # a bad --out fails before the evaluation
+    calibrations = _calibrations(uncertainty_specs)
     table, failures = _evaluate(records, channels, sample_rate_hz, sample_interval_s, lever_arm_m, cycles,
                                 settle_cycles, not no_smoothing)
+    if uncertainty_specs and len(table):
+        from droptower.uncertainty.bench import bench_u95
+
+        table = bench_u95(table, **calibrations)
     if failures and len(records) == 1:
         raise failures[0]  # one file, one failure: its line says it all
     for exc in failures:
@@ -121,6 +132,7 @@ def evaluate_servo(records: tuple[str, ...], channels: tuple[str, ...], sample_r
             click.echo(json.dumps(json_safe(table.to_dict(orient="records")), indent=1))
         elif out is None:
             columns = [field_name(c, units) for c in TABLE_COLUMNS]
+            columns += [c for c in table.columns if c.endswith("_U95") and c not in columns]
             with pd.option_context("display.width", 250, "display.max_columns", None):
                 click.echo(table[columns].to_string(index=False, float_format=lambda v: f"{v:.5g}"))
     if failures:
@@ -128,6 +140,25 @@ def evaluate_servo(records: tuple[str, ...], channels: tuple[str, ...], sample_r
         for exc in failures:
             click.echo(f"  {cli_message(exc)}", err=True)
         raise click.exceptions.Exit(2)
+
+
+def _calibrations(specs: tuple[str, ...]) -> dict[str, float]:
+    """``--uncertainty`` of evaluate-servo: INPUT=VALUE pairs (or ``scatter``: the cycles' alone)."""
+    names = ("torque_calibration_rel", "angle_calibration_rel")
+    out: dict[str, float] = {}
+    for spec in specs:
+        if spec.strip() == "scatter":
+            continue
+        name, sep, value = spec.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not sep or name.strip() not in names or not (math.isfinite(number) and 0 <= number < 1):
+            raise DroptowerError(f"--uncertainty {spec!r}: give {names[0]}=REL or {names[1]}=REL (a relative standard "
+                                 "uncertainty in [0, 1), e.g. 0.005), or scatter")
+        out[name.strip()] = number
+    return out
 
 
 # ---- validate --servo-records: the same evaluation in one go --------------------------------------------------

@@ -56,6 +56,8 @@ BAND_STEP = 0.1
 QUANTITIES = ("storage_stiffness_nm_per_deg", "loss_stiffness_nm_per_deg", "loss_factor",
               "dynamic_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio", "lehr_damping")
 PAPER_ROUTE = "paper map, eq. 19/20"
+#: the coverage factor of the expanded uncertainties ``<q>_U95`` with the inputs (GUM 6.2.1, k = 2)
+COVERAGE_K = 2.0
 #: parameter sets x decays simulated per core call for the bands' Jacobian (memory: a decay holds
 #: ~10^4 steps of angle and torque)
 MAX_DECAYS_PER_CALL = 1500
@@ -117,7 +119,9 @@ class ModelMap:
     at ẑ + ε·u_k (None: no covariance, no bands); band_method: how the covariance was obtained;
     range: the campaign's tested points (in_range: inside their hull); family: the model's name;
     identification: the fit's verdict and errors, as reported; grid: the evaluated table on the
-    map's own grid (:meth:`evaluate`'s columns)."""
+    map's own grid (:meth:`evaluate`'s columns); input_uncertainty, input_sets: the rig's input
+    uncertainties and each input's shifted parameter set (one standard uncertainty; then
+    :meth:`evaluate` adds ``<q>_u_inputs`` and ``<q>_U95``, k = 2, the fit's and the inputs' together)."""
 
     coupling: Coupling
     family: str
@@ -129,6 +133,10 @@ class ModelMap:
     source: str | None = None
     grid: pd.DataFrame | None = None
     _cache: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: the rig's input uncertainties the map was built with (``RigUncertainty.model_dump()``) and
+    #: each input's shifted raw parameter set (:func:`droptower.uncertainty.route.route_input_sets`)
+    input_uncertainty: dict[str, Any] | None = None
+    input_sets: dict[str, np.ndarray] | None = None
 
     @property
     def route(self) -> str:
@@ -146,11 +154,15 @@ class ModelMap:
         key = (a.tobytes(), f.tobytes())
         if self._cache.get("key") == key:
             return self._cache["table"]
-        sets = self.coupling.params[:1] if not self.has_bands else np.vstack([self.coupling.params[:1], self.band_sets])
-        k = bench_first_harmonics(self.coupling, sets, a, f)
+        n_bands = len(self.band_sets) if self.has_bands else 0
+        inputs = list((self.input_sets or {}).values())
+        sets = np.vstack([self.coupling.params[:1], *([self.band_sets] if n_bands else []),
+                          *[np.asarray(v, float)[None] for v in inputs]])
+        k = bench_first_harmonics(self.coupling, sets, a, f)  # one batched call: nominal, bands, inputs
         table = pd.DataFrame({"amplitude_deg": a, "frequency_hz": f})
         nominal = _quantities(k[0])
-        spread = [_quantities(row) for row in k[1:]]
+        spread = [_quantities(row) for row in k[1:1 + n_bands]]
+        moved = [_quantities(row) for row in k[1 + n_bands:]]
         for q in QUANTITIES:
             table[q] = nominal[q]
             if self.has_bands:
@@ -158,6 +170,10 @@ class ModelMap:
                 table[f"{q}_std"] = std
                 table[f"{q}_band_lo"] = nominal[q] - Z95 * std
                 table[f"{q}_band_hi"] = nominal[q] + Z95 * std
+            if moved:  # each input's shift is its contribution c_i·u(x_i) (GUM 5.1.3); independent inputs
+                u_in = np.sqrt(sum((m[q] - nominal[q]) ** 2 for m in moved))
+                table[f"{q}_u_inputs"] = u_in
+                table[f"{q}_U95"] = COVERAGE_K * np.hypot(table[f"{q}_std"] if self.has_bands else 0.0, u_in)
         table["in_range"] = self.in_range(a, f)
         self._cache.update(key=key, table=table)
         return table
@@ -204,7 +220,10 @@ class ModelMap:
                 "range": {"amplitude_deg_min": r.amplitude_deg_min, "amplitude_deg_max": r.amplitude_deg_max,
                           "frequency_hz_min": r.frequency_hz_min, "frequency_hz_max": r.frequency_hz_max,
                           "hull_amplitude_deg_frequency_hz": [list(v) for v in r.hull]},
-                "identification": json_safe(self.identification), "source": self.source, "grid": grid}
+                "identification": json_safe(self.identification), "source": self.source, "grid": grid,
+                "input_uncertainty": json_safe(self.input_uncertainty),
+                "input_sets_raw": None if not self.input_sets else {k: np.asarray(v, float).tolist()
+                                                                    for k, v in self.input_sets.items()}}
 
     def to_json(self, path: str | Path | None = None) -> str:
         """The map as JSON text; with ``path``, also written there (atomically)."""
@@ -237,6 +256,14 @@ class ModelMap:
                       data.get("identification") or {}, data.get("source"))
         except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
             raise DroptowerError(f"malformed model map ({type(exc).__name__}: {exc})", file=file) from None
+        try:
+            out.input_uncertainty = data.get("input_uncertainty") or None
+            sets = data.get("input_sets_raw") or {}
+            out.input_sets = {str(k): np.asarray(v, float) for k, v in sets.items()} or None
+            if out.input_sets and any(v.shape != params.shape[1:] for v in out.input_sets.values()):
+                raise ValueError("an input set's length differs from the coupling's parameters")
+        except (AttributeError, TypeError, ValueError) as exc:
+            raise DroptowerError(f"malformed model map: input_sets_raw ({exc})", file=file) from None
         if data.get("grid"):
             out.grid = pd.DataFrame(data["grid"])
         return out
@@ -254,6 +281,9 @@ class ModelMap:
                  + (f", {ident['verdict']}" if ident.get("verdict") else "")
                  + (f" (angle nRMSE {100 * ident['angle_nrmse']:.3g} %)" if ident.get("angle_nrmse") is not None else "")]
         lines.append(f"bands: {self.band_method}" if self.has_bands else "bands: none (no parameter covariance given)")
+        if self.input_sets:
+            lines.append(f"inputs: {', '.join(self.input_sets)} (one standard uncertainty each; U95 = 2*sqrt(u_fit^2 + "
+                         "u_inputs^2) in the grid's *_U95)")
         if self.grid is not None:
             g = self.grid
             lines.append(f"grid: {g['amplitude_deg'].nunique()} amplitudes x {g['frequency_hz'].nunique()} frequencies; "
@@ -320,10 +350,17 @@ CLUSTER_METHOD = ("95 %, delta method on the identification's parameter covarian
 
 
 def model_map_from_identification(ident: Any, decays: list, settings: Any, tested: MapRange | None = None,
-                                  bands: bool = True, source: str | None = None) -> ModelMap:
+                                  bands: bool = True, source: str | None = None, uncertainty: Any = None,
+                                  lever_length_m: float | None = None,
+                                  laser_radius_m: float | None = None) -> ModelMap:
     """The model map of a drop-test identification, with cluster-robust 95 % bands (``bands``),
     over the tested range ``tested`` (default: the decays' first-cycle amplitudes and
-    frequencies). Evaluate it with :meth:`ModelMap.evaluate_grid`."""
+    frequencies). Evaluate it with :meth:`ModelMap.evaluate_grid`.
+
+    With ``uncertainty`` (a :class:`~droptower.rig.uncertainty.RigUncertainty`) the map also holds
+    each given input's shifted parameter set (:func:`droptower.uncertainty.route.route_input_sets`;
+    ``lever_length_m`` and ``laser_radius_m``, m, are the nominal values the logs were read with,
+    needed when their uncertainty is given) and the uncertainties themselves."""
     coupling = ident.coupling
     if tested is None:
         tested = MapRange.of_points([math.degrees(d.amplitude_rad) for d in decays], [d.frequency_hz for d in decays])
@@ -336,8 +373,15 @@ def model_map_from_identification(ident: Any, decays: list, settings: Any, teste
             "angle_nrmse": ident.fit.get("angle_nrmse"), "tests_used": len(ident.tests_used),
             "wall_s": ident.time_s,
             "parameters": {n: {"value": p.value, "std_error": p.stderr} for n, p in ident.params.items()}}
-    return ModelMap(coupling, ident.family, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
-                    source)
+    mm = ModelMap(coupling, ident.family, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
+                  source)
+    if uncertainty is not None:
+        from droptower.uncertainty.route import route_input_sets
+
+        mm.input_sets = route_input_sets(ident, decays, settings, uncertainty, lever_length_m=lever_length_m,
+                                         laser_radius_m=laser_radius_m) or None
+        mm.input_uncertainty = uncertainty.model_dump(exclude_none=True)
+    return mm
 
 
 def model_map_from_coupling(coupling: Coupling, tested: MapRange, family: str | None = None,
@@ -358,7 +402,7 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
                     on_progress: Callable[[str], None] | None = None, rig: Any = None,
                     roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
                     conditions: Any = None, table: pd.DataFrame | None = None, inertia_kgm2: float | None = None,
-                    lever_length_m: float | None = None) -> ModelMap:
+                    lever_length_m: float | None = None, uncertainty: Any = None) -> ModelMap:
     """The model-based map beside the paper's map ``fit`` (whose measured range it shares),
     evaluated on its grid.
 
@@ -397,6 +441,9 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         The results table already read (for a results table's per-file inertia).
     inertia_kgm2, lever_length_m : float, optional
         Every log's inertia (kg*m^2) and lever length (m), over the logs', the conditions' and the rig's.
+    uncertainty : RigUncertainty, optional
+        The rig's input uncertainties: with ``model``, the map holds each input's shift of the
+        identification and its ``<q>_U95`` the inputs' share (:mod:`droptower.uncertainty.route`).
 
     Returns
     -------
@@ -436,8 +483,14 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         if not ident.converged:
             raise DroptowerError(f"model {model}: the fit to the drop tests did not converge ({ident.message}); "
                                  "no model-based map")
+        lever, laser = (None, None)
+        if uncertainty is not None:
+            from droptower.uncertainty.route import nominal_geometry
+
+            lever, laser = nominal_geometry(campaign.decays, campaign.read)
         mm = model_map_from_identification(ident, campaign.decays, campaign.settings, tested=fit.range,
-                                           source=str(results))
+                                           source=str(results), uncertainty=uncertainty, lever_length_m=lever,
+                                           laser_radius_m=laser)
         if ident.verdict is not None and ident.verdict.poor and on_note is not None:
             on_note(f"note: model {model} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
                     "trusted beyond the paper's")

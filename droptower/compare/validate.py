@@ -161,9 +161,10 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
         The rig's input uncertainties (:class:`droptower.uncertainty.RigUncertainty`): with it
         (or with ``servo_u95_rel``) each route gets E_n numbers per servo point
         (``agreement``). The paper's map's U95 (:func:`droptower.uncertainty.map_uncertainty`)
-        needs ``results``, the tests it was fitted to; the model-based map's is 2·std of its
-        bands with the inertia's share on K' (J scales every identified stiffness, not the loss
-        factor: see :func:`model_route_u95`).
+        needs ``results``, the tests it was fitted to; the model-based map's is its own U95 where
+        it was built with the inputs (its bands and each input's shift), else 2·std of its bands
+        with the inertia's share on K' (see :func:`model_route_u95`). Not given: the inputs the
+        map (``map.json``'s ``input_uncertainty``) or the model map was computed with, if any.
     servo_u95_rel : float, optional
         The bench's own relative expanded uncertainty (0.02: 2 %) for every point where the servo
         table gives none (columns ``servo_stiffness_nm_per_deg_U95``, ``servo_damping_ratio_U95``).
@@ -190,6 +191,17 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     if servo_columns and servo_results is None:
         raise DroptowerError("`servo_columns` needs `servo_results` (the table whose columns it names)")
     fit = map_fit if isinstance(map_fit, MapFit) else MapFit.from_json(map_fit)
+    mm = None
+    if model_map is not None:
+        from droptower.compare.model_map import ModelMap
+
+        mm = model_map if isinstance(model_map, ModelMap) else ModelMap.from_json(model_map)
+    if uncertainty is None and judged:  # the inputs the maps were computed with (map.json, model_map.json)
+        stored = fit.input_uncertainty or (mm.input_uncertainty if mm is not None else None)
+        if stored:
+            from droptower.rig.uncertainty import RigUncertainty
+
+            uncertainty = RigUncertainty.model_validate(stored)
     reference_table = read_reference(reference) if reference is not None else None
     if isinstance(results, pd.DataFrame) or results is None:
         campaign = results
@@ -204,12 +216,11 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
               else run_sweeps(coupling, reduced=quick))
     validation = validate_map(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
-    routes = route = mm = None
-    if model_map is not None:
-        from droptower.compare.model_map import PAPER_ROUTE, ModelMap
+    routes = route = None
+    if mm is not None:
+        from droptower.compare.model_map import PAPER_ROUTE
         from droptower.compare.map_vs_servo import validate_routes
 
-        mm = model_map if isinstance(model_map, ModelMap) else ModelMap.from_json(model_map)
         route = mm.route
         routes = validate_routes({PAPER_ROUTE: fit, mm.route: mm}, points, hull=fit)
     agreement = _agreement(fit, validation, routes, mm, campaign, uncertainty, servo_u95_rel, points) \
@@ -219,38 +230,51 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
 
 
 def model_route_u95(model_map: Any, table: pd.DataFrame, inertia_u_rel: float = 0.0) -> dict[str, Any]:
-    """The model-based map's expanded uncertainties (k = 2) at the validation table's points:
-    its bands' standard uncertainty (the fit's, cluster-robust) and, for the storage stiffness
-    K', the inertia's share K'·u_J/J (a J error scales every stiffness the identification
-    finds from the decays, c = J(ω² + δ²), and leaves the loss factor and d unchanged), combined
-    in quadrature. Quantity -> U95 per point; empty without bands."""
+    """The model-based map's expanded uncertainties (k = 2) at the validation table's points.
+
+    A map built with the rig's input uncertainties (``model_map.input_sets``: each input's shift
+    of the identification, :mod:`droptower.uncertainty.route`) gives its own ``<q>_U95``: the
+    bands' standard uncertainty (the fit's, cluster-robust) and every input's share in quadrature.
+    Without them: the bands and, for the storage stiffness K', the inertia's share K'·u_J/J (a J
+    error scales the stiffness the identification finds from the decays, c = J(ω² + δ²); an upper
+    figure where the flange's torque is fitted too), the loss factor and d without inputs.
+    Quantity -> U95 per point; empty without bands."""
     import numpy as np
 
     if not model_map.has_bands:
         return {}
     grid = model_map.evaluate(table["amplitude_deg"].to_numpy(float), table["frequency_hz"].to_numpy(float))
-    k = grid["storage_stiffness_nm_per_deg"].to_numpy()
-    u_k = np.hypot(grid["storage_stiffness_nm_per_deg_std"].to_numpy(), k * inertia_u_rel)
-    return {"stiffness_nm_per_deg": 2.0 * u_k,
-            "damping_ratio": 2.0 * grid["drop_tower_equivalent_damping_ratio_std"].to_numpy()}
+    k, d = "storage_stiffness_nm_per_deg", "drop_tower_equivalent_damping_ratio"
+    if f"{k}_U95" in grid.columns:
+        return {"stiffness_nm_per_deg": grid[f"{k}_U95"].to_numpy(), "damping_ratio": grid[f"{d}_U95"].to_numpy()}
+    u_k = np.hypot(grid[f"{k}_std"].to_numpy(), grid[k].to_numpy() * inertia_u_rel)
+    return {"stiffness_nm_per_deg": 2.0 * u_k, "damping_ratio": 2.0 * grid[f"{d}_std"].to_numpy()}
 
 
 def model_map_with_inputs(model_map: Any, inertia_u_rel: float) -> Any:
-    """A copy of a model-based map whose grid's K' band (95 %) holds the inertia's share too:
-    K' ± 1.96·√(std² + (K'·u_J/J)²), the fit's band and J's in quadrature (:func:`model_route_u95`;
-    the loss factor and d carry no J). For the figures (``plot_model_map``); a map without
-    bands or grid is returned as it is."""
+    """A copy of a model-based map whose grid's bands (95 %) hold the inputs' share too: each
+    quantity's ``<q>_U95`` where the map carries its inputs' shifted sets, else K' ±
+    1.96·√(std² + (K'·u_J/J)²), the fit's band and J's in quadrature (:func:`model_route_u95`).
+    For the figures (``plot_model_map``); a map without bands or grid is returned as it is."""
     from dataclasses import replace
 
     import numpy as np
 
-    from droptower.compare.model_map import Z95
+    from droptower.compare.model_map import QUANTITIES, Z95
 
     grid = model_map.grid
     q = "storage_stiffness_nm_per_deg"
-    if grid is None or f"{q}_std" not in grid.columns or not inertia_u_rel > 0:
+    if grid is None or f"{q}_std" not in grid.columns:
         return model_map
     grid = grid.copy()
+    if f"{q}_U95" in grid.columns:
+        for name in QUANTITIES:
+            u = grid[f"{name}_U95"] / 2.0
+            grid[f"{name}_band_lo"], grid[f"{name}_band_hi"] = grid[name] - Z95 * u, grid[name] + Z95 * u
+        return replace(model_map, grid=grid, band_method=f"{model_map.band_method}; with the rig's inputs "
+                       f"({', '.join(model_map.input_sets)}; GUM)", _cache={})
+    if not inertia_u_rel > 0:
+        return model_map
     u = np.hypot(grid[f"{q}_std"], grid[q] * inertia_u_rel)
     grid[f"{q}_band_lo"], grid[f"{q}_band_hi"] = grid[q] - Z95 * u, grid[q] + Z95 * u
     return replace(model_map, grid=grid, band_method=f"{model_map.band_method}; with J's {100 * inertia_u_rel:.3g} % "

@@ -33,6 +33,9 @@ measured, and the ``map.json`` file that carries them.
   ``temperature_range_c``: [min, max] of their temperatures in degC (null without);
   ``coverage``: one line per fixture or condition left out entirely, with why, and a
   temperature span over 5 K (:mod:`droptower.maps.coverage`). Absent in older files.
+- ``input_uncertainty``: the rig's input uncertainties the map's expanded uncertainties were
+  computed with (:class:`~droptower.rig.uncertainty.RigUncertainty`'s fields; absent: none given);
+  ``validate`` reuses them where it is given none. Absent in older files.
 """
 from __future__ import annotations
 
@@ -159,6 +162,7 @@ class MapFit:
     fixtures: tuple[str, ...] = ()
     temperature_range_c: tuple[float, float] | None = None
     coverage: tuple[str, ...] = ()
+    input_uncertainty: dict[str, Any] | None = None
 
     @property
     def stiffness_params(self) -> np.ndarray:
@@ -221,6 +225,7 @@ class MapFit:
             "fixtures": list(self.fixtures),
             "temperature_range_c": list(self.temperature_range_c) if self.temperature_range_c else None,
             "coverage": list(self.coverage),
+            **({"input_uncertainty": json_safe(self.input_uncertainty)} if self.input_uncertainty else {}),
         }
 
     def coefficient_table(self) -> "pd.DataFrame":
@@ -290,6 +295,7 @@ class MapFit:
             fixtures=tuple(doc.fixtures),
             temperature_range_c=tuple(doc.temperature_range_c) if doc.temperature_range_c else None,
             coverage=tuple(doc.coverage),
+            input_uncertainty=_input_uncertainty(doc.input_uncertainty, file),
         )
 
     @classmethod
@@ -400,6 +406,15 @@ class _Form(StrictModel):
     ratio_terms: list[str]
 
 
+def _input_uncertainty(data: dict[str, Any] | None, file: str | Path | None) -> dict[str, Any] | None:
+    """A map file's ``input_uncertainty``, checked as a rig's ``[uncertainty]`` table (None: none)."""
+    if not data:
+        return None
+    from droptower.rig.uncertainty import RigUncertainty
+
+    return validate(RigUncertainty, data, file).model_dump(exclude_none=True)
+
+
 class _MapFile(StrictModel):
     format: str
     format_version: int
@@ -417,3 +432,4 @@ class _MapFile(StrictModel):
     fixtures: list[str] = []                               # absent in older files
     temperature_range_c: Optional[tuple[float, float]] = None
     coverage: list[str] = []
+    input_uncertainty: dict[str, Any] | None = None

@@ -15,10 +15,15 @@ table, with :func:`override_uncertainty` over it: the command line's ``NAME=VALU
 - :mod:`.mapband`: the map's coefficients and predictions with the fit's and the inputs' shares, the
   inputs correlated across the drops that share them (:func:`map_uncertainty`);
 - :mod:`.agreement`: E_n numbers and verdicts against a bench (ISO 13528, :func:`en_verdicts`), per
-  servo point of a validated route (:func:`route_agreement`).
+  servo point of a validated route (:func:`route_agreement`);
+- :mod:`.route`: the inputs' shares of the model route, each input's shift of a drop-test
+  identification (:func:`route_input_sets`);
+- :mod:`.bench`: the servo bench's own U95 from its cycles' scatter and its calibrations (:func:`bench_u95`).
 """
 from droptower.rig.uncertainty import (FixtureUncertainty, InputUncertainty, RigUncertainty, override_uncertainty,
                                        parse_uncertainty_spec)
+from droptower.uncertainty.bench import bench_u95
+from droptower.uncertainty.route import route_input_sets
 from droptower.uncertainty.agreement import (AGREEMENT_QUANTITIES, VERDICTS, en_number, en_verdicts, format_agreement,
                                              route_agreement)
 from droptower.uncertainty.budget import DropBudget, QuantityUncertainty, coverage_factor, drop_budget
@@ -32,6 +37,6 @@ from droptower.uncertainty.table import campaign_budgets, drop_budgets, uncertai
 
 __all__ = ["AGREEMENT_QUANTITIES", "DropBudget", "DropInputs", "DropModel", "FixtureUncertainty", "GumPropagation", "INPUTS", "Input",
            "InputUncertainty", "MapUncertainty", "MonteCarloPropagation", "QUANTITIES", "QuantityUncertainty", "RigUncertainty",
-           "VERDICTS", "campaign_budgets", "condition_budgets", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
+           "VERDICTS", "bench_u95", "campaign_budgets", "condition_budgets", "coverage_factor", "drop_budget", "drop_budgets", "drop_inputs", "en_number", "en_verdicts", "format_agreement", "map_uncertainty", "override_uncertainty",
            "parse_uncertainty_spec", "propagate_gum",
-           "propagate_monte_carlo", "route_agreement", "uncertainty_columns", "with_uncertainty"]
+           "propagate_monte_carlo", "route_agreement", "route_input_sets", "uncertainty_columns", "with_uncertainty"]
