@@ -322,6 +322,9 @@ def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, ext
     unflagged = [name for name, f in flags.items() if not f - BASE_FLAGS and "double_impact" not in f]
     assert not unflagged, unflagged
     assert sum(bool(f - BASE_FLAGS) for f in flags.values()) >= 18
+    # and the map does not quietly use them: every test is left out, each with its flags named
+    mapped = droptower("map", out)
+    assert mapped.code == 2 and "stiffness_m2_m1_deviation" in mapped.err, mapped.err
 
 
 def test_the_results_table_reads_back_in_a_fresh_process(extracted, work):

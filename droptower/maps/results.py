@@ -19,14 +19,17 @@ import pandas as pd
 
 from droptower.data import TABLE4_NAME, table4_path
 from droptower.errors import DroptowerError, expects, missing_file, no_file_or_preset, readable_file, unreadable_file
+from droptower.extract.geometry import FLAGS as GEOMETRY_FLAGS
 from droptower.io.table_reader import COMMON_ALIASES, read_table
 
 #: Columns the map is fitted from (the extractor's output names).
 REQUIRED = ("amplitude_deg", "frequency_hz", "stiffness_nm_per_deg", "damping_ratio")
 #: Extractor flags that make a test's stiffness or damping wrong, so it is left out of the map:
 #: a second impact restarts the decay, a poor fit or a window shorter than the paper's three
-#: quarters of a period does not determine δ and ω, a clipped channel cuts the peaks.
-UNUSABLE_FLAGS = frozenset({"double_impact", "poor_fit", "short_window", "clipping"})
+#: quarters of a period does not determine δ and ω, a clipped channel cuts the peaks, and a
+#: geometry that disagrees with the rig's (droptower.extract.geometry: a wrong inertia, lever
+#: length or laser radius scales the stiffness or the amplitude).
+UNUSABLE_FLAGS = frozenset({"double_impact", "poor_fit", "short_window", "clipping", *GEOMETRY_FLAGS})
 #: Lines of a text table searched for its names row when the required columns were not found.
 NAMES_SEARCH_LINES = 20
 
