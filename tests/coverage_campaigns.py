@@ -144,7 +144,6 @@ def route_campaign(seed: int, drops_per_fixture: int = 1, stated: RigUncertainty
     from droptower.identify.dropfit import DropFitSettings
     from droptower.identify.droplogs import ReadSettings, decay_from_signals
     from droptower.identify.drops import DropCampaign, identify_from_drop_tests
-    from droptower.uncertainty.route import route_input_shares
 
     rng = np.random.default_rng(seed)
     k = rng.uniform(1.2e4, 2.5e4)
@@ -182,7 +181,7 @@ def route_campaign(seed: int, drops_per_fixture: int = 1, stated: RigUncertainty
                                        laser_radius_m=LASER_M)
     a = float(np.median(amps))
     row = mm.evaluate([a], [SERVO_HZ]).iloc[0]
-    shares = route_input_shares(mm, mm.input_sets, [a], [SERVO_HZ])
+    shares = mm.input_shares([a], [SERVO_HZ])
     out = {"k_true": math.radians(k), "eta_true": c * 2 * math.pi * SERVO_HZ / k}
     for name, q in (("k", "storage_stiffness_nm_per_deg"), ("eta", "loss_factor")):
         out[name] = float(row[q])

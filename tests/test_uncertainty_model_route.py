@@ -49,12 +49,11 @@ def _identified(torque_weight: float = 0.5, force: bool = True):
 
 def _shares(uncertainty, torque_weight: float = 0.5, force: bool = True):
     from droptower.compare.model_map import model_map_from_identification
-    from droptower.uncertainty.route import route_input_shares
 
     ident, decays, settings = _identified(torque_weight, force)
     mm = model_map_from_identification(ident, decays, settings, uncertainty=uncertainty, lever_length_m=LEVER_M,
                                        laser_radius_m=LASER_M)
-    return mm, route_input_shares(mm, mm.input_sets, [1.5], [10.0])
+    return mm, mm.input_shares([1.5], [10.0])
 
 
 def test_inertia_scales_the_stiffness_and_leaves_the_loss_factor():

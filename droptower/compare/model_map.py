@@ -205,6 +205,21 @@ class ModelMap:
         return self.grid
 
     # ---- model_map.json -------------------------------------------------------------------
+    def input_shares(self, amplitude_deg: ArrayLike, frequency_hz: ArrayLike) -> dict[str, dict[str, np.ndarray]]:
+        """Each input's standard-uncertainty share of the map's quantities at the points: quantity
+        (``storage_stiffness_nm_per_deg``, ``loss_factor``, ...) -> input key -> Δq (P,), signed:
+        the bench run on the input's shifted set
+        (:func:`droptower.uncertainty.route.route_input_sets`) minus the nominal one (the
+        contribution c_i·u(x_i), GUM 5.1.3); empty where no input uncertainty was given."""
+        if not self.input_sets:
+            return {q: {} for q in QUANTITIES}
+        keys = list(self.input_sets)
+        sets = np.vstack([self.coupling.params[:1], *[self.input_sets[k][None] for k in keys]])
+        k = bench_first_harmonics(self.coupling, sets, amplitude_deg, frequency_hz)
+        nominal = _quantities(k[0])
+        moved = [_quantities(row) for row in k[1:]]
+        return {q: {key: m[q] - nominal[q] for key, m in zip(keys, moved)} for q in QUANTITIES}
+
     def to_dict(self) -> dict[str, Any]:
         """JSON content: format, route, family, coupling (TOML text), raw parameters of the
         nominal and the band sets, band method, range, identification and the evaluated grid."""

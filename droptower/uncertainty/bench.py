@@ -20,13 +20,14 @@ import math
 import numpy as np
 import pandas as pd
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 
 #: (value column, its cycles' standard deviation column), torsional and translational
 STIFFNESS_COLUMNS: tuple[tuple[str, str], ...] = (("storage_stiffness_nm_per_deg", "storage_stiffness_std_nm_per_deg"),
                                                   ("storage_stiffness_n_per_m", "storage_stiffness_std_n_per_m"))
 
 
+@expects(table=pd.DataFrame)
 def bench_u95(table: pd.DataFrame, *, torque_calibration_rel: float | None = None,
               angle_calibration_rel: float | None = None) -> pd.DataFrame:
     """A copy of an evaluated servo table with each block's expanded uncertainty (k = 2).

@@ -31,7 +31,6 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from droptower.errors import DroptowerError
 from droptower.rig.uncertainty import RigUncertainty
@@ -184,24 +183,6 @@ def route_parameter_budget(ident: Any, input_values: dict[str, np.ndarray]) -> "
                      "u_c": math.hypot(float(std[i]), u_in), "U95": 2.0 * math.hypot(float(std[i]), u_in),
                      "dominant": max(terms, key=terms.get)})
     return pd.DataFrame(rows)
-
-
-def route_input_shares(model_map: Any, input_sets: dict[str, np.ndarray], amplitude_deg: ArrayLike,
-                       frequency_hz: ArrayLike) -> dict[str, dict[str, np.ndarray]]:
-    """Each input's standard-uncertainty share of the model map's quantities at the points:
-    quantity (``storage_stiffness_nm_per_deg``, ``loss_factor``, ...) -> input key -> Δq (P,),
-    signed: the bench run on the input's shifted set (:func:`route_input_sets`) minus the nominal one
-    (the contribution c_i·u(x_i), GUM 5.1.3)."""
-    from droptower.compare.model_map import QUANTITIES, _quantities, bench_first_harmonics
-
-    if not input_sets:
-        return {q: {} for q in QUANTITIES}
-    keys = list(input_sets)
-    sets = np.vstack([model_map.coupling.params[:1], *[input_sets[k][None] for k in keys]])
-    k = bench_first_harmonics(model_map.coupling, sets, amplitude_deg, frequency_hz)
-    nominal = _quantities(k[0])
-    moved = [_quantities(row) for row in k[1:]]
-    return {q: {key: m[q] - nominal[q] for key, m in zip(keys, moved)} for q in QUANTITIES}
 
 
 def nominal_geometry(decays: list, read: Any = None) -> tuple[float | None, float | None]:
