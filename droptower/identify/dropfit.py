@@ -101,6 +101,46 @@ class DropFitSettings:
     seed: int = 0
 
 
+#: Options of the fit among a family's options: each sets the :class:`DropFitSettings` field of
+#: its name (``conditioning``: False for a virgin coupling).
+FIT_OPTIONS = ("substeps", "torque_weight", "max_nfev", "seed", "conditioning")
+#: Options of reading the logs (:func:`~droptower.identify.drops.read_drop_tests`): refused by a
+#: fit of decays already read, which could not honour them.
+READ_OPTIONS = ("cycles", "initial_rate", "skip_s")
+
+
+def split_options(settings: DropFitSettings, options: dict[str, Any] | None
+                  ) -> tuple[DropFitSettings, dict[str, Any]]:
+    """(``settings`` with the fit's options among ``options`` applied, the family's options left).
+
+    An option of the fit that ``settings`` already sets to another value than its default is
+    refused (given twice), as is an option of reading the logs (the decays are read already).
+    The family refuses what is left and it does not know.
+    """
+    options = dict(options or {})
+    read = sorted(k for k in options if k in READ_OPTIONS)
+    if read:
+        raise DroptowerError(f"option(s) {', '.join(read)} apply to reading the logs (read_drop_tests), "
+                             "not to fitting decays already read")
+    default, changes = DropFitSettings(), {}
+    for key in [k for k in options if k in FIT_OPTIONS]:
+        value = options.pop(key)
+        if key == "conditioning":
+            value = settings.conditioning if value else None
+            if value is None and settings.conditioning is None:
+                continue
+        else:
+            value = type(getattr(default, key))(value)
+            if isinstance(value, int) and value < (1 if key == "substeps" else 0):
+                raise DroptowerError(f"option {key} must be a{' positive' if key == 'substeps' else ' non-negative'} "
+                                     f"integer, got {value}")
+        here = getattr(settings, key)
+        if key != "conditioning" and here != getattr(default, key) and here != value:
+            raise DroptowerError(f"option {key} = {value!r} contradicts the settings' {key} = {here!r}")
+        changes[key] = value
+    return dataclasses.replace(settings, **changes), options
+
+
 def drop_scale(decays: list[DropDecay]) -> DataScale:
     """Typical magnitudes of a drop campaign, for the families' bounds and first guesses: the
     linear stiffness J omega^2 of the first cycles, their amplitudes, rates and frequencies."""
@@ -287,7 +327,9 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     bounds : dict, optional
         Parameter name -> (lower, upper).
     options : dict, optional
-        The family's options, as for :func:`~droptower.identify.identify` (e.g. ``template``).
+        The family's options, as for :func:`~droptower.identify.identify` (e.g. ``template``),
+        and the fit's (:data:`FIT_OPTIONS`: each sets the field of ``settings`` of its name).
+        Unknown options are refused by name, as are the reading's (:data:`READ_OPTIONS`).
 
     Returns
     -------
@@ -302,6 +344,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
+    settings, options = split_options(settings, options)
     family = family_class(kind)(drop_scale(decays), options)
     fit_idx, hold_idx = holdout_split(decays, settings.holdout_fraction)
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)

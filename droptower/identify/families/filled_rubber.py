@@ -223,8 +223,11 @@ class FilledRubberFamily(Family):
 
     def without_branch(self) -> "FilledRubberFamily":
         """The same family (the same parameters) whose couplings leave the stiffening Maxwell branch
-        out: a nonlinear branch makes every step of the core iterate, even at a negligible stiffness."""
-        return type(self)(self.scale, {**self.options, "stiffening_branch": False})
+        out: a nonlinear branch makes every step of the core iterate, even at a negligible stiffness.
+        Its parameters are this family's (the user's bounds on them kept), not the defaults."""
+        out = type(self)(self.scale, {**self.options, "stiffening_branch": False})
+        out.parameters = list(self.parameters)
+        return out
 
     def branch_off(self, v: np.ndarray) -> np.ndarray:
         """``v`` with the stiffening Maxwell branch off: its spring at its lower bound (1e-4 of the

@@ -1,0 +1,182 @@
+"""The drop-test identification engine's contract with its caller: the user's bounds hold in
+every search of every family, the fit's options are honoured, unknown options are refused by
+name. Small virtual campaigns (three decays of the family's own first-guess coupling on the
+identification's lever model) and few evaluations: what is tested is where the values may go
+and which settings the searches use, not the accuracy (tests/test_identify_drops.py)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import droptower.identify.dropfit as dropfit
+from droptower.errors import DroptowerError
+from droptower.identify.data import DataScale
+from droptower.identify.dropfit import DropFitSettings, identify_drops
+from droptower.identify.droplogs import DropDecay
+from droptower.identify.families import family_class
+from droptower.identify.families.filled_rubber import FilledRubberFamily
+from droptower.identify.families.stages import setup_family
+from droptower.identify.lever import free_decay
+
+DT = 1 / 4800
+SCALE = DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0)
+#: The families a drop campaign identifies without a template, with the options that keep them small.
+FAMILIES = {"elastoslide": {}, "zerodim6": {}, "masing": {}, "pfeffer": {}, "filled_rubber": {"n": 8}}
+#: Few evaluations per local fit: the searches run every stage, cheaply.
+QUICK = DropFitSettings(holdout_fraction=0.0, conditioning=None, max_nfev=3)
+
+
+def _decays(kind: str, seed: int = 0, n_tests: int = 3, duration_s: float = 0.04) -> list[DropDecay]:
+    """Free decays of the family's first-guess coupling (0.1 % white angle noise, seeded)."""
+    fam = family_class(kind)(SCALE, FAMILIES[kind] or None)
+    coupling = fam.coupling(fam.initial())
+    inertia, rate = np.resize([0.1557, 0.359, 0.5233], n_tests), np.resize([0.5, 2.0, 4.0], n_tests)
+    n = int(duration_s / DT)
+    angle, _ = free_decay(coupling, inertia, rate, n, DT)
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n_tests):
+        amp = float(np.max(np.abs(angle[i])))
+        out.append(DropDecay(f"test_{i}", np.arange(1, n + 1) * DT, angle[i, 1:] + 1e-3 * amp * rng.standard_normal(n),
+                             None, float(inertia[i]), float(rate[i]), "impact_force", 30.0, amp, DT,
+                             angle_noise_rad=1e-3 * amp))
+    return out
+
+
+@pytest.fixture
+def local_fits(monkeypatch):
+    """Every local fit of the drop engine (its bounds, evaluation limit and outcome), recorded."""
+    calls = []
+    original = dropfit.fit_rows
+
+    def spy(parameters, x0, objective, **kw):
+        out = original(parameters, x0, objective, **kw)
+        calls.append({"bounds": {p.name: (p.lower, p.upper) for p in parameters}, "max_nfev": kw.get("max_nfev"),
+                      "values": np.array(out.values, float)})
+        return out
+
+    monkeypatch.setattr(dropfit, "fit_rows", spy)
+    return calls
+
+
+def _narrow_bounds(kind: str, positions: list[tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Bounds inside the family's defaults: for parameter i (those the positions reach), the
+    sub-interval between fractions positions[i] of its range (in log for logarithmic ones)."""
+    fam = family_class(kind)(SCALE, FAMILIES[kind] or None)
+    out = {}
+    for p, (a, b) in zip(fam.parameters, positions):
+        if p.name == "p" or abs(a - b) < 0.05:
+            continue
+        lo, hi = sorted((a, b))
+        if p.log:
+            ln = np.log([p.lower, p.upper])
+            out[p.name] = (float(np.exp(ln[0] + lo * np.diff(ln)[0])), float(np.exp(ln[0] + hi * np.diff(ln)[0])))
+        else:
+            out[p.name] = (p.lower + lo * (p.upper - p.lower), p.lower + hi * (p.upper - p.lower))
+    return out
+
+
+def _inside(values: np.ndarray | dict, names: list[str], bounds: dict[str, tuple[float, float]]) -> list[str]:
+    """The names whose value lies outside its bounds (a relative 1e-12 of rounding allowed)."""
+    get = (lambda n: values[n]) if isinstance(values, dict) else (lambda n: values[names.index(n)])
+    return [n for n, (lo, hi) in bounds.items()
+            if not lo - 1e-12 * abs(lo) <= get(n) <= hi + 1e-12 * abs(hi)]
+
+
+def test_filled_rubbers_first_search_keeps_the_users_bounds():
+    """The family without its stiffening branch (the first drop-test search's) has the user's
+    bounds, not the defaults it would be rebuilt with."""
+    fam = FilledRubberFamily(SCALE, {"n": 8})
+    bounds = {"k_nm_per_rad": (0.5 * SCALE.stiffness_nm_per_rad, 0.6 * SCALE.stiffness_nm_per_rad),
+              "tau_v_s": (1e-3, 2e-3)}
+    setup_family(fam, None, bounds)
+    first = fam.without_branch()
+    assert {p.name: (p.lower, p.upper) for p in first.parameters if p.name in bounds} == bounds
+    assert not first.options["stiffening_branch"]
+
+
+def test_filled_rubbers_drop_fit_keeps_the_users_bounds_in_every_search(local_fits):
+    """Bounds far from the first guess: every local fit (the first search's without the branch
+    included) searches inside them, and the reported values lie inside the printed min/max."""
+    k = SCALE.stiffness_nm_per_rad
+    bounds = {"k_nm_per_rad": (2.0 * k, 3.0 * k), "kf_nm_per_rad": (0.01 * k, 0.02 * k), "tau_v_s": (1e-3, 2e-3)}
+    result = identify_drops("filled_rubber", _decays("filled_rubber"), settings=QUICK, bounds=bounds,
+                            options=FAMILIES["filled_rubber"])
+    assert local_fits
+    for call in local_fits:
+        assert {n: call["bounds"][n] for n in bounds} == bounds
+        assert not _inside(call["values"], list(call["bounds"]), bounds)
+    for name, (lo, hi) in bounds.items():
+        p = result.params[name]
+        assert (p.min, p.max) == (lo, hi) and lo <= p.value <= hi
+
+
+@pytest.mark.slow
+@given(kind=st.sampled_from(sorted(FAMILIES)),
+       positions=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1)), min_size=20, max_size=20))
+@settings(max_examples=25, deadline=None, derandomize=True)
+def test_every_reported_value_lies_in_its_printed_bounds(kind, positions):
+    """Random bounds inside the defaults, on random parameters of every family: every local fit
+    of every search (first, wider, hops, loose prior) stays inside them, and so does every
+    reported value inside its printed min/max."""
+    calls = []
+    original = dropfit.fit_rows
+
+    def spy(parameters, x0, objective, **kw):
+        out = original(parameters, x0, objective, **kw)
+        calls.append(({p.name: (p.lower, p.upper) for p in parameters}, np.array(out.values, float)))
+        return out
+
+    bounds = _narrow_bounds(kind, positions)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(dropfit, "fit_rows", spy)
+        result = identify_drops(kind, _decays(kind), settings=QUICK, bounds=bounds, options=FAMILIES[kind])
+    for searched, values in calls:
+        assert not _inside(values, list(searched), bounds)
+    for p in result.params.values():
+        assert p.min <= p.value <= p.max, p
+    for name, (lo, hi) in bounds.items():
+        assert (result.params[name].min, result.params[name].max) == (lo, hi)
+
+
+def test_the_fits_options_set_the_searches_evaluation_limit_and_step(local_fits, monkeypatch):
+    """``options={"max_nfev": 7, "substeps": 2}`` reach every local fit and every re-simulation
+    (half the step; the bias estimate's at a quarter)."""
+    steps = []
+    original = dropfit.free_decay
+
+    def spy(coupling, inertia, rate0, n_steps, h, *args, **kw):
+        steps.append(h)
+        return original(coupling, inertia, rate0, n_steps, h, *args, **kw)
+
+    monkeypatch.setattr(dropfit, "free_decay", spy)
+    identify_drops("zerodim6", _decays("zerodim6"), settings=DropFitSettings(holdout_fraction=0.0, conditioning=None),
+                   options={"max_nfev": 7, "substeps": 2})
+    assert local_fits and {c["max_nfev"] for c in local_fits} == {7}
+    assert set(np.round(np.array(steps) / DT, 12)) == {0.5, 0.25}
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"max_nfev": 3, "foo": 1}, "unknown option(s) foo for model zerodim6"),
+    ({"cycles": 2}, "option(s) cycles apply to reading the logs"),
+    ({"substeps": 0}, "option substeps must be a positive integer, got 0"),
+])
+def test_options_the_fit_cannot_honour_are_refused_by_name(options, message):
+    with pytest.raises(DroptowerError) as err:
+        identify_drops("zerodim6", _decays("zerodim6"), settings=QUICK, options=options)
+    assert message in str(err.value)
+
+
+def test_a_fit_option_given_twice_with_two_values_is_refused():
+    from droptower.identify.dropfit import split_options
+
+    with pytest.raises(DroptowerError, match="max_nfev = 5 contradicts the settings' max_nfev = 3"):
+        split_options(QUICK, {"max_nfev": 5})
+    same, rest = split_options(QUICK, {"max_nfev": 3, "seed": 4, "conditioning": False})
+    assert (same.max_nfev, same.seed, same.conditioning, rest) == (3, 4, None, {})
+    assert split_options(DropFitSettings(), {"conditioning": True})[0].conditioning == DropFitSettings().conditioning
+    assert math.isclose(split_options(DropFitSettings(), {"torque_weight": 0})[0].torque_weight, 0.0)
