@@ -99,6 +99,7 @@ def test_filled_rubbers_first_search_keeps_the_users_bounds():
     assert not first.options["stiffening_branch"]
 
 
+@pytest.mark.slow
 def test_filled_rubbers_drop_fit_keeps_the_users_bounds_in_every_search(local_fits):
     """Bounds far from the first guess: every local fit (the first search's without the branch
     included) searches inside them, and the reported values lie inside the printed min/max."""

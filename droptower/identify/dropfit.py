@@ -38,15 +38,18 @@ from typing import Any
 import numpy as np
 
 from droptower.errors import DroptowerError
+from droptower.fit_defaults import HOLDOUT_FRACTION
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import DataScale
 from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
+from droptower.identify.families.elastoslide import rate_at_exponent, walk_p
 from droptower.identify.families.stages import setup_family
 from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
 from droptower.identify.lever import at_times, free_decay
-from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
+from droptower.identify.result import (DROPS, Identification, Parameters, fitted_parameters, lag1_correlation,
+                                       place_guesses, split_given)
 from droptower.identify.search import basin_hops, global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.rates import SERVO_SAMPLE_RATE_HZ
@@ -96,7 +99,7 @@ class DropFitSettings:
     substeps: int = 1
     torque_weight: float = 0.5
     conditioning: tuple[float, float] | None = (2.0, 30.0)
-    holdout_fraction: float = 0.2
+    holdout_fraction: float = HOLDOUT_FRACTION
     max_nfev: int = 0
     seed: int = 0
 
@@ -355,14 +358,14 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
     # a family's deferred parameters (a part it switches off first): held off in the first
     # search, freed in the wider one after a poor verdict
-    deferred = np.isin(family.names, getattr(family, "DEFERRED", ())) & free
+    deferred = np.isin(family.names, family.DEFERRED) & free
     x_off = family.branch_off(x0) if deferred.any() else x0
-    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
-        readings = first_cycle_readings([decays[i] for i in fit_idx])
-        x0 = family.guess_from_readings(*readings, x0, given)
-        # the first search's guess from the closed form without the deferred part
-        x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
-                 if deferred.any() else x0)
+    # a family whose closed form reads a first guess off the first cycles (Family.guess_from_readings)
+    readings = first_cycle_readings([decays[i] for i in fit_idx])
+    x0 = family.guess_from_readings(*readings, x0, given)
+    # the first search's guess from the closed form without the deferred part
+    x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
+             if deferred.any() else x0)
     if guesses:  # the user's first guesses over the closed form's, in both starts
         for x in (x0, x_off):
             place_guesses(kind, family.names, x, guesses)
@@ -418,11 +421,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
                 search = {**search, "loose_prior": True}
     # the integration step's bias: the parameters' shift to the half step, Richardson-scaled
     # for the first-order part of the error (the core's rate-dependent elements, see .lever)
-    r_fine = problem.weighted(*fine)[0]
-    bias_z = np.linalg.lstsq(sol.jacobian, -(r_fine - sol.residual), rcond=None)[0] * 2.0
-    r = sol.residual
-    lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
-    std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
+    bias_z = sol.step_bias_z(problem.weighted(*fine)[0])
+    std = sol.std_error(lag1_correlation([sol.residual]), extra_z=bias_z, groups=problem.test_of_residual)
     fit_err = summarise(per_test_errors(problem, sol.values))
     verdict, rss, n_samples = drop_verdict(problem, sol.values, bound_hits(params, sol.at_bounds), sol.converged,
                                            fine_angle=fine[0][0])
@@ -446,7 +446,7 @@ def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.
     over its allowance lies in :data:`HOP_RANGE` (at most :data:`HOP_ROUNDS` times), ``sol``
     replaced by the best of :func:`drop_hops` where its error is lower (else stop); the fine
     re-simulation and the search summary (its ``hops``) updated alike."""
-    if not hasattr(family, "basin_moves"):
+    if not len(family.basin_moves(sol.values, free)):
         return sol, fine, search
     for _ in range(HOP_ROUNDS):
         ratio = drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].error_over_noise
@@ -465,35 +465,23 @@ def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.
     return sol, fine, search
 
 
-def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int, tol: float = TOL) -> Any:
-    """The elastoslide's odd exponent p: walk over ``p_candidates`` from the fitted one while the
-    cost falls (as the servo strategy does). Moving to p', v_r moves so that the slip-rate law
-    (v / v_r)^(1/p) keeps its value at the campaign's typical rate."""
-    jp, jv = family.names.index("p"), family.names.index("v_r_rad_per_s")
-    cands = sorted(int(v) for v in family.options["p_candidates"])
+def walk_p_drops(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int,
+                 tol: float = TOL) -> Any:
+    """The elastoslide's odd exponent p by :func:`~droptower.identify.families.elastoslide.walk_p`
+    over ``p_candidates`` (as the servo strategy chooses it), v_r moved with p at the campaign's
+    typical rate: the cheapest converged fit."""
+    jp = family.names.index("p")
     v_typ = float(np.median([abs(d.rate0_rad_per_s) for d in problem.decays]))
-    fits = {int(sol.values[jp]): sol}
 
     def cost(s: Any) -> float:
         return float(s.residual @ s.residual) if s.converged else math.inf
 
-    for direction in (-1, 1):
-        here = sol
-        while True:
-            p_old = int(here.values[jp])
-            i = cands.index(p_old) + direction if p_old in cands else -1
-            if not 0 <= i < len(cands):
-                break
-            p_new = cands[i]
-            if p_new not in fits:
-                x = here.values.copy()
-                x[jv] = v_typ * (x[jv] / v_typ) ** (p_new / p_old)
-                x[jp] = p_new
-                fits[p_new] = fit_rows(family.parameters, clip_to_bounds(family.parameters, x), objective,
-                                       free=sol.free, max_nfev=max_nfev, tol=tol)
-            if cost(fits[p_new]) >= cost(here):
-                break
-            here = fits[p_new]
+    def fit_at(here: Any, p_new: int) -> Any:
+        x = rate_at_exponent(here.values, family.names, p_new, v_typ)
+        return fit_rows(family.parameters, clip_to_bounds(family.parameters, x), objective, free=sol.free,
+                        max_nfev=max_nfev, tol=tol)
+
+    fits = walk_p(sol, lambda s: int(s.values[jp]), fit_at, cost, family.options["p_candidates"])
     return min(fits.values(), key=cost)
 
 
@@ -519,7 +507,7 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
             objective = prob.with_prior(start, free)
             sol = fit_rows(params, start, objective, free=free, max_nfev=settings.max_nfev, tol=tol)
             if choices and tol > TOL:  # p is walked while the starts compete; the winner's refinement keeps it
-                sol = walk_p(prob, family, sol, objective, settings.max_nfev, tol)
+                sol = walk_p_drops(prob, family, sol, objective, settings.max_nfev, tol)
             return sol
         return local
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from droptower.errors import DroptowerError
-from droptower.identify.dropfit import FIT_OPTIONS, DropFitSettings, identify_drops
+from droptower.identify.dropfit import FIT_OPTIONS, HOLDOUT_FRACTION, DropFitSettings, identify_drops
 from droptower.identify.droplogs import DropDecay, ReadSettings, read_decays
 from droptower.identify.result import Identification, Parameters
 
@@ -54,7 +54,7 @@ def log_paths(data: Iterable[str | Path]) -> list[Path]:
 
 def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | None = None,
                     options: Mapping[str, Any] | None = None, template: str | None = None,
-                    holdout_fraction: float = 0.2, rig: Any = None, inertia_kgm2: float | None = None,
+                    holdout_fraction: float = HOLDOUT_FRACTION, rig: Any = None, inertia_kgm2: float | None = None,
                     lever_length_m: float | None = None, roles: Mapping[str, str] | None = None,
                     sensor_radius_m: float | None = None, conditions: Any = None) -> DropCampaign:
     """Read drop-test logs for an identification.
@@ -139,7 +139,7 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
                              init: Mapping[str, float] | Parameters | None = None,
                              bounds: Mapping[str, tuple[float, float]] | None = None,
                              options: Mapping[str, Any] | None = None, template: str | None = None,
-                             holdout_fraction: float = 0.2, rig: Any = None,
+                             holdout_fraction: float = HOLDOUT_FRACTION, rig: Any = None,
                              inertia_kgm2: float | None = None, lever_length_m: float | None = None,
                              roles: Mapping[str, str] | None = None, sensor_radius_m: float | None = None,
                              conditions: Any = None) -> Identification:

@@ -261,8 +261,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
     # integrates): the parameters' shift when the model is integrated on half the step,
     # Richardson-scaled for the first-order error of the core's rate-dependent elements
     fine = residuals(sol.values[None, :], 2 * int(getattr(model, "substeps", 1)))[0]
-    bias_z = 2.0 * np.linalg.lstsq(sol.jacobian, -(fine - sol.residual), rcond=None)[0]
-    std = sol.std_error(m.residual_lag1, extra_z=np.where(np.isfinite(bias_z), bias_z, 0.0))
+    std = sol.std_error(m.residual_lag1, extra_z=sol.step_bias_z(fine))
     # the model's own discretisation error at the step it is fitted on: twice its change on
     # half the step (first order), RMS over the compared samples
     step_error = 2.0 * float(np.sqrt(np.mean((fine - sol.residual) ** 2))) if fine.size else 0.0
@@ -308,6 +307,14 @@ class RowsFit:
         bread = np.linalg.pinv(jac.T @ jac)
         g = labels.size
         return bread @ (scores.T @ scores) @ bread * (g / max(g - 1, 1))
+
+    def step_bias_z(self, fine_residual: np.ndarray) -> np.ndarray:
+        """The integration step's bias in the optimised variables: the parameters' shift that
+        the residual on half the step (``fine_residual``) asks for, twice (Richardson, first
+        order: the core's rate-dependent elements, docs/theory.md#verdict); 0 where it is not
+        finite (a half-step run the core refused), so that it never turns a standard error NaN."""
+        bias = 2.0 * np.linalg.lstsq(self.jacobian, -(np.asarray(fine_residual) - self.residual), rcond=None)[0]
+        return np.where(np.isfinite(bias), bias, 0.0)
 
     def std_error(self, lag1: float = 0.0, extra_z: np.ndarray | None = None,
                   groups: np.ndarray | None = None) -> np.ndarray:
@@ -410,5 +417,3 @@ def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
     costs = np.where(np.isfinite(costs), costs, np.inf)
     return int(np.argmin(costs)), costs
 
-
-Predictor = Callable[[list[Segment]], list[np.ndarray]]

@@ -107,8 +107,7 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
 def _idle(family: Any, result: Identification) -> list[str]:
     """The parameters of a switched-off part of ``result`` (a family's ``idle_parameters``, if it
     has them): their bounds are not bound hits."""
-    idle = getattr(family, "idle_parameters", None)
-    return list(idle(np.array(list(result.parameters.values()), float))) if idle is not None else []
+    return list(family.idle_parameters(np.array(list(result.parameters.values()), float)))
 
 
 def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[FitVariable],
