@@ -24,6 +24,7 @@ from pydantic import Field
 
 from droptower.cli.options import note, progress, quiet_option, wrote
 from droptower.errors import DroptowerError, check_positive
+from droptower.fit_defaults import DEFAULT_BUDGET_S, DEFAULT_TOTAL_BUDGET_S, HOLDOUT_FRACTION
 from droptower.validation import StrictModel, validate
 from droptower.cli.flags import cli_text
 
@@ -49,7 +50,7 @@ def drop_options(command):
 
     command = conditions_options(command)
     for option in reversed([
-            click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
+            click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=HOLDOUT_FRACTION, show_default=True,
                          help="Drop tests: share of the tests held out and predicted."),
             click.option("--rig", help="Drop tests: rig TOML or preset (lever length, laser radius, conditioning; "
                                        "the inertia of a single fixture, else --conditions say each log's)."),
@@ -228,10 +229,10 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
 @click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
 @drop_options
-@click.option("--budget-s", type=float, default=60.0, show_default=True,
+@click.option("--budget-s", type=float, default=DEFAULT_BUDGET_S, show_default=True,
               help="Wall-time budget of each family's fit (s); a family over it is listed 'not converged' and ranked "
                    "last.")
-@click.option("--total-budget-s", type=float, default=110.0, show_default=True,
+@click.option("--total-budget-s", type=float, default=DEFAULT_TOTAL_BUDGET_S, show_default=True,
               help="Wall-time budget of all the fits together (s): each family gets at most an equal share of what "
                    "is left (the cheaper families first).")
 @click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
