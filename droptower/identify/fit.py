@@ -23,7 +23,7 @@ from threadpoolctl import threadpool_limits
 from droptower.errors import DroptowerError
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import Segment
-from droptower.identify.result import Identification, Metrics, metrics  # noqa: F401 (what the families build and use)
+from droptower.identify.result import Metrics, metrics
 from droptower.rheology import Coupling
 
 
@@ -417,3 +417,16 @@ def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
     costs = np.where(np.isfinite(costs), costs, np.inf)
     return int(np.argmin(costs)), costs
 
+
+def __getattr__(name: str) -> object:
+    """``Identification`` from here: deprecated (import it from :mod:`droptower.identify.result`,
+    where it is defined); it is removed in the next release."""
+    if name == "Identification":
+        import warnings
+
+        from droptower.identify.result import Identification
+
+        warnings.warn("droptower.identify.fit.Identification is deprecated: import Identification from "
+                      "droptower.identify (or droptower.identify.result)", DeprecationWarning, stacklevel=2)
+        return Identification
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -16,7 +16,7 @@ import pandas as pd
 
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
-from droptower.identify.fit import Identification, metrics
+from droptower.identify.result import Identification, metrics
 from droptower.identify.result import SERVO, register_format
 from droptower.io.droptower_log import save_figure
 from droptower.io.fields import field_name, translate_fields

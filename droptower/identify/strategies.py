@@ -17,7 +17,8 @@ from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.base import COMMON_OPTIONS
 from droptower.identify.families.stages import Setup, result_of, setup
-from droptower.identify.fit import FitVariable, Identification, least_squares_fit, one_blas_thread, simulate
+from droptower.identify.fit import FitVariable, least_squares_fit, one_blas_thread, simulate
+from droptower.identify.result import Identification
 from droptower.identify.noise import NoiseFloor, servo_noise
 from droptower.identify.result import Parameters, servo_given
 from droptower.identify.search import global_fit

@@ -17,7 +17,8 @@ from droptower.identify.cycles import turning_points
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
-from droptower.identify.fit import Counter, FitResult, FitVariable, Identification, batch_search, clip_to_bounds
+from droptower.identify.fit import Counter, FitResult, FitVariable, batch_search, clip_to_bounds
+from droptower.identify.result import Identification
 
 class ElastoslideFamily(Family):
     """The elastoslide paper's distributed rate-dependent elastoslide model: phi0, k, k0, v_r, p; with

@@ -36,7 +36,8 @@ from droptower.identify.cycles import evaluate_block
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
-from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
+from droptower.identify.fit import FitVariable, clip_to_bounds
+from droptower.identify.result import Identification
 from droptower.identify.noise import servo_noise
 from droptower.identify.verdict import bound_hits, judge
 from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,

@@ -17,8 +17,8 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, levels, result_of, steady_blocks
-from droptower.identify.fit import (FitVariable, Identification, at_bounds, clip_to_bounds, metrics, simulate,
-                                    simulate_rows)
+from droptower.identify.fit import FitVariable, at_bounds, clip_to_bounds, simulate, simulate_rows
+from droptower.identify.result import Identification, metrics
 
 class MasingFamily(Family):
     """Heine & Plagemann's (2014) Masing model: n Prandtl elements (stiffness k each, limits R e^{alpha(eta-1)})
