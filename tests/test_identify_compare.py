@@ -78,7 +78,7 @@ def test_a_family_out_of_its_budget_is_listed_not_converged_and_ranked_last(reco
     assert table.iloc[0]["status"] == "converged" and table.iloc[0]["verdict"] == "good fit"
     assert result.best == "pfeffer" and result.exit_code() == 0
     assert set(result.not_converged) == {"zerodim6"} and set(result.results) == {"pfeffer"}
-    doc = result.as_dict()
+    doc = result.to_dict()
     assert [r["model"] for r in doc["ranking"]] == ["pfeffer", "zerodim6"] and "records" in doc
 
 

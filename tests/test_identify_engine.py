@@ -198,3 +198,62 @@ def test_the_result_type_is_imported_from_where_it_is_defined():
              if "from droptower.identify.fit import" in p.read_text() and "Identification" in
              "".join(line for line in p.read_text().splitlines() if "droptower.identify.fit import" in line)]
     assert not users
+
+
+def test_rows_the_core_refuses_have_one_policy_everywhere(monkeypatch):
+    """A row with any non-finite sample costs inf wherever costs are compared (the search's
+    candidates, the servo candidates' batch) and is REFUSED_RESIDUAL for the optimiser; a row
+    refused on a single sample is never cheaper than a finite one (a sum that skipped NaN made
+    a wholly refused row cost 0)."""
+    import droptower.identify.fit as fit
+    from droptower.identify.data import make_segment
+    from droptower.identify.search import costs
+
+    r = np.array([[1.0, 2.0], [np.nan, 0.0], [np.inf, np.nan], [0.5, 0.5]])
+    assert fit.row_costs(r).tolist() == [5.0, math.inf, math.inf, 0.5]
+    assert costs(lambda rows: r[rows[:, 0].astype(int)], np.arange(4.0)[:, None], batch=3).tolist() == \
+        [5.0, math.inf, math.inf, 0.5]
+    assert fit.finite_residuals(r)[1].tolist() == [fit.REFUSED_RESIDUAL, 0.0]
+
+    t = np.arange(50) / 1000.0
+    seg = make_segment(t, 0.01 * np.sin(40 * t), 100.0 * 0.01 * np.sin(40 * t), name="s")
+
+    def simulate(model, values, segments, counter=None):
+        """Torque k * angle; the second candidate diverges on one sample, the third on all."""
+        out = []
+        for k, refused in values:
+            torque = k * seg.angle_rad
+            if refused == 1:
+                torque[3] = np.nan
+            if refused == 2:
+                torque[:] = np.nan
+            out.append([torque])
+        return out
+
+    monkeypatch.setattr(fit, "simulate", simulate)
+    best, c = fit.batch_search(None, [seg], np.array([[90.0, 0], [100.0, 1], [100.0, 2]]))
+    assert best == 0 and 0 < c[0] < math.inf and c[1] == c[2] == math.inf
+
+
+def test_as_dict_is_to_dict_with_a_deprecation_warning():
+    """One name for a result's data (``to_dict``): the old ``as_dict`` of Metrics, Verdict and
+    Comparison, and FitResult's dict-valued ``summary()``, keep working for one release with a
+    DeprecationWarning and return what ``to_dict`` returns."""
+    import pandas as pd
+
+    from droptower.identify import Comparison
+    from droptower.identify.fit import FitResult
+    from droptower.identify.result import Metrics
+    from droptower.identify.verdict import judge
+
+    m = Metrics(2.0, 0.01, 0.1, 100, 200.0)
+    v = judge(1.0, 0.5, "nm", [])
+    c = Comparison(pd.DataFrame({"model": ["zerodim6"], "status": ["converged"], "bic": [1.0],
+                                 "verdict": ["good fit"]}, index=[1]), None, {})
+    f = FitResult("joint", ["k_nm_per_rad"], np.array([1.0]), np.array([True]), np.array([0.1]), [], m, 3, 1, 5, 2,
+                  0.5, True, "ok")
+    assert m.to_dict()["rmse_nm"] == 2.0 and v.to_dict()["noise_floor_nm"] == 0.5
+    assert c.to_dict()["ranking"][0]["model"] == "zerodim6" and f.to_dict()["free"] == ["k_nm_per_rad"]
+    for obj, old in ((m, "as_dict"), (v, "as_dict"), (c, "as_dict"), (f, "summary")):
+        with pytest.warns(DeprecationWarning, match=f"{type(obj).__name__}.{old}\\(\\) is deprecated"):
+            assert getattr(obj, old)() == obj.to_dict()

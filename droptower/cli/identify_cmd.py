@@ -322,7 +322,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
             wrote(write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out"),
                   f"per record, {len(records)} rows")
     if as_json:
-        click.echo(json.dumps(result.as_dict(), indent=1))
+        click.echo(json.dumps(result.to_dict(), indent=1))
     elif drops:
         click.echo(f"ranking ({result.rule}; angle nRMSE: RMS angle error in % of each test's peak, RMS over tests):")
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.4g}"))

@@ -91,9 +91,12 @@ class Comparison:
         """The ranking, one row per fitted family, best first."""
         return self.ranking.copy()
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready (:meth:`as_dict`)."""
-        return self.as_dict()
+    def as_dict(self) -> dict[str, Any]:
+        """Deprecated: :meth:`to_dict` (removed in the next release)."""
+        from droptower.identify.result import deprecated
+
+        deprecated("Comparison.as_dict()", "Comparison.to_dict()")
+        return self.to_dict()
 
     def __repr__(self) -> str:
         return (f"<Comparison of {len(self.ranking)} famil{'ies' if len(self.ranking) != 1 else 'y'} on "
@@ -104,7 +107,7 @@ class Comparison:
     def _repr_html_(self) -> str:
         return f"<p>{repr(self).strip('<>')}</p>" + self.ranking.to_html()
 
-    def as_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the rule, the ranking (and per-record table) as lists of rows, the skipped
         and non-converged families with their reasons, the budget."""
         import json

@@ -183,6 +183,15 @@ class FitResult:
         return dict(zip(self.names, map(float, self.values)))
 
     def summary(self) -> dict:
+        """Deprecated: :meth:`to_dict` (``summary()`` is a text report elsewhere; removed in the
+        next release)."""
+        from droptower.identify.result import deprecated
+
+        deprecated("FitResult.summary()", "FitResult.to_dict()")
+        return self.to_dict()
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the stage, its free parameters, error, evaluations, time and the optimiser's word."""
         return {"stage": self.stage, "free": [n for n, f in zip(self.names, self.free) if f],
                 "nrmse": self.metrics.nrmse, "nfev": self.nfev, "njev": self.njev,
                 "evaluations": self.evaluations, "time_s": self.time_s, "converged": self.converged,
@@ -354,6 +363,25 @@ class RowsFit:
 NON_IDENTIFIABLE = 1e-4
 
 
+#: The residual a least-squares optimiser sees for a sample the core refused or that diverged
+#: (non-finite): a failed simulation is a terrible candidate, never a good one, and the optimiser
+#: needs finite numbers. Where costs are compared (:func:`row_costs`) such a row costs inf.
+REFUSED_RESIDUAL = 1e30
+
+
+def finite_residuals(r: np.ndarray) -> np.ndarray:
+    """``r`` with every non-finite sample replaced by :data:`REFUSED_RESIDUAL`."""
+    return np.where(np.isfinite(r), r, REFUSED_RESIDUAL)
+
+
+def row_costs(r: np.ndarray) -> np.ndarray:
+    """Sum of squared residuals of each row of ``r`` (M, R); inf for a row with any non-finite
+    sample (the one policy for rows the core refuses: :data:`REFUSED_RESIDUAL`)."""
+    r = np.atleast_2d(r)
+    with np.errstate(all="ignore"):
+        return np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1), np.inf)
+
+
 @one_blas_thread
 def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
              free: np.ndarray | None = None, max_nfev: int | None = None, tol: float = 1e-7) -> RowsFit:
@@ -361,8 +389,8 @@ def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Call
 
     residuals(rows (M, n) physical parameter sets) -> (M, R) residual vectors: the function
     evaluates many parameter sets at once, so the forward-difference Jacobian's columns go to
-    the model in ONE call. Non-finite residuals count as 1e30 (a failed simulation is a
-    terrible candidate). ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
+    the model in ONE call. Non-finite residuals count as :data:`REFUSED_RESIDUAL` (a failed
+    simulation is a terrible candidate). ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
     optimiser's function evaluations; reaching it means "not converged".
     """
     x_all = np.asarray(initial, dtype=float).copy()
@@ -378,8 +406,7 @@ def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Call
         return v
 
     def safe(rows: np.ndarray) -> np.ndarray:
-        r = residuals(rows)
-        return np.where(np.isfinite(r), r, 1e30)
+        return finite_residuals(residuals(rows))
 
     cache: dict[bytes, np.ndarray] = {}
 
@@ -409,12 +436,12 @@ def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
                  counter: Counter | None = None) -> tuple[int, np.ndarray]:
     """Sum of squared torque errors of every candidate parameter set (rows), in one core call.
 
-    Returns the index of the best candidate and all the costs.
+    Returns the index of the best candidate and all the costs (inf for a candidate the core
+    refused on any compared sample: :func:`row_costs`).
     """
     torques = simulate(model, candidates, segments, counter)
-    costs = np.array([sum(float(np.nansum((t - s.torque_nm)[s.compared] ** 2)) for t, s in zip(per, segments))
-                      for per in torques])
-    costs = np.where(np.isfinite(costs), costs, np.inf)
+    costs = np.concatenate([row_costs(np.concatenate([(t - s.torque_nm)[s.compared] for t, s in zip(per, segments)]))
+                            for per in torques])
     return int(np.argmin(costs)), costs
 
 

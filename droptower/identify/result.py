@@ -47,10 +47,25 @@ class Metrics:
     n_samples: int
     max_torque_nm: float
 
-    def as_dict(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float]:
+        """JSON-ready: the errors with their units in their names."""
         return {"rmse_nm": self.rmse_nm, "nrmse": self.nrmse, "nrmse_percent": 100.0 * self.nrmse,
                 "residual_lag1": self.residual_lag1, "n_samples": self.n_samples,
                 "max_torque_nm": self.max_torque_nm}
+
+    def as_dict(self) -> dict[str, float]:
+        """Deprecated: :meth:`to_dict` (removed in the next release)."""
+        deprecated("Metrics.as_dict()", "Metrics.to_dict()")
+        return self.to_dict()
+
+
+def deprecated(old: str, new: str) -> None:
+    """Warn that ``old`` is deprecated in favour of ``new`` (a DeprecationWarning at the caller's
+    caller: the line that used the old name)."""
+    import warnings
+
+    warnings.warn(f"{old} is deprecated and will be removed in the next release: use {new}", DeprecationWarning,
+                  stacklevel=3)
 
 
 def lag1_correlation(residuals: list[np.ndarray], compared: list[np.ndarray] | None = None) -> float:

@@ -38,7 +38,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy.stats import qmc
 
-from droptower.identify.fit import FitVariable, clip_to_bounds, fit_rows
+from droptower.identify.fit import FitVariable, clip_to_bounds, fit_rows, row_costs
 
 #: Candidates evaluated per batch (one call of the residual function each).
 BATCH = 64
@@ -193,13 +193,12 @@ def candidates(parameters: list[FitVariable], x0: np.ndarray, free: np.ndarray, 
 
 
 def costs(residuals: Callable[[np.ndarray], np.ndarray], rows: np.ndarray, batch: int = BATCH) -> np.ndarray:
-    """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite."""
+    """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite
+    (candidates far out in the bounds may diverge: :func:`~droptower.identify.fit.row_costs`)."""
     out = []
     for a in range(0, len(rows), batch):
-        with np.errstate(all="ignore"):  # candidates far out in the bounds may diverge: they cost inf
-            r = residuals(rows[a:a + batch])
-            out.append(np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1),
-                                np.inf))
+        with np.errstate(all="ignore"):
+            out.append(row_costs(residuals(rows[a:a + batch])))
     return np.concatenate(out)
 
 
