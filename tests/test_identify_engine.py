@@ -257,3 +257,22 @@ def test_as_dict_is_to_dict_with_a_deprecation_warning():
     for obj, old in ((m, "as_dict"), (v, "as_dict"), (c, "as_dict"), (f, "summary")):
         with pytest.warns(DeprecationWarning, match=f"{type(obj).__name__}.{old}\\(\\) is deprecated"):
             assert getattr(obj, old)() == obj.to_dict()
+
+
+def test_the_evaluations_reported_are_every_parameter_set_simulated(monkeypatch):
+    """One count per identification: the problems made from the fitting tests (the search's
+    dozen tests of a larger campaign, the family without its deferred part) share one counter,
+    so the reported evaluations are the parameter sets simulated, none added by hand."""
+    calls = []
+    original = dropfit.DropProblem.simulate
+
+    def spy(self, rows, substeps=None):
+        calls.append((id(self.counter), np.atleast_2d(rows).shape[0]))
+        return original(self, rows, substeps)
+
+    monkeypatch.setattr(dropfit.DropProblem, "simulate", spy)
+    decays = _decays("zerodim6", n_tests=14, duration_s=0.03)  # more than the search's SEARCH_TESTS
+    assert len(decays) > dropfit.SEARCH_TESTS
+    result = identify_drops("zerodim6", decays, settings=QUICK)
+    assert len({c for c, _ in calls}) == 1
+    assert result.evaluations == sum(m for _, m in calls) > 0

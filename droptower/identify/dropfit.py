@@ -156,7 +156,8 @@ def drop_scale(decays: list[DropDecay]) -> DataScale:
 class DropProblem:
     """The fitting tests of a campaign bound to a family: parameter sets -> residuals, in one call."""
 
-    def __init__(self, family: Family, decays: list[DropDecay], settings: DropFitSettings):
+    def __init__(self, family: Family, decays: list[DropDecay], settings: DropFitSettings,
+                 counter: Counter | None = None):
         self.family, self.decays, self.settings = family, decays, settings
         dts = {round(d.dt_s, 15) for d in decays}
         if len(dts) > 1:
@@ -176,7 +177,9 @@ class DropProblem:
         self.w_angle = 1.0 / (np.array([d.amplitude_rad for d in decays]) * np.sqrt(counts))
         t_amp = np.array([d.torque_amplitude_nm if d.torque_nm is not None else 1.0 for d in decays])
         self.w_torque = np.where(self.has_torque, settings.torque_weight, 0.0) / (t_amp * np.sqrt(counts))
-        self.counter = Counter()
+        # the identification's one count of evaluations: problems made from this one (the
+        # search's tests, the family without its deferred part) share it
+        self.counter = counter if counter is not None else Counter()
         #: the test each residual belongs to (angle part, then torque part)
         self.test_of_residual = np.concatenate([np.nonzero(self.mask)[0],
                                                 np.nonzero(self.mask & self.has_torque[:, None])[0]])
@@ -377,7 +380,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     whole = (family, problem)
     if deferred.any():
         family = family.without_branch()
-        problem = DropProblem(family, problem.decays, settings)
+        problem = DropProblem(family, problem.decays, settings, problem.counter)
     sol, search = drop_search(problem, family, x_off, free & ~deferred, settings, choose_p)
     sol = problem.without_prior(sol)
     fine = problem.simulate(sol.values[None], 2 * settings.substeps)
@@ -385,7 +388,6 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     # basins beside the fit (cheaper than a wider search, and aimed where its fits are stuck)
     sol, fine, search = _hops(problem, family, sol, fine, free, settings, search)
     if deferred.any() and drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
-        whole[1].counter.evaluations += problem.counter.evaluations
         family, problem = whole
         fine = problem.simulate(sol.values[None], 2 * settings.substeps)
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
@@ -520,7 +522,6 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n,
                                keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate, tol=TOL,
                                choices=choices, local=local_on(search), near=n // 4, refine=refine)
-    problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, {**summary, "search_tests": len(search.decays)}
 
 
@@ -532,7 +533,7 @@ def search_problem(problem: DropProblem) -> DropProblem:
         return problem
     order = sorted(range(len(decays)), key=lambda i: (decays[i].inertia_kgm2, decays[i].amplitude_rad))
     picked = np.round(np.linspace(0, len(decays) - 1, SEARCH_TESTS)).astype(int)
-    return DropProblem(problem.family, [decays[order[i]] for i in picked], problem.settings)
+    return DropProblem(problem.family, [decays[order[i]] for i in picked], problem.settings, problem.counter)
 
 
 def refine_on_all(problem: DropProblem, search: DropProblem, on_all: Any, incumbent: np.ndarray | None) -> Any:
@@ -571,7 +572,6 @@ def drop_hops(problem: DropProblem, family: Family, incumbent: np.ndarray, free:
         return None, {"moves": 0}
     best, summary = basin_hops(family.parameters, moves, search.residuals, keep=len(moves), local=local_on(search), tol=TOL,
                                refine=refine_on_all(problem, search, local_on(problem), incumbent))
-    problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, summary
 
 

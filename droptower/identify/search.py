@@ -65,13 +65,7 @@ def exchangeable_branches(parameters: list[FitVariable]) -> list[list[int]]:
     """Index groups, one per branch (its relaxation time first), of branches that differ only
     by their number: same parameter names apart from it and the same bounds."""
     names = [p.name for p in parameters]
-    branches: dict[str, list[int]] = {}
-    for i, n in enumerate(names):
-        m = re.fullmatch(r"tau(\d+)_s", n)
-        if m:
-            partners = [j for j, o in enumerate(names) if j != i and re.fullmatch(rf"[a-z]+{m.group(1)}_[a-z_0-9]+", o)
-                        and not o.startswith("tau")]
-            branches[m.group(1)] = [i] + partners
+    branches = _branches(names)
 
     def signature(group: list[int]) -> tuple:
         return tuple((re.sub(r"\d+", "#", names[j]), parameters[j].lower, parameters[j].upper) for j in group)
