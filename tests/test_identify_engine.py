@@ -276,3 +276,12 @@ def test_the_evaluations_reported_are_every_parameter_set_simulated(monkeypatch)
     result = identify_drops("zerodim6", decays, settings=QUICK)
     assert len({c for c, _ in calls}) == 1
     assert result.evaluations == sum(m for _, m in calls) > 0
+
+
+def test_compare_models_refuses_options_of_a_family_it_does_not_rank():
+    """Options keyed by a family outside ``kinds`` (a misspelt or forgotten one) are refused by
+    name, not ignored."""
+    from droptower.identify import compare_models
+
+    with pytest.raises(DroptowerError, match="options given for zerodim7, which is not among the families ranked"):
+        compare_models(_decays("zerodim6"), ["zerodim6"], options={"zerodim7": {"max_nfev": 3}})

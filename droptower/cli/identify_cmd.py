@@ -305,7 +305,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
             raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
         result = run(decays, kinds, budget_s=budget_s, total_budget_s=total_budget_s, excluded=campaign.excluded,
                      settings=campaign.settings,
-                     options={"template": {"template": options["template"]}} if "template" in options else None,
+                     options={"template": {"template": options["template"]}}
+                     if "template" in options and "template" in kinds else None,
                      on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ..."),
                      on_skip=on_skip)
         segments, held = [], None

@@ -179,6 +179,10 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
     if any(isinstance(d, DropDecay) != drops for d in data):
         raise DroptowerError("compare_models: servo records and drop-test decays cannot be ranked together")
     options = options or {}
+    stray = sorted(set(options) - set(kinds))
+    if stray:  # options of a family not ranked would be silently ignored
+        raise DroptowerError(f"compare_models: options given for {', '.join(stray)}, which is not among the families "
+                             f"ranked ({', '.join(kinds)})")
     results: dict[str, Any] = {}
     skipped: dict[str, str] = {}
     over: dict[str, tuple[str, float]] = {}  # family -> (reason, seconds spent)
