@@ -23,7 +23,7 @@ from threadpoolctl import threadpool_limits
 from droptower.errors import DroptowerError
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import Segment
-from droptower.identify.result import Metrics, metrics
+from droptower.identify.result import Metrics, metrics, servo_residual
 from droptower.rheology import Coupling
 
 
@@ -245,8 +245,6 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
     free = np.ones(len(params), bool) if free is None else np.asarray(free, bool)
     counter = Counter()
     start = time.perf_counter()
-    masks = [s.compared for s in segments]
-    meas = [s.torque_nm[m] for s, m in zip(segments, masks)]
     n_seg = len(segments)
     base = np.tile(initial, (n_seg, 1)) if per_segment is None else np.array(per_segment, dtype=float)
     idx = np.flatnonzero(free)
@@ -261,8 +259,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
 
     def residuals(rows: np.ndarray, substeps: int | None = None) -> np.ndarray:
         """(M, R) residual vectors of the parameter sets ``rows`` (M, n)."""
-        return np.array([np.concatenate([t[m] - y for t, m, y in zip(per_set, masks, meas)])
-                         for per_set in torques(rows, substeps)])
+        return np.array([servo_residual(segments, per_set) for per_set in torques(rows, substeps)])
 
     sol = fit_rows(params, initial, residuals, free=free, max_nfev=max_nfev, tol=tol)
     m = metrics(segments, torques(sol.values[None, :])[0])
@@ -440,8 +437,7 @@ def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
     refused on any compared sample: :func:`row_costs`).
     """
     torques = simulate(model, candidates, segments, counter)
-    costs = np.concatenate([row_costs(np.concatenate([(t - s.torque_nm)[s.compared] for t, s in zip(per, segments)]))
-                            for per in torques])
+    costs = np.concatenate([row_costs(servo_residual(segments, per)) for per in torques])
     return int(np.argmin(costs)), costs
 
 

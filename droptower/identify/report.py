@@ -16,7 +16,7 @@ import pandas as pd
 
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
-from droptower.identify.result import Identification, metrics
+from droptower.identify.result import Identification, metrics, servo_residual
 from droptower.identify.result import SERVO, register_format
 from droptower.io.droptower_log import save_figure
 from droptower.io.fields import field_name, translate_fields
@@ -125,8 +125,7 @@ def ranking_table(results: dict[str, Identification], segments: list[Segment]) -
     from droptower.identify.noise import servo_noise
 
     noise = servo_noise(segments)
-    rss = {kind: sum(float(np.sum((p - s.torque_nm)[s.compared] ** 2)) for p, s in zip(r.predict(segments), segments))
-           for kind, r in results.items()}
+    rss = {kind: float(np.sum(servo_residual(segments, r.predict(segments)) ** 2)) for kind, r in results.items()}
     # records too short to smooth: the best family's RMS error stands in for the noise (the
     # same constant for every family: the order is unchanged)
     sigma = noise.sigma if math.isfinite(noise.sigma) else math.sqrt(min(rss.values()) / max(noise.n_samples, 1))

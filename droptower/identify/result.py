@@ -83,6 +83,13 @@ def lag1_correlation(residuals: list[np.ndarray], compared: list[np.ndarray] | N
     return num / sq if sq > 0 else 0.0
 
 
+def servo_residual(segments: list["Segment"], predictions: list[np.ndarray]) -> np.ndarray:
+    """The model's torque minus the measured one over each segment's compared samples, the
+    segments concatenated (N*m): the residual of servo records, wherever it is formed (the
+    least squares, the candidates' costs, the ranking's likelihood)."""
+    return np.concatenate([(p - s.torque_nm)[s.compared] for p, s in zip(predictions, segments)])
+
+
 def metrics(segments: list["Segment"], predictions: list[np.ndarray]) -> Metrics:
     """Error of ``predictions`` (one (N_s,) array per segment) against the segments' torque."""
     sq = 0.0
