@@ -166,7 +166,7 @@ def main() -> None:
             en_wall = time.perf_counter() - t0
             verdict = ident.verdict.verdict if ident.verdict is not None else ("converged" if ident.converged else
                                                                              "not converged")
-            ratio = ident.verdict.as_dict().get("error_over_noise") if ident.verdict is not None else None
+            ratio = ident.verdict.to_dict().get("error_over_noise") if ident.verdict is not None else None
             print(f"{name}: {verdict}, {wall:.0f} s", flush=True)
             figures["routes"][name] = {"available": True, "verdict": verdict, "converged": ident.converged,
                                        "error_over_noise": ratio, "wall_s": wall, "wall_over_campaign": wall / t_campaign,

@@ -146,7 +146,7 @@ def test_verdict_against_the_noise_floor_and_bounds():
     at = judge(1.0, 1.0, "nm", ["tau2_s"])
     assert at.verdict == POOR and "tau2_s" in at.reasons[0]
     assert judge(1.0, 1.0, "nm", [], converged=False).verdict == POOR
-    assert set(judge(1.0, 1.0, "nm", []).as_dict()) >= {"verdict", "reasons", "noise_floor_nm", "error_over_noise"}
+    assert set(judge(1.0, 1.0, "nm", []).to_dict()) >= {"verdict", "reasons", "noise_floor_nm", "error_over_noise"}
     params = [FitVariable("k3_gain_nm_per_rad2", 0.0, 10.0, log=False), FitVariable("tau2_s", 0.1, 10.0)]
     assert bound_hits(params, ["k3_gain_nm_per_rad2", "tau2_s"]) == ["tau2_s"]
 

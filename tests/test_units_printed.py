@@ -60,4 +60,4 @@ def test_verdict_text_prints_the_unit(token, printed):
     text = judge(1.0, 0.318, token, []).text()
     assert f"0.318 {printed};" in text and not BARE_NM.search(text)
     # the JSON keeps the field-name token
-    assert f"noise_allowance_{token}" in judge(1.0, 0.318, token, []).as_dict()
+    assert f"noise_allowance_{token}" in judge(1.0, 0.318, token, []).to_dict()

@@ -25,6 +25,7 @@ from pydantic import Field
 from droptower.cli.options import note, progress, quiet_option, uncertainty_option, wrote
 from droptower.errors import DroptowerError, check_positive
 from droptower.config_validation import StrictModel, validate
+from droptower.fit_defaults import DEFAULT_BUDGET_S, DEFAULT_TOTAL_BUDGET_S, HOLDOUT_FRACTION
 from droptower.cli.flags import cli_text
 
 
@@ -49,7 +50,7 @@ def drop_options(command):
 
     command = conditions_options(command)
     for option in reversed([
-            click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=0.2, show_default=True,
+            click.option("--holdout-fraction", type=click.FloatRange(0.0, 0.9), default=HOLDOUT_FRACTION, show_default=True,
                          help="Drop tests: share of the tests held out and predicted."),
             click.option("--rig", help="Drop tests: rig TOML or preset (lever length, laser radius, conditioning; "
                                        "the inertia of a single fixture, else --conditions say each log's)."),
@@ -271,10 +272,10 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
 @click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
 @drop_options
-@click.option("--budget-s", type=float, default=60.0, show_default=True,
+@click.option("--budget-s", type=float, default=DEFAULT_BUDGET_S, show_default=True,
               help="Wall-time budget of each family's fit (s); a family over it is listed 'not converged' and ranked "
                    "last.")
-@click.option("--total-budget-s", type=float, default=110.0, show_default=True,
+@click.option("--total-budget-s", type=float, default=DEFAULT_TOTAL_BUDGET_S, show_default=True,
               help="Wall-time budget of all the fits together (s): each family gets at most an equal share of what "
                    "is left (the cheaper families first).")
 @click.option("--accept-poor", is_flag=True, help="Exit 0 even when the best-ranked family's verdict is 'poor fit'.")
@@ -351,7 +352,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
             raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
         result = run(decays, kinds, budget_s=budget_s, total_budget_s=total_budget_s, excluded=campaign.excluded,
                      settings=campaign.settings,
-                     options={"template": {"template": options["template"]}} if "template" in options else None,
+                     options={"template": {"template": options["template"]}}
+                     if "template" in options and "template" in kinds else None,
                      on_family=lambda kind: progress(f"compare-models: fitting {kind} to {len(decays)} drop test(s) ..."),
                      on_skip=on_skip)
         segments, held = [], None
@@ -368,7 +370,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
             wrote(write_table(records, out.with_name(f"{out.stem}_per_record{out.suffix}"), "--out"),
                   f"per record, {len(records)} rows")
     if as_json:
-        click.echo(json.dumps(result.as_dict(), indent=1))
+        click.echo(json.dumps(result.to_dict(), indent=1))
     elif drops:
         click.echo(f"ranking ({result.rule}; angle nRMSE: RMS angle error in % of each test's peak, RMS over tests):")
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.4g}"))

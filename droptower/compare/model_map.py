@@ -383,7 +383,7 @@ def model_map_from_identification(ident: Any, decays: list, settings: Any, teste
     if bands:
         free, cov = drop_covariance(ident, decays, settings)
         band_sets = sigma_point_sets(ident.family_model, ident.params.vector(), free, cov)
-    verdict = ident.verdict.as_dict() if ident.verdict is not None else {}
+    verdict = ident.verdict.to_dict() if ident.verdict is not None else {}
     info = {"model": ident.family, "converged": ident.converged, "verdict": verdict.get("verdict"),
             "angle_nrmse": ident.fit.get("angle_nrmse"), "tests_used": len(ident.tests_used),
             "wall_s": ident.time_s,

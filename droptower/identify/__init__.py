@@ -27,7 +27,8 @@ from droptower.identify.compare import Comparison, compare_models
 from droptower.identify.data import Segment, make_segment, segments_from_files
 from droptower.identify.drops import DropCampaign, identify_from_drop_tests, read_drop_tests
 from droptower.identify.families import FAMILIES
-from droptower.identify.fit import FitResult, Metrics
+from droptower.identify.fit import FitResult
+from droptower.identify.result import Metrics
 from droptower.identify.result import Identification, Parameter, Parameters
 from droptower.identify.strategies import identify
 from droptower.identify import dropreport, report  # noqa: E402,F401 (they register the result's formats)

@@ -15,7 +15,16 @@ import time
 from contextlib import contextmanager
 from typing import Iterator
 
-#: (deadline on time.perf_counter(), the budget in s) of the innermost budget
+#: The clock of every budget (s, monotonic): ``time.perf_counter``; a test injects its own.
+clock = time.perf_counter
+
+
+def now() -> float:
+    """The budgets' clock now (s): :data:`clock` looked up at each call, so an injected one holds."""
+    return clock()
+
+
+#: (deadline on the budgets' clock, the budget in s) of the innermost budget
 _DEADLINE: contextvars.ContextVar[tuple[float, float]] = contextvars.ContextVar("droptower_identify_deadline",
                                                                                 default=(math.inf, math.inf))
 
@@ -38,7 +47,7 @@ def time_budget(seconds: float | None) -> Iterator[None]:
     if not seconds > 0:
         raise ValueError(f"a time budget must be positive, got {seconds!r}")
     outer = _DEADLINE.get()
-    deadline = time.perf_counter() + float(seconds)
+    deadline = now() + float(seconds)
     token = _DEADLINE.set((deadline, float(seconds)) if deadline < outer[0] else outer)
     try:
         yield
@@ -49,10 +58,10 @@ def time_budget(seconds: float | None) -> Iterator[None]:
 def check() -> None:
     """Raise :class:`BudgetExceeded` when the current budget has run out."""
     deadline, seconds = _DEADLINE.get()
-    if time.perf_counter() > deadline:
+    if now() > deadline:
         raise BudgetExceeded(seconds)
 
 
 def remaining_s() -> float:
     """Seconds left of the current budget (inf outside one)."""
-    return _DEADLINE.get()[0] - time.perf_counter()
+    return _DEADLINE.get()[0] - now()

@@ -22,7 +22,6 @@ when it is a poor fit, :data:`EXIT_NONE_FITS` when no family converged.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -30,15 +29,11 @@ import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError, expects
-from droptower.identify.budget import BudgetExceeded, time_budget
+from droptower.identify.budget import BudgetExceeded, now, time_budget
 from droptower.identify.criterion import RULE
 
-#: Default wall-time budget of each family's fit (s).
-DEFAULT_BUDGET_S = 60.0
-#: Default wall-time budget of all the families' fits together (s): 120 s for the whole table,
-#: less a margin for the one core call a family may run past its budget (:mod:`.budget`
-#: checks between calls) and for the tables.
-DEFAULT_TOTAL_BUDGET_S = 110.0
+# the default budgets (each family's, all together), named once for the API and the command line
+from droptower.fit_defaults import DEFAULT_BUDGET_S, DEFAULT_TOTAL_BUDGET_S  # noqa: E402
 #: Hold-out errors within this many percentage points of each other are a tie (a tie goes to the
 #: family with fewer parameters): a tenth of a percent of the largest load is below what the
 #: repeats of a servo test agree to.
@@ -96,9 +91,12 @@ class Comparison:
         """The ranking, one row per fitted family, best first."""
         return self.ranking.copy()
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready (:meth:`as_dict`)."""
-        return self.as_dict()
+    def as_dict(self) -> dict[str, Any]:
+        """Deprecated: :meth:`to_dict` (removed in the next release)."""
+        from droptower.identify.result import deprecated
+
+        deprecated("Comparison.as_dict()", "Comparison.to_dict()")
+        return self.to_dict()
 
     def __repr__(self) -> str:
         return (f"<Comparison of {len(self.ranking)} famil{'ies' if len(self.ranking) != 1 else 'y'} on "
@@ -109,7 +107,7 @@ class Comparison:
     def _repr_html_(self) -> str:
         return f"<p>{repr(self).strip('<>')}</p>" + self.ranking.to_html()
 
-    def as_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the rule, the ranking (and per-record table) as lists of rows, the skipped
         and non-converged families with their reasons, the budget."""
         import json
@@ -181,6 +179,10 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
     if any(isinstance(d, DropDecay) != drops for d in data):
         raise DroptowerError("compare_models: servo records and drop-test decays cannot be ranked together")
     options = options or {}
+    stray = sorted(set(options) - set(kinds))
+    if stray:  # options of a family not ranked would be silently ignored
+        raise DroptowerError(f"compare_models: options given for {', '.join(stray)}, which is not among the families "
+                             f"ranked ({', '.join(kinds)})")
     results: dict[str, Any] = {}
     skipped: dict[str, str] = {}
     over: dict[str, tuple[str, float]] = {}  # family -> (reason, seconds spent)
@@ -188,19 +190,19 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
         raise DroptowerError(f"compare_models: total_budget_s must be positive, got {total_budget_s!r}")
     sizes = {kind: _n_parameters(kind, data, drops, options.get(kind)) for kind in kinds}
     kinds = sorted(kinds, key=lambda kind: sizes[kind])  # stable: ties keep the order given
-    deadline = time.perf_counter() + (math.inf if total_budget_s is None else float(total_budget_s))
+    deadline = now() + (math.inf if total_budget_s is None else float(total_budget_s))
     for i, kind in enumerate(kinds):
         left = len(kinds) - i  # families not yet fitted, this one included
         if on_family is not None:
             on_family(kind)
-        start = time.perf_counter()
+        start = now()
         own = budget_s.get(kind, DEFAULT_BUDGET_S) if isinstance(budget_s, dict) else budget_s
         share = max((deadline - start) / left, 1e-3)  # an equal share of what is left (never 0: a budget is > 0)
         try:
             with time_budget(share if own is None or share < own else own):
                 results[kind] = _fit(kind, data, drops, holdout, results, excluded, settings, options.get(kind))
         except BudgetExceeded as exc:
-            over[kind] = (str(exc), time.perf_counter() - start)
+            over[kind] = (str(exc), now() - start)
             continue
         except DroptowerError as exc:  # the data do not suit the family (its data requirement)
             skipped[kind] = exc.message
@@ -208,7 +210,7 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
                 on_skip(kind, exc.message)
             continue
         if not drops:
-            results[kind].time_s = time.perf_counter() - start
+            results[kind].time_s = now() - start
     if not results and not over:
         raise DroptowerError(f"no model family could be fitted to these "
                              f"{'drop tests' if drops else 'records'} ({'; '.join(f'{k}: {v}' for k, v in skipped.items())})")

@@ -38,15 +38,18 @@ from typing import Any
 import numpy as np
 
 from droptower.errors import DroptowerError
+from droptower.fit_defaults import HOLDOUT_FRACTION
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import DataScale
 from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.base import Family
+from droptower.identify.families.elastoslide import rate_at_exponent, walk_p
 from droptower.identify.families.stages import setup_family
 from droptower.identify.fit import Counter, clip_to_bounds, fit_rows, one_blas_thread
 from droptower.identify.lever import at_times, free_decay
-from droptower.identify.result import DROPS, Identification, Parameters, fitted_parameters, place_guesses, split_given
+from droptower.identify.result import (DROPS, Identification, Parameters, fitted_parameters, lag1_correlation,
+                                       place_guesses, split_given)
 from droptower.identify.search import basin_hops, global_fit
 from droptower.identify.verdict import Verdict, bound_hits, judge
 from droptower.rates import SERVO_SAMPLE_RATE_HZ
@@ -97,9 +100,49 @@ class DropFitSettings:
     substeps: int = 1
     torque_weight: float = 0.5
     conditioning: tuple[float, float] | None = (PRELOAD_RAMP_S, PRELOAD_HOLD_S)  # the rig file's defaults
-    holdout_fraction: float = 0.2
+    holdout_fraction: float = HOLDOUT_FRACTION
     max_nfev: int = 0
     seed: int = 0
+
+
+#: Options of the fit among a family's options: each sets the :class:`DropFitSettings` field of
+#: its name (``conditioning``: False for a virgin coupling).
+FIT_OPTIONS = ("substeps", "torque_weight", "max_nfev", "seed", "conditioning")
+#: Options of reading the logs (:func:`~droptower.identify.drops.read_drop_tests`): refused by a
+#: fit of decays already read, which could not honour them.
+READ_OPTIONS = ("cycles", "initial_rate", "skip_s")
+
+
+def split_options(settings: DropFitSettings, options: dict[str, Any] | None
+                  ) -> tuple[DropFitSettings, dict[str, Any]]:
+    """(``settings`` with the fit's options among ``options`` applied, the family's options left).
+
+    An option of the fit that ``settings`` already sets to another value than its default is
+    refused (given twice), as is an option of reading the logs (the decays are read already).
+    The family refuses what is left and it does not know.
+    """
+    options = dict(options or {})
+    read = sorted(k for k in options if k in READ_OPTIONS)
+    if read:
+        raise DroptowerError(f"option(s) {', '.join(read)} apply to reading the logs (read_drop_tests), "
+                             "not to fitting decays already read")
+    default, changes = DropFitSettings(), {}
+    for key in [k for k in options if k in FIT_OPTIONS]:
+        value = options.pop(key)
+        if key == "conditioning":
+            value = settings.conditioning if value else None
+            if value is None and settings.conditioning is None:
+                continue
+        else:
+            value = type(getattr(default, key))(value)
+            if isinstance(value, int) and value < (1 if key == "substeps" else 0):
+                raise DroptowerError(f"option {key} must be a{' positive' if key == 'substeps' else ' non-negative'} "
+                                     f"integer, got {value}")
+        here = getattr(settings, key)
+        if key != "conditioning" and here != getattr(default, key) and here != value:
+            raise DroptowerError(f"option {key} = {value!r} contradicts the settings' {key} = {here!r}")
+        changes[key] = value
+    return dataclasses.replace(settings, **changes), options
 
 
 def drop_scale(decays: list[DropDecay]) -> DataScale:
@@ -114,7 +157,8 @@ def drop_scale(decays: list[DropDecay]) -> DataScale:
 class DropProblem:
     """The fitting tests of a campaign bound to a family: parameter sets -> residuals, in one call."""
 
-    def __init__(self, family: Family, decays: list[DropDecay], settings: DropFitSettings):
+    def __init__(self, family: Family, decays: list[DropDecay], settings: DropFitSettings,
+                 counter: Counter | None = None):
         self.family, self.decays, self.settings = family, decays, settings
         dts = {round(d.dt_s, 15) for d in decays}
         if len(dts) > 1:
@@ -134,7 +178,9 @@ class DropProblem:
         self.w_angle = 1.0 / (np.array([d.amplitude_rad for d in decays]) * np.sqrt(counts))
         t_amp = np.array([d.torque_amplitude_nm if d.torque_nm is not None else 1.0 for d in decays])
         self.w_torque = np.where(self.has_torque, settings.torque_weight, 0.0) / (t_amp * np.sqrt(counts))
-        self.counter = Counter()
+        # the identification's one count of evaluations: problems made from this one (the
+        # search's tests, the family without its deferred part) share it
+        self.counter = counter if counter is not None else Counter()
         #: the test each residual belongs to (angle part, then torque part)
         self.test_of_residual = np.concatenate([np.nonzero(self.mask)[0],
                                                 np.nonzero(self.mask & self.has_torque[:, None])[0]])
@@ -288,7 +334,9 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     bounds : dict, optional
         Parameter name -> (lower, upper).
     options : dict, optional
-        The family's options, as for :func:`~droptower.identify.identify` (e.g. ``template``).
+        The family's options, as for :func:`~droptower.identify.identify` (e.g. ``template``),
+        and the fit's (:data:`FIT_OPTIONS`: each sets the field of ``settings`` of its name).
+        Unknown options are refused by name, as are the reading's (:data:`READ_OPTIONS`).
 
     Returns
     -------
@@ -303,6 +351,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
+    settings, options = split_options(settings, options)
     family = family_class(kind)(drop_scale(decays), options)
     fit_idx, hold_idx = holdout_split(decays, settings.holdout_fraction)
     problem = DropProblem(family, [decays[i] for i in fit_idx], settings)
@@ -313,14 +362,14 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
     # a family's deferred parameters (a part it switches off first): held off in the first
     # search, freed in the wider one after a poor verdict
-    deferred = np.isin(family.names, getattr(family, "DEFERRED", ())) & free
+    deferred = np.isin(family.names, family.DEFERRED) & free
     x_off = family.branch_off(x0) if deferred.any() else x0
-    if hasattr(family, "guess_from_readings"):  # a family whose closed form reads a first guess off the first cycles
-        readings = first_cycle_readings([decays[i] for i in fit_idx])
-        x0 = family.guess_from_readings(*readings, x0, given)
-        # the first search's guess from the closed form without the deferred part
-        x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
-                 if deferred.any() else x0)
+    # a family whose closed form reads a first guess off the first cycles (Family.guess_from_readings)
+    readings = first_cycle_readings([decays[i] for i in fit_idx])
+    x0 = family.guess_from_readings(*readings, x0, given)
+    # the first search's guess from the closed form without the deferred part
+    x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
+             if deferred.any() else x0)
     if guesses:  # the user's first guesses over the closed form's, in both starts
         for x in (x0, x_off):
             place_guesses(kind, family.names, x, guesses)
@@ -332,7 +381,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     whole = (family, problem)
     if deferred.any():
         family = family.without_branch()
-        problem = DropProblem(family, problem.decays, settings)
+        problem = DropProblem(family, problem.decays, settings, problem.counter)
     sol, search = drop_search(problem, family, x_off, free & ~deferred, settings, choose_p)
     sol = problem.without_prior(sol)
     fine = problem.simulate(sol.values[None], 2 * settings.substeps)
@@ -340,7 +389,6 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     # basins beside the fit (cheaper than a wider search, and aimed where its fits are stuck)
     sol, fine, search = _hops(problem, family, sol, fine, free, settings, search)
     if deferred.any() and drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
-        whole[1].counter.evaluations += problem.counter.evaluations
         family, problem = whole
         fine = problem.simulate(sol.values[None], 2 * settings.substeps)
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
@@ -376,11 +424,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
                 search = {**search, "loose_prior": True}
     # the integration step's bias: the parameters' shift to the half step, Richardson-scaled
     # for the first-order part of the error (the core's rate-dependent elements, see .lever)
-    r_fine = problem.weighted(*fine)[0]
-    bias_z = np.linalg.lstsq(sol.jacobian, -(r_fine - sol.residual), rcond=None)[0] * 2.0
-    r = sol.residual
-    lag1 = float(np.sum(r[:-1] * r[1:]) / max(float(r @ r), 1e-300))
-    std = sol.std_error(lag1, extra_z=bias_z, groups=problem.test_of_residual)
+    bias_z = sol.step_bias_z(problem.weighted(*fine)[0])
+    std = sol.std_error(lag1_correlation([sol.residual]), extra_z=bias_z, groups=problem.test_of_residual)
     fit_err = summarise(per_test_errors(problem, sol.values))
     verdict, rss, n_samples = drop_verdict(problem, sol.values, bound_hits(params, sol.at_bounds), sol.converged,
                                            fine_angle=fine[0][0])
@@ -404,7 +449,7 @@ def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.
     over its allowance lies in :data:`HOP_RANGE` (at most :data:`HOP_ROUNDS` times), ``sol``
     replaced by the best of :func:`drop_hops` where its error is lower (else stop); the fine
     re-simulation and the search summary (its ``hops``) updated alike."""
-    if not hasattr(family, "basin_moves"):
+    if not len(family.basin_moves(sol.values, free)):
         return sol, fine, search
     for _ in range(HOP_ROUNDS):
         ratio = drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].error_over_noise
@@ -423,35 +468,23 @@ def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.
     return sol, fine, search
 
 
-def walk_p(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int, tol: float = TOL) -> Any:
-    """The elastoslide's odd exponent p: walk over ``p_candidates`` from the fitted one while the
-    cost falls (as the servo strategy does). Moving to p', v_r moves so that the slip-rate law
-    (v / v_r)^(1/p) keeps its value at the campaign's typical rate."""
-    jp, jv = family.names.index("p"), family.names.index("v_r_rad_per_s")
-    cands = sorted(int(v) for v in family.options["p_candidates"])
+def walk_p_drops(problem: DropProblem, family: Family, sol: Any, objective: Any, max_nfev: int,
+                 tol: float = TOL) -> Any:
+    """The elastoslide's odd exponent p by :func:`~droptower.identify.families.elastoslide.walk_p`
+    over ``p_candidates`` (as the servo strategy chooses it), v_r moved with p at the campaign's
+    typical rate: the cheapest converged fit."""
+    jp = family.names.index("p")
     v_typ = float(np.median([abs(d.rate0_rad_per_s) for d in problem.decays]))
-    fits = {int(sol.values[jp]): sol}
 
     def cost(s: Any) -> float:
         return float(s.residual @ s.residual) if s.converged else math.inf
 
-    for direction in (-1, 1):
-        here = sol
-        while True:
-            p_old = int(here.values[jp])
-            i = cands.index(p_old) + direction if p_old in cands else -1
-            if not 0 <= i < len(cands):
-                break
-            p_new = cands[i]
-            if p_new not in fits:
-                x = here.values.copy()
-                x[jv] = v_typ * (x[jv] / v_typ) ** (p_new / p_old)
-                x[jp] = p_new
-                fits[p_new] = fit_rows(family.parameters, clip_to_bounds(family.parameters, x), objective,
-                                       free=sol.free, max_nfev=max_nfev, tol=tol)
-            if cost(fits[p_new]) >= cost(here):
-                break
-            here = fits[p_new]
+    def fit_at(here: Any, p_new: int) -> Any:
+        x = rate_at_exponent(here.values, family.names, p_new, v_typ)
+        return fit_rows(family.parameters, clip_to_bounds(family.parameters, x), objective, free=sol.free,
+                        max_nfev=max_nfev, tol=tol)
+
+    fits = walk_p(sol, lambda s: int(s.values[jp]), fit_at, cost, family.options["p_candidates"])
     return min(fits.values(), key=cost)
 
 
@@ -477,7 +510,7 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
             objective = prob.with_prior(start, free)
             sol = fit_rows(params, start, objective, free=free, max_nfev=settings.max_nfev, tol=tol)
             if choices and tol > TOL:  # p is walked while the starts compete; the winner's refinement keeps it
-                sol = walk_p(prob, family, sol, objective, settings.max_nfev, tol)
+                sol = walk_p_drops(prob, family, sol, objective, settings.max_nfev, tol)
             return sol
         return local
 
@@ -490,7 +523,6 @@ def drop_search(problem: DropProblem, family: Family, x0: np.ndarray, free: np.n
     best, summary = global_fit(params, x0, search.residuals, free=free, n_candidates=n,
                                keep=LOCAL_FITS + 2 * escalate, seed=settings.seed + 1000 * escalate, tol=TOL,
                                choices=choices, local=local_on(search), near=n // 4, refine=refine)
-    problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, {**summary, "search_tests": len(search.decays)}
 
 
@@ -502,7 +534,7 @@ def search_problem(problem: DropProblem) -> DropProblem:
         return problem
     order = sorted(range(len(decays)), key=lambda i: (decays[i].inertia_kgm2, decays[i].amplitude_rad))
     picked = np.round(np.linspace(0, len(decays) - 1, SEARCH_TESTS)).astype(int)
-    return DropProblem(problem.family, [decays[order[i]] for i in picked], problem.settings)
+    return DropProblem(problem.family, [decays[order[i]] for i in picked], problem.settings, problem.counter)
 
 
 def refine_on_all(problem: DropProblem, search: DropProblem, on_all: Any, incumbent: np.ndarray | None) -> Any:
@@ -541,7 +573,6 @@ def drop_hops(problem: DropProblem, family: Family, incumbent: np.ndarray, free:
         return None, {"moves": 0}
     best, summary = basin_hops(family.parameters, moves, search.residuals, keep=len(moves), local=local_on(search), tol=TOL,
                                refine=refine_on_all(problem, search, local_on(problem), incumbent))
-    problem.counter.evaluations += search.counter.evaluations if search is not problem else 0
     return best, summary
 
 

@@ -32,7 +32,7 @@ def drop_result_dict(result: Identification) -> dict[str, Any]:
         "holdout_error": result.holdout, "tests_used": result.tests_used,
         "tests_held_out": result.tests_held_out, "tests_excluded": result.tests_excluded,
         "evaluations": result.evaluations, "nfev": result.nfev, "wall_s": result.time_s,
-        "coupling_file": result.coupling_file, **(result.verdict.as_dict() if result.verdict else {}),
+        "coupling_file": result.coupling_file, **(result.verdict.to_dict() if result.verdict else {}),
         "search": result.search})
 
 

@@ -14,13 +14,10 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from droptower.errors import DroptowerError
-from droptower.identify.dropfit import DropFitSettings, identify_drops
+from droptower.identify.dropfit import FIT_OPTIONS, HOLDOUT_FRACTION, DropFitSettings, identify_drops
 from droptower.identify.droplogs import DropDecay, ReadSettings, read_decays
 from droptower.identify.result import Identification, Parameters
 
-#: Options of the fit and of reading the logs, given among the family's options (an init file's).
-FIT_KEYS = ("substeps", "torque_weight", "max_nfev", "seed", "conditioning")
-READ_KEYS = ("cycles", "initial_rate", "skip_s")
 #: What ``initial_rate`` may be: where the decay's initial rate comes from.
 INITIAL_RATES = ("auto", "impulse", "slope")
 
@@ -57,7 +54,7 @@ def log_paths(data: Iterable[str | Path]) -> list[Path]:
 
 def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | None = None,
                     options: Mapping[str, Any] | None = None, template: str | None = None,
-                    holdout_fraction: float = 0.2, rig: Any = None, inertia_kgm2: float | None = None,
+                    holdout_fraction: float = HOLDOUT_FRACTION, rig: Any = None, inertia_kgm2: float | None = None,
                     lever_length_m: float | None = None, roles: Mapping[str, str] | None = None,
                     sensor_radius_m: float | None = None, conditions: Any = None) -> DropCampaign:
     """Read drop-test logs for an identification.
@@ -116,7 +113,7 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
             fixtures = ", ".join(f"{n} {j:g} kg*m^2" for n, j in named.items()) if named else (
                 ", ".join(f"{j:g}" for j in config.inertias_kgm2) + " kg*m^2")
         conditioning = (config.simulation.preload_ramp_s, config.simulation.preload_hold_s)
-    fit_opts = {k: options.pop(k) for k in list(options) if k in FIT_KEYS}
+    fit_opts = {k: options.pop(k) for k in list(options) if k in FIT_OPTIONS}
     options.pop("skip_s", None)
     cycles = float(options.pop("cycles", 3.0))
     rate = str(options.pop("initial_rate", "auto"))
@@ -142,7 +139,7 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
                              init: Mapping[str, float] | Parameters | None = None,
                              bounds: Mapping[str, tuple[float, float]] | None = None,
                              options: Mapping[str, Any] | None = None, template: str | None = None,
-                             holdout_fraction: float = 0.2, rig: Any = None,
+                             holdout_fraction: float = HOLDOUT_FRACTION, rig: Any = None,
                              inertia_kgm2: float | None = None, lever_length_m: float | None = None,
                              roles: Mapping[str, str] | None = None, sensor_radius_m: float | None = None,
                              conditions: Any = None) -> Identification:

@@ -23,7 +23,7 @@ from threadpoolctl import threadpool_limits
 from droptower.errors import DroptowerError
 from droptower.identify.budget import check as check_budget
 from droptower.identify.data import Segment
-from droptower.identify.result import Identification, Metrics, metrics  # noqa: F401 (what the families build and use)
+from droptower.identify.result import Metrics, metrics, servo_residual
 from droptower.rheology import Coupling
 
 
@@ -183,6 +183,15 @@ class FitResult:
         return dict(zip(self.names, map(float, self.values)))
 
     def summary(self) -> dict:
+        """Deprecated: :meth:`to_dict` (``summary()`` is a text report elsewhere; removed in the
+        next release)."""
+        from droptower.identify.result import deprecated
+
+        deprecated("FitResult.summary()", "FitResult.to_dict()")
+        return self.to_dict()
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the stage, its free parameters, error, evaluations, time and the optimiser's word."""
         return {"stage": self.stage, "free": [n for n, f in zip(self.names, self.free) if f],
                 "nrmse": self.metrics.nrmse, "nfev": self.nfev, "njev": self.njev,
                 "evaluations": self.evaluations, "time_s": self.time_s, "converged": self.converged,
@@ -236,8 +245,6 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
     free = np.ones(len(params), bool) if free is None else np.asarray(free, bool)
     counter = Counter()
     start = time.perf_counter()
-    masks = [s.compared for s in segments]
-    meas = [s.torque_nm[m] for s, m in zip(segments, masks)]
     n_seg = len(segments)
     base = np.tile(initial, (n_seg, 1)) if per_segment is None else np.array(per_segment, dtype=float)
     idx = np.flatnonzero(free)
@@ -252,8 +259,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
 
     def residuals(rows: np.ndarray, substeps: int | None = None) -> np.ndarray:
         """(M, R) residual vectors of the parameter sets ``rows`` (M, n)."""
-        return np.array([np.concatenate([t[m] - y for t, m, y in zip(per_set, masks, meas)])
-                         for per_set in torques(rows, substeps)])
+        return np.array([servo_residual(segments, per_set) for per_set in torques(rows, substeps)])
 
     sol = fit_rows(params, initial, residuals, free=free, max_nfev=max_nfev, tol=tol)
     m = metrics(segments, torques(sol.values[None, :])[0])
@@ -261,8 +267,7 @@ def least_squares_fit(model: Model, segments: list[Segment], initial: np.ndarray
     # integrates): the parameters' shift when the model is integrated on half the step,
     # Richardson-scaled for the first-order error of the core's rate-dependent elements
     fine = residuals(sol.values[None, :], 2 * int(getattr(model, "substeps", 1)))[0]
-    bias_z = 2.0 * np.linalg.lstsq(sol.jacobian, -(fine - sol.residual), rcond=None)[0]
-    std = sol.std_error(m.residual_lag1, extra_z=np.where(np.isfinite(bias_z), bias_z, 0.0))
+    std = sol.std_error(m.residual_lag1, extra_z=sol.step_bias_z(fine))
     # the model's own discretisation error at the step it is fitted on: twice its change on
     # half the step (first order), RMS over the compared samples
     step_error = 2.0 * float(np.sqrt(np.mean((fine - sol.residual) ** 2))) if fine.size else 0.0
@@ -309,6 +314,14 @@ class RowsFit:
         g = labels.size
         return bread @ (scores.T @ scores) @ bread * (g / max(g - 1, 1))
 
+    def step_bias_z(self, fine_residual: np.ndarray) -> np.ndarray:
+        """The integration step's bias in the optimised variables: the parameters' shift that
+        the residual on half the step (``fine_residual``) asks for, twice (Richardson, first
+        order: the core's rate-dependent elements, docs/theory.md#verdict); 0 where it is not
+        finite (a half-step run the core refused), so that it never turns a standard error NaN."""
+        bias = 2.0 * np.linalg.lstsq(self.jacobian, -(np.asarray(fine_residual) - self.residual), rcond=None)[0]
+        return np.where(np.isfinite(bias), bias, 0.0)
+
     def std_error(self, lag1: float = 0.0, extra_z: np.ndarray | None = None,
                   groups: np.ndarray | None = None) -> np.ndarray:
         """Standard errors of the free parameters (physical units; NaN for fixed ones): the
@@ -347,6 +360,25 @@ class RowsFit:
 NON_IDENTIFIABLE = 1e-4
 
 
+#: The residual a least-squares optimiser sees for a sample the core refused or that diverged
+#: (non-finite): a failed simulation is a terrible candidate, never a good one, and the optimiser
+#: needs finite numbers. Where costs are compared (:func:`row_costs`) such a row costs inf.
+REFUSED_RESIDUAL = 1e30
+
+
+def finite_residuals(r: np.ndarray) -> np.ndarray:
+    """``r`` with every non-finite sample replaced by :data:`REFUSED_RESIDUAL`."""
+    return np.where(np.isfinite(r), r, REFUSED_RESIDUAL)
+
+
+def row_costs(r: np.ndarray) -> np.ndarray:
+    """Sum of squared residuals of each row of ``r`` (M, R); inf for a row with any non-finite
+    sample (the one policy for rows the core refuses: :data:`REFUSED_RESIDUAL`)."""
+    r = np.atleast_2d(r)
+    with np.errstate(all="ignore"):
+        return np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1), np.inf)
+
+
 @one_blas_thread
 def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Callable[[np.ndarray], np.ndarray], *,
              free: np.ndarray | None = None, max_nfev: int | None = None, tol: float = 1e-7) -> RowsFit:
@@ -354,8 +386,8 @@ def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Call
 
     residuals(rows (M, n) physical parameter sets) -> (M, R) residual vectors: the function
     evaluates many parameter sets at once, so the forward-difference Jacobian's columns go to
-    the model in ONE call. Non-finite residuals count as 1e30 (a failed simulation is a
-    terrible candidate). ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
+    the model in ONE call. Non-finite residuals count as :data:`REFUSED_RESIDUAL` (a failed
+    simulation is a terrible candidate). ``max_nfev`` (0 or None: 20 per free parameter + 20) bounds the
     optimiser's function evaluations; reaching it means "not converged".
     """
     x_all = np.asarray(initial, dtype=float).copy()
@@ -371,8 +403,7 @@ def fit_rows(parameters: list[FitVariable], initial: np.ndarray, residuals: Call
         return v
 
     def safe(rows: np.ndarray) -> np.ndarray:
-        r = residuals(rows)
-        return np.where(np.isfinite(r), r, 1e30)
+        return finite_residuals(residuals(rows))
 
     cache: dict[bytes, np.ndarray] = {}
 
@@ -402,13 +433,23 @@ def batch_search(model: Model, segments: list[Segment], candidates: np.ndarray,
                  counter: Counter | None = None) -> tuple[int, np.ndarray]:
     """Sum of squared torque errors of every candidate parameter set (rows), in one core call.
 
-    Returns the index of the best candidate and all the costs.
+    Returns the index of the best candidate and all the costs (inf for a candidate the core
+    refused on any compared sample: :func:`row_costs`).
     """
     torques = simulate(model, candidates, segments, counter)
-    costs = np.array([sum(float(np.nansum((t - s.torque_nm)[s.compared] ** 2)) for t, s in zip(per, segments))
-                      for per in torques])
-    costs = np.where(np.isfinite(costs), costs, np.inf)
+    costs = np.concatenate([row_costs(servo_residual(segments, per)) for per in torques])
     return int(np.argmin(costs)), costs
 
 
-Predictor = Callable[[list[Segment]], list[np.ndarray]]
+def __getattr__(name: str) -> object:
+    """``Identification`` from here: deprecated (import it from :mod:`droptower.identify.result`,
+    where it is defined); it is removed in the next release."""
+    if name == "Identification":
+        import warnings
+
+        from droptower.identify.result import Identification
+
+        warnings.warn("droptower.identify.fit.Identification is deprecated: import Identification from "
+                      "droptower.identify (or droptower.identify.result)", DeprecationWarning, stacklevel=2)
+        return Identification
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -16,7 +16,7 @@ import pandas as pd
 
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
-from droptower.identify.fit import Identification, metrics
+from droptower.identify.result import Identification, metrics, servo_residual
 from droptower.identify.result import SERVO, register_format
 from droptower.io.droptower_log import save_figure
 from droptower.io.fields import field_name, translate_fields
@@ -34,17 +34,17 @@ def result_dict(ident: Identification) -> dict[str, Any]:
     return translate_fields(json_safe({
         "model": ident.family,
         "converged": ident.converged,
-        **(ident.verdict.as_dict() if ident.verdict else {}),
+        **(ident.verdict.to_dict() if ident.verdict else {}),
         "n_parameters": ident.n_parameters,
         "parameters": {n: {"value": v, "std_error": ident.std_error.get(n)} for n, v in ident.parameters.items()},
         "derived": ident.derived,
         "at_bounds": named(ident.at_bounds),
-        "fit": ident.fit.as_dict(),
-        "holdout": ident.holdout.as_dict() if ident.holdout else None,
+        "fit": ident.fit.to_dict(),
+        "holdout": ident.holdout.to_dict() if ident.holdout else None,
         "evaluations": ident.evaluations,
         "nfev": ident.nfev,
         "time_s": ident.time_s,
-        "stages": [s.summary() | {"free": named(s.summary()["free"])} for s in ident.stages],
+        "stages": [s.to_dict() | {"free": named(s.to_dict()["free"])} for s in ident.stages],
         "coupling_note": ident.coupling_note,
         "details": ident.extra,
     }), units) | {"units": units}
@@ -125,8 +125,7 @@ def ranking_table(results: dict[str, Identification], segments: list[Segment]) -
     from droptower.identify.noise import servo_noise
 
     noise = servo_noise(segments)
-    rss = {kind: sum(float(np.sum((p - s.torque_nm)[s.compared] ** 2)) for p, s in zip(r.predict(segments), segments))
-           for kind, r in results.items()}
+    rss = {kind: float(np.sum(servo_residual(segments, r.predict(segments)) ** 2)) for kind, r in results.items()}
     # records too short to smooth: the best family's RMS error stands in for the noise (the
     # same constant for every family: the order is unchanged)
     sigma = noise.sigma if math.isfinite(noise.sigma) else math.sqrt(min(rss.values()) / max(noise.n_samples, 1))

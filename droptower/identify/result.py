@@ -47,27 +47,65 @@ class Metrics:
     n_samples: int
     max_torque_nm: float
 
-    def as_dict(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float]:
+        """JSON-ready: the errors with their units in their names."""
         return {"rmse_nm": self.rmse_nm, "nrmse": self.nrmse, "nrmse_percent": 100.0 * self.nrmse,
                 "residual_lag1": self.residual_lag1, "n_samples": self.n_samples,
                 "max_torque_nm": self.max_torque_nm}
+
+    def as_dict(self) -> dict[str, float]:
+        """Deprecated: :meth:`to_dict` (removed in the next release)."""
+        deprecated("Metrics.as_dict()", "Metrics.to_dict()")
+        return self.to_dict()
+
+
+def deprecated(old: str, new: str) -> None:
+    """Warn that ``old`` is deprecated in favour of ``new`` (a DeprecationWarning at the caller's
+    caller: the line that used the old name)."""
+    import warnings
+
+    warnings.warn(f"{old} is deprecated and will be removed in the next release: use {new}", DeprecationWarning,
+                  stacklevel=3)
+
+
+def lag1_correlation(residuals: list[np.ndarray], compared: list[np.ndarray] | None = None) -> float:
+    """The residual's lag-1 autocorrelation: sum r_i r_(i+1) over sum r_i^2, pairs taken within
+    each piece of ``residuals`` (a segment, or the whole residual vector) and, with
+    ``compared`` (a boolean mask per piece), only where both samples are compared (0 for a
+    zero residual)."""
+    num = sq = 0.0
+    for k, r in enumerate(residuals):
+        r = np.asarray(r, float)
+        ok = np.ones(r.shape, bool) if compared is None else np.asarray(compared[k], bool)
+        r = np.where(ok, r, 0.0)
+        sq += float(np.sum(r ** 2))
+        num += float(np.sum((r[:-1] * r[1:])[ok[:-1] & ok[1:]]))
+    return num / sq if sq > 0 else 0.0
+
+
+def servo_residual(segments: list["Segment"], predictions: list[np.ndarray]) -> np.ndarray:
+    """The model's torque minus the measured one over each segment's compared samples, the
+    segments concatenated (N*m): the residual of servo records, wherever it is formed (the
+    least squares, the candidates' costs, the ranking's likelihood)."""
+    return np.concatenate([(p - s.torque_nm)[s.compared] for p, s in zip(predictions, segments)])
 
 
 def metrics(segments: list["Segment"], predictions: list[np.ndarray]) -> Metrics:
     """Error of ``predictions`` (one (N_s,) array per segment) against the segments' torque."""
     sq = 0.0
-    num = 0.0
     n = 0
     peak = 0.0
+    residuals, masks = [], []
     for seg, pred in zip(segments, predictions):
         ok = seg.compared
         r = np.where(ok, pred - np.where(ok, seg.torque_nm, 0.0), 0.0)
+        residuals.append(r)
+        masks.append(ok)
         sq += float(np.sum(r ** 2))
-        num += float(np.sum((r[:-1] * r[1:])[ok[:-1] & ok[1:]]))
         n += int(ok.sum())
         peak = max(peak, float(np.max(np.abs(seg.torque_nm[ok]))))
     rmse = float(np.sqrt(sq / max(n, 1)))
-    return Metrics(rmse, rmse / peak if peak > 0 else float("nan"), num / sq if sq > 0 else 0.0, n, peak)
+    return Metrics(rmse, rmse / peak if peak > 0 else float("nan"), lag1_correlation(residuals, masks), n, peak)
 
 
 #: how each kind of identification reports itself: data -> (to_dict, summary), registered by the
@@ -146,12 +184,6 @@ class Parameter:
         self.min, self.max = float(self.min), float(self.max)
         if not self.min <= self.max:
             raise DroptowerError(f"parameter {self.name}: min {self.min:g} is above max {self.max:g}")
-
-    @property
-    def relative_stderr(self) -> float:
-        """stderr / |value| (NaN where either is not finite or the value is 0)."""
-        ok = math.isfinite(self.stderr) and math.isfinite(self.value) and self.value != 0
-        return abs(self.stderr / self.value) if ok else math.nan
 
 
 class Parameters(dict):

@@ -38,7 +38,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy.stats import qmc
 
-from droptower.identify.fit import FitVariable, clip_to_bounds, fit_rows
+from droptower.identify.fit import FitVariable, clip_to_bounds, fit_rows, row_costs
 
 #: Candidates evaluated per batch (one call of the residual function each).
 BATCH = 64
@@ -65,13 +65,7 @@ def exchangeable_branches(parameters: list[FitVariable]) -> list[list[int]]:
     """Index groups, one per branch (its relaxation time first), of branches that differ only
     by their number: same parameter names apart from it and the same bounds."""
     names = [p.name for p in parameters]
-    branches: dict[str, list[int]] = {}
-    for i, n in enumerate(names):
-        m = re.fullmatch(r"tau(\d+)_s", n)
-        if m:
-            partners = [j for j, o in enumerate(names) if j != i and re.fullmatch(rf"[a-z]+{m.group(1)}_[a-z_0-9]+", o)
-                        and not o.startswith("tau")]
-            branches[m.group(1)] = [i] + partners
+    branches = _branches(names)
 
     def signature(group: list[int]) -> tuple:
         return tuple((re.sub(r"\d+", "#", names[j]), parameters[j].lower, parameters[j].upper) for j in group)
@@ -193,13 +187,12 @@ def candidates(parameters: list[FitVariable], x0: np.ndarray, free: np.ndarray, 
 
 
 def costs(residuals: Callable[[np.ndarray], np.ndarray], rows: np.ndarray, batch: int = BATCH) -> np.ndarray:
-    """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite."""
+    """Sum of squared residuals of every row, ``batch`` rows per call; inf where not finite
+    (candidates far out in the bounds may diverge: :func:`~droptower.identify.fit.row_costs`)."""
     out = []
     for a in range(0, len(rows), batch):
-        with np.errstate(all="ignore"):  # candidates far out in the bounds may diverge: they cost inf
-            r = residuals(rows[a:a + batch])
-            out.append(np.where(np.isfinite(r).all(axis=1), np.sum(np.where(np.isfinite(r), r, 0.0) ** 2, axis=1),
-                                np.inf))
+        with np.errstate(all="ignore"):
+            out.append(row_costs(residuals(rows[a:a + batch])))
     return np.concatenate(out)
 
 

@@ -17,7 +17,8 @@ from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.base import COMMON_OPTIONS
 from droptower.identify.families.stages import Setup, result_of, setup
-from droptower.identify.fit import FitVariable, Identification, least_squares_fit, one_blas_thread, simulate
+from droptower.identify.fit import FitVariable, least_squares_fit, one_blas_thread, simulate
+from droptower.identify.result import Identification
 from droptower.identify.noise import NoiseFloor, servo_noise
 from droptower.identify.result import Parameters, servo_given
 from droptower.identify.search import global_fit
@@ -107,8 +108,7 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
 def _idle(family: Any, result: Identification) -> list[str]:
     """The parameters of a switched-off part of ``result`` (a family's ``idle_parameters``, if it
     has them): their bounds are not bound hits."""
-    idle = getattr(family, "idle_parameters", None)
-    return list(idle(np.array(list(result.parameters.values()), float))) if idle is not None else []
+    return list(family.idle_parameters(np.array(list(result.parameters.values()), float)))
 
 
 def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[FitVariable],

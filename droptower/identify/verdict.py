@@ -56,6 +56,15 @@ class Verdict:
         return self.verdict == POOR
 
     def as_dict(self) -> dict[str, Any]:
+        """Deprecated: :meth:`to_dict` (removed in the next release)."""
+        from droptower.identify.result import deprecated
+
+        deprecated("Verdict.as_dict()", "Verdict.to_dict()")
+        return self.to_dict()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: the verdict, its reasons, the error over the allowance, the noise floor and
+        the allowance (their unit in their names)."""
         return {"verdict": self.verdict, "reasons": list(self.reasons), "error_over_noise": self.error_over_noise,
                 f"noise_floor_{self.unit}": self.noise_floor, f"noise_allowance_{self.unit}": self.allowance,
                 "noise_ratio_limit": NOISE_RATIO}

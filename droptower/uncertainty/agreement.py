@@ -139,6 +139,9 @@ def format_agreement(agreements: dict[str, pd.DataFrame]) -> str:
         lines.append("  no route's expanded uncertainty is known: the paper map's needs the tests it was fitted to, "
                      "the model-based map's its bands")
     for route, t in agreements.items():
+        if not isinstance(t, pd.DataFrame):
+            raise TypeError(f"format_agreement: agreements[{route!r}] must be a DataFrame (route_agreement's), "
+                            f"got {type(t).__name__}")
         for q in AGREEMENT_QUANTITIES:
             if f"{q}_verdict" not in t.columns:
                 continue

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from droptower.errors import DroptowerError
+from droptower.errors import DroptowerError, expects
 from droptower.rig.uncertainty import RigUncertainty
 
 if TYPE_CHECKING:
@@ -96,6 +96,8 @@ def _stated(uncertainty: RigUncertainty, decays: list, lever_length_m: float | N
     return out
 
 
+@expects(ident="droptower.identify.result.Identification", decays=list,
+         uncertainty="droptower.rig.uncertainty.RigUncertainty")
 def route_input_values(ident: Any, decays: list, settings: Any, uncertainty: RigUncertainty, *,
                        lever_length_m: float | None = None,
                        laser_radius_m: float | None = None) -> dict[str, np.ndarray]:
@@ -132,6 +134,8 @@ def route_input_values(ident: Any, decays: list, settings: Any, uncertainty: Rig
     return out
 
 
+@expects(ident="droptower.identify.result.Identification", decays=list,
+         uncertainty="droptower.rig.uncertainty.RigUncertainty")
 def route_input_sets(ident: Any, decays: list, settings: Any, uncertainty: RigUncertainty, *,
                      lever_length_m: float | None = None,
                      laser_radius_m: float | None = None) -> dict[str, np.ndarray]:

@@ -23,7 +23,7 @@ from droptower.identify.families.pfeffer import PfefferFamily
 from droptower.identify.families.template import TemplateFamily
 from droptower.identify.families.zerodim6 import ZeroDim6
 from droptower.identify.families.zerodim20 import ZeroDim20
-from droptower.identify.fit import Identification
+from droptower.identify.result import Identification
 
 _MODULES = (zerodim6, zerodim20, elastoslide, pfeffer, masing, overlay, template, filled_rubber)
 #: every model family by its name (``zerodim6``, ``elastoslide``, ...): name -> family class

@@ -29,6 +29,9 @@ class Family:
     title: ClassVar[str] = ""
     source: ClassVar[str] = ""
     OPTIONS: ClassVar[dict[str, Any]] = {}
+    #: Parameters of a part the drop-test fit switches off in its first search and frees in the
+    #: wider one after a poor verdict (:meth:`without_branch`, :meth:`branch_off`); none by default.
+    DEFERRED: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, scale: DataScale, options: dict[str, Any] | None = None):
         self.scale = scale
@@ -61,6 +64,34 @@ class Family:
         """Parameters that take one of a few values (index -> the values): a global search draws
         them among these instead of sampling their bounds (none by default)."""
         return {}
+
+    # -------------------------------------------------------------- optional hooks
+    # Every hook a family may offer, with the behaviour of a family that offers nothing: the
+    # engine calls them on every family and never asks whether they exist.
+    def without_branch(self) -> "Family":
+        """The same family (the same parameters, the user's bounds kept) whose couplings leave the
+        :data:`DEFERRED` part out (itself by default)."""
+        return self
+
+    def branch_off(self, v: np.ndarray) -> np.ndarray:
+        """``v`` with the :data:`DEFERRED` part switched off (a copy of ``v`` by default)."""
+        return np.array(v, float)
+
+    def guess_from_readings(self, amplitude_rad: np.ndarray, frequency_hz: np.ndarray, stiffness: np.ndarray,
+                            x0: np.ndarray, given: np.ndarray) -> np.ndarray:
+        """A first guess from harmonic readings (amplitude rad, frequency Hz, K' + i K'' N*m/rad,
+        e.g. a drop campaign's first cycles), ``x0`` kept where ``given``: ``x0`` by default (a
+        family without a closed form to read them)."""
+        return np.array(x0, float)
+
+    def basin_moves(self, v: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """Parameter sets (rows) near the fit ``v`` in the basins beside it, tried when a fit is a
+        few times the noise allowance (none by default: shape (0, n))."""
+        return np.empty((0, len(self.parameters)))
+
+    def idle_parameters(self, v: np.ndarray) -> list[str]:
+        """Parameters of a part switched off in ``v``, whose bounds are not bound hits (none by default)."""
+        return []
 
     @property
     def substeps(self) -> int:

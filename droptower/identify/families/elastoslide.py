@@ -7,7 +7,7 @@ candidates while the error falls. phi0 and v_r are identifiable only together (s
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -17,7 +17,8 @@ from droptower.identify.cycles import turning_points
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
-from droptower.identify.fit import Counter, FitResult, FitVariable, Identification, batch_search, clip_to_bounds
+from droptower.identify.fit import Counter, FitResult, FitVariable, batch_search, clip_to_bounds
+from droptower.identify.result import Identification
 
 class ElastoslideFamily(Family):
     """The elastoslide paper's distributed rate-dependent elastoslide model: phi0, k, k0, v_r, p; with
@@ -133,6 +134,40 @@ def fit_loading_curve(amplitude_rad: np.ndarray, torque_nm: np.ndarray) -> tuple
     return tuple(map(float, np.exp(r.x))) if r.success else None  # type: ignore[return-value]
 
 
+def rate_at_exponent(values: np.ndarray, names: list[str], p_new: int, rate_rad_per_s: float) -> np.ndarray:
+    """``values`` moved to the odd exponent ``p_new``, v_r moved with it so that the slip-rate
+    law (v / v_r)^(1/p) keeps its value at the typical rate ``rate_rad_per_s`` of the data."""
+    iv, ip = names.index("v_r_rad_per_s"), names.index("p")
+    out = np.array(values, float)
+    out[iv] = rate_rad_per_s * (out[iv] / rate_rad_per_s) ** (p_new / int(out[ip]))
+    out[ip] = p_new
+    return out
+
+
+def walk_p(start: Any, p_of: Callable[[Any], int], fit_at: Callable[[Any, int], Any], cost: Callable[[Any], float],
+           candidates: list[int]) -> dict[int, Any]:
+    """The odd exponent p chosen by a walk, never by the gradient: from the fit ``start``, over
+    the neighbouring ``candidates`` in each direction while the cost falls. ``fit_at(fit, p)``
+    fits at exponent p from ``fit``; a start whose p is not a candidate does not walk.
+    Returns every fit made, by its p (the caller keeps the cheapest)."""
+    cands = sorted(int(c) for c in candidates)
+    fits = {p_of(start): start}
+    for direction in (-1, 1):
+        here = start
+        while True:
+            p_old = p_of(here)
+            i = cands.index(p_old) + direction if p_old in cands else -1
+            if not 0 <= i < len(cands):
+                break
+            p_new = cands[i]
+            if p_new not in fits:
+                fits[p_new] = fit_at(here, p_new)
+            if cost(fits[p_new]) >= cost(here):
+                break
+            here = fits[p_new]
+    return fits
+
+
 def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
     """The elastoslide paper's route. Any angle history gives the same torque for (phi0, v_r) and
     (phi0 / a, v_r a^p), so phi0 is taken from the loop-tip loading curve (eq. 24, as the elastoslide paper
@@ -173,23 +208,11 @@ def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -
         # that the slip-rate law (v / v_r)^(1/p) keeps its value at the data's rms rate.
         v_typ = float(np.sqrt(np.mean(np.concatenate([np.diff(g.angle_rad) ** 2 / g.dt_s ** 2 for g in segments]))))
 
-        def try_p(p_new: int, frm: FitResult) -> FitResult:
-            start_x = frm.values.copy()
-            p_old = int(start_x[ip])
-            start_x[iv] = v_typ * (start_x[iv] / v_typ) ** (p_new / p_old)
-            start_x[ip] = p_new
+        def try_p(frm: FitResult, p_new: int) -> FitResult:
+            start_x = rate_at_exponent(frm.values, fam.names, p_new, v_typ)
             return s.fit(segments, clip_to_bounds(fam.parameters, start_x), continuous, f"joint at p = {p_new}")
 
-        i0 = p_list.index(int(x[ip]))
-        for step in (-1, 1):
-            i = i0
-            while 0 <= i + step < len(p_list):
-                here = fits[p_list[i]]
-                nxt = fits.get(p_list[i + step]) or try_p(p_list[i + step], here)
-                fits[p_list[i + step]] = nxt
-                if nxt.metrics.rmse_nm >= here.metrics.rmse_nm:
-                    break
-                i += step
+        fits = walk_p(fits[int(x[ip])], lambda r: int(r.values[ip]), try_p, lambda r: r.metrics.rmse_nm, p_list)
     best = min(fits.values(), key=lambda r: r.metrics.rmse_nm)
     extra["p_walk"] = {int(p): r.metrics.nrmse for p, r in sorted(fits.items())}
     stages = [r for _, r in sorted(fits.items())]

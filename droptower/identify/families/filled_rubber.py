@@ -36,7 +36,8 @@ from droptower.identify.cycles import evaluate_block
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
-from droptower.identify.fit import FitVariable, Identification, clip_to_bounds
+from droptower.identify.fit import FitVariable, clip_to_bounds
+from droptower.identify.result import Identification
 from droptower.identify.noise import servo_noise
 from droptower.identify.verdict import bound_hits, judge
 from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,
@@ -228,8 +229,11 @@ class FilledRubberFamily(Family):
 
     def without_branch(self) -> "FilledRubberFamily":
         """The same family (the same parameters) whose couplings leave the stiffening Maxwell branch
-        out: a nonlinear branch makes every step of the core iterate, even at a negligible stiffness."""
-        return type(self)(self.scale, {**self.options, "stiffening_branch": False})
+        out: a nonlinear branch makes every step of the core iterate, even at a negligible stiffness.
+        Its parameters are this family's (the user's bounds on them kept), not the defaults."""
+        out = type(self)(self.scale, {**self.options, "stiffening_branch": False})
+        out.parameters = list(self.parameters)
+        return out
 
     def branch_off(self, v: np.ndarray) -> np.ndarray:
         """``v`` with the stiffening Maxwell branch off: its spring at its lower bound (1e-4 of the

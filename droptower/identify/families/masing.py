@@ -17,8 +17,8 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, levels, result_of, steady_blocks
-from droptower.identify.fit import (FitVariable, Identification, at_bounds, clip_to_bounds, metrics, simulate,
-                                    simulate_rows)
+from droptower.identify.fit import FitVariable, at_bounds, clip_to_bounds, simulate, simulate_rows
+from droptower.identify.result import Identification, metrics
 
 class MasingFamily(Family):
     """Heine & Plagemann's (2014) Masing model: n Prandtl elements (stiffness k each, limits R e^{alpha(eta-1)})
@@ -214,7 +214,7 @@ def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Ide
     # the report's details; the reported fit and bounds are those of the coupling written
     rows = np.array([params_at(math.degrees(sb.amplitude_rad), sb.frequency_hz) for sb in steady])
     wins = [sb.window for sb in steady]
-    extra["amplitude_frequency_model_fit"] = metrics(wins, simulate_rows(fam, rows, wins, np.arange(len(wins)))).as_dict()
+    extra["amplitude_frequency_model_fit"] = metrics(wins, simulate_rows(fam, rows, wins, np.arange(len(wins)))).to_dict()
     extra["stage_parameters_at_bounds"] = sorted({b for st in stages for b in st.at_bounds})
     amp_out, f_out = float(fam.options["amplitude_deg"]), float(fam.options["frequency_hz"])
     if amp_out or f_out:

@@ -16,7 +16,8 @@ from droptower.identify.cycles import evaluate_block, local_amplitude_frequency
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, steady_blocks
-from droptower.identify.fit import FitResult, FitVariable, Identification, metrics
+from droptower.identify.fit import FitResult, FitVariable
+from droptower.identify.result import Identification, metrics
 from droptower.identify.result import Parameters
 
 class OverlayFamily(Family):

@@ -16,7 +16,8 @@ from droptower.identify.cycles import evaluate_block
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, split_by_speed, static_stiffness, steady_blocks
-from droptower.identify.fit import FitVariable, Identification, clip_to_bounds, metrics, simulate
+from droptower.identify.fit import FitVariable, clip_to_bounds, simulate
+from droptower.identify.result import Identification, metrics
 from droptower.rheology.elements import Pfeffer
 
 class PfefferFamily(Family):

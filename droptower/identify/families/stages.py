@@ -19,8 +19,8 @@ from droptower.errors import DroptowerError
 from droptower.identify.cycles import Block, blocks, cycles
 from droptower.identify.data import DataScale, Segment, characteristic_frequency
 from droptower.identify.families.base import Family
-from droptower.identify.fit import (FitResult, FitVariable, Identification, Metrics, check_in_bounds, clip_to_bounds,
-                                    least_squares_fit, simulate)
+from droptower.identify.fit import (FitResult, FitVariable, check_in_bounds, clip_to_bounds, least_squares_fit, simulate)
+from droptower.identify.result import Identification, Metrics
 from droptower.identify.result import fitted_parameters
 from droptower.io.fields import field_name
 

@@ -21,7 +21,8 @@ from droptower.errors import DroptowerError
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family
 from droptower.identify.families.stages import Setup, result_of
-from droptower.identify.fit import FitVariable, Identification
+from droptower.identify.fit import FitVariable
+from droptower.identify.result import Identification
 from droptower.rheology import Coupling, load_coupling, parse_coupling
 
 

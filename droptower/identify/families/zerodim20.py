@@ -13,7 +13,8 @@ from droptower.identify.data import DataScale, Segment
 from droptower.identify.families.base import COMMON_OPTIONS, Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, setup
 from droptower.identify.families.zerodim6 import ZeroDim6, staged_fit
-from droptower.identify.fit import FitResult, FitVariable, Identification, clip_to_bounds
+from droptower.identify.fit import FitResult, FitVariable, clip_to_bounds
+from droptower.identify.result import Identification
 from droptower.rheology import parse_coupling
 
 #: A lookup-table value may move by this factor from the six-parameter start.

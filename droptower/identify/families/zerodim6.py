@@ -13,7 +13,8 @@ import numpy as np
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import STAGE_TOL, Setup, result_of, split_by_speed, static_stiffness, sweeps
-from droptower.identify.fit import FitResult, FitVariable, Identification, batch_search
+from droptower.identify.fit import FitResult, FitVariable, batch_search
+from droptower.identify.result import Identification
 
 class ZeroDim6(Family):
     """The zero-dimensional model paper's six-parameter model: spring K1 || Maxwell(K2, C2) || Maxwell(K3(e), C3).
