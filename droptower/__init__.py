@@ -11,11 +11,9 @@ read logs start fast.
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
-
 from droptower import _moved
 from droptower.errors import DroptowerError
+from droptower.lazy_names import lazy_names
 
 _moved.install()  # the old import paths of renamed modules, with a DeprecationWarning
 
@@ -72,16 +70,4 @@ _LAZY: dict[str, tuple[str, str]] = {
 __all__ = ["DroptowerError", "__version__", *_LAZY]  # the table above is the one list of names
 
 
-def __getattr__(name: str) -> Any:
-    """Import a name of the curated namespace on first use (PEP 562)."""
-    try:
-        module, attribute = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'droptower' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module), attribute)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

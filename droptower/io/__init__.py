@@ -9,14 +9,14 @@ conditions (:class:`Conditions`: a lab's sheet keyed by file, or its file names)
 """
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from droptower.io.channels import Channel, Record
 from droptower.io.droptower_log import read_log, write_log
 from droptower.io.mapping import map_channels, map_servo_channels, parse_channel_options
 from droptower.io.readers import read_any
 from droptower.io.signals import DropSignals, ServoSignals
+from droptower.lazy_names import lazy_names
 
 if TYPE_CHECKING:
     from droptower.io.conditions import Conditions, conditions_from_names, read_conditions
@@ -30,14 +30,4 @@ __all__ = ["Channel", "Record", "DropSignals", "ServoSignals", "read_any", "read
            "map_servo_channels", "parse_channel_options", "Conditions", "read_conditions", "conditions_from_names"]
 
 
-def __getattr__(name: str) -> Any:
-    """Import a public name on first use (PEP 562)."""
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name]), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -9,8 +9,9 @@
 """
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from droptower.lazy_names import lazy_names
 
 if TYPE_CHECKING:
     from droptower.rheology.coupling import Coupling, CouplingState, Response
@@ -25,14 +26,4 @@ _LAZY: dict[str, str] = {"Coupling": "droptower.rheology.coupling", "CouplingSta
 __all__ = ["Coupling", "CouplingState", "Response", "load_coupling", "parse_coupling", "coupling_to_toml"]
 
 
-def __getattr__(name: str) -> Any:
-    """Import a public name on first use (PEP 562)."""
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name]), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -18,10 +18,11 @@ which integrate the lever themselves (:mod:`.lever_decay`), load without pymunk.
 """
 from __future__ import annotations
 
-import importlib
 import sys
 import types
 from typing import TYPE_CHECKING, Any
+
+from droptower.lazy_names import lazy_names
 
 if TYPE_CHECKING:
     from droptower.rig.config import DOE, RigConfig, load_doe, load_rig
@@ -41,17 +42,7 @@ __all__ = ["DOE", "DropResult", "DropTest", "RigConfig", "load_doe", "load_rig",
            "simulate"]
 
 
-def __getattr__(name: str) -> Any:
-    """Import a public name on first use (PEP 562)."""
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name]), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
 
 class _Package(types.ModuleType):
