@@ -333,18 +333,10 @@ def conditions_from_names(pattern: str, *, rig: "RigConfig | None" = None) -> Co
 def parse_condition_columns(options: Iterable[str]) -> dict[str, str]:
     """``["drop_height_m=Hoehe:mm"]`` -> ``{"drop_height_m": "Hoehe:mm"}``; an unknown role, a
     missing ``=`` or a role given twice is a :class:`DroptowerError`."""
-    out: dict[str, str] = {}
-    for text in options:
-        role, sep, spec = str(text).partition("=")
-        role = role.strip()
-        if not sep or not spec.strip():
-            raise DroptowerError(f"condition column {text!r}: expected ROLE=COLUMN[:UNIT]")
-        if role not in CONDITION_ROLES:
-            raise DroptowerError(f"condition column {text!r}: unknown role '{role}' (roles: {', '.join(CONDITION_ROLES)})")
-        if role in out:
-            raise DroptowerError(f"condition columns: role '{role}' given twice")
-        out[role] = spec.strip()
-    return out
+    from droptower.io.mapping import parse_channel_options
+
+    return parse_channel_options([str(text) for text in options], CONDITION_ROLES, what="condition column",
+                                 spec="COLUMN")
 
 
 def _read_frame(path: Path) -> pd.DataFrame:

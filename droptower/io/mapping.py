@@ -64,24 +64,26 @@ _UNIT_IN_NAME = re.compile(r"\s*[\[(][^\])]*[\])]\s*$")
 
 
 @expects(options=["builtins.str"])
-def parse_channel_options(options: Iterable[str], roles_known: tuple[str, ...] = ROLES) -> dict[str, str]:
+def parse_channel_options(options: Iterable[str], roles_known: tuple[str, ...] = ROLES, *,
+                          what: str = "channel option", spec: str = "NAME") -> dict[str, str]:
     """``["angle=Winkel:deg", "time=t"]`` -> ``{"angle": "Winkel:deg", "time": "t"}``.
 
     Parses ``ROLE=NAME[:UNIT]`` texts (the command line's channel options); a role not in ``roles_known`` (the drop
     test's by default; :data:`SERVO_ROLES` for servo records), a missing ``=`` or a role given
-    twice is a :class:`DroptowerError`.
+    twice is a :class:`DroptowerError`. ``what`` and ``spec`` name the option and its value in the
+    messages (a conditions table's ``"condition column"``, ``"COLUMN"``).
     """
     roles: dict[str, str] = {}
     for option in options:
-        role, sep, spec = option.partition("=")
+        role, sep, value = option.partition("=")
         role = role.strip()
-        if not sep or not spec.strip():
-            raise DroptowerError(f"channel option {option!r}: expected ROLE=NAME[:UNIT]")
+        if not sep or not value.strip():
+            raise DroptowerError(f"{what} {option!r}: expected ROLE={spec}[:UNIT]")
         if role not in roles_known:
-            raise DroptowerError(f"channel option {option!r}: unknown role '{role}' (roles: {', '.join(roles_known)})")
+            raise DroptowerError(f"{what} {option!r}: unknown role '{role}' (roles: {', '.join(roles_known)})")
         if role in roles:
-            raise DroptowerError(f"channel options: role '{role}' given twice")
-        roles[role] = spec.strip()
+            raise DroptowerError(f"{what}s: role '{role}' given twice")
+        roles[role] = value.strip()
     return roles
 
 
