@@ -34,6 +34,13 @@ STATED = RigUncertainty(
 )
 
 
+
+def _drop_damping_ratio(k: float, c: float, j: float) -> float:
+    """Rapp's d of the free decay of a Kelvin-Voigt coupling (k, c) on inertia j (docs/theory.md#decay)."""
+    delta = c / (2 * j)
+    omega = math.sqrt(k / j - delta ** 2)
+    return 0.5 * (math.exp(4 * math.pi * delta / omega) - 1)
+
 def campaign(seed: int, drops_per_fixture: int = 2, stated: RigUncertainty = STATED) -> dict[str, float]:
     """One virtual campaign: the model route's K' and η at :data:`SERVO_HZ` with their U95, with
     the inputs (``*_U95``) and without (``*_U95_fit``), and the truth."""
@@ -48,9 +55,7 @@ def campaign(seed: int, drops_per_fixture: int = 2, stated: RigUncertainty = STA
     sens_eta: dict[str, list[float]] = {}
     for j_nom in FIXTURES:
         j = true_j[j_nom]
-        delta = c / (2 * j)
-        omega = math.sqrt(k / j - delta ** 2)
-        d = 0.5 * (math.exp(4 * math.pi * delta / omega) - 1)
+        d = _drop_damping_ratio(k, c, j)
         for _ in range(drops_per_fixture):
             drop = SyntheticDrop(inertia_kgm2=j, stiffness_nm_per_rad=k, damping_ratio=d,
                                  amplitude_deg=rng.uniform(0.5, 2.5), sample_rate_hz=fs, duration_s=0.1,
@@ -157,9 +162,7 @@ def route_campaign(seed: int, drops_per_fixture: int = 1, stated: RigUncertainty
     decays, amps = [], []
     for j_nom in FIXTURES:
         j = true_j[j_nom]
-        delta = c / (2 * j)
-        omega = math.sqrt(k / j - delta ** 2)
-        d = 0.5 * (math.exp(4 * math.pi * delta / omega) - 1)
+        d = _drop_damping_ratio(k, c, j)
         for r in range(drops_per_fixture):
             drop = SyntheticDrop(inertia_kgm2=j, stiffness_nm_per_rad=k, damping_ratio=d, lever_length_m=lever,
                                  amplitude_deg=rng.uniform(0.5, 2.5), sample_rate_hz=fs, duration_s=duration_s,
