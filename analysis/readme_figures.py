@@ -34,6 +34,9 @@ ROOT = Path(__file__).resolve().parents[1]
 STUDY_RESULTS = ROOT / "analysis" / "results"
 #: the study's files that are stored (the rest of its report folder is regenerated at will)
 STUDY_FILES = ("summary.json", "table4_comparison.csv")
+#: ``auto``'s choice of terms cross-validated on Table 4 (nested), as the map command writes it
+NESTED_MAP = STUDY_RESULTS / "table4_map_nested.json"
+NESTED_MAP_COMMAND = ("-m", "droptower", "map", "rapp2022_table4", "--form", "auto", "--nested-cv", "--json")
 BENCH_RESULTS = ROOT / "benchmarks" / "results"
 #: stored benchmark figures: name -> the script that writes them with ``--json``
 BENCHMARKS = {"core": "bench_core.py", "rig": "bench_rig.py", "extract": "bench_extract.py",
@@ -45,7 +48,9 @@ BENCHMARK_RUNS = {"identify_hard": ("bench_identify.py", "--random", "--hard"),
                   "campaign_dask": ("bench_campaign.py", "--dask", "--n", "45000"),
                   "uncertainty_coverage": ("bench_uncertainty_coverage.py", "--campaigns", "2000"),
                   "uncertainty_route": ("bench_uncertainty_route.py", "--campaigns", "1000", "--workers", "2"),
-                  "fresh": ("bench_fresh.py", "--large")}
+                  "fresh": ("bench_fresh.py", "--large"), "compile": ("bench_compile.py",)}
+#: figures that tests store (tests/data/regression/<test module>.json, ``python tests/regenerate.py``)
+TEST_FIGURES = ROOT / "tests" / "data" / "regression"
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
 #: other jobs' load (bench_core's 1 s of the composition, best of 7: 12.8, 16.8, 30.1, 28.8 ms within 15
 #: minutes and 23.3 ms later, at load averages 6-12; 9.3-9.9 ms when the machine was quiet)
@@ -130,9 +135,11 @@ def disagreements(written: str, block: Block) -> list[str]:
 
 def load_stored() -> dict[str, Any]:
     """The stored study summary (``study``) and each stored benchmark's figures (by name)."""
-    stored = {"study": json.loads((STUDY_RESULTS / "summary.json").read_text())}
+    stored = {"study": json.loads((STUDY_RESULTS / "summary.json").read_text()),
+              "map_nested": json.loads(NESTED_MAP.read_text())}
     for name in (*BENCHMARKS, *BENCHMARK_RUNS):
         stored[name] = json.loads((BENCH_RESULTS / f"{name}.json").read_text())
+    stored["tests"] = {path.stem: json.loads(path.read_text()) for path in sorted(TEST_FIGURES.glob("*.json"))}
     return stored
 
 
@@ -605,6 +612,237 @@ def report_size(stored: dict[str, Any]) -> Block:
                 mb=timed(r["figures"]["size_mb"], ".1f"))
 
 
+def core_step(stored: dict[str, Any]) -> Block:
+    """The coupling kernel's cost per step (docs/benchmarks.md), from bench_core's CPU time."""
+    core = stored["core"]
+    cpu_ms = core["figures"]["coupling_single_1s_cpu_ms"]  # 1 s at 38.4 kHz
+    return fill("What remains is the coupling kernel itself in flight (about {ns} ns per step for "
+                f"`{core['figures']['coupling']}`, " + "~{test_ms} ms per 0.25 s test: `bench_core.py`'s CPU time, "
+                f"measured {core['machine']['date']}), writing and reading the logs, and the fixed costs of a run (the "
+                "plan, worker start-up, the results table).\n",
+                ns=on_cpu(cpu_ms * 1e6 / 38_400, ".0f"), test_ms=on_cpu(cpu_ms / 4, ".1f"))
+
+
+def report_at_scale(stored: dict[str, Any]) -> Block:
+    """The report of 4 500 tests (docs/campaigns_at_scale.md), from bench_report.py's stored run."""
+    r, m = stored["report"]["figures"], stored["report"]["machine"]
+    n = f"{r['tests']:,}".replace(",", " ")
+    return fill(f"Measured {m['date']} on the {m['cores']} cores at load average " + "{lo}–{hi}, on a "
+                f"{n}-test campaign: " + "{mb} MB; written in {write} s, {ratio} times reading back and extracting "
+                "the same logs in the same run ({base} s in one process, {per_log} ms per log); opened in {open} s; "
+                "a test of the last side file drawn in {demand} s.\n",
+                mb=timed(r["size_mb"], ".1f"), write=timed(r["write_s"], ".1f"),
+                ratio=timed(r["write_s"] / r["baseline_s"], ".2f"), base=timed(r["baseline_s"], ".1f"),
+                per_log=timed(1e3 * r["baseline_s"] / r["tests"], ".1f"), open=timed(r["open_s"], ".1f"),
+                demand=timed(r["on_demand_s"], ".2f"), **_loads(m))
+
+
+def compile_time(stored: dict[str, Any]) -> Block:
+    """numba's cold compilation of every kernel (docs/getting-started.md), from bench_compile.py."""
+    run = stored["compile"]
+    f = run["figures"]
+    return fill(f"Compiling all {len(f['kernels_cpu_s'])} top-level kernels from an empty cache costs " + "{cpu} s of "
+                "CPU once ({wall} s wall at load average {lo}–{hi}; `benchmarks/bench_compile.py`, measured "
+                f"{run['machine']['date']}).\n",
+                cpu=on_cpu(f["total_cpu_s"], ".0f"), wall=timed(f["total_wall_s"], ".0f"), **_loads(run["machine"]))
+
+
+def identify_random_accuracy(stored: dict[str, Any]) -> Block:
+    """The randomised acceptance's outcome (docs/guide/identification.md), from its stored output
+    (``benchmarks/results/identify_random.txt``): successes, the worst fits by family, the servo's."""
+    fits = random_fits()
+    flags: dict[str, list[dict[str, str]]] = {}  # the verdicts and success flags random_fits leaves out
+    for line in (BENCH_RESULTS / "identify_random.txt").read_text().splitlines():
+        if match := re.match(r"\s+(\w+) #\d+: (.*)", line):
+            flags.setdefault(match.group(1), []).append(
+                dict(item.strip().split(" ", 1) for item in match.group(2).split(",")))
+    figures: dict[str, Figure] = {}
+    rows = []
+    n_drop = n_servo = total = 0
+    for family, rows_ in fits.items():
+        ok_d = sum(f["drop_ok"] == "True" for f in flags[family])
+        ok_s = sum(f.get("servo_ok") == "True" for f in flags[family])
+        poor = sum(f["drop_verdict"] == "poor fit" for f in flags[family])
+        n_drop, n_servo, total = n_drop + ok_d, n_servo + ok_s, total + len(rows_)
+        figures.update({f"{family}_n": exact(len(rows_), "d"), f"{family}_d": exact(ok_d, "d"),
+                        f"{family}_s": exact(ok_s, "d"), f"{family}_p": exact(poor, "d"),
+                        f"{family}_k": exact(100 * max(f["drop_k"] for f in rows_), ".2f"),
+                        f"{family}_e": exact(100 * max(f["drop_eta"] for f in rows_), ".2f")})
+        rows.append(f"| {family} | {{{family}_d}} of {{{family}_n}} | {{{family}_s}} of {{{family}_n}} "
+                    f"| {{{family}_k}} % / {{{family}_e}} % | {{{family}_p}} |\n")
+    holdout = max(f["servo_holdout"] for rows_ in fits.values() for f in rows_ if "servo_holdout" in f)
+    return fill("Measured on the stored run (`benchmarks/results/identify_random.txt`), success: K' ≤ 3 % and loss "
+                "factor ≤ 10 % RMS for a drop-test fit, hold-out nRMSE ≤ 1 % for a servo fit:\n\n"
+                "| family | drop-test fits succeeding | servo fits succeeding | worst drop-test K' / loss factor RMS "
+                "| drop-test fits the verdict calls \"poor fit\" |\n|---|---|---|---|---|\n" + "".join(rows)
+                + "\nIn all {n_drop} of {total} drop-test and {n_servo} of {total} servo fits succeed; worst servo "
+                "hold-out nRMSE {holdout} % (noise 0.5 %).\n",
+                n_drop=exact(n_drop, "d"), n_servo=exact(n_servo, "d"), total=exact(total, "d"),
+                holdout=exact(100 * holdout, ".2f"), **figures)
+
+
+def map_table4(stored: dict[str, Any]) -> Block:
+    """The paper's form and ``auto`` on Table 4 (docs/guide/map.md): the paper's form as
+    tests/test_maps.py stores it, ``auto`` as the stored full study fitted it."""
+    paper = stored["tests"]["test_maps"]["test_table4_fit_reaches_the_global_minimum"]
+    auto = stored["study"]["map_auto"]["table4"]
+    return fill(
+        "| form | coefficients | stiffness RMS fit / cross-validated | damping ratio RMS fit / cross-validated | "
+        "identifiable |\n|---|---|---|---|---|\n"
+        "| `paper` (eq. 19, 20) | 13 | {p_c} % / {p_ccv} % | {p_d} % / {p_dcv} % | no: k9 at its bound, k12, k13 > 50 %, "
+        "k5, k7 not unique |\n"
+        "| `auto` (chooses `velocity`'s terms) | 10 | {a_c} % / {a_ccv} % | {a_d} % / {a_dcv} % | yes, every coefficient |\n"
+        "\n`paper`: `tests/test_maps.py`'s stored figures; `auto`: the stored full study (`analysis/run_study.py`).\n",
+        p_c=exact(paper["stiffness_rms_error_pct"], ".2f"), p_ccv=exact(paper["stiffness_cv_rms_error_pct"], ".2f"),
+        p_d=exact(paper["damping_ratio_rms_error_pct"], ".2f"), p_dcv=exact(paper["damping_ratio_cv_rms_error_pct"], ".1f"),
+        a_c=exact(auto["stiffness_rms_error_pct"], ".2f"), a_ccv=exact(auto["stiffness_cv_rms_error_pct"], ".2f"),
+        a_d=exact(auto["damping_ratio_rms_error_pct"], ".2f"), a_dcv=exact(auto["damping_ratio_cv_rms_error_pct"], ".2f"))
+
+
+def map_nested(stored: dict[str, Any]) -> Block:
+    """``auto``'s choice validated by nested cross-validation on Table 4 (docs/guide/map.md), from
+    the map command's stored output (:data:`NESTED_MAP`)."""
+    m = stored["map_nested"]
+    nested, fit = m["nested_cross_validation"], m["fit"]
+    folds = int(re.search(r"(\d+) folds", nested["outer"]).group(1))
+    choice, times = re.fullmatch(r"(.*) \((\d+)x\)", nested["chosen"]).groups()
+    stiffness, ratio = (" + ".join(f"`{t}`" for t in part.split(" + ")) for part in choice.split(" | "))
+    return fill("On Table 4 (`droptower map rapp2022_table4 --form auto --nested-cv --json`, stored in "
+                "`analysis/results/table4_map_nested.json`) {times} of the {folds} folds choose the same terms, "
+                f"{stiffness} for the stiffness and {ratio} for c/d (`velocity`'s), by its inner error among 5 identifiable "
+                "stiffness and 10 identifiable c/d candidates; the nested cross-validated errors are {ns} % stiffness and "
+                "{nd} % damping ratio (RMS), the map's own cross-validated errors {cs} % and {cd} %.\n",
+                times=exact(int(times), "d"), folds=exact(folds, "d"),
+                ns=exact(nested["stiffness_rms_error_pct"], ".2f"), nd=exact(nested["damping_ratio_rms_error_pct"], ".2f"),
+                cs=exact(fit["stiffness_cv_rms_error_pct"], ".2f"), cd=exact(fit["damping_ratio_cv_rms_error_pct"], ".2f"))
+
+
+def study_random_angle(stored: dict[str, Any]) -> Block:
+    """The reference coupling's one-step torque change on random motion (docs/study.md), as
+    tests/test_reference_coupling_histories.py stores it (two seeded draws)."""
+    draws = [v for k, v in stored["tests"]["test_reference_coupling_histories"].items()
+             if k.startswith("test_torque_is_continuous_on_random_motion")]
+    return fill(f"On a band-limited random angle (1-50 Hz, RMS 0.5 deg; {len(draws)} seeded draws, "
+                "`tests/test_reference_coupling_histories.py`'s stored figures) its largest one-step torque change is "
+                "at most {fine} % of the RMS torque at 153.6 kHz ({coarse} % at 38.4 kHz: it shrinks with the step).\n",
+                fine=exact(100 * max(d["jump_over_rms_at_153600_hz"] for d in draws), ".2f"),
+                coarse=exact(100 * max(d["jump_over_rms_at_38400_hz"] for d in draws), ".2f"))
+
+
+def study_case_cv(stored: dict[str, Any]) -> Block:
+    """Table 4 cross-validated by lever case (docs/study.md), from the stored calibration
+    (``analysis/results/nr60_cross_validation.csv``, ``calibrate_nr60.py``)."""
+    import csv
+
+    with (STUDY_RESULTS / "nr60_cross_validation.csv").open() as fh:
+        rows = sorted(csv.DictReader(fh), key=lambda r: int(r["held_out_case"]))
+    figures = {f"s{i}": exact(float(r["stiffness_rms_pct"]), ".1f") for i, r in enumerate(rows)}
+    figures |= {f"d{i}": exact(float(r["damping_rms_pct"]), ".1f") for i, r in enumerate(rows)}
+    cases = " / ".join(r["held_out_case"] for r in rows)
+    return fill(f"Table 4 cross-validated by lever case (cases {cases}, each predicted by the calibration on the two "
+                "other cases; `analysis/results/nr60_cross_validation.csv`): stiffness RMS "
+                + " / ".join(f"{{s{i}}}" for i in range(len(rows))) + " %, damping "
+                + " / ".join(f"{{d{i}}}" for i in range(len(rows))) + " %. The error by case is in `analysis/README.md`.\n",
+                **figures)
+
+
+def first_cycle_figures(stored: dict[str, Any]) -> Block:
+    """The first cycle's two mechanisms on the reference coupling (docs/theory.md#first-cycle), as
+    tests/test_nr60_calibration.py stores them (Table 2's 30 fast-loop decays against the bench)."""
+    t = stored["tests"]["test_nr60_calibration"]["test_decays_against_the_bench_at_their_own_points"]
+    pc = {k: exact(100 * v, ".1f" if abs(100 * v) < 10 else ".0f") for k, v in t.items() if not k.startswith("creep_m")}
+    return fill(
+        "Measured on the reference coupling's 30 decays of Table 2's heights against the bench at each decay's own "
+        "amplitude and frequency (`tests/test_nr60_calibration.py`'s stored figures), damping ratio over the bench's, "
+        "RMS: the coupling reads {read_over_bench_rms} % above the bench; its network alone (spring and filler "
+        "network) {network_over_bench_rms} %, which the loop-span balance predicts within {network_span_error_rms} %; "
+        "the balance alone puts the coupling {span_over_bench_rms} % above the bench. The creep factor of its linear "
+        "part (spring and matrix branch dropped from the same heights: its reading over its bench) is {creep_min}–"
+        "{creep_max}; the balance times the creep factor gives every decay's reading within {predicted_error_rms} % "
+        "(−{neg} to +{predicted_error_max} %), while either mechanism alone misses by {span_alone_error_rms} % "
+        "(the balance) or {creep_alone_error_rms} % (the creep).\n",
+        creep_min=exact(t["creep_min"], ".2f"), creep_max=exact(t["creep_max"], ".2f"),
+        neg=exact(-100 * t["predicted_error_min"], ".1f"), **pc)
+
+
+def filled_rubber_run(path: Path | None = None) -> dict[str, Any]:
+    """The newest run in ``benchmarks/results/identify_filled_rubber.txt`` (the file's first block,
+    ``bench_identify.py --filled-rubber``): its date and load, the Table-2 fits, each drawn coupling."""
+    lines = (path or BENCH_RESULTS / "identify_filled_rubber.txt").read_text().splitlines()
+    end = next(i for i, line in enumerate(lines) if i and not line.strip())
+    block = lines[:end]
+    date = re.search(r"\d{4}-\d\d-\d\d", block[0]).group()
+    load = float(re.search(r"load average ([\d.]+) at the start", "\n".join(block)).group(1))
+    number = r"([\d.]+)"
+    run: dict[str, Any] = {"date": date, "load": load, "draws": {}, "worst": {}}
+    for line in block:
+        text_ = line.strip()
+        if m := re.match(r"Table 2 \((\d+) tests", text_):
+            run["tests"] = int(m.group(1))
+        elif m := re.match(r"paper's map \(eq\. 19/20\): (\d+) points, K' " + number + r" % RMS, loss factor " + number,
+                           text_):
+            run["points"], run["paper_k"], run["paper_eta"] = int(m.group(1)), float(m.group(2)), float(m.group(3))
+        elif m := re.match(r"identify (\w+): K' " + number + r" % RMS, loss factor " + number + r" % RMS .*?; (good|poor) "
+                           r"fit \(" + number + r" x the noise\); " + number + r" s wall / " + number + r" s CPU, (\d+) "
+                           r"evaluations", text_):
+            run[m.group(1)] = {"k": float(m.group(2)), "eta": float(m.group(3)), "verdict": f"{m.group(4)} fit",
+                               "noise": float(m.group(5)), "wall_s": float(m.group(6)), "cpu_s": float(m.group(7)),
+                               "evaluations": int(m.group(8))}
+        elif m := re.match(r"(\w+) #(\d+): K' " + number + r" %, loss factor " + number + r" % RMS; (good|poor) fit \("
+                           + number + r" x the noise\)", text_):
+            run["draws"].setdefault(m.group(1), []).append(
+                {"k": float(m.group(3)), "eta": float(m.group(4)), "verdict": f"{m.group(5)} fit", "noise": float(m.group(6))})
+        elif m := re.match(r"(\w+): K' " + number + r" %, loss factor " + number + r" % RMS; (good|poor) fit \("
+                           + number + r" x the noise\)", text_):
+            run["draws"].setdefault(m.group(1), []).append(
+                {"k": float(m.group(2)), "eta": float(m.group(3)), "verdict": f"{m.group(4)} fit", "noise": float(m.group(5))})
+        elif m := re.match(r"(\w+): (\d+)/(\d+) within K' 5 % and loss factor 10 % RMS; worst K' " + number
+                           + r" %, loss factor " + number + " %", text_):
+            run["worst"][m.group(1)] = {"met": int(m.group(2)), "draws": int(m.group(3)), "k": float(m.group(4)),
+                                        "eta": float(m.group(5))}
+    return run
+
+
+def filled_rubber(stored: dict[str, Any]) -> Block:
+    """The `filled_rubber` family's drop-test accuracy (docs/theory.md), from the newest run stored in
+    ``benchmarks/results/identify_filled_rubber.txt``."""
+    run = filled_rubber_run()
+    fr, tp, w = run["filled_rubber"], run["template"], run["worst"]
+    figures: dict[str, Figure] = {}
+
+    def worst(key: str) -> str:
+        figures.update({f"{key}_m": exact(w[key]["met"], "d"), f"{key}_n": exact(w[key]["draws"], "d"),
+                        f"{key}_k": exact(w[key]["k"], ".2f"), f"{key}_e": exact(w[key]["eta"], ".2f")})
+        return f"{{{key}_m}} of {{{key}_n}} draws; worst {{{key}_k}} % / {{{key}_e}} %"
+
+    payne = run["draws"]["payne"]
+    figures.update(p_hi=exact(max(d["noise"] for d in payne), ".0f"),
+                   p_poor=exact(sum(d["verdict"] == "poor fit" for d in payne), "d"), p_n=exact(len(payne), "d"))
+    z = run["draws"]["zerodim6_friction"][0]
+    figures.update(z_k=exact(z["k"], ".2f"), z_e=exact(z["eta"], ".2f"), z_x=exact(z["noise"], ".1f"))
+    draws = max(x["draws"] for x in w.values())
+    return fill(
+        f"Measured there (the newest run, {run['date']}, load average {run['load']:g} at its start on 2 cores): on the "
+        f"Table-2 campaign of `rapp2022_nr60` ({run['tests']} tests) the identified coupling's bench K' is within "
+        "{k} % and its loss factor within {eta} % RMS at validate's " + f"{run['points']}" + " bench points inside the "
+        f"hull (the paper's map: " + "{pk} % and {pe} %), a " + fr["verdict"] + " ({noise}× the noise), in {wall} s "
+        "wall / {cpu} s CPU ({ratio}× the wall time of the preset's own structure, `template`, in the same run; {evals} "
+        f"evaluations). On 12-drop campaigns of other structures ({draws} seeded draw{'s' if draws > 1 else ''} each) "
+        "K' is within 5 % and the loss factor within 10 % RMS for the Masing banks beside a fractional band ("
+        + worst("masing_fractional") + "), the six-parameter forms with a friction bank (" + worst("zerodim6_friction")
+        + "), `seed000_six_parameter` (" + worst("seed000_six_parameter") + "), `seed003_masing` ("
+        + worst("seed003_masing") + ") and the `payne`-element couplings (" + worst("payne") + "; {p_poor} of {p_n} "
+        "judged a poor fit, up to {p_hi}× the noise). The six-parameter forms are met since the stiffening "
+        "Maxwell branch: their Maxwell branch stiffens with its deformation (draw #0: loss factor 0.2 to 0.6 with the "
+        "amplitude at 30 Hz); before it (the idle run of 2026-11-27) K' 6.8 %, loss factor 24 %, a poor fit (65× the "
+        "noise); with it K' {z_k} %, loss factor {z_e} % RMS, a " + z["verdict"] + " ({z_x}× the noise; the branch's "
+        "gain fitted, its truth's kind).\n",
+        k=exact(fr["k"], ".2f"), eta=exact(fr["eta"], ".2f"), pk=exact(run["paper_k"], ".1f"),
+        pe=exact(run["paper_eta"], ".0f"), noise=exact(fr["noise"], ".1f"), wall=timed(fr["wall_s"], ".0f"),
+        cpu=on_cpu(fr["cpu_s"], ".0f"), ratio=timed(fr["wall_s"] / tp["wall_s"], ".1f"),
+        evals=on_cpu(fr["evaluations"], "d"), **figures)
+
+
 #: every block: name -> (file relative to the repository, renderer)
 BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "map_auto": ("docs/guide/map.md", map_auto),
@@ -623,6 +861,16 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "routes": ("docs/routes.md", routes_table),
     "routes_readme": ("README.md", lambda stored: routes_table(stored, outside=False)),
     "uncertainty_coverage": ("docs/guide/uncertainty.md", uncertainty_coverage),
+    "core_step": ("docs/benchmarks.md", core_step),
+    "report_at_scale": ("docs/campaigns_at_scale.md", report_at_scale),
+    "compile_time": ("docs/getting-started.md", compile_time),
+    "identify_random": ("docs/guide/identification.md", identify_random_accuracy),
+    "map_table4": ("docs/guide/map.md", map_table4),
+    "map_nested": ("docs/guide/map.md", map_nested),
+    "study_random_angle": ("docs/study.md", study_random_angle),
+    "study_case_cv": ("docs/study.md", study_case_cv),
+    "first_cycle": ("docs/theory.md", first_cycle_figures),
+    "filled_rubber": ("docs/theory.md", filled_rubber),
 }
 
 
@@ -693,6 +941,9 @@ def rerun_study() -> None:
                        "regenerate": REGENERATE, "workers": FINGERPRINT_WORKERS,
                        "inputs_sha256": reduced["provenance"]["inputs_sha256"], "figures": figures(reduced)}
         (STUDY_RESULTS / FINGERPRINT_FILE).write_text(json.dumps(fingerprint, indent=1, allow_nan=True) + "\n")
+    print("$", " ".join(NESTED_MAP_COMMAND), ">", NESTED_MAP.relative_to(ROOT), flush=True)
+    nested = subprocess.run([sys.executable, *NESTED_MAP_COMMAND], cwd=ROOT, check=True, capture_output=True, text=True)
+    NESTED_MAP.write_text(nested.stdout)
 
 
 def rerun_benchmarks() -> None:

@@ -11,6 +11,7 @@ sentence fails until it is rendered from a stored result or listed with its reas
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -28,20 +29,13 @@ HISTORY = "a dated account of a past measurement behind a design decision (names
 THEORY = "the theory's derivation or a physical quantity of the rig or model, not a speed or accuracy of this version"
 TOLERANCE = "a tolerance, target or acceptance limit, not a measurement"
 LITERATURE = "a value quoted from the cited paper"
-#: not yet rendered: a measured figure of the study, a benchmark or a test whose stored result has
-#: no block yet (e.g. benchmarks/results/identify_random.txt, tests/test_nr60_calibration.py's
-#: figures); listed so that a new unrendered figure fails, to be rendered one by one
-PENDING = "measured, not yet rendered from its stored result"
 #: page -> (a distinctive piece of the sentence, why it is not rendered from a stored result)
 ALLOWED: dict[str, list[tuple[str, str]]] = {
     "docs/benchmarks.md": [
-        ("What remains is the coupling kernel itself in fl", PENDING),
     ],
     "docs/campaigns_at_scale.md": [
-        ("- The torque sensor's resonance filter (a matrix", PENDING),
         ("On the `rapp2022` rig the rounding step at the l", THEORY),
         ("their Jacobians are thin (tests x a few coeffici", HISTORY),
-        ("Unloaded, extracting a log takes about 5.5 ms, w", PENDING),
         ("the manifest, which lists every test, is rewritt", HISTORY),
         ("every test extracted, 60.4 kB per test, wall tim", HISTORY),
     ],
@@ -50,24 +44,24 @@ ALLOWED: dict[str, list[tuple[str, str]]] = {
         ("**3 min 04 s and 3 min 02 s** (183.5 and 181.8 s", HISTORY),
         ("pytest itself reports 3 min 02 s and 3 min 00 s,", HISTORY),
         ("The machine's speed drifts by up to ~10 % from h", HISTORY),
-        ("A fresh clone paid about 8 s more than `bench_su", HISTORY),
-        ("Of each worker's collection about 2.5 s of CPU i", HISTORY),
-        ("Fed the per-test times of the idle warm run (321", HISTORY),
-        ("`load` 327 s wall, 1.36× the balanced test time,", HISTORY),
+        ("A fresh clone paid (2026-11-27) about 8 s more t", HISTORY),
+        ("Of each worker's collection about 2.5 s of CPU w", HISTORY),
+        ("Fed the per-test times of the idle warm run of 2", HISTORY),
+        ("`load` (2026-11-27) 327 s wall, 1.36× the balanc", HISTORY),
         ("8 s of CPU per worker (both workers import every", HISTORY),
         ("collection 7.6 s → 6.3 s of CPU per process, and", HISTORY),
         ("~80 s of CPU compiling, in seven kernels of 7–13", HISTORY),
-        ("`_run_history_parallel` twice, 11 s of CPU.", HISTORY),
-        ("its IR simplification makes them ~23 % faster pe", HISTORY),
+        ("`_run_history_parallel` twice, 11 s of CPU (befo", HISTORY),
+        ("its IR simplification made them ~23 % faster per", HISTORY),
     ],
     "docs/index.md": [
-        ("2022 (stiffness 1.36 %, damping ratio 12.3 % RMS", PENDING),
     ],
     "docs/getting-started.md": [
-        ("The core and the rig are numba kernels, compiled", PENDING),
     ],
     "docs/guide/design.md": [
-        ("In `benchmarks/bench_design.py` a designed 12-dr", PENDING),
+    ],
+    "docs/guide/design.md": [
+        ("When the design for identification was added (m", HISTORY),
     ],
     "docs/guide/extraction.md": [
         ("without a force channel the angular velocity (a ", THEORY),
@@ -77,43 +71,25 @@ ALLOWED: dict[str, list[tuple[str, str]]] = {
         ("with n discrete Prandtl elements the cost along ", THEORY),
         ("The verdict compares the RMS angle error with th", TOLERANCE),
         ("K' ≤ 3 % and loss factor ≤ 10 % RMS against the ", TOLERANCE),
-        ("pfeffer-type couplings up to K' 1.5 % and loss f", PENDING),
     ],
     "docs/guide/uncertainty.md": [
         ("a drop whose budget has the same make-up as a r", TOLERANCE),
     ],
     "docs/guide/map.md": [
-        ("On the paper's own Table 4 the map reproduces th", PENDING),
         ("the measured c/d differs between cases by about ", LITERATURE),
-        ("On Table 4 every one of the 30 folds chooses `ve", PENDING),
     ],
     "docs/study.md": [
-        ("on a band-limited random angle (1-50 Hz, RMS 0.5", PENDING),
-        ("stiffness RMS 8.6 / 4.6 / 6.8 %, damping 14.1 / ", PENDING),
     ],
     "docs/theory.md": [
         ("6.78 % nRMSE for the four-part family, 4.0–4.3", HISTORY),
         ("with them 2.05 % (1.51 % fitted, measured on 2026", HISTORY),
         ("with its published parameters (servo records in ", HISTORY),
         ("In a simulated or measured log, a second force p", THEORY),
-        ("Measured on a model tuned to Table 4 alone (a me", HISTORY),
-        ("`droptower.compare.first_cycle.loop_span_damping", PENDING),
-        ("The network alone (spring and filler network) re", PENDING),
-        ("loops taken on a network broken down at the firs", PENDING),
-        ("With both, the reference coupling reads 53 % RMS", PENDING),
-        ("its reading over its bench, 1.16–1.20) gives eve", PENDING),
-        ("either mechanism alone misses by 20 % or 30 % RM", PENDING),
-        ("the family's coupling whose steady K*(A, f) is t", PENDING),
-        ("the fit ended at 24.8× the noise and missed the ", PENDING),
-        ("Two remedies were measured on the 24.8× fit and ", PENDING),
-        ("13–16) reads a larger decay rate than the steady", PENDING),
-        ("good fit, K' 0.19 %, loss factor 0.21 % RMS, 105", PENDING),
-        ("on the Table-2 campaign of `rapp2022_nr60` (450 ", PENDING),
-        ("2.2 % and 25 %), a good fit, in 38 s wall / 38 s", PENDING),
-        ("41 s wall before the batch kernels ran on thread", PENDING),
-        ("On 12-drop campaigns of other structures (three ", PENDING),
-        ("with it K' 0.07 %, loss factor 0.35 % RMS, a goo", PENDING),
-        ("the family's closed form fitted to that coupling", PENDING),
+        ("Measured before the reference coupling was built", HISTORY),
+        ("draw #2 on 2026-11-27 (when the `payne` draws' m", HISTORY),
+        ("the fit ended (before the change below, 2026-11-", HISTORY),
+        ("Two remedies were measured on the 24.8× fit (20", HISTORY),
+        ("predicted its bench within 0.66 % / 0.65 % RMS o", HISTORY),
     ],
 }
 
@@ -148,3 +124,43 @@ def test_the_scan_finds_a_stale_figure_and_skips_blocks(tmp_path: Path) -> None:
     assert claims(page) == [sentence]
     page.write_text("A spring of 10 N*m/rad; the record is 0.25 s long.\n")  # no measured claim
     assert claims(page) == []
+
+
+#: what dates a past measurement in its sentence: a date, or its before and after
+DATED = re.compile(r"\d{4}-\d\d-\d\d|\bbefore\b|\bafter\b|→", re.IGNORECASE)
+
+
+def sentence_of(page: Path, piece: str) -> str:
+    """The whole sentence (to its full stop, not to a colon or semicolon as :func:`claims` cuts) that
+    holds ``piece``, outside the blocks and code fences."""
+    text = FENCE.sub(lambda m: " " * len(m.group()), BLOCK.sub(lambda m: " " * len(m.group()), page.read_text()))
+    flat = " ".join(text.split())
+    at = flat.find(piece)
+    assert at >= 0, f"{page.relative_to(ROOT)}: {piece!r} not found"
+    start = max(flat.rfind(". ", 0, at), flat.rfind("\n", 0, at)) + 1
+    end = flat.find(". ", at + len(piece))
+    return flat[start:end + 1 if end >= 0 else len(flat)].strip()
+
+
+@pytest.mark.parametrize("page", [p for p in PAGES if str(p.relative_to(ROOT)) in ALLOWED],
+                         ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_history_names_its_date_or_its_before_and_after(page: Path) -> None:
+    """A figure kept as history is not offered as today's: its sentence names when it was measured
+    (a date) or what it compares (before / after)."""
+    undated = [piece for piece, why in ALLOWED[str(page.relative_to(ROOT))]
+               if why == HISTORY and not DATED.search(sentence_of(page, piece))]
+    assert not undated, f"{page.relative_to(ROOT)}: history without its date or before/after: {undated}"
+
+
+def test_the_check_fails_on_a_new_unrendered_figure(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The page check itself, run on a fake page that states a time as a measurement outside any
+    block, fails and names the sentence; the same sentence inside a figure block passes."""
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)  # the page's name relative to the fake root
+    page = tmp_path / "docs" / "page.md"
+    page.parent.mkdir()
+    sentence = "The extraction of one log takes 3.2 s wall on two cores."
+    page.write_text(f"# A page\n\n{sentence}\n")
+    with pytest.raises(AssertionError, match="takes 3.2 s wall"):
+        test_every_figure_is_rendered_or_listed_with_its_reason(page)
+    page.write_text(f"# A page\n\n<!-- figures:x -->\n\n{sentence}\n\n<!-- /figures -->\n")
+    test_every_figure_is_rendered_or_listed_with_its_reason(page)

@@ -103,7 +103,7 @@ def test_no_calibration_on_the_frontier_meets_the_bias_bound(calibration):
 
 
 @pytest.mark.slow
-def test_decays_against_the_bench_at_their_own_points(calibration):
+def test_decays_against_the_bench_at_their_own_points(calibration, regression):
     """The fast loop's 30 decays (3 cases x Table 2's heights) against the steady state at each
     decay's amplitude and frequency: the stiffness within 3 % RMS; the damping ratio the drop
     tower reads is higher than the bench's at every point (53 % RMS), and the two mechanisms of
@@ -145,6 +145,18 @@ def test_decays_against_the_bench_at_their_own_points(calibration):
     assert np.all(creep > 1) and np.all(predicted > bench)  # both mechanisms raise the reading
     assert _rms(read / predicted - 1) <= _rms(alone)
     assert min(_rms(read / span - 1), _rms(read / (bench * creep) - 1)) > _rms(alone)  # neither alone
+    # the figures docs/theory.md#first-cycle states (analysis/readme_figures.py renders them from
+    # tests/data/regression/): deterministic simulations, reproducible to round-off
+    network_bench = calibration.servo_at(network, network_points)["servo_damping_ratio"].to_numpy()
+    for key, value in (("read_over_bench_rms", _rms(read / bench - 1)), ("span_over_bench_rms", _rms(span / bench - 1)),
+                       ("network_over_bench_rms", _rms(network_points["damping_ratio"].to_numpy() / network_bench - 1)),
+                       ("network_span_error_rms", _rms(alone)), ("creep_min", creep.min()), ("creep_max", creep.max()),
+                       ("predicted_error_rms", _rms(read / predicted - 1)),
+                       ("predicted_error_min", np.min(read / predicted - 1)),
+                       ("predicted_error_max", np.max(read / predicted - 1)),
+                       ("span_alone_error_rms", _rms(read / span - 1)),
+                       ("creep_alone_error_rms", _rms(read / (bench * creep) - 1))):
+        regression.check(key, value, rel=1e-6)
 
 
 def test_stiffness_and_damping_do_not_depend_on_the_preload(tmp_path):
