@@ -1,8 +1,11 @@
 """The documentation's measured figures from one place: the stored full study
-(``analysis/results/summary.json``) and the benchmarks' figures (``benchmarks/results/*.json``),
-rendered into the blocks that the documentation pages (``docs/guide/map.md``,
-``docs/guide/identification.md``, ``docs/benchmarks.md``, ``docs/study.md``) and
-``analysis/README.md`` mark with ``<!-- figures:NAME -->`` ... ``<!-- /figures -->``.
+(``analysis/results/``: ``summary.json``, the calibration's tables, the map command's nested
+cross-validation of Table 4), the benchmarks' figures (``benchmarks/results/*.json`` and the
+printouts ``identify_random.txt``, ``identify_filled_rubber.txt``) and the figures tests store
+(``tests/data/regression/*.json``, ``python tests/regenerate.py``), rendered into the blocks that
+README.md, the documentation pages (:data:`BLOCKS`) and ``analysis/README.md`` mark with
+``<!-- figures:NAME -->`` ... ``<!-- /figures -->``. A measured figure outside a block fails
+``tests/test_doc_figures.py`` unless it is listed there with why it is not today's measurement.
 
     python analysis/readme_figures.py                # re-run the full study and every benchmark,
                                                      # store their results, rewrite the blocks
