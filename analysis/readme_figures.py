@@ -151,10 +151,15 @@ def pct(value: float) -> str:
     return ".2f" if abs(value) < 10 else ".1f"
 
 
-def machine_line(records: list[dict[str, Any]]) -> Block:
-    m = records[0]["machine"]
-    loads = [r["machine"][k] for r in records for k in ("load_average_start", "load_average_end")]
-    return fill(f"Measured {m['date']} on {m['cores']} cores ({m['processor']}, Python {m['python']}), load "
+def machine_line(records: dict[str, dict[str, Any]]) -> Block:
+    """The line above a table of benchmarks: when and on what each was measured (by name), the load."""
+    runs: dict[tuple[str, str], list[str]] = {}
+    for name, r in records.items():
+        runs.setdefault((r["machine"]["date"], r["machine"]["processor"]), []).append(f"`bench_{name}`")
+    when = "; ".join(f"{', '.join(names)} {date} ({processor})" for (date, processor), names in sorted(runs.items()))
+    m = next(iter(records.values()))["machine"]
+    loads = [r["machine"][k] for r in records.values() for k in ("load_average_start", "load_average_end")]
+    return fill(f"Measured on {m['cores']} cores, Python {m['python']}: {when}; load "
                 "average {lo}–{hi}. Times are best-of-N wall times, which other jobs on the machine stretch (the "
                 f"load average says how much): a re-run on this machine class lands within a factor {MACHINE_NOISE:g} "
                 f"of them, CPU times, their ratios and evaluation counts within a factor {CPU_NOISE:g} (the machine "
@@ -169,7 +174,7 @@ def bench_table(stored: dict[str, Any]) -> Block:
     walls = [d["wall_s"] for d in drops]
     ratios = [d["wall_s"] / d["rig_s"] for d in drops]
     elements = " + ".join(core["coupling_elements"])
-    return machine_line([stored[k] for k in BENCHMARKS]) + fill(
+    return machine_line({k: stored[k] for k in ("core", "rig", "extract", "campaign", "identify")}) + fill(
         "\n| benchmark | figure | target |\n|---|---|---|\n"
         "| core, a 32-element rate-dependent elastoslide composition (spring + elastoslide with p = 7 + two Maxwell "
         "branches), 1 s at 38.4 kHz | {c_ms} ms ({c_rt}× real time; CPU time {c_cpu} ms) | ≤ 10 ms |\n"
