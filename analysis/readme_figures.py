@@ -51,7 +51,8 @@ BENCHMARK_RUNS = {"identify_hard": ("bench_identify.py", "--random", "--hard"),
                   "campaign_dask": ("bench_campaign.py", "--dask", "--n", "45000"),
                   "uncertainty_coverage": ("bench_uncertainty_coverage.py", "--campaigns", "2000"),
                   "uncertainty_route": ("bench_uncertainty_route.py", "--campaigns", "1000", "--workers", "2"),
-                  "fresh": ("bench_fresh.py", "--large"), "compile": ("bench_compile.py",)}
+                  "fresh": ("bench_fresh.py", "--large"), "compile": ("bench_compile.py",),
+                  "uncertainty": ("bench_uncertainty.py",)}
 #: figures that tests store (tests/data/regression/<test module>.json, ``python tests/regenerate.py``)
 TEST_FIGURES = ROOT / "tests" / "data" / "regression"
 #: wall times of a re-run on the same shared 2-core machine lie within this factor: they move with the
@@ -772,6 +773,26 @@ def study_tradeoff(stored: dict[str, Any]) -> Block:
                 jt=exact(float(servo_heavy["table4_damping_rms_pct"]), ".0f"))
 
 
+def uncertainty_cost(stored: dict[str, Any]) -> Block:
+    """What the uncertainty budgets of a campaign cost (docs/guide/uncertainty.md), from the stored
+    ``bench_uncertainty.py`` run (CPU times against the campaign's own extraction)."""
+    run = stored["uncertainty"]
+    f, m = run["figures"], run["machine"]
+    ms = 1e3 / f["tests"]
+    return fill(
+        f"On the Table-2 campaign ({f['tests']} drops, J 1 %, laser radius and calibration, torque calibration, clock; "
+        f"`benchmarks/bench_uncertainty.py`, measured {m['date']}, CPU times, stored in "
+        "`benchmarks/results/uncertainty.json`) the GUM alone costs {gum_ms} ms a drop, {gum_r} % of the extraction; "
+        "Monte Carlo on every drop {mc_ms} ms a drop, {mc_r}× the extraction. `campaign_budgets` ran Monte Carlo on "
+        "{mc_n} drops, the budgets cost {cb_r}× the campaign's extraction, and U95 differed from Monte Carlo on the "
+        "drop itself by at most {diff} %.\n",
+        gum_ms=on_cpu(f["gum_only_cpu_s"] * ms, ".2f"), gum_r=on_cpu(100 * f["ratio_gum_to_extraction"], ".0f"),
+        mc_ms=on_cpu(f["monte_carlo_every_drop_cpu_s_scaled"] * ms, ".0f"),
+        mc_r=on_cpu(f["ratio_monte_carlo_every_drop_to_extraction"], ".1f"), mc_n=exact(f["drops_with_monte_carlo"], "d"),
+        cb_r=on_cpu(f["ratio_campaign_budgets_to_extraction"], ".2f"),
+        diff=exact(100 * f["max_relative_difference_U95_vs_monte_carlo_on_the_drop"], ".1f"))
+
+
 def first_cycle_figures(stored: dict[str, Any]) -> Block:
     """The first cycle's two mechanisms on the reference coupling (docs/theory.md#first-cycle), as
     tests/test_nr60_calibration.py stores them (Table 2's 30 fast-loop decays against the bench)."""
@@ -896,6 +917,7 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "map_nested": ("docs/guide/map.md", map_nested),
     "study_random_angle": ("docs/study.md", study_random_angle),
     "study_case_cv": ("docs/study.md", study_case_cv),
+    "uncertainty_cost": ("docs/guide/uncertainty.md", uncertainty_cost),
     "study_tradeoff": ("docs/study.md", study_tradeoff),
     "first_cycle": ("docs/theory.md", first_cycle_figures),
     "filled_rubber": ("docs/theory.md", filled_rubber),

@@ -6,7 +6,7 @@ design decision (it names its date or its before/after and is not offered as tod
 
 A sentence outside the blocks and code fences that holds a number with a unit of time or speed
 (ms, s, min, h, x, ×) or a percentage *and* a word that makes it a measured claim (measured, wall,
-CPU, takes, faster, RMS, per test, real time, ...) must be listed in :data:`ALLOWED`; a new such
+CPU, takes, costs, faster, RMS, per test, real time, ...) must be listed in :data:`ALLOWED`; a new such
 sentence fails until it is rendered from a stored result or listed with its reason."""
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 NUMBER = r"(?<![\w.])\d+(?:[.,]\d+)?(?:\s?[–-]\s?\d+(?:[.,]\d+)?)?"
 FIGURE = re.compile(NUMBER + r"\s?(?:ms|s|min|h|×|x|%)(?!\w)")
 CLAIM = re.compile(r"\b(measured|wall|CPU|takes?|took|faster|slower|real[ -]time|per (?:test|refit|fit|log|file)|"
-                   r"RMS|runs? in|ran in)\b", re.IGNORECASE)
+                   r"RMS|runs? in|ran in|costs?)\b", re.IGNORECASE)
 BLOCK = re.compile(r"<!-- figures:\w+ -->.*?<!-- /figures -->", re.DOTALL)
 FENCE = re.compile(r"```.*?```", re.DOTALL)
 SENTENCE = re.compile(r"(?<=[.;:])\s+|\n\s*\n|\n[-|]")
@@ -37,6 +37,7 @@ ALLOWED: dict[str, list[tuple[str, str]]] = {
         ("On the `rapp2022` rig the rounding step at the l", THEORY),
         ("their Jacobians are thin (tests x a few coeffici", HISTORY),
         ("the manifest, which lists every test, is rewritt", HISTORY),
+        ("the manifest (which lists every test) at most ev", TOLERANCE),
         ("every test extracted, 60.4 kB per test, wall tim", HISTORY),
     ],
     "CONTRIBUTING.md": [
@@ -53,6 +54,7 @@ ALLOWED: dict[str, list[tuple[str, str]]] = {
         ("~80 s of CPU compiling, in seven kernels of 7–13", HISTORY),
         ("`_run_history_parallel` twice, 11 s of CPU (befo", HISTORY),
         ("its IR simplification made them ~23 % faster per", HISTORY),
+        ("not inlining it costs ~45 % of the batch speed", HISTORY),
     ],
     "docs/index.md": [
     ],
@@ -89,6 +91,7 @@ ALLOWED: dict[str, list[tuple[str, str]]] = {
         ("draw #2 on 2026-11-27 (when the `payne` draws' m", HISTORY),
         ("the fit ended (before the change below, 2026-11-", HISTORY),
         ("Two remedies were measured on the 24.8× fit (20", HISTORY),
+        ("the steady twin as a start of the search (its de", HISTORY),
         ("predicted its bench within 0.66 % / 0.65 % RMS o", HISTORY),
     ],
 }
