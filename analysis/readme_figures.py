@@ -793,6 +793,21 @@ def uncertainty_cost(stored: dict[str, Any]) -> Block:
         diff=exact(100 * f["max_relative_difference_U95_vs_monte_carlo_on_the_drop"], ".1f"))
 
 
+def uncertainty_drops(stored: dict[str, Any]) -> Block:
+    """The 95 % intervals' coverage on virtual drops of known truth (docs/guide/uncertainty.md), as
+    tests/test_uncertainty_coverage.py stores it."""
+    c = stored["tests"]["test_uncertainty_coverage"]["test_the_coverage_is_stored"]
+    return fill("On 1000 virtual drops whose rig (J at 1 %, the clock at 100 ppm, the laser's radius ±1 mm and "
+                "calibration, the torque calibration) is drawn from its stated uncertainties, synthesised with the drawn "
+                "rig and extracted with the nominal one, the 95 % intervals hold the true stiffness in {k} % and the true "
+                "frequency in {f} % of the drops; the fit's intervals alone, in {kf} % and {ff} % "
+                "(`tests/test_uncertainty_coverage.py`'s stored figures).\n",
+                k=exact(100 * c["with_inputs_stiffness_nm_per_rad"], ".1f"),
+                f=exact(100 * c["with_inputs_frequency_hz"], ".1f"),
+                kf=exact(100 * c["fit_only_stiffness_nm_per_rad"], ".1f"),
+                ff=exact(100 * c["fit_only_frequency_hz"], ".1f"))
+
+
 def first_cycle_figures(stored: dict[str, Any]) -> Block:
     """The first cycle's two mechanisms on the reference coupling (docs/theory.md#first-cycle), as
     tests/test_nr60_calibration.py stores them (Table 2's 30 fast-loop decays against the bench)."""
@@ -918,6 +933,7 @@ BLOCKS: dict[str, tuple[str, Callable[[dict[str, Any]], Block]]] = {
     "study_random_angle": ("docs/study.md", study_random_angle),
     "study_case_cv": ("docs/study.md", study_case_cv),
     "uncertainty_cost": ("docs/guide/uncertainty.md", uncertainty_cost),
+    "uncertainty_drops": ("docs/guide/uncertainty.md", uncertainty_drops),
     "study_tradeoff": ("docs/study.md", study_tradeoff),
     "first_cycle": ("docs/theory.md", first_cycle_figures),
     "filled_rubber": ("docs/theory.md", filled_rubber),

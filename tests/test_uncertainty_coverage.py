@@ -78,3 +78,14 @@ def test_the_fit_alone_under_covers():
     fit_only = _coverage()[False]
     assert fit_only["stiffness_nm_per_rad"] < 0.5
     assert fit_only["frequency_hz"] < 0.925
+
+
+@pytest.mark.slow
+def test_the_coverage_is_stored(regression):
+    """The shares docs/guide/uncertainty.md states (analysis/readme_figures.py renders them): seeded
+    drops, so the same counts; one drop's interval ending on the other side of its truth under
+    another machine's round-off moves a share by 1/N_DROPS."""
+    shares = _coverage()
+    for on, label in ((True, "with_inputs"), (False, "fit_only")):
+        for name, share in shares[on].items():
+            regression.check(f"{label}_{name}", share, rel=0.0, atol=1.0 / N_DROPS)
