@@ -385,8 +385,8 @@ def model_map_from_identification(ident: Any, decays: list, settings: Any, teste
         band_sets = sigma_point_sets(ident.family_model, ident.params.vector(), free, cov)
     verdict = ident.verdict.to_dict() if ident.verdict is not None else {}
     info = {"model": ident.family, "converged": ident.converged, "verdict": verdict.get("verdict"),
-            "angle_nrmse": ident.fit.get("angle_nrmse"), "tests_used": len(ident.tests_used),
-            "wall_s": ident.time_s,
+            "angle_nrmse": ident.fit_error.get("angle_nrmse"), "tests_used": len(ident.tests_used),
+            "wall_s": ident.wall_s,
             "parameters": {n: {"value": p.value, "std_error": p.stderr} for n, p in ident.params.items()}}
     mm = ModelMap(coupling, ident.family, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
                   source)

@@ -19,7 +19,7 @@ Example::
     from droptower.identify import identify, segments_from_files
     data = segments_from_files(["sweep.csv", "ramps.csv"])
     result = identify("zerodim6", data, holdout=segments_from_files(["random.csv"]))
-    print(result.params.to_frame(), result.fit.nrmse, result.holdout.nrmse)
+    print(result.summary())  # or result.to_dict(), result.params.to_frame()
     ranked = compare_models(data, ["zerodim6", "elastoslide", "pfeffer"], budget_s=60.0)
     print(ranked.ranking, ranked.exit_code())
 """

@@ -435,12 +435,12 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         hold_err = summarise(per_test_errors(hold, sol.values))
     return Identification(
         kind, fitted_parameters(params, sol.values, std, ~given), list(sol.at_bounds), fit_err,
-        family.coupling(sol.values), data=DROPS, holdout=hold_err, derived=family.derived(sol.values),
-        time_s=time.perf_counter() - start, verdict=verdict, family_model=family, message=sol.message,
+        family.coupling(sol.values), data=DROPS, holdout_error=hold_err, derived=family.derived(sol.values),
+        wall_s=time.perf_counter() - start, verdict=verdict, family_model=family, message=sol.message,
         non_identifiable=sol.non_identifiable, tests_used=[decays[i].name for i in fit_idx],
         tests_held_out=[decays[i].name for i in hold_idx], tests_excluded=list(excluded or []), search=search,
-        angle_rss_rad2=rss, angle_samples=n_samples, _converged=bool(sol.converged),
-        _evaluations=problem.counter.evaluations, _nfev=sol.nfev)
+        angle_rss_rad2=rss, angle_samples=n_samples, converged=bool(sol.converged),
+        evaluations=problem.counter.evaluations, nfev=sol.nfev)
 
 
 def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.ndarray, settings: DropFitSettings,

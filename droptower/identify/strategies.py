@@ -90,18 +90,18 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
     if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed, staged=np.array(list(result.parameters.values())))
         searched.verdict = servo_verdict(searched, noise, s.family.parameters, _idle(s.family, searched))
-        searched.extra["staged_fit"] = {"nrmse": result.fit.nrmse, "verdict": result.verdict.verdict}
-        if searched.fit.rmse_nm < result.fit.rmse_nm:
+        searched.extra["staged_fit"] = {"nrmse": result.fit_error.nrmse, "verdict": result.verdict.verdict}
+        if searched.fit_error.rmse_nm < result.fit_error.rmse_nm:
             result = searched
         else:
             result.extra["global_search"] = searched.extra["global_search"]
     if first is not None:
-        result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
+        result.extra["start"] = {"family": inner, "nrmse": first.fit_error.nrmse, "global_search": searched_start,
                                  **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {}),
                                  **({"evaluations": first.evaluations} if start_here else {})}
     if holdout:
         result.evaluate_holdout(holdout)
-    result.time_s = time.perf_counter() - start
+    result.wall_s = time.perf_counter() - start
     return result
 
 
@@ -118,7 +118,7 @@ def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Fi
     parameters of a switched-off part, whose bounds are not bound hits."""
     step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
     hits = bound_hits(parameters, [n for n in result.at_bounds if n not in set(idle or ())])
-    return judge(result.fit.rmse_nm, noise.sigma, "nm", hits, accuracy=step,
+    return judge(result.fit_error.rmse_nm, noise.sigma, "nm", hits, accuracy=step,
                  converged=result.converged)
 
 

@@ -119,7 +119,7 @@ def result_of(s: Setup, segments: list[Segment], x: np.ndarray, stages: list[Fit
 
     return Identification(fam.kind, fitted_parameters(fam.parameters, x, final.std_error, final.free), final.at_bounds,
                           fit or final.metrics, fam.coupling(x), stages=stages, predict=predict,
-                          derived=fam.derived(x), time_s=time.perf_counter() - start, family_model=fam, **kw)
+                          derived=fam.derived(x), wall_s=time.perf_counter() - start, family_model=fam, **kw)
 
 
 # ---------------------------------------------------------------------------- helpers
