@@ -114,7 +114,7 @@ from scipy.optimize import least_squares
 from droptower import load_coupling
 from droptower.errors import DroptowerError
 from droptower.identify import identify, make_segment
-from droptower.identify.compare import DEFAULT_TOTAL_BUDGET_S
+from droptower.identify.ranking import DEFAULT_TOTAL_BUDGET_S
 from droptower.identify.fit import simulate
 from droptower.identify.families import ZeroDim6
 from droptower.identify.families.stages import setup

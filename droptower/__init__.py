@@ -23,7 +23,8 @@ __version__ = "0.1.0"
 #: the curated namespace: name -> (module, name there), imported on first use. The functions
 #: ``extract``, ``identify`` and ``design`` share their names with subpackages (``droptower.extract``,
 #: ``droptower.identify``, ``droptower.design``), which importing either binds here, so they are
-#: reached as ``from droptower.identify import identify``, ``from droptower.design import design``.
+#: reached as ``from droptower.identify import identify``, ``from droptower.design import design``;
+#: here servo identification is ``identify_from_servo_records``, the pair of ``identify_from_drop_tests``.
 _LAZY: dict[str, tuple[str, str]] = {
     # couplings
     "Coupling": ("droptower.rheology", "Coupling"),
@@ -57,8 +58,10 @@ _LAZY: dict[str, tuple[str, str]] = {
     "make_segment": ("droptower.identify", "make_segment"),
     "segments_from_files": ("droptower.identify", "segments_from_files"),
     "read_decays": ("droptower.identify.droplogs", "read_decays"),
-    "identify_drops": ("droptower.identify.dropfit", "identify_drops"),
+    "read_drop_tests": ("droptower.identify", "read_drop_tests"),
+    "identify_from_servo_records": ("droptower.identify", "identify"),
     "identify_from_drop_tests": ("droptower.identify", "identify_from_drop_tests"),
+    "identify_drops": ("droptower.identify.dropfit", "identify_drops"),
     "compare_models": ("droptower.identify", "compare_models"),
     "Comparison": ("droptower.identify", "Comparison"),
     "Identification": ("droptower.identify", "Identification"),

@@ -9,7 +9,7 @@ from droptower.cli.main import main
 from droptower.errors import DroptowerError
 from droptower.identify import compare_models
 from droptower.identify.budget import BudgetExceeded, check, remaining_s, time_budget
-from droptower.identify.compare import EXIT_NONE_FITS, NOT_CONVERGED
+from droptower.identify.ranking import EXIT_NONE_FITS, NOT_CONVERGED
 from droptower.identify.verdict import EXIT_POOR_FIT
 from droptower.rheology import parse_coupling
 from random_couplings import random_truth, servo_records
@@ -114,7 +114,7 @@ def test_the_total_budget_is_shared_the_cheaper_families_first(records, monkeypa
     order of their parameter counts, each gets an equal share of what is left of the total
     budget (its own budget larger), and the whole table is done within the total (each fit
     stops within one check of its share) with every family "not converged"."""
-    import droptower.identify.compare as compare
+    import droptower.identify.ranking as ranking
     from droptower.identify.data import DataScale
     from droptower.identify.families import family_class
 
@@ -126,7 +126,7 @@ def test_the_total_budget_is_shared_the_cheaper_families_first(records, monkeypa
             clock.advance(0.005)  # a core call's time
             check()
 
-    monkeypatch.setattr(compare, "_fit", stall)
+    monkeypatch.setattr(ranking, "_fit", stall)
     kinds = ["zerodim20", "pfeffer", "zerodim6"]
     total = 0.6
     t0 = clock()

@@ -53,7 +53,7 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
                                        sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=results_table,
                                        holdout_fraction=holdout_fraction, options=init.options)
     else:
-        campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
+        campaign = read_drop_tests(data, family=kind, options=init.options, template=template,
                                    holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
                                    lever_length_m=lever_length_m, roles=parse_channel_options(channels),
                                    sensor_radius_m=sensor_radius_m, conditions=conditions_table)
@@ -118,10 +118,10 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         if plot_dir:
             wrote(plot_servo_prediction(table, plot_dir), "servo prediction vs the drop tower's map")
     if not result.converged:
-        raise DroptowerError(f"model {kind}: the fit to the drop tests did not converge ({result.message}); "
+        raise DroptowerError(f"family {kind}: the fit to the drop tests did not converge ({result.message}); "
                              "no coupling written")
     if poor:
-        click.echo(f"droptower: model {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
+        click.echo(f"droptower: family {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
     if out:

@@ -6,7 +6,7 @@
 - :mod:`.families`: one module per model family (parameters, bounds, coupling, and its staged
   strategy), the shared stages in :mod:`.families.stages`;
 - :mod:`.strategies`: :func:`identify` binds a family to the data and runs its strategy;
-- :mod:`.compare`: :func:`compare_models` fits several families, each within a time budget
+- :mod:`.ranking`: :func:`compare_models` fits several families, each within a time budget
   (:mod:`.budget`), and ranks them;
 - :mod:`.report`: JSON / text reports, comparison tables, plots;
 - :mod:`.result`: :class:`Identification`, the one result type of servo and drop-test
@@ -23,7 +23,7 @@ Example::
     ranked = compare_models(data, ["zerodim6", "elastoslide", "pfeffer"], budget_s=60.0)
     print(ranked.ranking, ranked.exit_code())
 """
-from droptower.identify.compare import Comparison, compare_models
+from droptower.identify.ranking import Comparison, compare_models
 from droptower.identify.data import Segment, make_segment, segments_from_files
 from droptower.identify.drops import DropCampaign, identify_from_drop_tests, read_drop_tests
 from droptower.identify.families import FAMILIES

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError
 from droptower.fit_defaults import HOLDOUT_FRACTION
 from droptower.identify.budget import check as check_budget
@@ -310,17 +311,18 @@ def holdout_split(decays: list[DropDecay], fraction: float) -> tuple[list[int], 
     return [i for i in range(n) if i not in hold], hold
 
 
+@renamed_keywords(kind="family")
 @one_blas_thread
-def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
+def identify_drops(family: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
                    settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | Parameters | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    options: dict[str, Any] | None = None) -> Identification:
-    """Fit family ``kind`` (:data:`DROP_KINDS`) to the free decays ``decays``.
+    """Fit family ``family`` (:data:`DROP_KINDS`) to the free decays ``decays``.
 
     Parameters
     ----------
-    kind : str
-        The model family.
+    family : str
+        The model family's name (``kind`` in release 0.1: deprecated).
     decays : list of DropDecay
         The drop tests' free decays (:func:`~droptower.identify.droplogs.read_decays`).
     excluded : list of dict, optional
@@ -341,13 +343,14 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     Returns
     -------
     Identification
-        With ``data`` :data:`~droptower.identify.result.DROPS`: ``fit`` / ``holdout`` the angle
+        With ``data`` :data:`~droptower.identify.result.DROPS`: ``fit_error`` / ``holdout_error`` the angle
         errors (fractions of each test's amplitude) over the fitting / held-out tests.
     """
     start = time.perf_counter()
+    kind = family  # the name; ``family`` below is the family bound to the data's scale
     init, bounds, guesses = split_given(init, bounds)
     if kind not in DROP_KINDS:
-        raise DroptowerError(f"model {kind!r} cannot be identified from drop tests (kinds: {', '.join(DROP_KINDS)})")
+        raise DroptowerError(f"family {kind!r} cannot be identified from drop tests (families: {', '.join(DROP_KINDS)})")
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
