@@ -47,7 +47,7 @@ _LAZY: dict[str, tuple[str, str]] = {
     "fit_map": ("droptower.maps", "fit_map"),
     "MapFit": ("droptower.maps", "MapFit"),
     "run_sweeps": ("droptower.compare", "run_sweeps"),
-    "validate_map": ("droptower.compare", "validate_map"),
+    "compare_with_servo": ("droptower.compare", "compare_with_servo"),
     "validate": ("droptower.compare", "validate"),
     "MapValidation": ("droptower.compare", "MapValidation"),
     "design_campaign": ("droptower.design", "design_campaign"),
@@ -73,4 +73,17 @@ _LAZY: dict[str, tuple[str, str]] = {
 __all__ = ["DroptowerError", "__version__", *_LAZY]  # the table above is the one list of names
 
 
-__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
+#: names of release 0.1 -> their names now, answered with a DeprecationWarning (removed in the next release)
+_RENAMED = {"validate_map": "compare_with_servo"}
+
+_lazy_getattr, __dir__ = lazy_names(__name__, _LAZY, globals())
+
+
+def __getattr__(name: str) -> object:
+    """A curated name on first use (:data:`_LAZY`); an old name of :data:`_RENAMED` with a warning."""
+    if name in _RENAMED:
+        from droptower.deprecation import warn_deprecated
+
+        warn_deprecated(f"droptower.{name}", f"droptower.{_RENAMED[name]}")
+        return _lazy_getattr(_RENAMED[name])
+    return _lazy_getattr(name)

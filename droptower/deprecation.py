@@ -9,6 +9,7 @@ are answered by :mod:`droptower._moved`.
 from __future__ import annotations
 
 import functools
+import inspect
 import warnings
 from typing import Any, Callable, Mapping, TypeVar
 
@@ -35,11 +36,13 @@ def renamed_keywords(**old_to_new: str) -> Callable[[F], F]:
     """
 
     def decorate(func: F) -> F:
+        positions = {name: i for i, name in enumerate(inspect.signature(func).parameters)}
+
         @functools.wraps(func)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             for old, new in old_to_new.items():
                 if old in kwargs:
-                    if new in kwargs:
+                    if new in kwargs or positions.get(new, len(args)) < len(args):
                         raise TypeError(f"{func.__name__}() got {new!r} and its old name {old!r}: give {new!r}")
                     warn_deprecated(f"{func.__name__}({old}=...)", f"{func.__name__}({new}=...)")
                     kwargs[new] = kwargs.pop(old)

@@ -47,7 +47,7 @@ def _previous_start(kind: str, previous: dict[str, Any] | None) -> Any:
     first = (previous or {}).get(inner) if inner else None
     if first is None:
         return None
-    return (inner, fingerprint(list(first.parameters.values())), first.fit.nrmse, first.evaluations,
+    return (inner, fingerprint(list(first.parameters.values())), first.fit_error.nrmse, first.evaluations,
             "global_search" in first.extra)
 
 

@@ -248,12 +248,12 @@ def test_as_dict_is_to_dict_with_a_deprecation_warning():
 
     m = Metrics(2.0, 0.01, 0.1, 100, 200.0)
     v = judge(1.0, 0.5, "nm", [])
-    c = Comparison(pd.DataFrame({"model": ["zerodim6"], "status": ["converged"], "bic": [1.0],
+    c = Comparison(pd.DataFrame({"family": ["zerodim6"], "status": ["converged"], "bic": [1.0],
                                  "verdict": ["good fit"]}, index=[1]), None, {})
     f = FitResult("joint", ["k_nm_per_rad"], np.array([1.0]), np.array([True]), np.array([0.1]), [], m, 3, 1, 5, 2,
                   0.5, True, "ok")
     assert m.to_dict()["rmse_nm"] == 2.0 and v.to_dict()["noise_floor_nm"] == 0.5
-    assert c.to_dict()["ranking"][0]["model"] == "zerodim6" and f.to_dict()["free"] == ["k_nm_per_rad"]
+    assert c.to_dict()["ranking"][0]["family"] == "zerodim6" and f.to_dict()["free"] == ["k_nm_per_rad"]
     for obj, old in ((m, "as_dict"), (v, "as_dict"), (c, "as_dict"), (f, "summary")):
         with pytest.warns(DeprecationWarning, match=f"{type(obj).__name__}.{old}\\(\\) is deprecated"):
             assert getattr(obj, old)() == obj.to_dict()

@@ -63,30 +63,32 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, family: str | No
 
     Parameters
     ----------
-    data
+    data : str, path or list
         Log files, folders of logs or campaign folders.
-    family
+    family : str, optional
         The family to be fitted (``template`` needs ``template``; ``model`` in release 0.1:
         deprecated).
-    options
+    options : dict, optional
         The family's options; the fit's (``substeps``, ``torque_weight``, ``max_nfev``,
         ``seed``, ``conditioning``) and the reading's (``cycles``: periods compared after the
         impact; ``initial_rate``: auto, impulse or slope) are taken out.
-    template
+    template : str, optional
         The coupling (preset name or TOML) whose structure ``template`` fits.
-    holdout_fraction
+    holdout_fraction : float
         Share of the tests held out and predicted.
-    rig
+    rig : str or RigConfig, optional
         Rig TOML, preset or :class:`~droptower.rig.config.RigConfig`: its lever length (m),
         sensor radius (m), inertia (kg*m^2, when it has one lever fixture) and preload
         conditioning fill what the logs do not say.
-    inertia_kgm2, lever_length_m
-        Overrides of the logs' inertia (kg*m^2) and lever length (m).
-    roles
+    inertia_kgm2 : float, optional
+        Override of the logs' inertia (kg*m^2).
+    lever_length_m : float, optional
+        Override of the logs' lever length (m).
+    roles : dict, optional
         Channel role -> ``NAME[:UNIT]`` (e.g. ``{"angle": "Winkel:deg"}``).
-    sensor_radius_m
+    sensor_radius_m : float, optional
         Laser spot radius (m) for a distance channel, over the logs' and the rig's.
-    conditions
+    conditions : Conditions, optional
         Per-file test conditions (:class:`~droptower.io.conditions.Conditions`): each log's
         fixture or inertia, drop mass and height, preload, temperature.
 

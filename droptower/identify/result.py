@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
 
@@ -115,11 +115,12 @@ FORMATS: dict[str, tuple[Callable[["Identification"], dict[str, Any]], Callable[
 #: that does not apply to one kind of data is empty: ``stages`` of drop tests, ``tests_used`` of
 #: servo records). ``noise`` holds the verdict's noise floor and allowance with their unit in
 #: their names (``noise_floor_nm``, ``noise_floor_rad``); ``fit_error`` / ``holdout_error`` the
-#: errors of the data (both with ``nrmse``, the fit's normalised RMS error, a fraction).
+#: errors of the data (both with ``nrmse``, the fit's normalised RMS error, a fraction);
+#: ``uncertainty`` the parameters' budget where the command line computes one (else None).
 RESULT_KEYS = ("family", "data", "units", "converged", "message", "verdict", "reasons", "error_over_noise",
                "noise_ratio_limit", "noise", "n_parameters", "parameters", "derived", "at_bounds", "non_identifiable",
                "fit_error", "holdout_error", "evaluations", "nfev", "wall_s", "search", "stages", "tests_used",
-               "tests_held_out", "tests_excluded", "coupling_note", "coupling_file", "details")
+               "tests_held_out", "tests_excluded", "coupling_note", "coupling_file", "uncertainty", "details")
 
 #: the section headers of :meth:`Identification.summary`, in order, for both kinds of data (as
 #: lmfit's ``fit_report``: a header per section, indented lines under it)
@@ -153,7 +154,7 @@ def result_skeleton(ident: "Identification") -> dict[str, Any]:
         "evaluations": ident.evaluations, "nfev": ident.nfev, "wall_s": ident.wall_s,
         "search": ident.search, "stages": [], "tests_used": ident.tests_used, "tests_held_out": ident.tests_held_out,
         "tests_excluded": ident.tests_excluded, "coupling_note": ident.coupling_note,
-        "coupling_file": ident.coupling_file, "details": {k: val for k, val in ident.extra.items() if k != "global_search"},
+        "coupling_file": ident.coupling_file, "uncertainty": None, "details": {k: val for k, val in ident.extra.items() if k != "global_search"},
     }
 
 
@@ -171,7 +172,7 @@ def report_text(ident: "Identification", data_line: str, error_lines: list[str],
     lines = [SUMMARY_SECTIONS[0],
              f"    family      = {ident.family}",
              f"    data        = {data_line}",
-             f"    converged   = {'yes' if ident.converged else 'NO' + (': ' + ident.message if ident.message else '')}"]
+             f"    converged   = {'yes' if ident.converged else 'NOT CONVERGED' + (': ' + ident.message if ident.message else '')}"]
     if ident.verdict is not None:
         lines += ["    " + line for line in ident.verdict.text().splitlines()]
     lines += [SUMMARY_SECTIONS[1]] + ["    " + line for line in error_lines]
