@@ -29,10 +29,10 @@ from droptower.identify.drops import DropCampaign, identify_from_drop_tests, rea
 from droptower.identify.families import FAMILIES
 from droptower.identify.fit import FitResult
 from droptower.identify.result import Metrics
-from droptower.identify.result import Identification, Parameter, Parameters
+from droptower.identify.result import RESULT_KEYS, SUMMARY_SECTIONS, Identification, Parameter, Parameters
 from droptower.identify.strategies import identify
 from droptower.identify import dropreport, report  # noqa: E402,F401 (they register the result's formats)
 
 __all__ = ["Comparison", "DropCampaign", "FAMILIES", "FitResult", "Identification", "Metrics", "Parameter", "Parameters",
-           "Segment", "compare_models", "identify", "identify_from_drop_tests", "make_segment", "read_drop_tests",
-           "segments_from_files"]
+           "RESULT_KEYS", "SUMMARY_SECTIONS", "Segment", "compare_models", "identify", "identify_from_drop_tests",
+           "make_segment", "read_drop_tests", "segments_from_files"]
