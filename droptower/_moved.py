@@ -29,6 +29,8 @@ MOVED_MODULES: dict[str, str] = {
     "droptower.rig.lever": "droptower.rig.lever_decay",
     # the model ranking: "compare" is the map validation's package
     "droptower.identify.compare": "droptower.identify.ranking",
+    # the campaign read for an identification and the one call, beside the fit (dropfit)
+    "droptower.identify.drops": "droptower.identify.drop_campaign",
 }
 
 

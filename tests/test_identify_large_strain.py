@@ -78,7 +78,7 @@ def test_bearing_predicted_from_its_first_three_blocks():
     whole = make_segment(t, d, f, name="whole record", units="translational")
     cmp = compare_models([fit], ["filled_rubber", "elastoslide", "masing", "pfeffer"], holdout=[whole],
                          budget_s=None, total_budget_s=None)
-    table = cmp.ranking.set_index("model")
+    table = cmp.ranking.set_index("family")
     assert cmp.rule == HOLDOUT_RULE and cmp.best == "filled_rubber"
     assert list(cmp.ranking["family"]) == list(table["holdout_nrmse_percent"].sort_values().index)
     assert table.loc["filled_rubber", "holdout_nrmse_percent"] <= 4.0

@@ -26,7 +26,7 @@ def _identified(torque_weight: float = 0.5, force: bool = True):
     from droptower.extract import SyntheticDrop
     from droptower.identify.dropfit import DropFitSettings
     from droptower.identify.droplogs import ReadSettings, decay_from_signals
-    from droptower.identify.drops import DropCampaign, identify_from_drop_tests
+    from droptower.identify.drop_campaign import DropCampaign, identify_from_drop_tests
     from droptower.io.signals import DropSignals
 
     decays = []

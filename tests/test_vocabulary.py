@@ -226,12 +226,14 @@ def test_every_renamed_keyword_names_a_parameter_that_exists():
             assert new in {"family", "families"}
 
 
-@pytest.mark.parametrize("old, new", [("droptower.identify.compare", "droptower.identify.ranking")])
-def test_a_renamed_module_warns_and_is_the_new_one(old, new, monkeypatch):
+@pytest.mark.parametrize("old, new, name", [("droptower.identify.compare", "droptower.identify.ranking", "compare_models"),
+                                            ("droptower.identify.drops", "droptower.identify.drop_campaign",
+                                             "identify_from_drop_tests")])
+def test_a_renamed_module_warns_and_is_the_new_one(old, new, name, monkeypatch):
     monkeypatch.delitem(sys.modules, old, raising=False)
     with pytest.warns(DeprecationWarning, match=f"{old} is deprecated.*import {new}"):
         module = importlib.import_module(old)
-    assert module is importlib.import_module(new) and module.compare_models.__module__ == new
+    assert module is importlib.import_module(new) and getattr(module, name).__module__ == new
 
 
 @pytest.mark.parametrize("module, old, new", [

@@ -432,7 +432,7 @@ def build_model_map(results: str | Path, fit: Any, *, family: str | None = None,
         The paper's map.
     family : str, optional
         Identify this drop-test family from the logs (``model`` in release 0.1: deprecated)
-        (:func:`~droptower.identify.drops.identify_from_drop_tests`); the map gets 95 % bands,
+        (:func:`~droptower.identify.drop_campaign.identify_from_drop_tests`); the map gets 95 % bands,
         cluster-robust by test.
     template : str, optional
         With ``family="template"``: the coupling whose structure is fitted.
@@ -440,7 +440,7 @@ def build_model_map(results: str | Path, fit: Any, *, family: str | None = None,
         Instead of ``family``: a coupling file as it is, or the JSON of a drop-test
         identification that wrote one (no bands: no covariance).
     campaign : DropCampaign, optional
-        The logs already read (:func:`~droptower.identify.drops.read_drop_tests`).
+        The logs already read (:func:`~droptower.identify.drop_campaign.read_drop_tests`).
     on_note : callable, optional
         Called with a note: the excluded logs, a poor fit.
     on_progress : callable, optional
@@ -485,7 +485,7 @@ def build_model_map(results: str | Path, fit: Any, *, family: str | None = None,
             coupling_file = Path(doc["coupling_file"])
         mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
     else:
-        from droptower.identify.drops import identify_from_drop_tests
+        from droptower.identify.drop_campaign import identify_from_drop_tests
 
         if campaign is None:
             campaign = read_logs_for_model(results, family, template=template, rig=rig, roles=roles,
@@ -522,7 +522,7 @@ def read_logs_for_model(results: str | Path, family: str, *, template: str | Non
                         conditions: Any = None, table: pd.DataFrame | None = None, holdout_fraction: float = 0.0,
                         options: dict[str, Any] | None = None, inertia_kgm2: float | None = None,
                         lever_length_m: float | None = None) -> Any:
-    """The drop tests a model-based map identifies from (:func:`~droptower.identify.drops.read_drop_tests`):
+    """The drop tests a model-based map identifies from (:func:`~droptower.identify.drop_campaign.read_drop_tests`):
     a campaign folder's ``logs/`` with its own rig (unless ``rig``), a lab's folder of logs (the
     conditions table beside them left out), or the logs a results table names (``file``),
     each with the inertia its row gives where no ``conditions`` do.
@@ -548,7 +548,7 @@ def read_logs_for_model(results: str | Path, family: str, *, template: str | Non
     holdout_fraction : float
         Share of the tests held out (0 for a map: every test fits).
     options : dict, optional
-        The family's, the fit's and the reading's options (as :func:`~droptower.identify.drops.read_drop_tests`).
+        The family's, the fit's and the reading's options (as :func:`~droptower.identify.drop_campaign.read_drop_tests`).
     inertia_kgm2, lever_length_m : float, optional
         Every log's inertia (kg*m^2) and lever length (m), over what the logs, the table and the rig say.
 
@@ -557,7 +557,7 @@ def read_logs_for_model(results: str | Path, family: str, *, template: str | Non
     DropCampaign
         The decays, the excluded logs with their reasons, the settings.
     """
-    from droptower.identify.drops import DropCampaign, read_drop_tests
+    from droptower.identify.drop_campaign import DropCampaign, read_drop_tests
     from droptower.maps.fromlogs import log_files
 
     results = Path(results)

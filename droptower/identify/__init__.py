@@ -11,8 +11,9 @@
 - :mod:`.report`: JSON / text reports, comparison tables, plots;
 - :mod:`.result`: :class:`Identification`, the one result type of servo and drop-test
   identification, with lmfit-like :class:`Parameters`;
-- :mod:`.drops`: :func:`identify_from_drop_tests`, a model from drop-test logs in one call
-  (:mod:`.dropfit` the fit, :mod:`.dropreport` its report and servo prediction).
+- :mod:`.drop_campaign`: :func:`read_drop_tests` and :func:`identify_from_drop_tests`, a model
+  from drop-test logs in one call (:mod:`.dropfit` the fit, :mod:`.dropreport` its report and
+  servo prediction).
 
 Example::
 
@@ -25,7 +26,7 @@ Example::
 """
 from droptower.identify.ranking import Comparison, compare_models
 from droptower.identify.data import Segment, make_segment, segments_from_files
-from droptower.identify.drops import DropCampaign, identify_from_drop_tests, read_drop_tests
+from droptower.identify.drop_campaign import DropCampaign, identify_from_drop_tests, read_drop_tests
 from droptower.identify.families import FAMILIES
 from droptower.identify.fit import FitResult
 from droptower.identify.result import Metrics

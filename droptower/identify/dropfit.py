@@ -109,7 +109,7 @@ class DropFitSettings:
 #: Options of the fit among a family's options: each sets the :class:`DropFitSettings` field of
 #: its name (``conditioning``: False for a virgin coupling).
 FIT_OPTIONS = ("substeps", "torque_weight", "max_nfev", "seed", "conditioning")
-#: Options of reading the logs (:func:`~droptower.identify.drops.read_drop_tests`): refused by a
+#: Options of reading the logs (:func:`~droptower.identify.drop_campaign.read_drop_tests`): refused by a
 #: fit of decays already read, which could not honour them.
 READ_OPTIONS = ("cycles", "initial_rate", "skip_s")
 
@@ -362,7 +362,7 @@ def identify_drops(family: str, decays: list[DropDecay], *, excluded: list[dict[
     params, x0, given = family.parameters, s.x0, s.given
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
-        raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
+        raise DroptowerError(f"every parameter of family {kind} has a given initial value: nothing to fit")
     # a family's deferred parameters (a part it switches off first): held off in the first
     # search, freed in the wider one after a poor verdict
     deferred = np.isin(family.names, family.DEFERRED) & free

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError
-from droptower.identify.drops import DropCampaign
+from droptower.identify.drop_campaign import DropCampaign
 from droptower.identify.result import DROPS, Identification, register_format, report_text, result_skeleton
 
 #: The servo grid of the prediction: amplitudes x frequencies, log-spaced over the tested range.

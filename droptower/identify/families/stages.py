@@ -88,7 +88,7 @@ def setup_family(family: Family, init: dict[str, float] | None = None,
         if unknown:
             units = family.scale.units  # named as the user names them for these records
             raise DroptowerError(f"unknown parameter(s) {', '.join(field_name(n, units) for n in unknown)} in the "
-                                 f"{what} for model {kind} (parameters: "
+                                 f"{what} for family {kind} (parameters: "
                                  f"{', '.join(field_name(n, units) for n in names)})", file=file)
     bounded = np.zeros(len(names), bool)
     for name, (lo, hi) in (bounds or {}).items():
