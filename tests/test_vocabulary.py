@@ -258,6 +258,15 @@ def test_validate_map_warns_and_compares_with_the_servo(monkeypatch):
         assert map_vs_servo.validate_map(1, 2) == ("compared", 1, 2)
 
 
+def test_as_dict_is_to_dict_with_a_warning_on_the_extraction_result_too(monkeypatch):
+    from droptower.extract.result import ExtractionResult
+
+    monkeypatch.setattr(ExtractionResult, "to_dict", lambda self: {"stiffness_nm_per_deg": 1.0})
+    r = object.__new__(ExtractionResult)  # what is tested is the old name's route, not an extraction
+    with pytest.warns(DeprecationWarning, match=r"ExtractionResult.as_dict\(\) is deprecated.*to_dict\(\)"):
+        assert r.as_dict() == {"stiffness_nm_per_deg": 1.0}
+
+
 def test_the_design_names_its_family(monkeypatch):
     import pandas as pd
 
