@@ -41,9 +41,9 @@ def _names(page: str, start: str, end: str) -> set[str]:
 
 #: (page, opening phrase, closing phrase, the registry the list must equal, names in the span that are not list items)
 LISTS = {
-    "identify's families": ("guide/identification.md", "KIND: `zerodim6`", "Every fit is bounded",
+    "identify's families": ("guide/identification.md", "The family (`--family`, `family=` in Python): `zerodim6`", "Every fit is bounded",
                             set(FAMILIES), {"rapp2022_nr60"}),
-    "identify --from-drop-tests' families": ("guide/identification.md", "KIND: `elastoslide`",
+    "identify --from-drop-tests' families": ("guide/identification.md", "The family: `elastoslide`",
                                              "(e.g. the composition", set(DROP_KINDS), set()),
     "the families fitted from servo records only": ("guide/identification.md", "or `template` (e.g.",
                                                     "fit servo records only", set(FAMILIES) - set(DROP_KINDS),
