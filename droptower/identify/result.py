@@ -166,7 +166,8 @@ def report_text(ident: "Identification", data_line: str, error_lines: list[str],
     min, max, at-bound and held marks; the derived quantities), the search, the effort, and the
     data's ``details``. ``name_of`` names a parameter for the data's units."""
     rows = [(name_of(n), p.value, p.stderr, p.min, p.max,
-             "at bound" if n in ident.at_bounds else ("held" if not p.vary else ""), unit_of(name_of(n)))
+             "at bound" if n in ident.at_bounds else ("held" if not p.vary else ""),
+             p.unit if name_of(n) == n else unit_of(name_of(n)))
             for n, p in ident.params.items()]
     width = max([len(r[0]) for r in rows] + [len(name_of(n)) for n in ident.derived] + [4])
     lines = [SUMMARY_SECTIONS[0],
@@ -416,8 +417,10 @@ class Identification:
     """The result of identifying one model family, from servo records or from drop tests: one
     type, one schema (:meth:`to_dict`), one text report (:meth:`summary`) for both.
 
-    Parameters and attributes
-    -------------------------
+    The constructor takes each attribute below by its name (the first six also by position).
+
+    Attributes
+    ----------
     family : str
         The family's name (``zerodim6``, ``template``, ...).
     params : Parameters
