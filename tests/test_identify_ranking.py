@@ -66,8 +66,8 @@ def test_noise_floor_is_recovered_from_the_data(seed):
 
 
 def _fake(n_parameters, predict):
-    return SimpleNamespace(n_parameters=n_parameters, predict=predict, fit=Metrics(1.0, 0.01, 0.0, 1, 1.0),
-                           holdout=None, time_s=1.0, evaluations=1, converged=True, verdict=None)
+    return SimpleNamespace(n_parameters=n_parameters, predict=predict, fit_error=Metrics(1.0, 0.01, 0.0, 1, 1.0),
+                           holdout_error=None, wall_s=1.0, evaluations=1, converged=True, verdict=None)
 
 
 def test_a_systematic_misfit_does_not_win_by_its_correlated_residual():
