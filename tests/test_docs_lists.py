@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 import pytest
 
-from droptower.cli.identify_cmd import DROP_MODEL_KINDS, MODEL_KINDS
+from droptower.cli.identify_cmd import DROP_FAMILY_NAMES, FAMILY_NAMES
 from droptower.identify.dropfit import DROP_KINDS
 from droptower.identify.families import FAMILIES
 from droptower.report.run import FLAG_REASONS
@@ -67,8 +67,8 @@ def test_docs_list_matches_the_code(what):
 
 
 def test_the_command_lines_family_choices_are_the_registries():
-    assert set(MODEL_KINDS) | {"template"} == set(FAMILIES)
-    assert set(DROP_MODEL_KINDS) | {"template"} == set(DROP_KINDS)
+    assert set(FAMILY_NAMES) | {"template"} == set(FAMILIES)
+    assert set(DROP_FAMILY_NAMES) | {"template"} == set(DROP_KINDS)
 
 
 def test_every_element_kind_has_its_theory():

@@ -30,9 +30,9 @@ from droptower.cli.flags import cli_text
 
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
-MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
+FAMILY_NAMES = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
 #: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_KINDS)
-DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
+DROP_FAMILY_NAMES = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
 
 
 class InitFile(StrictModel):
@@ -110,7 +110,7 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float,
 @click.command()
 @quiet_option
 @click.argument("data", nargs=-1, required=True, type=click.Path(readable=False))
-@renamed_option("--family", "--model", "kind", required=True, announce=True, type=click.Choice(MODEL_KINDS + ("template",)),
+@renamed_option("--family", "--model", "kind", required=True, announce=True, type=click.Choice(FAMILY_NAMES + ("template",)),
                 help="Model family (required).")
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque; or displacement, force); repeatable.")
@@ -261,8 +261,8 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
                    "fitting data beside it).")
 @record_time_options
 @renamed_option("--families", "--models", "models", announce=True,
-                help=f"Families to fit, comma-separated (default: {', '.join(MODEL_KINDS)}; with --from-drop-tests "
-                   f"{', '.join(DROP_MODEL_KINDS)}, and template with --template).")
+                help=f"Families to fit, comma-separated (default: {', '.join(FAMILY_NAMES)}; with --from-drop-tests "
+                   f"{', '.join(DROP_FAMILY_NAMES)}, and template with --template).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the ranking to this table (.csv, .parquet, .json, .xlsx) and the per-record table "
                    "beside it (<name>_per_record.<suffix>).")
@@ -328,8 +328,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     from droptower.identify.report import plot_comparison
     from droptower.io.tables import check_table_path, write_table
 
-    known = DROP_MODEL_KINDS + ("template",) if drops else MODEL_KINDS
-    default = DROP_MODEL_KINDS + (("template",) if template else ()) if drops else MODEL_KINDS
+    known = DROP_FAMILY_NAMES + ("template",) if drops else FAMILY_NAMES
+    default = DROP_FAMILY_NAMES + (("template",) if template else ()) if drops else FAMILY_NAMES
     kinds = [k.strip() for k in models.split(",") if k.strip()] if models is not None else list(default)
     unknown = [k for k in kinds if k not in known]
     if unknown or not kinds:
