@@ -139,7 +139,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
              lever_length_m: float | None, sensor_radius_m: float | None, conditions: str | None,
              condition_columns: tuple[str, ...], conditions_pattern: str | None, predict_servo: str | None,
              verbose: bool, accept_poor: bool, uncertainty_specs: tuple[str, ...] = ()) -> None:
-    """Identify a coupling model of family --family from imposed-angle / measured-torque DATA,
+    """Identify a coupling model (its family given by --family) from imposed-angle / measured-torque DATA,
     or imposed-displacement / measured-force DATA (translational: mounts, bushings, dampers;
     any length and force units, e.g. mm, in, kN, kip; parameters then named k1_n_per_m, ...
     and --out writes a coupling with units = "translational", in N/m and N*s/m).
