@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings, strategies as st
 
 import droptower
 from droptower import load_coupling
@@ -71,6 +72,46 @@ def test_servo_and_drop_identifications_serialise_to_one_schema():
                                                                                        "noise_allowance_rad"}
     assert servo["holdout_error"]["nrmse"] == 0.012 and drops["holdout_error"] is None
     assert drops["search"] == {"candidates": 64, "local_fits": 3} and servo["search"] == {}
+
+
+@st.composite
+def parameter_sets(draw):
+    """Up to 6 parameters with unit-suffixed names, finite or NaN standard errors, bounds, some
+    held, some on a bound."""
+    p = Parameters()
+    for i in range(draw(st.integers(1, 6))):
+        lo = draw(st.floats(-1e6, 1e6))
+        hi = lo + draw(st.floats(1e-3, 1e6))
+        value = draw(st.floats(lo, hi))
+        err = draw(st.one_of(st.just(math.nan), st.floats(0.0, 1e3)))
+        p.add(f"x{i}_{draw(st.sampled_from(['s', 'nm_per_rad', 'per_nm', 'hz']))}", value, stderr=err, min=lo, max=hi,
+              vary=draw(st.booleans()))
+    at = [n for n in p if draw(st.booleans())]
+    return p, at
+
+
+@settings(max_examples=60, derandomize=True, deadline=None)
+@given(parameter_sets())
+def test_every_parameter_set_serialises_and_prints_alike_for_both_kinds_of_data(drawn):
+    params, at_bounds = drawn
+    for make in (servo_result, drop_result):
+        r = make()
+        r.params, r.at_bounds = Parameters.of(list(params.values())), at_bounds
+        doc = json.loads(json.dumps(r.to_dict(), allow_nan=False))
+        assert list(doc) == list(RESULT_KEYS) and doc["n_parameters"] == len(params)
+        for name, p in params.items():
+            entry = doc["parameters"][name]
+            assert entry["value"] == p.value and entry["min"] == p.min and entry["max"] == p.max
+            assert entry["stderr"] == (p.stderr if math.isfinite(p.stderr) else None)
+            assert entry["vary"] is p.vary and entry["at_bound"] is (name in at_bounds) and entry["unit"] == p.unit
+        text = r.summary()
+        assert _sections(text) == list(SUMMARY_SECTIONS)
+        lines = [line for line in text.splitlines() if line.startswith("    x")]
+        assert [line.split()[0] for line in lines] == list(params)
+        for line, p in zip(lines, params.values()):
+            assert float(line.split()[1]) == pytest.approx(p.value, rel=1e-5, abs=1e-300)
+            assert line.endswith("(at bound)") is (p.name in at_bounds)
+            assert line.endswith("(held)") is (p.name not in at_bounds and not p.vary)
 
 
 def test_a_format_that_strays_from_the_schema_is_refused(monkeypatch):
