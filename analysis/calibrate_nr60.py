@@ -55,7 +55,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from droptower.campaign import run_campaign
-from droptower.compare import run_sweeps, validate_map
+from droptower.compare import compare_with_servo, run_sweeps
 from droptower.compare.reference_map import compare_reference
 from droptower.data import table4_path
 from droptower.damped_cosine import fit_decay, start_frequency_and_decay
@@ -288,7 +288,7 @@ def pipeline_figures(coupling: Coupling, table: pd.DataFrame, folder: Path) -> d
     their own points (map-free), the loss-factor ratio, the third harmonic and the speed."""
     results = pipeline_results(coupling, folder)
     _, t4 = compare_reference(table, results=results)
-    validation = validate_map(fit_map(results), run_sweeps(coupling, reduced=False))
+    validation = compare_with_servo(fit_map(results), run_sweeps(coupling, reduced=False))
     inside = validation.summary["inside"]
     servo = servo_at(coupling, results)
     rubber = rubber_figures(coupling)

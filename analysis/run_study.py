@@ -39,7 +39,7 @@ from matplotlib.ticker import NullFormatter, ScalarFormatter
 
 from droptower.campaign import run_campaign
 from droptower.campaign.folder import write_json
-from droptower.compare import compare_reference, format_comparison, format_summary, run_sweeps, validate_map
+from droptower.compare import compare_reference, compare_with_servo, format_comparison, format_summary, run_sweeps
 from droptower.compare.files import write_csv, write_validation
 from droptower.compare.mapfree import MapFreeCheck, format_check, run_check
 from droptower.configs import DEFAULT_COUPLING, DEFAULT_DOE, DEFAULT_RIG, preset_dir, read_toml, resolve
@@ -153,7 +153,7 @@ def run_study(out: Path, reduced: bool = False, coupling: str = DEFAULT_COUPLING
 
     # 3. servo validation (docs/theory.md#servo, #damping-measures)
     points = run_sweeps(run.spec.coupling, reduced=reduced)
-    validation = validate_map(fit, points)
+    validation = compare_with_servo(fit, points)
     write_validation(out, validation, fit, points)
 
     # 3b. map-free check: drop tests placed on the servo points inside the tested hull

@@ -111,10 +111,10 @@ def identification(rig, coupling, n_variants: int) -> None:
                                       reference=REFERENCE_PLAN)
     t_design = time.perf_counter() - t0
     p = ident.parameters
-    better = int(np.sum(p["std_error"] < p["reference_std_error"]))
+    better = int(np.sum(p["stderr"] < p["reference_stderr"]))
     print(f"design --for-identification template, 12 drops: {t_design:.1f} s; predicted standard errors smaller than "
           f"the 12-drop reference plan's for {better} of {len(p)} parameters (geometric mean ratio "
-          f"{np.exp(np.mean(np.log(p['std_error'] / p['reference_std_error']))):.2f})")
+          f"{np.exp(np.mean(np.log(p['stderr'] / p['reference_stderr']))):.2f})")
     rng = np.random.default_rng(2026)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

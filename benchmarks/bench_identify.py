@@ -114,7 +114,7 @@ from scipy.optimize import least_squares
 from droptower import load_coupling
 from droptower.errors import DroptowerError
 from droptower.identify import identify, make_segment
-from droptower.identify.compare import DEFAULT_TOTAL_BUDGET_S
+from droptower.identify.ranking import DEFAULT_TOTAL_BUDGET_S
 from droptower.identify.fit import simulate
 from droptower.identify.families import ZeroDim6
 from droptower.identify.families.stages import setup
@@ -161,8 +161,8 @@ def run(kind: str, truth, scale: float) -> tuple[float, object, list, float]:
     wall = time.perf_counter() - t0
     print(f"{kind}: {seconds:.1f} s of {FS:g} Hz data: {wall:.2f} s wall, {result.evaluations} model evaluations, "
           f"{result.nfev} optimiser steps, converged {result.converged}")
-    print(f"    fit nRMSE {100 * result.fit.nrmse:.3f} %, hold-out RMSE {result.holdout.rmse_nm:.3f} N*m "
-          f"(noise {sigma:.3f} N*m: ratio {result.holdout.rmse_nm / sigma:.3f})")
+    print(f"    fit nRMSE {100 * result.fit_error.nrmse:.3f} %, hold-out RMSE {result.holdout_error.rmse_nm:.3f} N*m "
+          f"(noise {sigma:.3f} N*m: ratio {result.holdout_error.rmse_nm / sigma:.3f})")
     for s in result.stages:
         print(f"    stage {s.stage}: {s.time_s:.2f} s, {s.evaluations} evaluations, {s.core_calls} core calls")
     return wall, result, data, seconds
@@ -224,8 +224,8 @@ def drops() -> dict[str, dict[str, float]]:
             agree = servo_agreement(result.coupling, truth, decays)
             print(f"drops {kind}: {len(decays)} tests used ({len(excluded)} excluded), converged {result.converged}, "
                   f"{wall:.1f} s wall / {cpu:.1f} s CPU ({result.evaluations} evaluations), angle nRMSE fit "
-                  f"{100 * result.fit['angle_nrmse']:.3f} % / hold-out "
-                  f"{100 * result.holdout['angle_nrmse']:.3f} %; servo grid: K' {100 * agree['storage_stiffness_rms']:.2f} % "
+                  f"{100 * result.fit_error['angle_nrmse']:.3f} % / hold-out "
+                  f"{100 * result.holdout_error['angle_nrmse']:.3f} %; servo grid: K' {100 * agree['storage_stiffness_rms']:.2f} % "
                   f"RMS (max {100 * agree['storage_stiffness_max']:.2f} %), loss factor "
                   f"{100 * agree['loss_factor_rms']:.2f} % RMS (max {100 * agree['loss_factor_max']:.2f} %); "
                   f"baseline: the rig simulating the 12 tests {t_rig:.1f} s -> ratio {wall / t_rig:.1f}; targets "
@@ -260,7 +260,7 @@ def table2() -> dict[str, float]:
             w0, c0 = time.perf_counter(), time.process_time()
             other = identify_drops(kind, decays, excluded=excluded)
             families[kind] = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0,
-                              "angle_nrmse_fit_pct": 100 * other.fit["angle_nrmse"],
+                              "angle_nrmse_fit_pct": 100 * other.fit_error["angle_nrmse"],
                               "escalated": bool(other.search.get("escalated")), "verdict": other.verdict.verdict}
             print(f"Table 2: {kind}: {families[kind]['wall_s']:.1f} s wall / {families[kind]['cpu_s']:.1f} s CPU, angle "
                   f"nRMSE fit {families[kind]['angle_nrmse_fit_pct']:.3f} % ({other.verdict.verdict}); baseline the "
@@ -268,12 +268,12 @@ def table2() -> dict[str, float]:
                   f"{'met' if families[kind]['wall_s'] <= 60 else 'MISSED'}", flush=True)
     print(f"Table 2: {len(decays)} tests ({len(excluded)} excluded), template rapp2022_nr60: converged "
           f"{result.converged}, {wall:.1f} s ({result.evaluations} evaluations), angle nRMSE fit "
-          f"{100 * result.fit['angle_nrmse']:.3f} %, hold-out {100 * result.holdout['angle_nrmse']:.3f} %; "
+          f"{100 * result.fit_error['angle_nrmse']:.3f} %, hold-out {100 * result.holdout_error['angle_nrmse']:.3f} %; "
           f"baseline: the campaign itself (simulate, log, extract) {t_campaign:.1f} s -> ratio {wall / t_campaign:.1f}; "
           f"target <= 300 s: {'met' if wall <= 300 else 'MISSED'}")
     return {"tests": len(decays), "wall_s": wall, "evaluations": result.evaluations, "campaign_s": t_campaign,
-            "angle_nrmse_fit_pct": 100 * result.fit["angle_nrmse"],
-            "angle_nrmse_holdout_pct": 100 * result.holdout["angle_nrmse"], "families": families}
+            "angle_nrmse_fit_pct": 100 * result.fit_error["angle_nrmse"],
+            "angle_nrmse_holdout_pct": 100 * result.holdout_error["angle_nrmse"], "families": families}
 
 
 def zerodim20_data() -> dict[str, list]:
@@ -306,7 +306,7 @@ def zerodim20_fits() -> dict[str, dict[str, float]]:
             search = result.extra.get("global_search")
             print(f"  {kind}{' (alone)' if kind == 'zerodim20' and not kw else ''}: {wall:.1f} s wall / {cpu:.1f} s "
                   f"CPU, {result.evaluations} evaluations, converged {result.converged}, {result.verdict.verdict} "
-                  f"(fit nRMSE {100 * result.fit.nrmse:.3f} %, {result.verdict.error_over_noise:.2f} x the noise)"
+                  f"(fit nRMSE {100 * result.fit_error.nrmse:.3f} %, {result.verdict.error_over_noise:.2f} x the noise)"
                   + (f", global search: {search['candidates']} candidates, {search['local_fits']} local fits"
                      if search else ""))
             return result, wall, cpu
@@ -374,7 +374,7 @@ def random_acceptance(n: int, families: list[str], servo: bool = True, drops_: b
                     w0, c0 = time.perf_counter(), time.process_time()
                     result = identify(kind, data, holdout=held, options=options)
                     row["servo_wall_s"], row["servo_cpu_s"] = time.perf_counter() - w0, time.process_time() - c0
-                    row.update(servo_holdout=result.holdout.nrmse, servo_ok=result.holdout.nrmse <= 0.01,
+                    row.update(servo_holdout=result.holdout_error.nrmse, servo_ok=result.holdout_error.nrmse <= 0.01,
                                servo_verdict=result.verdict.verdict)
                 rows.append(row)
                 print(f"  {kind} #{i}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
@@ -524,7 +524,7 @@ def filled_rubber_table2(campaign: str | None) -> dict[str, dict[str, float]]:
 
     from droptower.campaign import run_campaign
     from droptower.compare.servo_points import run_sweeps
-    from droptower.compare.map_vs_servo import validate_map
+    from droptower.compare.map_vs_servo import compare_with_servo
     from droptower.identify.dropfit import identify_drops
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.maps import fit_map
@@ -537,7 +537,7 @@ def filled_rubber_table2(campaign: str | None) -> dict[str, dict[str, float]]:
         decays, excluded = read_decays([campaign], ReadSettings())
         paper = fit_map(Path(campaign) / "results.parquet")
     points = run_sweeps(truth)
-    inside = validate_map(paper, points).summary["inside"]
+    inside = compare_with_servo(paper, points).summary["inside"]
     figures = {"paper_map": {"points": inside["n_points"], "storage_stiffness_rms_pct": inside["stiffness_rms_deviation_pct"],
                              "loss_factor_rms_pct": inside["loss_factor_rms_deviation_pct"],
                              "damping_ratio_rms_pct": inside["damping_rms_deviation_pct"]}}

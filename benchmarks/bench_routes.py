@@ -105,7 +105,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from droptower.campaign import run_campaign
-    from droptower.compare import run_sweeps, validate_map
+    from droptower.compare import compare_with_servo, run_sweeps
     from droptower.compare.model_map import PAPER_ROUTE, model_map_from_identification, route_name
     from droptower.compare.map_vs_servo import validate_routes
     from droptower.identify.dropfit import DROP_KINDS, DropFitSettings, identify_drops
@@ -137,7 +137,7 @@ def main() -> None:
         figures.update(tests=len(results), campaign_s=t_campaign, bench_sweeps_s=t_bench)
         print(f"campaign: {len(results)} tests of {COUPLING} in {t_campaign:.1f} s (the baseline); servo sweeps on the "
               f"bench {t_bench:.1f} s; {len(decays)} decays read ({len(excluded)} excluded)")
-        v = validate_map(paper, points)
+        v = compare_with_servo(paper, points)
         lever, laser = nominal_geometry(decays)
         inputs = stated(results["inertia_kgm2"], lever, laser, 1.0 / decays[0].dt_s)
         figures["stated_inputs"] = dict(STATED_FIGURES)

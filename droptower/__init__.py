@@ -23,7 +23,8 @@ __version__ = "0.1.0"
 #: the curated namespace: name -> (module, name there), imported on first use. The functions
 #: ``extract``, ``identify`` and ``design`` share their names with subpackages (``droptower.extract``,
 #: ``droptower.identify``, ``droptower.design``), which importing either binds here, so they are
-#: reached as ``from droptower.identify import identify``, ``from droptower.design import design``.
+#: reached as ``from droptower.identify import identify``, ``from droptower.design import design``;
+#: here servo identification is ``identify_from_servo_records``, the pair of ``identify_from_drop_tests``.
 _LAZY: dict[str, tuple[str, str]] = {
     # couplings
     "Coupling": ("droptower.rheology", "Coupling"),
@@ -46,7 +47,7 @@ _LAZY: dict[str, tuple[str, str]] = {
     "fit_map": ("droptower.maps", "fit_map"),
     "MapFit": ("droptower.maps", "MapFit"),
     "run_sweeps": ("droptower.compare", "run_sweeps"),
-    "validate_map": ("droptower.compare", "validate_map"),
+    "compare_with_servo": ("droptower.compare", "compare_with_servo"),
     "validate": ("droptower.compare", "validate"),
     "MapValidation": ("droptower.compare", "MapValidation"),
     "design_campaign": ("droptower.design", "design_campaign"),
@@ -57,8 +58,10 @@ _LAZY: dict[str, tuple[str, str]] = {
     "make_segment": ("droptower.identify", "make_segment"),
     "segments_from_files": ("droptower.identify", "segments_from_files"),
     "read_decays": ("droptower.identify.droplogs", "read_decays"),
-    "identify_drops": ("droptower.identify.dropfit", "identify_drops"),
+    "read_drop_tests": ("droptower.identify", "read_drop_tests"),
+    "identify_from_servo_records": ("droptower.identify", "identify"),
     "identify_from_drop_tests": ("droptower.identify", "identify_from_drop_tests"),
+    "identify_drops": ("droptower.identify.dropfit", "identify_drops"),
     "compare_models": ("droptower.identify", "compare_models"),
     "Comparison": ("droptower.identify", "Comparison"),
     "Identification": ("droptower.identify", "Identification"),
@@ -70,4 +73,17 @@ _LAZY: dict[str, tuple[str, str]] = {
 __all__ = ["DroptowerError", "__version__", *_LAZY]  # the table above is the one list of names
 
 
-__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
+#: names of release 0.1 -> their names now, answered with a DeprecationWarning (removed in the next release)
+_RENAMED = {"validate_map": "compare_with_servo"}
+
+_lazy_getattr, __dir__ = lazy_names(__name__, _LAZY, globals())
+
+
+def __getattr__(name: str) -> object:
+    """A curated name on first use (:data:`_LAZY`); an old name of :data:`_RENAMED` with a warning."""
+    if name in _RENAMED:
+        from droptower.deprecation import warn_deprecated
+
+        warn_deprecated(f"droptower.{name}", f"droptower.{_RENAMED[name]}")
+        return _lazy_getattr(_RENAMED[name])
+    return _lazy_getattr(name)

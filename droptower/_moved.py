@@ -16,7 +16,7 @@ import sys
 import warnings
 from types import ModuleType
 
-#: old dotted module name -> its new one (renamed in 0.2; the old names go in the release after)
+#: old dotted module name -> its new one (each goes in the release after its rename)
 MOVED_MODULES: dict[str, str] = {
     "droptower.validation": "droptower.config_validation",
     "droptower.compare.validation": "droptower.compare.map_vs_servo",
@@ -27,6 +27,10 @@ MOVED_MODULES: dict[str, str] = {
     "droptower.extract.impact": "droptower.extract.impact_detection",
     "droptower.maps.fit": "droptower.maps.fitting",
     "droptower.rig.lever": "droptower.rig.lever_decay",
+    # the model ranking: "compare" is the map validation's package
+    "droptower.identify.compare": "droptower.identify.ranking",
+    # the campaign read for an identification and the one call, beside the fit (dropfit)
+    "droptower.identify.drops": "droptower.identify.drop_campaign",
 }
 
 

@@ -3,7 +3,7 @@ share of a drop campaign held out of the fit.
 
 A module of its own (no imports), as :mod:`droptower.rates`, so that the command line shows
 them as its defaults without loading the identification (its help stays fast);
-:mod:`droptower.identify.compare` and :mod:`droptower.identify.dropfit` use them.
+:mod:`droptower.identify.ranking` and :mod:`droptower.identify.dropfit` use them.
 """
 from __future__ import annotations
 

@@ -139,7 +139,7 @@ def route_campaign(seed: int, drops_per_fixture: int = 1, stated: RigUncertainty
     """One virtual campaign through the package's model route: a Kelvin-Voigt coupling's drops on
     a rig drawn from ``stated`` (J per fixture, lever, laser radius and calibration, flange, force
     sensor, clock: one draw shared by every drop), read with the NOMINAL rig, identified with the
-    template family (:func:`~droptower.identify.drops.identify_from_drop_tests`), run on the
+    template family (:func:`~droptower.identify.drop_campaign.identify_from_drop_tests`), run on the
     virtual bench at :data:`SERVO_HZ` (:func:`~droptower.compare.model_map.model_map_from_identification`,
     its cluster-robust band) with the inputs' shares (:func:`droptower.uncertainty.route.route_input_sets`).
     Returns K' (N·m/deg) and η with their U95 with the inputs and fit-only, and the truth."""
@@ -148,7 +148,7 @@ def route_campaign(seed: int, drops_per_fixture: int = 1, stated: RigUncertainty
     from droptower.compare.model_map import model_map_from_identification
     from droptower.identify.dropfit import DropFitSettings
     from droptower.identify.droplogs import ReadSettings, decay_from_signals
-    from droptower.identify.drops import DropCampaign, identify_from_drop_tests
+    from droptower.identify.drop_campaign import DropCampaign, identify_from_drop_tests
 
     rng = np.random.default_rng(seed)
     k = rng.uniform(1.2e4, 2.5e4)

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import droptower.identify as identify_package
-from droptower.identify import dropfit, drops, strategies
+from droptower.identify import drop_campaign, dropfit, strategies
 
 
 def fingerprint(obj: Any) -> Any:
@@ -47,7 +47,7 @@ def _previous_start(kind: str, previous: dict[str, Any] | None) -> Any:
     first = (previous or {}).get(inner) if inner else None
     if first is None:
         return None
-    return (inner, fingerprint(list(first.parameters.values())), first.fit.nrmse, first.evaluations,
+    return (inner, fingerprint(list(first.parameters.values())), first.fit_error.nrmse, first.evaluations,
             "global_search" in first.extra)
 
 
@@ -110,7 +110,7 @@ def share_fits(*modules: Any) -> Iterator[FitCache]:
         for target in (strategies, identify_package, *modules):
             if getattr(target, "identify", None) is servo:
                 mp.setattr(target, "identify", cache.servo)
-        for target in (dropfit, drops, *modules):
+        for target in (dropfit, drop_campaign, *modules):
             if getattr(target, "identify_drops", None) is drop:
                 mp.setattr(target, "identify_drops", cache.drop)
         yield cache

@@ -77,7 +77,7 @@ def test_bad_parameters_are_one_line_errors():
         split_given([Parameter("k_nm_per_rad", vary=False)], None)
     with pytest.raises(DroptowerError, match="give both min and max"):
         split_given([Parameter("k_nm_per_rad", 1.0, min=0.0)], None)
-    with pytest.raises(DroptowerError, match="model zerodim6 has no parameter k9"):
+    with pytest.raises(DroptowerError, match="family zerodim6 has no parameter k9"):
         place_guesses("zerodim6", ["k1_nm_per_rad"], np.zeros(1), {"k9": 1.0})
     assert dict(Parameters.of({"a_s": 1.0})) == {"a_s": Parameter("a_s", 1.0, vary=False)}
 
@@ -106,13 +106,22 @@ def test_a_servo_identification_takes_and_reports_parameters():
                                   "tau3_s"]
     assert r.derived["c2_nms_per_rad"] == pytest.approx(r.parameters["k2_nm_per_rad"] * r.parameters["tau2_s"],
                                                         rel=1e-12)
-    assert r.std_error["tau2_s"] == tau2.stderr > 0
-    doc = r.to_dict()
-    assert doc["model"] == "zerodim6" and doc["parameters"]["tau2_s"] == {"value": tau2.value, "std_error": tau2.stderr}
-    table = r.to_frame()
-    assert len(table) == r.n_parameters == 6 and table.set_index("name").loc["tau2_s", "value"] == tau2.value
+    # the dict, the table and the text carry the preset's values (not the result's own views
+    # compared with each other): tau2 = 0.2 s, K1 = 3000 N*m/rad within the fit's tolerances
+    # and within 4 standard errors as each of them reports it
+    doc = json.loads(json.dumps(r.to_dict(), allow_nan=False))
+    entry = doc["parameters"]["tau2_s"]
+    assert doc["family"] == "zerodim6" and doc["data"] == "servo records" and doc["n_parameters"] == 6
+    assert entry["value"] == pytest.approx(0.2, rel=0.01) and abs(entry["value"] - 0.2) < 4 * entry["stderr"]
+    assert (entry["min"], entry["max"], entry["unit"], entry["vary"]) == (0.05, 2.0, "s", True)
+    table = r.to_frame().set_index("name")
+    assert len(table) == 6 and table.loc["k1_nm_per_rad", "value"] == pytest.approx(3000.0, rel=0.01)
+    assert abs(table.loc["k1_nm_per_rad", "value"] - 3000.0) < 4 * table.loc["k1_nm_per_rad", "stderr"]
     assert repr(r).startswith("<Identification zerodim6 from servo records: 6 parameters, converged")
-    assert "tau2_s" in r._repr_html_() and r.summary().startswith("model zerodim6: 6 parameters")
+    text = r.summary()
+    assert "tau2_s" in r._repr_html_() and "    family      = zerodim6" in text
+    row = next(line for line in text.splitlines() if line.strip().startswith("tau2_s"))
+    assert float(row.split()[1]) == pytest.approx(0.2, rel=0.01) and row.split()[-1] == "s"
     held = Parameters()
     held.add("k1_nm_per_rad", 3000.0, vary=False)
     with pytest.raises(DroptowerError, match="parameter k1_nm_per_rad: an identification from servo records fits"):
@@ -147,9 +156,17 @@ def test_a_map_and_its_validation_print_and_convert():
 
     fit = dt.fit_map(dt.read_results("rapp2022_table4"))
     assert repr(fit).startswith("<MapFit paper: ")
-    coefficients = fit.to_frame()  # one row per coefficient of eq. 19 and eq. 20, the fit's values
-    assert len(coefficients) == 13 == len(fit.coefficients)
-    assert np.allclose(coefficients["value"].to_numpy(float), list(fit.coefficients.values()), rtol=0, atol=0)
+    # the table's 13 values, put into eq. 19 and eq. 20 as the paper writes them (docs/theory.md#map;
+    # closed forms here, not the map's own evaluation), reproduce the map at the table's points
+    k = fit.to_frame().set_index("coefficient")["value"].to_dict()
+    assert sorted(k) == sorted(f"k{i}" for i in range(1, 14))
+    rows = dt.read_results("rapp2022_table4")
+    a_deg, f_hz = rows["amplitude_deg"].to_numpy(float), rows["frequency_hz"].to_numpy(float)
+    c = (k["k1"] * 10 ** (-k["k2"] * a_deg) + k["k3"] * 10 ** (-k["k4"] * a_deg) + k["k5"] * np.sqrt(f_hz)
+         + k["k6"] * 10 ** (-k["k7"] * f_hz))
+    c_over_d = k["k8"] * 10 ** (-k["k9"] * a_deg) + k["k10"] * 10 ** (-k["k11"] * a_deg) + k["k12"] * 10 ** (-k["k13"] * a_deg)
+    np.testing.assert_allclose(fit.stiffness_nm_per_deg(a_deg, f_hz), c, rtol=1e-12)
+    np.testing.assert_allclose(fit.damping_ratio(a_deg, f_hz), c / c_over_d, rtol=1e-12)
     v = dt.validate(fit, "rapp2022_nr60", quick=True)
     table = v.to_frame()
     assert len(table) == len(v.validation.table) > 0
@@ -168,13 +185,13 @@ def test_a_comparison_prints_and_converts():
 
     from droptower.identify import Comparison
 
-    ranking = pd.DataFrame({"model": ["zerodim6", "pfeffer"], "status": ["converged", "not converged"],
+    ranking = pd.DataFrame({"family": ["zerodim6", "pfeffer"], "status": ["converged", "not converged"],
                             "bic": [10.0, math.nan], "verdict": ["good fit", "not converged"]}, index=[1, 2])
     c = Comparison(ranking, None, {}, skipped={"overlay": "no sine blocks"}, not_converged={"pfeffer": "budget"})
     assert c.best == "zerodim6" and c.exit_code() == 0
-    assert c.to_frame()["model"].tolist() == ["zerodim6", "pfeffer"]
+    assert c.to_frame()["family"].tolist() == ["zerodim6", "pfeffer"]
     doc = json.loads(json.dumps(c.to_dict(), allow_nan=False))
-    assert [row["model"] for row in doc["ranking"]] == ["zerodim6", "pfeffer"] and doc["ranking"][1]["bic"] is None
+    assert [row["family"] for row in doc["ranking"]] == ["zerodim6", "pfeffer"] and doc["ranking"][1]["bic"] is None
     assert doc["skipped"] == {"overlay": "no sine blocks"} and doc["not_converged"] == {"pfeffer": "budget"}
     assert repr(c) == ("<Comparison of 2 families on servo records: best zerodim6; skipped overlay; "
                        "not converged pfeffer>")

@@ -130,8 +130,8 @@ def test_run_identify_and_compare_models(folder):
     torque += np.random.default_rng(0).normal(0.0, 0.005 * np.abs(torque).max(), t.size)
     record = folder / "sine.csv"
     pd.DataFrame({"time_s": t, "angle_rad": angle, "torque_nm": torque}).to_csv(record, index=False)
-    report = json.loads(_ok("identify", str(record), "--model", "pfeffer", "--json").stdout)
-    assert report["model"] == "pfeffer" and report["converged"]
-    proc = _ok("compare-models", str(record), "--models", "pfeffer,overlay", "--json")
-    assert [r["model"] for r in json.loads(proc.stdout)["ranking"]] == ["pfeffer"]
+    report = json.loads(_ok("identify", str(record), "--family", "pfeffer", "--json").stdout)
+    assert report["family"] == "pfeffer" and report["converged"]
+    proc = _ok("compare-models", str(record), "--families", "pfeffer,overlay", "--json")
+    assert [r["family"] for r in json.loads(proc.stdout)["ranking"]] == ["pfeffer"]
     assert "skipped" in proc.stderr and "overlay" in proc.stderr

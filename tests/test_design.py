@@ -202,9 +202,9 @@ def test_design_for_identification_writes_a_plan_with_predicted_errors(tmp_path,
     code = main(["design", "--for-identification", "template", "--max-tests", "8", "--out", str(out), "--json"])
     assert code == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["tests"] == 8 and doc["model"] == "template"
-    errs = doc["predicted_std_errors"]
-    assert errs and all(0 < v["relative_std_error"] < 1 for v in errs.values())
+    assert doc["tests"] == 8 and doc["family"] == "template"
+    errs = doc["predicted_stderr"]
+    assert errs and all(0 < v["relative_stderr"] < 1 for v in errs.values())
     doe = load_doe(out)
     doe.check(load_rig("rapp2022"))
     assert doe.n_tests == 8

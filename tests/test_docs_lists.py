@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 import pytest
 
-from droptower.cli.identify_cmd import DROP_MODEL_KINDS, MODEL_KINDS
+from droptower.cli.identify_cmd import DROP_FAMILY_NAMES, FAMILY_NAMES
 from droptower.identify.dropfit import DROP_KINDS
 from droptower.identify.families import FAMILIES
 from droptower.report.run import FLAG_REASONS
@@ -41,9 +41,9 @@ def _names(page: str, start: str, end: str) -> set[str]:
 
 #: (page, opening phrase, closing phrase, the registry the list must equal, names in the span that are not list items)
 LISTS = {
-    "identify's families": ("guide/identification.md", "KIND: `zerodim6`", "Every fit is bounded",
+    "identify's families": ("guide/identification.md", "The family (`--family`, `family=` in Python): `zerodim6`", "Every fit is bounded",
                             set(FAMILIES), {"rapp2022_nr60"}),
-    "identify --from-drop-tests' families": ("guide/identification.md", "KIND: `elastoslide`",
+    "identify --from-drop-tests' families": ("guide/identification.md", "The family: `elastoslide`",
                                              "(e.g. the composition", set(DROP_KINDS), set()),
     "the families fitted from servo records only": ("guide/identification.md", "or `template` (e.g.",
                                                     "fit servo records only", set(FAMILIES) - set(DROP_KINDS),
@@ -67,8 +67,8 @@ def test_docs_list_matches_the_code(what):
 
 
 def test_the_command_lines_family_choices_are_the_registries():
-    assert set(MODEL_KINDS) | {"template"} == set(FAMILIES)
-    assert set(DROP_MODEL_KINDS) | {"template"} == set(DROP_KINDS)
+    assert set(FAMILY_NAMES) | {"template"} == set(FAMILIES)
+    assert set(DROP_FAMILY_NAMES) | {"template"} == set(DROP_KINDS)
 
 
 def test_every_element_kind_has_its_theory():

@@ -87,7 +87,7 @@ def _assert_same(drop_result, single_result) -> None:
     """Equal within half a standard uncertainty and 1e-3 relative: the drop's pre-trigger holds a
     few samples of the pause the single log does not, which moves the baseline by about the
     noise over √N; everything else is the log's own samples."""
-    got, want = drop_result.as_dict(), single_result.as_dict()
+    got, want = drop_result.to_dict(), single_result.to_dict()
     for key in COMPARED:
         assert got[key] == pytest.approx(want[key], rel=1e-3), key
         if f"{key}_std" in want:

@@ -104,9 +104,9 @@ def test_fmu_of_an_identified_model_reproduces_its_holdout(tmp_path):
     fmu = build_fmu(result.coupling, tmp_path / "identified.fmu", internal_step_s=segment.dt_s)
     torque = _run(fmu, segment.angle_rad, segment.dt_s, rate=_forward_rate(segment.angle_rad, segment.dt_s))
     got = metrics(held, [torque])
-    assert got.n_samples == result.holdout.n_samples
-    assert got.rmse_nm == pytest.approx(result.holdout.rmse_nm, rel=1e-9)
-    assert got.nrmse == pytest.approx(result.holdout.nrmse, rel=1e-9)
+    assert got.n_samples == result.holdout_error.n_samples
+    assert got.rmse_nm == pytest.approx(result.holdout_error.rmse_nm, rel=1e-9)
+    assert got.nrmse == pytest.approx(result.holdout_error.nrmse, rel=1e-9)
 
 
 def test_bad_requests_are_one_line(tmp_path, capsys):

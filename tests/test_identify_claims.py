@@ -43,9 +43,9 @@ def test_seed000_six_parameters_within_a_few_tenths_of_the_20_parameter_model():
     six = identify("zerodim6", data, holdout=held)
     rich = identify("zerodim20", data, holdout=held, previous={"zerodim6": six})
     assert six.converged and rich.converged and rich.n_parameters == 20
-    assert rich.fit.nrmse <= six.fit.nrmse  # it contains the six-parameter model
-    assert 0.0 < six.holdout.nrmse - rich.holdout.nrmse < 0.005  # percentage points / 100
-    assert six.holdout.nrmse < 0.01
+    assert rich.fit_error.nrmse <= six.fit_error.nrmse  # it contains the six-parameter model
+    assert 0.0 < six.holdout_error.nrmse - rich.holdout_error.nrmse < 0.005  # percentage points / 100
+    assert six.holdout_error.nrmse < 0.01
 
 
 def test_seed002_time_domain_equals_frequency_domain():
@@ -83,8 +83,8 @@ def test_round_trip_servo_bench_identify_drop_tower(tmp_path):
         files.append(str(path))
     out = tmp_path / "identified.toml"
     # noise-free records of a coupling zerodim6 only approximates: an honest "poor fit" (exit 3)
-    assert main(["identify", *files, "--model", "zerodim6", "--out", str(out)]) == 3 and not out.exists()
-    assert main(["identify", *files, "--model", "zerodim6", "--out", str(out), "--accept-poor"]) == 0
+    assert main(["identify", *files, "--family", "zerodim6", "--out", str(out)]) == 3 and not out.exists()
+    assert main(["identify", *files, "--family", "zerodim6", "--out", str(out), "--accept-poor"]) == 0
     rig = load_rig("rapp2022")
     stiffness = {}
     for label, c in (("original", "rapp2022_nr60"), ("identified", str(out))):

@@ -9,7 +9,7 @@ from droptower.cli.main import main
 from droptower.errors import DroptowerError
 from droptower.identify import compare_models
 from droptower.identify.budget import BudgetExceeded, check, remaining_s, time_budget
-from droptower.identify.compare import EXIT_NONE_FITS, NOT_CONVERGED
+from droptower.identify.ranking import EXIT_NONE_FITS, NOT_CONVERGED
 from droptower.identify.verdict import EXIT_POOR_FIT
 from droptower.rheology import parse_coupling
 from random_couplings import random_truth, servo_records
@@ -71,7 +71,7 @@ def test_a_family_out_of_its_budget_is_listed_not_converged_and_ranked_last(reco
     best converged family (0: its truth is a good fit)."""
     result = compare_models(records, ["zerodim6", "pfeffer"], budget_s={"zerodim6": 1e-3, "pfeffer": None})
     table = result.ranking
-    assert table["model"].tolist() == ["pfeffer", "zerodim6"] and table.index.tolist() == [1, 2]
+    assert table["family"].tolist() == ["pfeffer", "zerodim6"] and table.index.tolist() == [1, 2]
     row = table.iloc[-1]
     assert row["status"] == NOT_CONVERGED and row["verdict"] == NOT_CONVERGED and np.isnan(row["bic"])
     assert "time budget of 0.001 s" in row["note"] and row["n_parameters"] == 6
@@ -79,7 +79,7 @@ def test_a_family_out_of_its_budget_is_listed_not_converged_and_ranked_last(reco
     assert result.best == "pfeffer" and result.exit_code() == 0
     assert set(result.not_converged) == {"zerodim6"} and set(result.results) == {"pfeffer"}
     doc = result.to_dict()
-    assert [r["model"] for r in doc["ranking"]] == ["pfeffer", "zerodim6"] and "records" in doc
+    assert [r["family"] for r in doc["ranking"]] == ["pfeffer", "zerodim6"] and "records" in doc
 
 
 def test_no_family_within_its_budget_exits_2_with_a_full_table(records, tmp_path, capsys):
@@ -92,14 +92,14 @@ def test_no_family_within_its_budget_exits_2_with_a_full_table(records, tmp_path
     result = compare_models(records, ["pfeffer", "zerodim6"], budget_s=1e-3)
     assert result.ranking["status"].tolist() == [NOT_CONVERGED] * 2 and result.best is None
     assert result.exit_code() == EXIT_NONE_FITS
-    code = main(["compare-models", *map(str, paths), "--models", "pfeffer,zerodim6", "--budget-s", "0.001"])
+    code = main(["compare-models", *map(str, paths), "--families", "pfeffer,zerodim6", "--budget-s", "0.001"])
     captured = capsys.readouterr()
     assert code == EXIT_NONE_FITS
     assert "pfeffer" in captured.out and "zerodim6" in captured.out and "not converged" in captured.out
     assert "no family converged" in captured.err
-    code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--budget-s", "-1"])
+    code = main(["compare-models", *map(str, paths), "--families", "pfeffer", "--budget-s", "-1"])
     assert code == 2 and "--budget-s" in capsys.readouterr().err
-    code = main(["compare-models", *map(str, paths), "--models", "pfeffer", "--total-budget-s", "0"])
+    code = main(["compare-models", *map(str, paths), "--families", "pfeffer", "--total-budget-s", "0"])
     assert code == 2 and "--total-budget-s" in capsys.readouterr().err
 
 
@@ -114,7 +114,7 @@ def test_the_total_budget_is_shared_the_cheaper_families_first(records, monkeypa
     order of their parameter counts, each gets an equal share of what is left of the total
     budget (its own budget larger), and the whole table is done within the total (each fit
     stops within one check of its share) with every family "not converged"."""
-    import droptower.identify.compare as compare
+    import droptower.identify.ranking as ranking
     from droptower.identify.data import DataScale
     from droptower.identify.families import family_class
 
@@ -126,7 +126,7 @@ def test_the_total_budget_is_shared_the_cheaper_families_first(records, monkeypa
             clock.advance(0.005)  # a core call's time
             check()
 
-    monkeypatch.setattr(compare, "_fit", stall)
+    monkeypatch.setattr(ranking, "_fit", stall)
     kinds = ["zerodim20", "pfeffer", "zerodim6"]
     total = 0.6
     t0 = clock()

@@ -17,6 +17,7 @@ from droptower.rheology import coupling_to_toml, parse_coupling
 from droptower.cli.main import main
 from droptower.identify.dropfit import SERVO_GRID, DropFitSettings, identify_drops, servo_agreement
 from droptower.identify.droplogs import ReadSettings, read_decays
+from droptower.identify.result import RESULT_KEYS
 from droptower.identify.lever import at_times, free_decay
 from droptower.rig.config import load_rig
 from droptower.rig.impact_law import linear_free_decay
@@ -128,7 +129,7 @@ def test_round_trip_on_unknown_couplings(logs, kind):
     # runs on these logs below report this fit (tests/shared_fits.py)
     result = identify_drops(kind, decays, settings=DropFitSettings())
     assert result.converged and len(result.tests_used) == 5 and len(result.tests_held_out) == 1
-    assert result.fit["angle_nrmse"] < 0.01 and result.holdout["angle_nrmse"] < 0.01
+    assert result.fit_error["angle_nrmse"] < 0.01 and result.holdout_error["angle_nrmse"] < 0.01
     agree = servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
     assert agree["storage_stiffness_rms"] <= 0.03
     assert agree["loss_factor_rms"] <= 0.10
@@ -193,16 +194,18 @@ def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     out = tmp_path / "fitted.toml"
     folder = str(logs["zerodim6"][0].parent)
     pred = tmp_path / "servo.csv"
-    code = main(["identify", "--from-drop-tests", folder, "--model", "zerodim6", "--json", "--out", str(out),
+    code = main(["identify", "--from-drop-tests", folder, "--family", "zerodim6", "--json", "--out", str(out),
                  "--holdout-fraction", "0.2", "--predict-servo", str(pred)])
     assert code == 0
     report = json.loads(capsys.readouterr().out)
     servo = pd.read_csv(pred)  # the model over the tested range on a servo grid
     assert len(servo) == SERVO_GRID[0] * SERVO_GRID[1] and {"model_storage_stiffness_nm_per_deg", "model_loss_factor"} <= set(servo)
-    for key in ("converged", "model", "parameters", "fit_error", "holdout_error", "tests_used", "tests_excluded",
+    for key in ("converged", "family", "parameters", "fit_error", "holdout_error", "tests_used", "tests_excluded",
                 "wall_s", "coupling_file"):
         assert key in report
     assert report["coupling_file"] == str(out) and len(report["tests_used"]) == 5
+    # the one schema of every identification (tests/test_identify_cli.py checks the servo records' JSON)
+    assert list(report) == list(RESULT_KEYS) and report["data"] == "drop tests" and report["stages"] == []
     assert report["holdout_error"]["tests"] == 1
     assert main(["simulate", "--coupling", str(out), "--inertia", "0.359", "--drop-mass", "2", "--height", "0.5",
                  "--duration-s", "0.05", "--json"]) == 0
@@ -217,14 +220,14 @@ def test_cli_json_out_and_non_convergence(logs, tmp_path, capsys):
     params = tmp_path / "p.toml"
     params.write_text("[options]\nmax_nfev = 1\n")
     bad = tmp_path / "bad.toml"
-    code = main(["identify", "--from-drop-tests", str(three), "--model", "zerodim6", "--params", str(params),
+    code = main(["identify", "--from-drop-tests", str(three), "--family", "zerodim6", "--params", str(params),
                  "--out", str(bad)])
     captured = capsys.readouterr()
     assert code == 2
     assert "NOT CONVERGED" in captured.out and "did not converge" in captured.err and not bad.exists()
     # one summary line for the tests; a line per test only with --verbose
     assert "per test: 3 test(s), worst angle nRMSE" in captured.out and "per test (angle" not in captured.out
-    assert main(["identify", "--from-drop-tests", str(three), "--model", "zerodim6", "--params", str(params),
+    assert main(["identify", "--from-drop-tests", str(three), "--family", "zerodim6", "--params", str(params),
                  "--verbose"]) == 2
     verbose = capsys.readouterr().out
     assert "per test (angle nRMSE %):" in verbose and sum(".parquet: J " in line for line in verbose.splitlines()) == 3
@@ -304,21 +307,21 @@ def test_a_family_that_cannot_represent_the_coupling_is_a_poor_fit(logs, tmp_pat
     first with the same criterion."""
     folder = str(logs["zerodim6"][0].parent)
     out = tmp_path / "pfeffer.toml"
-    code = main(["identify", "--from-drop-tests", folder, "--model", "pfeffer", "--json", "--out", str(out)])
+    code = main(["identify", "--from-drop-tests", folder, "--family", "pfeffer", "--json", "--out", str(out)])
     captured = capsys.readouterr()
     report = json.loads(captured.out)
     assert code == 3 and not out.exists()
     assert report["converged"] and report["verdict"] == "poor fit" and report["error_over_noise"] > 3
     assert "noise" in report["reasons"][0] and "poor fit" in captured.err
-    assert main(["identify", "--from-drop-tests", folder, "--model", "pfeffer", "--out", str(out),
+    assert main(["identify", "--from-drop-tests", folder, "--family", "pfeffer", "--out", str(out),
                  "--accept-poor"]) == 0 and out.exists()
     capsys.readouterr()
     # the default budgets (60 s of wall time per family, 110 s in all) are not what this test checks: a loaded
     # machine stretches wall time several-fold
-    code = main(["compare-models", "--from-drop-tests", folder, "--models", "pfeffer,zerodim6", "--json",
+    code = main(["compare-models", "--from-drop-tests", folder, "--families", "pfeffer,zerodim6", "--json",
                  "--budget-s", "3600", "--total-budget-s", "3600"])
     ranking = json.loads(capsys.readouterr().out)
     assert code == 0 and "BIC" in ranking["ranking_rule"]
     rows = ranking["ranking"]
-    assert [r["model"] for r in rows] == ["zerodim6", "pfeffer"]
+    assert [r["family"] for r in rows] == ["zerodim6", "pfeffer"]
     assert rows[0]["verdict"] == "good fit" and rows[1]["delta_bic"] > 10

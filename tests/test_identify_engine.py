@@ -162,7 +162,7 @@ def test_the_fits_options_set_the_searches_evaluation_limit_and_step(local_fits,
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"max_nfev": 3, "foo": 1}, "unknown option(s) foo for model zerodim6"),
+    ({"max_nfev": 3, "foo": 1}, "unknown option(s) foo for family zerodim6"),
     ({"cycles": 2}, "option(s) cycles apply to reading the logs"),
     ({"substeps": 0}, "option substeps must be a positive integer, got 0"),
 ])
@@ -248,15 +248,19 @@ def test_as_dict_is_to_dict_with_a_deprecation_warning():
 
     m = Metrics(2.0, 0.01, 0.1, 100, 200.0)
     v = judge(1.0, 0.5, "nm", [])
-    c = Comparison(pd.DataFrame({"model": ["zerodim6"], "status": ["converged"], "bic": [1.0],
+    c = Comparison(pd.DataFrame({"family": ["zerodim6"], "status": ["converged"], "bic": [1.0],
                                  "verdict": ["good fit"]}, index=[1]), None, {})
     f = FitResult("joint", ["k_nm_per_rad"], np.array([1.0]), np.array([True]), np.array([0.1]), [], m, 3, 1, 5, 2,
                   0.5, True, "ok")
     assert m.to_dict()["rmse_nm"] == 2.0 and v.to_dict()["noise_floor_nm"] == 0.5
-    assert c.to_dict()["ranking"][0]["model"] == "zerodim6" and f.to_dict()["free"] == ["k_nm_per_rad"]
-    for obj, old in ((m, "as_dict"), (v, "as_dict"), (c, "as_dict"), (f, "summary")):
+    assert c.to_dict()["ranking"][0]["family"] == "zerodim6" and f.to_dict()["free"] == ["k_nm_per_rad"]
+    for obj, old in ((m, "as_dict"), (v, "as_dict"), (c, "as_dict")):
         with pytest.warns(DeprecationWarning, match=f"{type(obj).__name__}.{old}\\(\\) is deprecated"):
             assert getattr(obj, old)() == obj.to_dict()
+    # FitResult.summary() is text now (as every summary); read as the old dict it still answers, warning
+    assert f.summary().startswith("stage joint: nRMSE 1.000 %")
+    with pytest.warns(DeprecationWarning, match=r"FitResult.summary\(\) read as a dict is deprecated"):
+        assert dict(f.summary().items()) == f.to_dict()
 
 
 def test_the_evaluations_reported_are_every_parameter_set_simulated(monkeypatch):

@@ -18,8 +18,8 @@ def _check_holdout_at_noise_level(result, sigma_holdout: float) -> None:
     """RMSE against the noisy hold-out within 5 % of the noise: the model error adds at most
     about a third of the noise in quadrature."""
     assert result.converged
-    assert result.holdout.rmse_nm <= 1.05 * sigma_holdout
-    assert abs(result.holdout.residual_lag1) < 0.1  # nothing systematic left
+    assert result.holdout_error.rmse_nm <= 1.05 * sigma_holdout
+    assert abs(result.holdout_error.residual_lag1) < 0.1  # nothing systematic left
 
 
 def _holdout(truth):
@@ -42,7 +42,7 @@ def test_zerodim6_from_the_seed000_preset():
     assert p["tau3_s"] == pytest.approx(0.004, rel=0.05)
     assert p["k3_gain_nm_per_rad2"] == pytest.approx(5e4, rel=0.3)
     for name, true in (("k1_nm_per_rad", 3000.0), ("k2_nm_per_rad", 1500.0), ("tau2_s", 0.2)):
-        assert abs(p[name] - true) < 4 * r.std_error[name]  # the reported uncertainty is honest
+        assert abs(p[name] - true) < 4 * r.stderr[name]  # the reported uncertainty is honest
     assert [s.stage for s in r.stages] == ["K2-C2 on slow ramps", "K3-C3 on sweeps", "joint"]
     assert r.extra["k1_static_average_nm_per_rad"] == pytest.approx(3000.0, rel=0.05)
 
@@ -119,7 +119,7 @@ def test_masing_per_amplitude_and_per_frequency():
     # the amplitude/frequency-dependent model on its blocks, and the coupling written (the
     # global set; its figures are the reported ones): at the noise level too
     assert r.extra["amplitude_frequency_model_fit"]["rmse_nm"] <= 1.1 * sigma_fit
-    assert r.fit.rmse_nm <= 1.1 * sigma_fit and r.at_bounds == []
+    assert r.fit_error.rmse_nm <= 1.1 * sigma_fit and r.at_bounds == []
 
     at = identify("masing", data, options={"amplitude_deg": 1.0, "frequency_hz": 10.0})
     assert "at amplitude 1 deg and frequency 10 Hz" in at.coupling_note
@@ -149,7 +149,7 @@ def test_overlay_reproduces_the_map_of_a_kelvin_voigt_coupling():
     # a viscous loss factor rising with frequency is followed only on average (the documented
     # limit of the overlay), so the random profile is reproduced within 1 % of its largest
     # torque, not within the noise
-    assert r.holdout.nrmse < 0.01
+    assert r.holdout_error.nrmse < 0.01
 
 
 def test_bad_inputs_are_one_line_errors():
@@ -194,4 +194,4 @@ def test_standard_errors_hold_on_records_integrated_finer_than_sampled():
     true = {"k1_nm_per_rad": 3000.0, "k2_nm_per_rad": 1500.0, "tau2_s": 0.2, "k3_nm_per_rad": 2500.0,
             "tau3_s": 0.004, "k3_gain_nm_per_rad2": 5e4}
     for name, value in true.items():
-        assert abs(r.parameters[name] - value) <= 3 * r.std_error[name], name
+        assert abs(r.parameters[name] - value) <= 3 * r.stderr[name], name

@@ -35,12 +35,12 @@ def _random_values(fam: FilledRubberFamily, rng) -> np.ndarray:
 
 
 def test_the_family_is_registered_for_servo_records_and_drop_tests():
-    from droptower.cli.identify_cmd import DROP_MODEL_KINDS, MODEL_KINDS
+    from droptower.cli.identify_cmd import DROP_FAMILY_NAMES, FAMILY_NAMES
     from droptower.identify.dropfit import DROP_KINDS
     from droptower.identify.strategies import SEARCHABLE
 
     assert FAMILIES["filled_rubber"] is FilledRubberFamily
-    assert {"filled_rubber"} <= set(DROP_KINDS) & set(DROP_MODEL_KINDS) & set(MODEL_KINDS) & set(SEARCHABLE)
+    assert {"filled_rubber"} <= set(DROP_KINDS) & set(DROP_FAMILY_NAMES) & set(FAMILY_NAMES) & set(SEARCHABLE)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -302,7 +302,7 @@ def test_servo_records_of_random_filled_rubber_are_recovered(seed, servo_case):
     band): the test-type records (0.5 % noise) identified to a good fit, the hold-out within 1 %."""
     _, result = servo_case(seed)
     assert result.converged and not result.verdict.poor
-    assert result.holdout.nrmse < 0.01
+    assert result.holdout_error.nrmse < 0.01
 
 
 @pytest.mark.slow
@@ -320,7 +320,7 @@ def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled
         for kind in kinds:
             results[kind] = fitted if data is filled and kind == "filled_rubber" else identify(kind, data, previous=results)
         table = ranking_table(results, data)
-        assert table["model"].iloc[0] == first, table[["model", "bic", "verdict"]]
+        assert table["family"].iloc[0] == first, table[["family", "bic", "verdict"]]
         if "elastoslide" in results:  # its global search draws p among the odd candidates (it once sampled 1-99)
             assert "global_search" in results["elastoslide"].extra
             assert results["elastoslide"].parameters["p"] in (3, 5, 7, 9, 11)
@@ -351,7 +351,7 @@ def test_translational_records_name_parameters_in_metres_and_newtons(monkeypatch
     ref = identify("filled_rubber", records, options=budget, search="never")
     assert got.coupling.units == "translational" and ref.coupling.units == "torsional"
     assert got.extra["readings"] == ref.extra["readings"] >= 3  # the first guess read the sine blocks
-    assert got.fit.nrmse == pytest.approx(ref.fit.nrmse, rel=1e-6)
+    assert got.fit_error.nrmse == pytest.approx(ref.fit_error.nrmse, rel=1e-6)
     names = result_dict(got)["parameters"]
     assert {"k_n_per_m", "a_n_per_m3", "critical_displacement_m", "breakdown_displacement_m"} <= set(names)
     for name, entry in result_dict(ref)["parameters"].items():
@@ -399,8 +399,8 @@ def test_design_for_identification_of_filled_rubber(tmp_path, capsys):
     assert main(["design", "--for-identification", "filled_rubber", "--max-tests", "4", "--amplitude-deg", "0.5:2",
                  "--frequency-hz", "20:45", "--out", str(out), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["tests"] == 4 and doc["model"] == "filled_rubber"
-    assert set(doc["predicted_std_errors"]) == set(FilledRubberFamily(SCALE).names)
+    assert doc["tests"] == 4 and doc["family"] == "filled_rubber"
+    assert set(doc["predicted_stderr"]) == set(FilledRubberFamily(SCALE).names)
 
 
 #: The drop tests' family: a network of 8 Jenkins elements instead of 32 (a coarser discretisation of

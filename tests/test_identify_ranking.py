@@ -66,8 +66,8 @@ def test_noise_floor_is_recovered_from_the_data(seed):
 
 
 def _fake(n_parameters, predict):
-    return SimpleNamespace(n_parameters=n_parameters, predict=predict, fit=Metrics(1.0, 0.01, 0.0, 1, 1.0),
-                           holdout=None, time_s=1.0, evaluations=1, converged=True, verdict=None)
+    return SimpleNamespace(n_parameters=n_parameters, predict=predict, fit_error=Metrics(1.0, 0.01, 0.0, 1, 1.0),
+                           holdout_error=None, wall_s=1.0, evaluations=1, converged=True, verdict=None)
 
 
 def test_a_systematic_misfit_does_not_win_by_its_correlated_residual():
@@ -83,7 +83,7 @@ def test_a_systematic_misfit_does_not_win_by_its_correlated_residual():
     nested = _fake(20, lambda segs: [torque + 0.01 * sigma * np.sin(t)])  # the same to 1 % of the noise
     misfit = _fake(4, lambda segs: [torque + 3 * sigma * np.sin(2 * np.pi * 0.7 * t)])  # smooth: r1 ~ 1
     table = ranking_table({"misfit": misfit, "nested": nested, "truth": truth}, [seg])
-    assert table["model"].tolist() == ["truth", "nested", "misfit"]
+    assert table["family"].tolist() == ["truth", "nested", "misfit"]
     assert table["delta_bic"].iloc[-1] > 1000
     # the same in kN*m
     seg_k = make_segment(t, angle, seg.torque_nm / 1e3)
@@ -173,7 +173,7 @@ def test_data_of_each_family_rank_that_family_first(kind):
         data = servo_records(truth, i)
         fits = {k: identify(k, data) for k in (kind, COMPETITOR[kind])}
         table = ranking_table(fits, data)
-        assert table["model"].iloc[0] == kind, table.to_string()
+        assert table["family"].iloc[0] == kind, table.to_string()
         assert fits[kind].verdict.verdict == GOOD
 
 
@@ -195,8 +195,8 @@ def test_a_poor_staged_start_gives_way_to_the_first_guess_and_zerodim20_follows_
     assert six.extra["joint_start"] == "first guess" and six.converged and six.verdict.verdict == GOOD
     assert "global_search" not in six.extra
     rich = identify("zerodim20", data)
-    assert rich.extra["start"]["family"] == "zerodim6" and rich.extra["start"]["nrmse"] == pytest.approx(six.fit.nrmse)
+    assert rich.extra["start"]["family"] == "zerodim6" and rich.extra["start"]["nrmse"] == pytest.approx(six.fit_error.nrmse)
     assert rich.evaluations > rich.extra["start"]["evaluations"] == six.evaluations
-    assert rich.converged and rich.verdict.verdict == GOOD and rich.fit.nrmse <= six.fit.nrmse * (1 + 1e-9)
+    assert rich.converged and rich.verdict.verdict == GOOD and rich.fit_error.nrmse <= six.fit_error.nrmse * (1 + 1e-9)
     searched = identify("zerodim20", data[1:3], search="always")  # the two sweeps: a short search
     assert searched.extra["global_search"]["through"] == "zerodim6" and searched.converged

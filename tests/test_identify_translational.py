@@ -104,16 +104,16 @@ def test_translational_records_identify_as_their_torsional_twin(case, length_uni
     assert r.converged and twin.converged
     # the same figures: the records differ from the twin's only by the round trip through the
     # export's units (a few ulps)
-    assert r.holdout.nrmse == pytest.approx(twin.holdout.nrmse, rel=1e-9)
-    assert r.fit.nrmse == pytest.approx(twin.fit.nrmse, rel=1e-9)
+    assert r.holdout_error.nrmse == pytest.approx(twin.holdout_error.nrmse, rel=1e-9)
+    assert r.fit_error.nrmse == pytest.approx(twin.fit_error.nrmse, rel=1e-9)
     for name, value in twin.parameters.items():
         assert r.parameters[name] == pytest.approx(value, rel=1e-7), name
     # the report names every unit for the translational reading, and the coupling is in N/m
     report = result_dict(r)
     assert report["units"] == "translational"
-    names = set(report["parameters"]) | set(report["derived"]) | set(report["fit"])
+    names = set(report["parameters"]) | set(report["derived"]) | set(report["fit_error"])
     assert not any(token in name.split("_") for name in names for token in ("nm", "rad", "nms", "torque"))
-    assert "max_force_n" in report["fit"] and "rmse_n" in report["fit"]
+    assert "max_force_n" in report["fit_error"] and "rmse_n" in report["fit_error"]
     free = {name for stage in report["stages"] for name in stage["free"]} | set(report["at_bounds"])
     assert free and free <= set(report["parameters"])
     assert r.coupling.units == "translational"
@@ -128,12 +128,12 @@ def test_identify_cli_on_an_inch_kip_export_writes_a_translational_coupling(case
     preset, family, twin, exports = case
     files = exports["in"]
     out = tmp_path / "fitted.toml"
-    code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--model", family,
+    code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--family", family,
                  "--holdout", str(files["random"]), "--json", "--out", str(out), "--accept-poor"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["verdict"] == EXPECTED_VERDICT[family]
     assert report["units"] == "translational"
-    assert report["holdout"]["nrmse"] == pytest.approx(twin.holdout.nrmse, rel=1e-9)
+    assert report["holdout_error"]["nrmse"] == pytest.approx(twin.holdout_error.nrmse, rel=1e-9)
     written = load_coupling(out)
     assert written.units == "translational"
     key = "k" if family == "elastoslide" else "k1"
@@ -156,7 +156,7 @@ def test_translational_names_in_the_params_file(case, tmp_path, capsys):
     fitted = {}
     for name in ("k1_n_per_m", "k1_nm_per_rad"):  # the translational reading, or the torsional one
         init.write_text(f"[initial]\n{name} = 9.0e5\n[bounds]\n{name} = [1.0e5, 1.0e7]\n")
-        code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--model", "pfeffer",
+        code = main(["identify", *[str(files[k]) for k in files if k != "random"], "--family", "pfeffer",
                      "--params", str(init), "--json", "--accept-poor"])
         report = json.loads(capsys.readouterr().out)
         assert code == 0 and report["converged"] and report["verdict"] == EXPECTED_VERDICT["pfeffer"]
@@ -166,7 +166,7 @@ def test_translational_names_in_the_params_file(case, tmp_path, capsys):
     assert 1.0e5 <= fitted["k1_n_per_m"] <= 1.0e7
     assert fitted["k1_n_per_m"] == pytest.approx(twin.parameters["k1_nm_per_rad"], rel=0.05)
     init.write_text("[initial]\nk2_n_per_m = 9.0e5\n")
-    code = main(["identify", str(files["ramps"]), "--model", "pfeffer", "--params", str(init)])
+    code = main(["identify", str(files["ramps"]), "--family", "pfeffer", "--params", str(init)])
     err = capsys.readouterr().err
     assert code == 2 and "unknown parameter(s) k2_n_per_m" in err and "(parameters: k1_n_per_m, alpha, beta, gamma_s)" in err
 
@@ -175,12 +175,12 @@ def test_compare_models_on_translational_records(case, capsys):
     preset, family, twin, exports = case
     files = exports["in"]
     code = main(["compare-models", *[str(files[k]) for k in files if k != "random"], "--holdout", str(files["random"]),
-                 "--models", f"zerodim6,{family}", "--json", "--accept-poor", "--budget-s", "3600",
+                 "--families", f"zerodim6,{family}", "--json", "--accept-poor", "--budget-s", "3600",
                  "--total-budget-s", "3600"])  # not checked here
     tables = json.loads(capsys.readouterr().out)
     assert code == 0
-    ranking = {row["model"]: row for row in tables["ranking"]}
-    assert ranking[family]["holdout_nrmse_percent"] == pytest.approx(100 * twin.holdout.nrmse, rel=1e-9)
+    ranking = {row["family"]: row for row in tables["ranking"]}
+    assert ranking[family]["holdout_nrmse_percent"] == pytest.approx(100 * twin.holdout_error.nrmse, rel=1e-9)
     assert {"rmse_n", "nrmse_percent"} <= set(tables["records"][0]) and "rmse_nm" not in tables["records"][0]
 
 
@@ -189,7 +189,7 @@ def test_bad_translational_records(case, tmp_path, capsys):
     records are not mixed."""
     preset, family, twin, exports = case
     files = exports["in"]
-    code = main(["identify", str(files["ramps"]), "--model", family, "--channel", "angle=displacement",
+    code = main(["identify", str(files["ramps"]), "--family", family, "--channel", "angle=displacement",
                  "--channel", "torque=force"])
     err = capsys.readouterr().err
     assert code == 2 and "\n" not in err.strip()
@@ -198,10 +198,10 @@ def test_bad_translational_records(case, tmp_path, capsys):
     t, x = np.arange(512) / FS, 0.01 * np.sin(2 * np.pi * 2 * np.arange(512) / FS)
     torsional.write_text("time [s],angle [rad],torque [N*m]\n" + "".join(f"{a!r},{b!r},{1e3 * b!r}\n"
                                                                        for a, b in zip(t.tolist(), x.tolist())))
-    code = main(["identify", str(files["ramps"]), str(torsional), "--model", family])
+    code = main(["identify", str(files["ramps"]), str(torsional), "--family", family])
     err = capsys.readouterr().err
     assert code == 2 and "a torsional record among translational ones" in err
-    code = main(["identify", str(files["ramps"]), "--model", family, "--holdout", str(torsional)])
+    code = main(["identify", str(files["ramps"]), "--family", family, "--holdout", str(torsional)])
     assert code == 2 and "mix torsional and translational records" in capsys.readouterr().err
 
 
@@ -221,8 +221,8 @@ def test_time_printed_with_few_decimals_is_the_exact_record(tmp_path, capsys, fs
     assert b[0].dt_s == a[0].dt_s == 1.0 / fs
     options = {"p_candidates": [7]}
     ra, rb = identify("elastoslide", a, options=options), identify("elastoslide", b, options=options)
-    assert rb.fit.nrmse == ra.fit.nrmse and rb.parameters == ra.parameters
-    code = main(["identify", str(rounded), "--model", "elastoslide", "--json"])
+    assert rb.fit_error.nrmse == ra.fit_error.nrmse and rb.parameters == ra.parameters
+    code = main(["identify", str(rounded), "--family", "elastoslide", "--json"])
     err = capsys.readouterr().err
     assert code == 0
     assert f"printed to {decimals} decimals" in err and f"constant {fs:g} Hz estimated from the whole record" in err

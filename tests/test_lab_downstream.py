@@ -163,13 +163,13 @@ def test_temperature_span_is_said():
 # ------------------------------------------------------------------------------------------ the model route
 @pytest.mark.slow
 def test_model_route_on_a_lab_folder(lab, tmp_path, capsys):
-    """map FOLDER --model on a plain folder of logs with --conditions and --rig: the model-based
+    """map FOLDER --family on a plain folder of logs with --conditions and --rig: the model-based
     map with bands and a verdict; its figure says the band is shaded, validate and report take
     the lab's bench CSV (German column names) and validate both routes."""
     from droptower.compare import run_sweeps
 
     mm = tmp_path / "model_map.json"
-    code, out, err = _run(capsys, ["map", str(lab.folder), *_lab_flags(lab), "--model", "template", "--template",
+    code, out, err = _run(capsys, ["map", str(lab.folder), *_lab_flags(lab), "--family", "template", "--template",
                                    "rapp2022_nr60", "--model-out", str(mm), "--out", str(tmp_path / "map.json")])
     assert code == 0, err
     assert "model-based map, template" in out and "good fit" in out and "bands: 95 %" in out
@@ -203,12 +203,12 @@ def test_identify_from_a_lab_folder(lab, capsys):
     """identify --from-drop-tests on a plain folder: with the three-fixture rig alone each log is
     told the conditions must say its fixture (not 'give --rig', which was given); with
     --conditions and --sensor-radius-m it fits."""
-    code, _, err = _run(capsys, ["identify", "--from-drop-tests", str(lab.folder), "--model", "template",
+    code, _, err = _run(capsys, ["identify", "--from-drop-tests", str(lab.folder), "--family", "template",
                                  "--template", "rapp2022_nr60", "--rig", str(lab.rig), "--channel", "distance=Weg"])
     assert code == 2
     assert "several lever fixtures" in err and "give --conditions" in err
     assert "or --rig" not in err and "Traceback" not in err
-    code, out, err = _run(capsys, ["identify", "--from-drop-tests", str(lab.folder), "--model", "template",
+    code, out, err = _run(capsys, ["identify", "--from-drop-tests", str(lab.folder), "--family", "template",
                                    "--template", "rapp2022_nr60", "--rig", str(lab.rig), "--conditions", str(lab.sheet),
                                    "--channel", "distance=Weg", "--sensor-radius-m", "0.25"])
     assert code == 0, err
@@ -327,7 +327,7 @@ def test_malformed_conditions_through_identify(small, lab, data, capsys):
     name, the others are fitted."""
     folder, tables, truth = small
     case = data.draw(malformed_tables(tables, truth))
-    code = main(["identify", "--from-drop-tests", str(folder), "--model", "template", "--template", "rapp2022_nr60",
+    code = main(["identify", "--from-drop-tests", str(folder), "--family", "template", "--template", "rapp2022_nr60",
                  "--rig", str(lab.rig), "--conditions", str(case.table), "--channel", "distance=Weg", "--verbose",
                  "--holdout-fraction", "0", "--accept-poor"])
     err = capsys.readouterr().err
@@ -377,8 +377,8 @@ def test_messages_name_only_flags_the_command_has(lab, map_json, tmp_path, capsy
     calls = [["map", folder], ["map", folder, "--rig", rig, "--channel", "distance=Weg"],
              ["report", folder, "--out", str(tmp_path / "r.html")],
              ["report", folder, "--rig", rig, "--out", str(tmp_path / "r.html")],
-             ["identify", "--from-drop-tests", folder, "--model", "zerodim6"],
-             ["identify", "--from-drop-tests", folder, "--model", "zerodim6", "--rig", rig],
+             ["identify", "--from-drop-tests", folder, "--family", "zerodim6"],
+             ["identify", "--from-drop-tests", folder, "--family", "zerodim6", "--rig", rig],
              ["validate", "--map", str(map_json), "--servo-results", str(map_json.parent / "bench.csv"),
               "--reference", str(table4_path()), "--results", folder, "--channel", "distance=Weg"]]
     for argv in calls:
@@ -388,5 +388,5 @@ def test_messages_name_only_flags_the_command_has(lab, map_json, tmp_path, capsy
         known = {o for p in command.params if isinstance(p, click.Option) for o in p.opts}
         named = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]+", err))
         assert named and named <= known, (argv, named - known, err)
-        given = {a for a in argv if a.startswith("--")} - {"--from-drop-tests", "--model", "--out", "--channel"}
+        given = {a for a in argv if a.startswith("--")} - {"--from-drop-tests", "--family", "--out", "--channel"}
         assert not any(re.search(rf"give [^;]*{g}\b", err) for g in given), (argv, err)

@@ -152,7 +152,7 @@ def mapped(extracted, work) -> Step:
 @pytest.fixture(scope="module")
 def model_mapped(lab, work) -> Step:
     return droptower("map", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--out", work / "map_folder.json",
-                     "--model", "template", "--template", COUPLING, "--model-out", work / "model_map.json")
+                     "--family", "template", "--template", COUPLING, "--model-out", work / "model_map.json")
 
 
 @pytest.fixture(scope="module")

@@ -25,9 +25,9 @@ def commands(file: dict[str, Path], out: Path) -> dict[str, list[str]]:
     return {
         "channels": ["channels", csv],
         "extract": ["extract", csv],
-        "identify": ["identify", csv, "--model", "zerodim6"],
-        "identify --params": ["identify", csv, "--model", "zerodim6", "--params", toml],
-        "identify --from-drop-tests": ["identify", "--from-drop-tests", csv, "--model", "elastoslide"],
+        "identify": ["identify", csv, "--family", "zerodim6"],
+        "identify --params": ["identify", csv, "--family", "zerodim6", "--params", toml],
+        "identify --from-drop-tests": ["identify", "--from-drop-tests", csv, "--family", "elastoslide"],
         "compare-models": ["compare-models", csv],
         "map": ["map", csv],
         "report": ["report", csv],
@@ -108,8 +108,8 @@ def log(tmp_path_factory) -> Path:
 ])
 def test_a_bad_unit_is_said_alike_by_every_command_reading_logs(log, capsys, unit, words) -> None:
     channel = ["--channel", f"angle=angle_rad:{unit}"]
-    for argv in (["channels", str(log)], ["extract", str(log)], ["identify", str(log), "--model", "zerodim6"],
-                 ["compare-models", str(log)], ["identify", "--from-drop-tests", str(log), "--model", "elastoslide"]):
+    for argv in (["channels", str(log)], ["extract", str(log)], ["identify", str(log), "--family", "zerodim6"],
+                 ["compare-models", str(log)], ["identify", "--from-drop-tests", str(log), "--family", "elastoslide"]):
         err = _error(capsys, [*argv, *channel])
         assert f"{log}: {words}" in err or f"{log.name}: {words}" in err or f"excluded {log}: {words}" in err, \
             (argv, err)
@@ -117,8 +117,8 @@ def test_a_bad_unit_is_said_alike_by_every_command_reading_logs(log, capsys, uni
 
 @pytest.mark.parametrize("flag, value, runs", [
     ("--inertia-kgm2", "-1", [["simulate", "--drop-mass-kg", "2", "--height-m", "1"], ["extract", "LOG"],
-                              ["identify", "--from-drop-tests", "LOG", "--model", "elastoslide"]]),
-    ("--lever-length-m", "-1", [["extract", "LOG"], ["identify", "--from-drop-tests", "LOG", "--model", "elastoslide"]]),
+                              ["identify", "--from-drop-tests", "LOG", "--family", "elastoslide"]]),
+    ("--lever-length-m", "-1", [["extract", "LOG"], ["identify", "--from-drop-tests", "LOG", "--family", "elastoslide"]]),
     ("--duration-s", "-1", [["simulate", *SIMULATE], ["plan"], ["campaign", "--out", "OUT"]]),
     ("--amplitude-deg", "-1", [["servo", "rapp2022_nr60"]]),
     ("--frequency-hz", "-1", [["servo", "rapp2022_nr60"]]),

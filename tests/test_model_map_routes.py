@@ -38,7 +38,7 @@ def routes(tmp_path_factory) -> dict[str, Path]:
     (root / "template.toml").write_text(coupling_to_toml(maxwell_coupling(1.3 * K, 0.7 * K_M, 2 * TAU)))
     campaign = root / "campaign"
     run_campaign(campaign, None, root / "truth.toml", root / "plan.toml", workers=1, duration_s=0.1, progress=False)
-    code = main(["map", str(campaign), "--out", str(root / "map.json"), "--model", "template", "--template",
+    code = main(["map", str(campaign), "--out", str(root / "map.json"), "--family", "template", "--template",
                  str(root / "template.toml"), "--model-out", str(root / "model_map.json"), "--plot", str(root / "figs")])
     assert code == 0
     return {"root": root, "campaign": campaign, "truth": root / "truth.toml", "map": root / "map.json",
@@ -67,7 +67,7 @@ def test_a_poor_fit_writes_no_model_map_unless_asked(routes, capsys):
     (exit code 3, as identify), and --accept-poor writes it with the verdict in it."""
     root = routes["root"]
     (root / "spring.toml").write_text(coupling_to_toml(parse_coupling({"element": [{"kind": "spring", "stiffness": K}]})))
-    args = ["map", str(routes["campaign"]), "--model", "template", "--template", str(root / "spring.toml"),
+    args = ["map", str(routes["campaign"]), "--family", "template", "--template", str(root / "spring.toml"),
             "--model-out", str(root / "poor.json")]
     assert main(args) == 3
     assert "poor fit" in capsys.readouterr().err and not (root / "poor.json").exists()
@@ -193,14 +193,14 @@ def test_the_model_maps_k_band_holds_the_fits_and_js_shares(routes):
 
 @pytest.mark.slow
 def test_map_stores_the_inputs_and_validate_reuses_them(routes, capsys):
-    """map --model with input uncertainties: model_map.json holds each input's shift of the
+    """map --family with input uncertainties: model_map.json holds each input's shift of the
     identification and map.json the uncertainties; validate given only the bench's U95 reuses
     them: the model route's K' U95 is its own (bands and inputs, wider than the bands alone) and
     agrees inside the hull, the paper route's damping ratio does not."""
     root = routes["root"]
     specs = [arg for j in (0.1557, 0.359, 0.5233) for arg in ("--uncertainty", f"inertia_kgm2@{j}={0.01 * j}")]
     specs += ["--uncertainty", "torque_calibration_rel=0.01", "--uncertainty", "sample_rate_hz=4"]
-    code = main(["map", str(routes["campaign"]), "--out", str(root / "map_u.json"), "--model", "template", "--template",
+    code = main(["map", str(routes["campaign"]), "--out", str(root / "map_u.json"), "--family", "template", "--template",
                  str(root / "template.toml"), "--model-out", str(root / "model_map_u.json"), *specs])
     assert code == 0
     mm = ModelMap.from_json(root / "model_map_u.json")

@@ -32,7 +32,7 @@ def simulated(tmp_path_factory) -> tuple[dict, Path]:
     result = simulate(load_rig("rapp2022"), load_coupling("rapp2022_nr60"), [DropTest(0.359, 2.0, 1.0, 500.0, 0, 0)],
                       0.25)[0]
     result.write_log(log)
-    return json_safe(result.summary()), log
+    return json_safe(result.to_dict()), log
 
 
 def _agree(key: str, a, b, sample_s: float) -> bool:

@@ -16,7 +16,7 @@ from shared_fits import FitCache, share_fits
 def _same(a, b) -> None:
     assert list(a.parameters) == list(b.parameters)
     assert np.array_equal(list(a.parameters.values()), list(b.parameters.values()))
-    assert repr(a.fit) == repr(b.fit) and a.evaluations == b.evaluations and a.verdict.verdict == b.verdict.verdict
+    assert repr(a.fit_error) == repr(b.fit_error) and a.evaluations == b.evaluations and a.verdict.verdict == b.verdict.verdict
 
 
 def test_a_repeated_servo_fit_and_drop_fit_are_the_same_fit(tmp_path):

@@ -26,7 +26,7 @@ def _identified(torque_weight: float = 0.5, force: bool = True):
     from droptower.extract import SyntheticDrop
     from droptower.identify.dropfit import DropFitSettings
     from droptower.identify.droplogs import ReadSettings, decay_from_signals
-    from droptower.identify.drops import DropCampaign, identify_from_drop_tests
+    from droptower.identify.drop_campaign import DropCampaign, identify_from_drop_tests
     from droptower.io.signals import DropSignals
 
     decays = []
@@ -174,7 +174,7 @@ def test_campaign_and_identify_state_the_inputs(kv_campaign, capsys):
     assert "inertia_kgm2" in j.loc[0.1557, "uncertainty_not_given"]
     assert "inertia_kgm2" not in j.loc[0.359, "uncertainty_not_given"]
     capsys.readouterr()
-    code = main(["identify", "--from-drop-tests", str(kv_campaign / "camp"), "--model", "template", "--template",
+    code = main(["identify", "--from-drop-tests", str(kv_campaign / "camp"), "--family", "template", "--template",
                  str(kv_campaign / "kv.toml"), "--holdout-fraction", "0", "--json",
                  *[a for f in FIXTURES for a in ("--uncertainty", f"inertia_kgm2@{f}={0.01 * f}")]])
     assert code == 0
@@ -187,6 +187,6 @@ def test_campaign_and_identify_state_the_inputs(kv_campaign, capsys):
 def test_uncertainty_on_identify_needs_drop_tests(capsys):
     from droptower.cli.main import main
 
-    code = main(["identify", "x.csv", "--model", "zerodim6", "--uncertainty", "sample_rate_hz=4"])
+    code = main(["identify", "x.csv", "--family", "zerodim6", "--uncertainty", "sample_rate_hz=4"])
     _, err = capsys.readouterr()
     assert code == 2 and "--from-drop-tests" in err and "Traceback" not in err

@@ -13,7 +13,7 @@ import pytest
 
 from droptower import sdof
 from droptower.cli.main import main
-from droptower.compare import (compare_reference, read_servo_results, run_sweeps, sweep_points, validate_map)
+from droptower.compare import (compare_reference, compare_with_servo, read_servo_results, run_sweeps, sweep_points)
 from droptower.compare.servo_points import AMPLITUDE_SWEEPS, FREQUENCY_SWEEPS
 from droptower.maps import MapFit
 from droptower.maps.mapfit import FitStats, MapRange
@@ -68,7 +68,7 @@ def test_sweeps_are_those_of_notes_1_6():
 
 
 def test_deviations_against_closed_forms(kv_points):
-    validation = validate_map(constant_map(), kv_points)
+    validation = compare_with_servo(constant_map(), kv_points)
     t = validation.table
     a, f = t["amplitude_deg"].to_numpy(), t["frequency_hz"].to_numpy()
     # the bench measures the Kelvin-Voigt coupling: K' = k, d from eta = c omega / k

@@ -109,7 +109,7 @@ def run_chunk(task: ChunkTask) -> ChunkOutcome:
         t2 = time.thread_time()
         try:
             _, extracted = extract_file(layout.root / log_file, settings)
-            record = _record(row, log_file, "done", extracted.as_dict(), None, result.warnings)
+            record = _record(row, log_file, "done", extracted.to_dict(), None, result.warnings)
         except DroptowerError as exc:  # the log is named by log_file: the message leaves out the folder's path
             reason = ": ".join(part for part in (exc.where, exc.problem) if part)
             record = _record(row, log_file, "failed", None, reason, result.warnings)

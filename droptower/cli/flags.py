@@ -49,7 +49,7 @@ FLAGS: dict[str, str] = {
     "sheet": "--sheet",
     "repeats": "--repeats",
     "uncertainty_pct": "--uncertainty-pct",
-    "model": "--model",
+    "family": "--family",
     "template": "--template",
     "conditions": "--conditions",
     "uncertainty": "--uncertainty",

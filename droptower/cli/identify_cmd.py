@@ -22,7 +22,7 @@ from typing import Any
 import click
 from pydantic import Field
 
-from droptower.cli.options import note, progress, quiet_option, uncertainty_option, wrote
+from droptower.cli.options import note, progress, quiet_option, renamed_option, uncertainty_option, wrote
 from droptower.errors import DroptowerError, check_positive
 from droptower.config_validation import StrictModel, validate
 from droptower.fit_defaults import DEFAULT_BUDGET_S, DEFAULT_TOTAL_BUDGET_S, HOLDOUT_FRACTION
@@ -30,9 +30,9 @@ from droptower.cli.flags import cli_text
 
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
-MODEL_KINDS = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
+FAMILY_NAMES = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
 #: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_KINDS)
-DROP_MODEL_KINDS = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
+DROP_FAMILY_NAMES = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
 
 
 class InitFile(StrictModel):
@@ -110,7 +110,8 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float,
 @click.command()
 @quiet_option
 @click.argument("data", nargs=-1, required=True, type=click.Path(readable=False))
-@click.option("--model", "kind", required=True, type=click.Choice(MODEL_KINDS + ("template",)), help="Model family.")
+@renamed_option("--family", "--model", "kind", required=True, announce=True, type=click.Choice(FAMILY_NAMES + ("template",)),
+                help="Model family (required).")
 @click.option("--channel", "channels", multiple=True, metavar="ROLE=NAME[:UNIT]",
               help="Channel for a role (time, angle, torque; or displacement, force); repeatable.")
 @click.option("--params", "params_path", type=click.Path(),
@@ -122,7 +123,7 @@ def _read_data(paths: tuple[str, ...], channels: tuple[str, ...], skip_s: float,
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), help="Write torque and loop plots to this folder.")
 @click.option("--from-drop-tests", "drops", is_flag=True,
               help="DATA are drop-test logs or campaign folders: fit the model to the free decays.")
-@click.option("--template", help="Coupling TOML or preset whose numbers --model template scales.")
+@click.option("--template", help="Coupling TOML or preset whose numbers --family template scales.")
 @drop_options
 @click.option("--predict-servo", type=click.Path(dir_okay=False),
               help="Drop tests: write the fitted model's servo K' and loss factor next to the drop tower's values.")
@@ -138,7 +139,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
              lever_length_m: float | None, sensor_radius_m: float | None, conditions: str | None,
              condition_columns: tuple[str, ...], conditions_pattern: str | None, predict_servo: str | None,
              verbose: bool, accept_poor: bool, uncertainty_specs: tuple[str, ...] = ()) -> None:
-    """Identify a coupling model of family --model from imposed-angle / measured-torque DATA,
+    """Identify a coupling model (its family given by --family) from imposed-angle / measured-torque DATA,
     or imposed-displacement / measured-force DATA (translational: mounts, bushings, dampers;
     any length and force units, e.g. mm, in, kN, kip; parameters then named k1_n_per_m, ...
     and --out writes a coupling with units = "translational", in N/m and N*s/m).
@@ -190,14 +191,14 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
 
     \b
     Examples:
-      droptower identify sweep.csv --model zerodim6 --out my_coupling.toml
-      droptower identify bench.bin --model elastoslide --channel angle=Winkel:deg \\
+      droptower identify sweep.csv --family zerodim6 --out my_coupling.toml
+      droptower identify bench.bin --family elastoslide --channel angle=Winkel:deg \\
           --channel torque=Md:kN*m --holdout check.csv --plot fits/
-      droptower identify damper_sine_*.csv --model elastoslide --channel displacement=Stroke:in \\
+      droptower identify damper_sine_*.csv --family elastoslide --channel displacement=Stroke:in \\
           --channel force=Load:kip --holdout damper_random.csv --out damper.toml
-      droptower identify bearing_blocks.csv --model filled_rubber --sample-interval-s 0.01 \\
+      droptower identify bearing_blocks.csv --family filled_rubber --sample-interval-s 0.01 \\
           --channel displacement=d:cm --channel force=f:tonf --holdout bearing_whole.csv
-      droptower identify --from-drop-tests runs/table2 --model template \\
+      droptower identify --from-drop-tests runs/table2 --family template \\
           --template rapp2022_nr60 --out fitted.toml --predict-servo servo.csv
     """
     from droptower.identify.report import plot_identification
@@ -237,12 +238,12 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
             wrote(path, "fit over time and loops")
     if not result.converged:
         bad = next(s for s in result.stages if not s.converged)
-        raise DroptowerError(f"model {kind}: the fit did not converge (stage '{bad.stage}': {bad.message}); "
+        raise DroptowerError(f"family {kind}: the fit did not converge (stage '{bad.stage}': {bad.message}); "
                              f"no coupling written", where=None)
     if result.verdict.poor and not accept_poor:
         from droptower.identify.verdict import EXIT_POOR_FIT
 
-        click.echo(f"droptower: model {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
+        click.echo(f"droptower: family {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
     if out:
@@ -259,9 +260,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="Record kept out of every fit: the families are ranked by their nRMSE on it (the BIC on the "
                    "fitting data beside it).")
 @record_time_options
-@click.option("--models", default=None,
-              help=f"Families to fit, comma-separated (default: {', '.join(MODEL_KINDS)}; with --from-drop-tests "
-                   f"{', '.join(DROP_MODEL_KINDS)}, and template with --template).")
+@renamed_option("--families", "--models", "models", announce=True,
+                help=f"Families to fit, comma-separated (default: {', '.join(FAMILY_NAMES)}; with --from-drop-tests "
+                   f"{', '.join(DROP_FAMILY_NAMES)}, and template with --template).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the ranking to this table (.csv, .parquet, .json, .xlsx) and the per-record table "
                    "beside it (<name>_per_record.<suffix>).")
@@ -270,7 +271,7 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
               help="Write the RMSE bars (the zero-dimensional model paper, Fig. 8) and the overlaid loops to this folder.")
 @click.option("--from-drop-tests", "drops", is_flag=True,
               help="DATA are drop-test logs or campaign folders: rank the families fitted to the free decays.")
-@click.option("--template", help="Drop tests: also rank --model template with this coupling TOML or preset.")
+@click.option("--template", help="Drop tests: also rank --family template with this coupling TOML or preset.")
 @drop_options
 @click.option("--budget-s", type=float, default=DEFAULT_BUDGET_S, show_default=True,
               help="Wall-time budget of each family's fit (s); a family over it is listed 'not converged' and ranked "
@@ -318,23 +319,23 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
     \b
     Examples:
       droptower compare-models sweep_*.csv --holdout check.csv --plot compare/
-      droptower compare-models sweep.csv --models zerodim6,elastoslide --out ranking.xlsx
+      droptower compare-models sweep.csv --families zerodim6,elastoslide --out ranking.xlsx
       droptower compare-models bearing_blocks.csv --holdout bearing_whole.csv --sample-interval-s 0.01 \\
-          --channel displacement=d:cm --channel force=f:tonf --models filled_rubber,elastoslide,masing
+          --channel displacement=d:cm --channel force=f:tonf --families filled_rubber,elastoslide,masing
       droptower compare-models --from-drop-tests runs/campaign --template rapp2022_nr60
     """
-    from droptower.identify.compare import compare_models as run
+    from droptower.identify.ranking import compare_models as run
     from droptower.identify.report import plot_comparison
     from droptower.io.tables import check_table_path, write_table
 
-    known = DROP_MODEL_KINDS + ("template",) if drops else MODEL_KINDS
-    default = DROP_MODEL_KINDS + (("template",) if template else ()) if drops else MODEL_KINDS
+    known = DROP_FAMILY_NAMES + ("template",) if drops else FAMILY_NAMES
+    default = DROP_FAMILY_NAMES + (("template",) if template else ()) if drops else FAMILY_NAMES
     kinds = [k.strip() for k in models.split(",") if k.strip()] if models is not None else list(default)
     unknown = [k for k in kinds if k not in known]
     if unknown or not kinds:
         raise DroptowerError(f"unknown model famil{'ies' if len(unknown) > 1 else 'y'} {', '.join(unknown)} "
                              f"(known: {', '.join(known)})" if unknown else "no model family given",
-                             where="--models")
+                             where="--families")
     check_positive(budget_s, "--budget-s")
     check_positive(total_budget_s, "--total-budget-s")
     if out is not None:
@@ -349,7 +350,7 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
                            conditions=(conditions, condition_columns, conditions_pattern))
         decays, options = campaign.decays, campaign.options
         if "template" in kinds and "template" not in options:
-            raise DroptowerError("--models template needs --template COUPLING (a preset name or a coupling TOML)")
+            raise DroptowerError("--families template needs --template COUPLING (a preset name or a coupling TOML)")
         result = run(decays, kinds, budget_s=budget_s, total_budget_s=total_budget_s, excluded=campaign.excluded,
                      settings=campaign.settings,
                      options={"template": {"template": options["template"]}}
@@ -379,8 +380,8 @@ def compare_models(data: tuple[str, ...], channels: tuple[str, ...], holdout: st
         click.echo(ranking.to_string(float_format=lambda v: f"{v:.3f}"))
         click.echo("\nper record (the zero-dimensional model paper, Fig. 8): nRMSE % / RMSE relative to the worst model")
         if not records.empty:
-            pct = records.pivot(index="record", columns="model", values="nrmse_percent")
-            rel = records.pivot(index="record", columns="model", values="rmse_over_max_rmse")
+            pct = records.pivot(index="record", columns="family", values="nrmse_percent")
+            rel = records.pivot(index="record", columns="family", values="rmse_over_max_rmse")
             click.echo(pct.round(3).astype(str).add(" / ").add(rel.round(2).astype(str)).to_string())
     if plot_dir and result.results and not drops:
         loop_segment = (held or segments)[0]

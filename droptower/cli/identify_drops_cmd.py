@@ -1,7 +1,7 @@
 """``droptower identify --from-drop-tests``: a coupling model from drop-test logs alone.
 
 Kept apart from the servo-record path of ``identify`` (:mod:`.identify_cmd` dispatches here);
-a thin layer over :mod:`droptower.identify.drops` and :mod:`droptower.identify.dropreport`.
+a thin layer over :mod:`droptower.identify.drop_campaign` and :mod:`droptower.identify.dropreport`.
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
             holdout_fraction: float, rig: str | None, inertia_kgm2: float | None,
             lever_length_m: float | None, verbose: bool = False, *, sensor_radius_m: float | None = None,
             conditions: tuple[str | None, tuple[str, ...], str | None] = (None, (), None)) -> Any:
-    """The campaign's logs read (:func:`~droptower.identify.drops.read_drop_tests`) from the
+    """The campaign's logs read (:func:`~droptower.identify.drop_campaign.read_drop_tests`) from the
     command line's options, the excluded logs reported on stderr (the first few, or with
     ``verbose`` all). ``conditions``: (--conditions, --condition-column, --conditions-from-names);
     a lab's folder of logs is searched for logs, the conditions table beside them left out."""
@@ -30,7 +30,7 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
 
     from droptower.cli.options import conditions_from_cli, rig_for_logs
     from droptower.errors import check_positive
-    from droptower.identify.drops import read_drop_tests
+    from droptower.identify.drop_campaign import read_drop_tests
     from droptower.io import parse_channel_options
     from droptower.maps.fromlogs import log_files
 
@@ -53,7 +53,7 @@ def prepare(data: tuple[str, ...], kind: str | None, channels: tuple[str, ...], 
                                        sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=results_table,
                                        holdout_fraction=holdout_fraction, options=init.options)
     else:
-        campaign = read_drop_tests(data, model=kind, options=init.options, template=template,
+        campaign = read_drop_tests(data, family=kind, options=init.options, template=template,
                                    holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
                                    lever_length_m=lever_length_m, roles=parse_channel_options(channels),
                                    sensor_radius_m=sensor_radius_m, conditions=conditions_table)
@@ -89,7 +89,7 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         conditions: tuple[str | None, tuple[str, ...], str | None] = (None, (), None),
         uncertainty_specs: tuple[str, ...] = ()) -> None:
     from droptower.identify.dropreport import drop_report_text, plot_servo_prediction, servo_prediction
-    from droptower.identify.drops import identify_from_drop_tests
+    from droptower.identify.drop_campaign import identify_from_drop_tests
     from droptower.identify.verdict import EXIT_POOR_FIT
 
     campaign = prepare(data, kind, channels, init, template, holdout_fraction, rig, inertia_kgm2, lever_length_m,
@@ -118,10 +118,10 @@ def run(data: tuple[str, ...], kind: str, channels: tuple[str, ...], init: Any, 
         if plot_dir:
             wrote(plot_servo_prediction(table, plot_dir), "servo prediction vs the drop tower's map")
     if not result.converged:
-        raise DroptowerError(f"model {kind}: the fit to the drop tests did not converge ({result.message}); "
+        raise DroptowerError(f"family {kind}: the fit to the drop tests did not converge ({result.message}); "
                              "no coupling written")
     if poor:
-        click.echo(f"droptower: model {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
+        click.echo(f"droptower: family {kind}: poor fit ({'; '.join(result.verdict.reasons)}); no coupling written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
     if out:

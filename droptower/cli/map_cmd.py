@@ -28,16 +28,16 @@ from droptower.errors import DroptowerError
               help="With --form auto: also cross-validate the choice of terms (nested: each fold chooses without "
                    "its tests); the error to expect of auto's map on new tests. Costs ~30x the auto fit.")
 @click.option("--json", "as_json", is_flag=True, help="Print the map as JSON instead of the summary.")
-@click.option("--model", "model_kind", default=None, metavar="KIND",
-              help="Also build the model-based map (docs/routes.md): identify KIND (identify --from-drop-tests) "
-                   "from the campaign's logs and evaluate it on the servo bench over amplitude x frequency, with "
+@options.renamed_option("--family", "--model", "model_kind", announce=True, metavar="FAMILY",
+                        help="Also build the model-based map (docs/routes.md): identify FAMILY (identify "
+                             "--from-drop-tests) from the campaign's logs and evaluate it on the servo bench over amplitude x frequency, with "
                    "95 % bands cluster-robust by test. RESULTS must then be a campaign folder.")
-@click.option("--template", default=None, help="With --model template: the coupling whose structure is fitted.")
+@click.option("--template", default=None, help="With --family template: the coupling whose structure is fitted.")
 @click.option("--model-coupling", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Also build the model-based map of this coupling file as it is (identify --out), or of the coupling "
                    "an identification's --json names (no bands: no covariance).")
 @click.option("--accept-poor", is_flag=True,
-              help="With --model: write the model-based map even if the identification is a poor fit (labelled so).")
+              help="With --family: write the model-based map even if the identification is a poor fit (labelled so).")
 @click.option("--model-out", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Write the model-based map: model_map.json (what validate --model-map reads) or its grid "
                    "as .csv, .parquet or .xlsx.")
@@ -72,9 +72,9 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
       droptower map runs/table2 --out map.json --plot figs/
       droptower map results.csv --out coefficients.xlsx
       droptower map rapp2022_table4 --form auto --nested-cv
-      droptower map runs/table2 --out map.json --model template --template rapp2022_nr60 --model-out model_map.json
+      droptower map runs/table2 --out map.json --family template --template rapp2022_nr60 --model-out model_map.json
       droptower map lab/ --rig lab_rig.toml --conditions lab/conditions.xlsx --channel distance=Weg:mm \
-          --model zerodim6 --out map.json
+          --family zerodim6 --out map.json
     """
     from droptower.io.tables import check_table_path, write_table
     from droptower.maps import fit_map, select_tests
@@ -86,9 +86,9 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if model_out is not None:
         check_table_path(model_out, "--model-out")
     if model_kind is not None and model_coupling is not None:
-        raise DroptowerError("give --model (identify from the logs) or --model-coupling (a coupling as it is), not both")
+        raise DroptowerError("give --family (identify from the logs) or --model-coupling (a coupling as it is), not both")
     if model_out is not None and model_kind is None and model_coupling is None:
-        raise DroptowerError("--model-out writes the model-based map: give --model KIND or --model-coupling FILE")
+        raise DroptowerError("--model-out writes the model-based map: give --family FAMILY or --model-coupling FILE")
     if nested_cv and form != "auto":
         raise DroptowerError("--nested-cv cross-validates auto's choice of terms: use it with --form auto")
     geometry = {"inertia_kgm2": inertia_kgm2, "lever_length_m": lever_length_m}
@@ -131,7 +131,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
 
         from droptower.io.mapping import parse_channel_options
 
-        model_map = build_model_map(results, fit, model=model_kind, template=template, coupling_file=model_coupling,
+        model_map = build_model_map(results, fit, family=model_kind, template=template, coupling_file=model_coupling,
                                     on_note=lambda text: options.note(cli_text(text)), on_progress=options.progress,
                                     rig=rig_config, roles=parse_channel_options(channel_specs),
                                     sensor_radius_m=sensor_radius_m, conditions=conditions_table, table=table,
@@ -186,7 +186,7 @@ def map_command(results: Path, out: Path | None, plot_dir: Path | None, form: st
     if poor and not accept_poor:
         from droptower.identify.verdict import EXIT_POOR_FIT
 
-        click.echo(f"droptower: model {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
+        click.echo(f"droptower: family {model_kind}: poor fit to the drop tests; the {model_map.route} was not written "
                    f"(--accept-poor writes it; exit code {EXIT_POOR_FIT})", err=True)
         raise click.exceptions.Exit(EXIT_POOR_FIT)
     if failed:
@@ -220,7 +220,7 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
     """(results table, rig, conditions) of RESULTS: a lab's folder of logs is extracted first
     (every log, failed ones kept with their error); a conditions table's rows that name no log
     are warned of (nothing is dropped silently). The flags that read logs are refused where no
-    log is read (a results table without --model): a flag is never ignored silently."""
+    log is read (a results table without --family): a flag is never ignored silently."""
     from droptower.errors import check_positive
     from droptower.io.mapping import parse_channel_options
     from droptower.maps import read_results
@@ -237,7 +237,7 @@ def _read_source(results: Path, rig: str | None, sensor_radius_m: float | None, 
                                           ("--lever-length-m", geometry.get("lever_length_m"))) if given]
     if log_flags and not folder and not reads_logs:
         raise DroptowerError(f"{', '.join(log_flags)} read logs: RESULTS is a results table, whose values are used as "
-                             "they are (give a folder of logs, or --model to read the logs the table names)")
+                             "they are (give a folder of logs, or --family to read the logs the table names)")
     logs = log_files(results, exclude=[p for p in (conditions, rig) if p]) if folder else []
     rig_config = options.rig_for_logs(rig, [str(p) for p in logs])
     conditions_table = options.conditions_from_cli(conditions, condition_columns, conditions_pattern, rig_config)

@@ -15,9 +15,11 @@ import click
 QUIET = False
 
 
-def renamed_option(name: str, old: str, dest: str, *, required: bool = False, **kwargs: Any) -> Callable:
+def renamed_option(name: str, old: str, dest: str, *, required: bool = False, announce: bool = False,
+                   **kwargs: Any) -> Callable:
     """``@click.option(name, dest, **kwargs)`` (default None) plus ``old`` as a hidden alias of it.
-    ``required`` is checked across both names (say so in ``help``: click's mark needs one name)."""
+    ``required`` is checked across both names (say so in ``help``: click's mark needs one name);
+    ``announce``: the old name, when used, prints a deprecation note on stderr."""
 
     def take_new(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
         if value is not None and ctx.params.get(dest) not in (None, value):
@@ -33,6 +35,9 @@ def renamed_option(name: str, old: str, dest: str, *, required: bool = False, **
             return
         if ctx.params.get(dest) not in (None, value):
             raise click.BadParameter(f"given twice, as {name} and as its old name {old}", ctx=ctx, param=param)
+        if announce:  # a warning: --quiet keeps it
+            click.echo(f"droptower: warning: {old} is deprecated and will be removed in the next release: use {name}",
+                       err=True)
         ctx.params[dest] = value
 
     def decorate(f: Callable) -> Callable:

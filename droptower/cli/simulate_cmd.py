@@ -57,7 +57,7 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
                        labels={"inertia_kgm2": "--inertia-kgm2", "drop_mass_kg": "--drop-mass-kg", "drop_height_m": "--height-m",
                                "preload_nm": "--preload-nm"})
     result = run(rig_cfg, model, [DropTest(inertia, drop_mass, height, preload_nm, 0, seed)], duration_s)[0]
-    summary = result.summary()
+    summary = result.to_dict()
     if out:
         summary["log"] = str(result.write_log(out))
         wrote(summary["log"], "the test as the rig's sensors record it")
@@ -70,21 +70,6 @@ def simulate(rig: str, coupling: str, inertia: float, drop_mass: float, height: 
         click.echo(json.dumps(json_safe(summary), indent=1))
         return
     s = summary
-    click.echo(f"{model.name} on {rig_cfg.name}: J = {inertia:g} kg*m^2, m1 = {drop_mass:g} kg, h = {height:g} m, "
-               f"preload {preload_nm:g} N*m (twist {s['pretwist_deg']:.3f} deg)")
-    click.echo(f"  after impact: drop mass {s['drop_mass_velocity_after_m_per_s']:+.4f} m/s "
-               f"(impact law {s['predicted_drop_mass_velocity_after_m_per_s']:+.4f}), lever tip "
-               f"{s['lever_tip_velocity_after_m_per_s']:+.4f} m/s (impact law "
-               f"{s['predicted_lever_tip_velocity_after_m_per_s']:+.4f}), restitution {s['effective_restitution']:.4f}")
-    click.echo(f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impact_impulse_n_s']:.4g} N*s")
-    later = [1e3 * (t - s["impact_time_s"]) for t in s["contact_times_s"][1:]]
-    click.echo(f"  {s['contacts']} contact(s) of drop mass and lever"
-               + (f" (later ones at {', '.join(f'{t:.1f}' for t in later[:5])}{', ...' if len(later) > 5 else ''} ms "
-                  f"after the impact)" if later else "")
-               + f"; double impact (a second contact within the first period, "
-                 f"{1e3 * s['first_period_s']:.1f} ms): {'yes' if s['double_impact'] else 'no'}")
-    click.echo(f"  max angle {s['max_angle_deg']:.3f} deg, max torque {s['max_torque_nm']:.1f} N*m, "
-               f"first period {1e3 * s['first_period_s']:.2f} ms ({s['first_period_frequency_hz']:.2f} Hz), "
-               f"energy balance error {100 * s['energy_balance_error_fraction']:.3f} %")
+    click.echo("\n".join(line for line in result.summary().splitlines() if not line.startswith("warning: ")))
     for w in s["warnings"]:
         click.echo(f"droptower: warning: {w}", err=True)

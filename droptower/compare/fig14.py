@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from droptower.compare.map_vs_servo import Validation
+from droptower.compare.map_vs_servo import ServoComparison
 from droptower.errors import make_folder
 from droptower.io.droptower_log import save_figure
 from droptower.maps import MapFit
@@ -21,7 +21,7 @@ from droptower.maps import MapFit
 FIG14 = "fig14_servo_validation.png"
 
 
-def plot_fig14(validation: Validation, fit: MapFit, path: str | Path) -> Path:
+def plot_fig14(validation: ServoComparison, fit: MapFit, path: str | Path) -> Path:
     """Write the four panels to ``path`` (PNG); returns the path."""
     path = Path(path)
     make_folder(path.parent)

@@ -17,7 +17,7 @@ import pandas as pd
 from droptower.campaign.folder import write_json
 from droptower.compare.fig14 import FIG14, plot_fig14
 from droptower.compare.servo_points import ServoPoints
-from droptower.compare.map_vs_servo import Validation
+from droptower.compare.map_vs_servo import ServoComparison
 from droptower.errors import DroptowerError, make_folder
 from droptower.io.tables import write_table
 from droptower.maps import MapFit
@@ -40,7 +40,7 @@ def output_folder(out: str | Path, create: bool = True) -> Path:
     return out
 
 
-def write_validation(out: str | Path, validation: Validation, fit: MapFit, points: ServoPoints,
+def write_validation(out: str | Path, validation: ServoComparison, fit: MapFit, points: ServoPoints,
                      reference: tuple[pd.DataFrame, dict[str, Any]] | None = None,
                      table_suffix: str = ".csv") -> list[Path]:
     """Write the files of the module docstring into ``out`` (the tables as ``table_suffix``:

@@ -26,6 +26,7 @@ import pandas as pd
 from droptower.compare.servo_points import ServoPoints
 from droptower import sdof
 from droptower.maps import MapFit
+from droptower.deprecation import moved_names
 from droptower.errors import expects
 
 if TYPE_CHECKING:
@@ -40,8 +41,9 @@ REGIONS = ("inside", "rectangle", "outside", "all")
 
 
 @dataclass(frozen=True)
-class Validation:
-    """The comparison table (one row per sweep point, :data:`COLUMNS`) and its summary: per
+class ServoComparison:
+    """What :func:`compare_with_servo` returns (``Validation`` in release 0.1: deprecated): the
+    comparison table (one row per sweep point, :data:`COLUMNS`) and its summary: per
     region (``inside``, ``outside``, ``all`` the map's measured range) the number of distinct
     points and the RMS and maximum absolute deviations (percent) of stiffness and damping."""
 
@@ -78,7 +80,7 @@ def map_damping_measures(damping_ratio: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 @expects(fit=("droptower.maps.mapfit.MapFit", "droptower.compare.model_map.ModelMap"), points="droptower.compare.servo_points.ServoPoints")
-def validate_map(fit: MapFit | ModelMap, points: ServoPoints) -> Validation:
+def compare_with_servo(fit: MapFit | ModelMap, points: ServoPoints) -> ServoComparison:
     """Predict every servo point from the map (the paper's :class:`MapFit` or a model-based
     :class:`~droptower.compare.model_map.ModelMap`) and compare (module docstring)."""
     servo = points.table
@@ -111,7 +113,7 @@ def validate_map(fit: MapFit | ModelMap, points: ServoPoints) -> Validation:
                               "frequency_hz_min": r.frequency_hz_min, "frequency_hz_max": r.frequency_hz_max,
                               "hull_amplitude_deg_frequency_hz": [list(v) for v in r.hull]},
                    map_source=fit.source)
-    return Validation(table, summary)
+    return ServoComparison(table, summary)
 
 
 def region_rows(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
@@ -121,8 +123,8 @@ def region_rows(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
             "outside": table[~table["in_range"]], "all": table}
 
 
-@expects(validation="droptower.compare.map_vs_servo.Validation")
-def format_summary(validation: Validation) -> str:
+@expects(validation="droptower.compare.map_vs_servo.ServoComparison")
+def format_summary(validation: ServoComparison) -> str:
     """The summary as text: definitions, then RMS / max deviations per region."""
     s = validation.summary
     r = s["map_range"]
@@ -149,14 +151,14 @@ def format_summary(validation: Validation) -> str:
 ROUTE_QUANTITIES = ("stiffness", "loss_factor", "damping")
 
 
-def validate_routes(routes: dict[str, Any], points: ServoPoints, hull: Any | None = None) -> dict[str, Validation]:
+def validate_routes(routes: dict[str, Any], points: ServoPoints, hull: Any | None = None) -> dict[str, ServoComparison]:
     """Each named route (a map: the paper's :class:`MapFit` or a model-based
     :class:`~droptower.compare.model_map.ModelMap`) against the same servo points, by
-    :func:`validate_map`. ``hull``: the map whose measured range sets every route's regions
+    :func:`compare_with_servo`. ``hull``: the map whose measured range sets every route's regions
     (default: each route's own), so that the routes are compared on the same points."""
     out = {}
     for name, route in routes.items():
-        v = validate_map(route, points)
+        v = compare_with_servo(route, points)
         if hull is not None and hull is not route:
             table = v.table.assign(**{"in_range": hull.in_range(v.table["amplitude_deg"], v.table["frequency_hz"]),
                                       "in_rectangle": hull.in_rectangle(v.table["amplitude_deg"], v.table["frequency_hz"])})
@@ -165,12 +167,12 @@ def validate_routes(routes: dict[str, Any], points: ServoPoints, hull: Any | Non
             for region, rows in region_rows(distinct).items():
                 summary[region] = deviation_stats(*(rows[f"{q}_deviation_pct"].to_numpy(float)
                                                     for q in ("stiffness", "damping", "loss_factor", "decay_ratio")))
-            v = Validation(table, summary)
+            v = ServoComparison(table, summary)
         out[name] = v
     return out
 
 
-def route_table(validations: dict[str, Validation]) -> pd.DataFrame:
+def route_table(validations: dict[str, ServoComparison]) -> pd.DataFrame:
     """One row per route and region (inside / outside the hull, all): points and RMS / max
     deviations (%) of stiffness (map c or model K' vs the servo's K'), loss factor and d."""
     rows = []
@@ -183,7 +185,7 @@ def route_table(validations: dict[str, Validation]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def format_routes(validations: dict[str, Validation]) -> str:
+def format_routes(validations: dict[str, ServoComparison]) -> str:
     """The routes side by side as text: RMS deviation from the servo points per region."""
     table = route_table(validations)
     width = max(24, *(len(n) + 2 for n in validations))
@@ -202,3 +204,15 @@ def _pct(value: float, width: int) -> str:
     if len(text) >= width:
         text = f"{value:.1e}"
     return f"{text:>{width}}"
+
+
+def validate_map(fit: MapFit | ModelMap, points: ServoPoints) -> ServoComparison:
+    """Deprecated (removed in the next release): :func:`compare_with_servo`, whose result
+    :class:`ServoComparison` its name pairs with."""
+    from droptower.deprecation import warn_deprecated
+
+    warn_deprecated("validate_map()", "compare_with_servo()")
+    return compare_with_servo(fit, points)
+
+
+__getattr__ = moved_names(__name__, {"Validation": "ServoComparison"}, globals())

@@ -39,6 +39,7 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 from droptower import sdof
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError, readable_file
 from droptower.jsonsafe import json_safe
 from droptower.maps.mapfit import MapRange, read_json_object
@@ -385,8 +386,8 @@ def model_map_from_identification(ident: Any, decays: list, settings: Any, teste
         band_sets = sigma_point_sets(ident.family_model, ident.params.vector(), free, cov)
     verdict = ident.verdict.to_dict() if ident.verdict is not None else {}
     info = {"model": ident.family, "converged": ident.converged, "verdict": verdict.get("verdict"),
-            "angle_nrmse": ident.fit.get("angle_nrmse"), "tests_used": len(ident.tests_used),
-            "wall_s": ident.time_s,
+            "angle_nrmse": ident.fit_error.get("angle_nrmse"), "tests_used": len(ident.tests_used),
+            "wall_s": ident.wall_s,
             "parameters": {n: {"value": p.value, "std_error": p.stderr} for n, p in ident.params.items()}}
     mm = ModelMap(coupling, ident.family, tested, band_sets, BAND_STEP, CLUSTER_METHOD if bands else None, info,
                   source)
@@ -411,7 +412,8 @@ def model_map_from_coupling(coupling: Coupling, tested: MapRange, family: str | 
 EXCLUDED_NAMED = 5
 
 
-def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, template: str | None = None,
+@renamed_keywords(model="family")
+def build_model_map(results: str | Path, fit: Any, *, family: str | None = None, template: str | None = None,
                     coupling_file: str | Path | None = None, campaign: Any = None,
                     on_note: Callable[[str], None] | None = None,
                     on_progress: Callable[[str], None] | None = None, rig: Any = None,
@@ -428,17 +430,17 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         folder of logs, or a results table whose ``file`` column names its logs.
     fit : MapFit
         The paper's map.
-    model : str, optional
-        Identify this drop-test family from the logs
-        (:func:`~droptower.identify.drops.identify_from_drop_tests`); the map gets 95 % bands,
+    family : str, optional
+        Identify this drop-test family from the logs (``model`` in release 0.1: deprecated)
+        (:func:`~droptower.identify.drop_campaign.identify_from_drop_tests`); the map gets 95 % bands,
         cluster-robust by test.
     template : str, optional
-        With ``model="template"``: the coupling whose structure is fitted.
+        With ``family="template"``: the coupling whose structure is fitted.
     coupling_file : str or path, optional
-        Instead of ``model``: a coupling file as it is, or the JSON of a drop-test
+        Instead of ``family``: a coupling file as it is, or the JSON of a drop-test
         identification that wrote one (no bands: no covariance).
     campaign : DropCampaign, optional
-        The logs already read (:func:`~droptower.identify.drops.read_drop_tests`).
+        The logs already read (:func:`~droptower.identify.drop_campaign.read_drop_tests`).
     on_note : callable, optional
         Called with a note: the excluded logs, a poor fit.
     on_progress : callable, optional
@@ -457,7 +459,7 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
     inertia_kgm2, lever_length_m : float, optional
         Every log's inertia (kg*m^2) and lever length (m), over the logs', the conditions' and the rig's.
     uncertainty : RigUncertainty, optional
-        The rig's input uncertainties: with ``model``, the map holds each input's shift of the
+        The rig's input uncertainties: with ``family``, the map holds each input's shift of the
         identification and its ``<q>_U95`` the inputs' share (:mod:`droptower.uncertainty.route`).
 
     Returns
@@ -466,8 +468,8 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
         Evaluated on its grid (:meth:`ModelMap.evaluate_grid`).
     """
     results = Path(results)
-    if (model is None) == (coupling_file is None):
-        raise DroptowerError("give `model` (identify from the logs) or `coupling_file` (a coupling as it is), one of them")
+    if (family is None) == (coupling_file is None):
+        raise DroptowerError("give `family` (identify from the logs) or `coupling_file` (a coupling as it is), one of them")
     if coupling_file is not None:
         from droptower.rheology import load_coupling
 
@@ -479,13 +481,14 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
             if not doc.get("coupling_file"):
                 raise DroptowerError("the identification wrote no coupling (run it with an output coupling file)",
                                      file=coupling_file)
-            family, coupling_file = doc.get("model"), Path(doc["coupling_file"])
+            family = doc.get("family", doc.get("model"))  # "model": an identification JSON of release 0.1
+            coupling_file = Path(doc["coupling_file"])
         mm = model_map_from_coupling(load_coupling(coupling_file), fit.range, family=family, source=str(coupling_file))
     else:
-        from droptower.identify.drops import identify_from_drop_tests
+        from droptower.identify.drop_campaign import identify_from_drop_tests
 
         if campaign is None:
-            campaign = read_logs_for_model(results, model, template=template, rig=rig, roles=roles,
+            campaign = read_logs_for_model(results, family, template=template, rig=rig, roles=roles,
                                            sensor_radius_m=sensor_radius_m, conditions=conditions, table=table,
                                            inertia_kgm2=inertia_kgm2, lever_length_m=lever_length_m)
             for e in campaign.excluded[:EXCLUDED_NAMED] if on_note is not None else []:
@@ -493,10 +496,10 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
             if len(campaign.excluded) > EXCLUDED_NAMED and on_note is not None:
                 on_note(f"excluded {len(campaign.excluded) - EXCLUDED_NAMED} more test(s)")
         if on_progress is not None:
-            on_progress(f"map: identifying {model} from {len(campaign.decays)} drop test(s) for the model-based map ...")
-        ident = identify_from_drop_tests(campaign, model)
+            on_progress(f"map: identifying {family} from {len(campaign.decays)} drop test(s) for the model-based map ...")
+        ident = identify_from_drop_tests(campaign, family)
         if not ident.converged:
-            raise DroptowerError(f"model {model}: the fit to the drop tests did not converge ({ident.message}); "
+            raise DroptowerError(f"family {family}: the fit to the drop tests did not converge ({ident.message}); "
                                  "no model-based map")
         lever, laser = (None, None)
         if uncertainty is not None:
@@ -507,18 +510,19 @@ def build_model_map(results: str | Path, fit: Any, *, model: str | None = None, 
                                            source=str(results), uncertainty=uncertainty, lever_length_m=lever,
                                            laser_radius_m=laser)
         if ident.verdict is not None and ident.verdict.poor and on_note is not None:
-            on_note(f"note: model {model} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
+            on_note(f"note: family {family} is a poor fit ({'; '.join(ident.verdict.reasons)}): its map cannot be "
                     "trusted beyond the paper's")
     mm.evaluate_grid()
     return mm
 
 
-def read_logs_for_model(results: str | Path, model: str, *, template: str | None = None, rig: Any = None,
+@renamed_keywords(model="family")
+def read_logs_for_model(results: str | Path, family: str, *, template: str | None = None, rig: Any = None,
                         roles: dict[str, str] | None = None, sensor_radius_m: float | None = None,
                         conditions: Any = None, table: pd.DataFrame | None = None, holdout_fraction: float = 0.0,
                         options: dict[str, Any] | None = None, inertia_kgm2: float | None = None,
                         lever_length_m: float | None = None) -> Any:
-    """The drop tests a model-based map identifies from (:func:`~droptower.identify.drops.read_drop_tests`):
+    """The drop tests a model-based map identifies from (:func:`~droptower.identify.drop_campaign.read_drop_tests`):
     a campaign folder's ``logs/`` with its own rig (unless ``rig``), a lab's folder of logs (the
     conditions table beside them left out), or the logs a results table names (``file``),
     each with the inertia its row gives where no ``conditions`` do.
@@ -527,10 +531,10 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
     ----------
     results : path
         Campaign folder, folder of logs or results table.
-    model : str
+    family : str
         The family to be fitted.
     template : str, optional
-        With ``model="template"``: the coupling whose structure is fitted.
+        With ``family="template"``: the coupling whose structure is fitted.
     rig : str or RigConfig, optional
         The rig (lever length m, laser radius m, fixtures).
     roles : dict, optional
@@ -544,7 +548,7 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
     holdout_fraction : float
         Share of the tests held out (0 for a map: every test fits).
     options : dict, optional
-        The family's, the fit's and the reading's options (as :func:`~droptower.identify.drops.read_drop_tests`).
+        The family's, the fit's and the reading's options (as :func:`~droptower.identify.drop_campaign.read_drop_tests`).
     inertia_kgm2, lever_length_m : float, optional
         Every log's inertia (kg*m^2) and lever length (m), over what the logs, the table and the rig say.
 
@@ -553,11 +557,11 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
     DropCampaign
         The decays, the excluded logs with their reasons, the settings.
     """
-    from droptower.identify.drops import DropCampaign, read_drop_tests
+    from droptower.identify.drop_campaign import DropCampaign, read_drop_tests
     from droptower.maps.fromlogs import log_files
 
     results = Path(results)
-    common = dict(model=model, template=template, holdout_fraction=holdout_fraction, roles=roles,
+    common = dict(family=family, template=template, holdout_fraction=holdout_fraction, roles=roles,
                   sensor_radius_m=sensor_radius_m, conditions=conditions, options=options, lever_length_m=lever_length_m)
     if results.is_dir():
         from droptower.campaign.folder import saved_inputs
@@ -574,13 +578,13 @@ def read_logs_for_model(results: str | Path, model: str, *, template: str | None
 
         table = read_results(results)
     if "file" not in table.columns:
-        raise DroptowerError("`model` identifies from the logs: the results table has no 'file' column naming them",
+        raise DroptowerError("`family` identifies from the logs: the results table has no 'file' column naming them",
                              file=results)
     files = [str(f) for f in dict.fromkeys(table["file"].dropna().astype(str)) if f.strip()]
     found = {f: next((c for c in (Path(f), results.parent / f) if c.is_file()), None) for f in files}
     missing = [f for f, p in found.items() if p is None]
     if len(missing) == len(files):
-        raise DroptowerError(f"`model` identifies from the logs the results table names, and none of its {len(files)} "
+        raise DroptowerError(f"`family` identifies from the logs the results table names, and none of its {len(files)} "
                              f"log(s) was found (e.g. {files[0] if files else '-'}; relative to the table's folder or "
                              "the working folder)", file=results)
     inertia = {}

@@ -16,7 +16,7 @@ from typing import Any, Mapping
 import pandas as pd
 
 from droptower.compare.servo_points import ServoPoints
-from droptower.compare.map_vs_servo import Validation
+from droptower.compare.map_vs_servo import ServoComparison
 from droptower.configs import DEFAULT_COUPLING
 from droptower.errors import DroptowerError
 from droptower.maps.mapfit import MapFit
@@ -28,18 +28,18 @@ class MapValidation:
 
     validation: the map vs the servo points (table and summary); fit: the map; points: the servo
     points; reference: (rows, summary) of the comparison with a measured map, or None;
-    routes: route name -> its :class:`~droptower.compare.map_vs_servo.Validation` (the paper's map
+    routes: route name -> its :class:`~droptower.compare.map_vs_servo.ServoComparison` (the paper's map
     and the model-based map against the same points), or None; model_route: the model-based
     map's route name; reference_name: the measured map's file name; agreement: route name -> its
     E_n per servo point (:func:`droptower.uncertainty.route_agreement`), where the routes'
     expanded uncertainties are known, or None.
     """
 
-    validation: Validation
+    validation: ServoComparison
     fit: MapFit
     points: ServoPoints
     reference: tuple[pd.DataFrame, dict[str, Any]] | None = None
-    routes: dict[str, Validation] | None = None
+    routes: dict[str, ServoComparison] | None = None
     model_route: str | None = None
     reference_name: str = "Table 4"
     agreement: dict[str, pd.DataFrame] | None = None
@@ -181,7 +181,7 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
     """
     from droptower.compare.reference_map import compare_reference, read_reference
     from droptower.compare.servo_points import read_servo_results, run_sweeps
-    from droptower.compare.map_vs_servo import validate_map
+    from droptower.compare.map_vs_servo import compare_with_servo
     from droptower.maps import read_results
 
     judged = uncertainty is not None or servo_u95_rel is not None
@@ -214,7 +214,7 @@ def validate(map_fit: MapFit | str | Path, coupling: str | Path = DEFAULT_COUPLI
                     if is_log_folder(results) else read_results(results))
     points = (read_servo_results(servo_results, dict(servo_columns or {})) if servo_results is not None
               else run_sweeps(coupling, reduced=quick))
-    validation = validate_map(fit, points)
+    validation = compare_with_servo(fit, points)
     comparison = compare_reference(reference_table, fit, campaign) if reference_table is not None else None
     routes = route = None
     if mm is not None:
@@ -297,7 +297,7 @@ def inertia_u_rel(uncertainty: Any, campaign: pd.DataFrame | None) -> float:
     return float(np.sqrt(sum((w * e.standard / e.nominal) ** 2 for w, e in zip(weights, entries))))
 
 
-def _agreement(fit: MapFit, validation: Validation, routes: dict[str, Validation] | None, mm: Any,
+def _agreement(fit: MapFit, validation: ServoComparison, routes: dict[str, ServoComparison] | None, mm: Any,
                campaign: pd.DataFrame | None, uncertainty: Any, servo_u95_rel: float | None,
                points: ServoPoints) -> dict[str, pd.DataFrame]:
     """E_n per servo point of each route whose expanded uncertainty is known."""

@@ -25,6 +25,7 @@ import pandas as pd
 
 from droptower.design.choose import contiguous_feasible, predict_candidates
 from droptower.design.coverage import Target
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError
 from droptower.identify.droplogs import DropDecay
 from droptower.identify.dropfit import DropFitSettings, DropProblem, drop_scale, identify_drops
@@ -48,9 +49,10 @@ class IdentificationDesign:
     """conditions: the chosen drops (one row per distinct drop, ``repeats`` its multiplicity),
     with the planner's prediction; parameters: per model parameter its nominal value and the
     predicted standard error (value units and relative) of the design, and of ``reference`` if
-    given; log_det: log det F of the design."""
+    given; log_det: log det F of the design; family: the drop-test family identified (``model``
+    in release 0.1: deprecated)."""
 
-    model: str
+    family: str
     conditions: pd.DataFrame
     parameters: pd.DataFrame
     log_det: float
@@ -60,7 +62,16 @@ class IdentificationDesign:
     sheet_file: str | None = None
 
     @property
+    def model(self) -> str:
+        """Deprecated: :attr:`family` (removed in the next release)."""
+        from droptower.deprecation import warn_deprecated
+
+        warn_deprecated("IdentificationDesign.model", "IdentificationDesign.family")
+        return self.family
+
+    @property
     def n_tests(self) -> int:
+        """The number of drops (repeats included)."""
         return int(self.conditions["repeats"].sum())
 
     def write(self, out: str | Path, sheet: str | Path | None = None, seed: int = 0) -> Path:
@@ -68,7 +79,7 @@ class IdentificationDesign:
         :meth:`~droptower.design.choose.Design.write`); returns the plan's path."""
         from droptower.design.outputs import write_plan
 
-        return write_plan(self, out, f"designed by droptower for identifying {self.model}: "
+        return write_plan(self, out, f"designed by droptower for identifying {self.family}: "
                                      f"{self.n_tests} drops (D-optimal)", sheet, seed)
 
     def to_frame(self) -> pd.DataFrame:
@@ -79,10 +90,10 @@ class IdentificationDesign:
         """JSON-ready: tests, conditions, the parameters' predicted standard errors, log det F, files."""
         from droptower.design.outputs import condition_records
 
-        params = {r.parameter: {"value": r.value, "std_error": r.std_error, "relative_std_error": r.relative_std_error}
+        params = {r.parameter: {"value": r.value, "stderr": r.stderr, "relative_stderr": r.relative_stderr}
                   for r in self.parameters.itertuples()}
-        return {"tests": self.n_tests, "conditions": condition_records(self.conditions), "model": self.model,
-                "predicted_std_errors": params, "log_det_information": self.log_det, "plan_file": self.plan_file,
+        return {"tests": self.n_tests, "conditions": condition_records(self.conditions), "family": self.family,
+                "predicted_stderr": params, "log_det_information": self.log_det, "plan_file": self.plan_file,
                 "sheet_file": self.sheet_file}
 
     def summary(self) -> str:
@@ -91,12 +102,12 @@ class IdentificationDesign:
 
         with wide_floats():
             errors = self.parameters.to_string(index=False)
-        return "\n".join([f"{self.n_tests} drops that identify {self.model} best (D-optimal) on rig {self.rig_name} "
+        return "\n".join([f"{self.n_tests} drops that identify {self.family} best (D-optimal) on rig {self.rig_name} "
                           f"with {self.coupling_name}:", condition_table(self.conditions),
                           "predicted standard errors (sensor noise of the rig, white):", errors])
 
     def __repr__(self) -> str:
-        return f"<IdentificationDesign: {self.n_tests} drops that identify {self.model} best (D-optimal)>"
+        return f"<IdentificationDesign: {self.n_tests} drops that identify {self.family} best (D-optimal)>"
 
     def _repr_html_(self) -> str:
         return f"<p>{repr(self).strip('<>')}</p>" + self.parameters.to_html(index=False)
@@ -173,17 +184,20 @@ def d_optimal(info: np.ndarray, n: int) -> list[int]:
     return sorted(chosen)
 
 
-def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target, model: str, n_tests: int,
+@renamed_keywords(model="family")
+def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target, family: str, n_tests: int,
                               *, options: dict | None = None, reference: pd.DataFrame | None = None,
                               candidates: pd.DataFrame | None = None) -> IdentificationDesign:
-    """The ``n_tests`` drops within ``target`` that identify ``model`` best on ``coupling``.
+    """The ``n_tests`` drops within ``target`` that identify ``family`` best on ``coupling``.
 
-    model: a drop-test family (``template``: ``coupling`` itself with its numbers as factors;
+    family: a drop-test family (``model`` in release 0.1: deprecated; ``template``: ``coupling``
+    itself with its numbers as factors;
     others: first fitted to the coupling's predicted decays over the candidates, so the design
     is optimal where that fit says the parameters are); reference: another plan's conditions
     (columns ``inertia_kgm2``, ``drop_mass_kg``, ``drop_height_m``) whose predicted standard
     errors are reported beside the design's.
     """
+    name = family  # the family's name; ``family`` below is the family bound to the decays' scale
     cands = predict_candidates(rig, coupling, (0.0,)) if candidates is None else candidates
     feasible = contiguous_feasible(cands)
     (a0, a1), (f0, f1) = target.amplitude_deg, target.frequency_hz
@@ -206,12 +220,12 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
                           d.inertia_kgm2, d.rate0_rad_per_s, d.rate_source, d.frequency_hz, d.amplitude_rad, d.dt_s)
                 for i, d in enumerate(decays)]
     opts = dict(options or {})
-    if model == "template":
+    if name == "template":
         opts.setdefault("template", coupling)
-        family = family_class(model)(drop_scale(measured), opts)
+        family = family_class(name)(drop_scale(measured), opts)
         values = family.guess()
     else:
-        fit = identify_drops(model, measured, settings=settings, options=opts)
+        fit = identify_drops(name, measured, settings=settings, options=opts)
         family, values = fit.family_model, fit.params.vector()
     problem = DropProblem(family, measured, settings)
     free = np.array([p.name != "p" for p in family.parameters])
@@ -227,13 +241,13 @@ def design_for_identification(rig: RigConfig, coupling: Coupling, target: Target
         sz = np.sqrt(np.diag(np.linalg.pinv(f)))
         return np.array([sz[k] * params[j].dvalue_dz(values[j]) for k, j in enumerate(np.flatnonzero(free))])
 
-    table = pd.DataFrame({"parameter": names, "value": vals, "std_error": std_of(total)})
-    table["relative_std_error"] = table["std_error"] / np.abs(table["value"])
+    table = pd.DataFrame({"parameter": names, "value": vals, "stderr": std_of(total)})
+    table["relative_stderr"] = table["stderr"] / np.abs(table["value"])
     if reference is not None:
         ref_std = std_of(info[n_pool:].sum(axis=0))
-        table["reference_std_error"] = ref_std
-        table["reference_relative_std_error"] = ref_std / np.abs(table["value"])
+        table["reference_stderr"] = ref_std
+        table["reference_relative_stderr"] = ref_std / np.abs(table["value"])
     counts = pd.Series(chosen).value_counts().sort_index()
     cond = pool.iloc[counts.index].copy()
     cond["repeats"] = counts.to_numpy()
-    return IdentificationDesign(model, cond.reset_index(drop=True), table, _log_det(total))
+    return IdentificationDesign(name, cond.reset_index(drop=True), table, _log_det(total))

@@ -171,10 +171,10 @@ def result_row(path: str | Path, signals: DropSignals, result: ExtractionResult,
     """One table row: ``file``, ``drop_index`` (the drop's number in its log, from 1),
     ``t_impact_s`` (its impact on the log's clock), the log's metadata (nested values as JSON
     text, the drop's conditions included), then every result of
-    :meth:`ExtractionResult.as_dict`. A metadata key that is also a result is left out when
+    :meth:`ExtractionResult.to_dict`. A metadata key that is also a result is left out when
     the values agree (``inertia_kgm2`` used from the log) and kept as ``log_<key>`` when they
     differ (a given ``inertia_kgm2`` overrode the log's)."""
-    results = result.as_dict()
+    results = result.to_dict()
     row: dict[str, Any] = {"file": str(path), "drop_index": int(drop_index), "t_impact_s": result.impact_time_s}
     for key, value in signals.metadata.items():
         if key in results or key in row:

@@ -125,6 +125,13 @@ class ExtractionResult:
         return float(lehr_damping(self.delta_per_s, self.omega_rad_per_s))
 
     def as_dict(self) -> dict[str, Any]:
+        """Deprecated: :meth:`to_dict` (removed in the next release)."""
+        from droptower.deprecation import warn_deprecated
+
+        warn_deprecated("ExtractionResult.as_dict()", "ExtractionResult.to_dict()")
+        return self.to_dict()
+
+    def to_dict(self) -> dict[str, Any]:
         """Flat dict for tables and JSON: unit-suffixed names, ``<name>_std`` uncertainties,
         ``double_impact`` (bool) and ``flags`` (list of flag names)."""
         out: dict[str, Any] = {}

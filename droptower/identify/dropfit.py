@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError
 from droptower.fit_defaults import HOLDOUT_FRACTION
 from droptower.identify.budget import check as check_budget
@@ -108,7 +109,7 @@ class DropFitSettings:
 #: Options of the fit among a family's options: each sets the :class:`DropFitSettings` field of
 #: its name (``conditioning``: False for a virgin coupling).
 FIT_OPTIONS = ("substeps", "torque_weight", "max_nfev", "seed", "conditioning")
-#: Options of reading the logs (:func:`~droptower.identify.drops.read_drop_tests`): refused by a
+#: Options of reading the logs (:func:`~droptower.identify.drop_campaign.read_drop_tests`): refused by a
 #: fit of decays already read, which could not honour them.
 READ_OPTIONS = ("cycles", "initial_rate", "skip_s")
 
@@ -310,17 +311,18 @@ def holdout_split(decays: list[DropDecay], fraction: float) -> tuple[list[int], 
     return [i for i in range(n) if i not in hold], hold
 
 
+@renamed_keywords(kind="family")
 @one_blas_thread
-def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
+def identify_drops(family: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
                    settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | Parameters | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    options: dict[str, Any] | None = None) -> Identification:
-    """Fit family ``kind`` (:data:`DROP_KINDS`) to the free decays ``decays``.
+    """Fit family ``family`` (:data:`DROP_KINDS`) to the free decays ``decays``.
 
     Parameters
     ----------
-    kind : str
-        The model family.
+    family : str
+        The model family's name (``kind`` in release 0.1: deprecated).
     decays : list of DropDecay
         The drop tests' free decays (:func:`~droptower.identify.droplogs.read_decays`).
     excluded : list of dict, optional
@@ -341,13 +343,14 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     Returns
     -------
     Identification
-        With ``data`` :data:`~droptower.identify.result.DROPS`: ``fit`` / ``holdout`` the angle
+        With ``data`` :data:`~droptower.identify.result.DROPS`: ``fit_error`` / ``holdout_error`` the angle
         errors (fractions of each test's amplitude) over the fitting / held-out tests.
     """
     start = time.perf_counter()
+    kind = family  # the name; ``family`` below is the family bound to the data's scale
     init, bounds, guesses = split_given(init, bounds)
     if kind not in DROP_KINDS:
-        raise DroptowerError(f"model {kind!r} cannot be identified from drop tests (kinds: {', '.join(DROP_KINDS)})")
+        raise DroptowerError(f"family {kind!r} cannot be identified from drop tests (families: {', '.join(DROP_KINDS)})")
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
@@ -359,7 +362,7 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     params, x0, given = family.parameters, s.x0, s.given
     free = np.array([p.name != "p" for p in params]) & ~given  # the elastoslide's odd p: by the start search
     if not free.any():
-        raise DroptowerError(f"every parameter of model {kind} has a given initial value: nothing to fit")
+        raise DroptowerError(f"every parameter of family {kind} has a given initial value: nothing to fit")
     # a family's deferred parameters (a part it switches off first): held off in the first
     # search, freed in the wider one after a poor verdict
     deferred = np.isin(family.names, family.DEFERRED) & free
@@ -435,12 +438,12 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
         hold_err = summarise(per_test_errors(hold, sol.values))
     return Identification(
         kind, fitted_parameters(params, sol.values, std, ~given), list(sol.at_bounds), fit_err,
-        family.coupling(sol.values), data=DROPS, holdout=hold_err, derived=family.derived(sol.values),
-        time_s=time.perf_counter() - start, verdict=verdict, family_model=family, message=sol.message,
+        family.coupling(sol.values), data=DROPS, holdout_error=hold_err, derived=family.derived(sol.values),
+        wall_s=time.perf_counter() - start, verdict=verdict, family_model=family, message=sol.message,
         non_identifiable=sol.non_identifiable, tests_used=[decays[i].name for i in fit_idx],
         tests_held_out=[decays[i].name for i in hold_idx], tests_excluded=list(excluded or []), search=search,
-        angle_rss_rad2=rss, angle_samples=n_samples, _converged=bool(sol.converged),
-        _evaluations=problem.counter.evaluations, _nfev=sol.nfev)
+        angle_rss_rad2=rss, angle_samples=n_samples, converged=bool(sol.converged),
+        evaluations=problem.counter.evaluations, nfev=sol.nfev)
 
 
 def _hops(problem: DropProblem, family: Family, sol: Any, fine: tuple, free: np.ndarray, settings: DropFitSettings,

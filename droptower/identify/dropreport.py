@@ -5,7 +5,6 @@ Messages name Python parameters in backticks (``verbose``); the command line say
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -13,71 +12,55 @@ import numpy as np
 import pandas as pd
 
 from droptower.errors import DroptowerError
-from droptower.identify.drops import DropCampaign
-from droptower.identify.result import DROPS, Identification, register_format
+from droptower.identify.drop_campaign import DropCampaign
+from droptower.identify.result import DROPS, Identification, register_format, report_text, result_skeleton
 
 #: The servo grid of the prediction: amplitudes x frequencies, log-spaced over the tested range.
 
 
 def drop_result_dict(result: Identification) -> dict[str, Any]:
-    """A drop-test identification, JSON-ready (also what the ``identify`` command prints as JSON for drop tests)."""
+    """A drop-test identification, JSON-ready, with the keys of
+    :data:`~droptower.identify.result.RESULT_KEYS` (also what the ``identify`` command prints as
+    JSON for drop tests); its errors carry ``nrmse``, the angle's, as the servo records' do the torque's."""
     from droptower.jsonsafe import json_safe
 
-    return json_safe({
-        "converged": result.converged, "model": result.family, "message": result.message,
-        "parameters": {n: {"value": p.value, "std_error": p.stderr, "at_bound": n in result.at_bounds}
-                       for n, p in result.params.items()},
-        "derived": result.derived, "at_bounds": result.at_bounds,
-        "non_identifiable": result.non_identifiable, "fit_error": result.fit,
-        "holdout_error": result.holdout, "tests_used": result.tests_used,
-        "tests_held_out": result.tests_held_out, "tests_excluded": result.tests_excluded,
-        "evaluations": result.evaluations, "nfev": result.nfev, "wall_s": result.time_s,
-        "coupling_file": result.coupling_file, **(result.verdict.to_dict() if result.verdict else {}),
-        "search": result.search})
+    doc = result_skeleton(result)
+    doc.update(fit_error={"nrmse": result.fit_error["angle_nrmse"], **result.fit_error},
+               holdout_error={"nrmse": result.holdout_error["angle_nrmse"], **result.holdout_error}
+               if result.holdout_error else None)
+    return json_safe(doc)
 
 
 def drop_report_text(result: Identification, verbose: bool = False) -> str:
-    """A human-readable report of a drop-test identification; ``verbose``: a line per test."""
-    lines = [f"model {result.family} from {len(result.tests_used)} drop test(s) "
-             f"(+{len(result.tests_held_out)} held out, {len(result.tests_excluded)} excluded): "
-             f"{'converged' if result.converged else 'NOT CONVERGED: ' + result.message}"]
-    width = max(len(n) for n in result.params)
-    for n, p in result.params.items():
-        unc = f" +- {p.stderr:.3g}" if math.isfinite(p.stderr) else " (fixed)"
-        lines.append(f"  {n:<{width}} = {p.value:.6g}{unc}{'  (at bound)' if n in result.at_bounds else ''}")
-    for n, v in result.derived.items():
-        lines.append(f"  {n:<{width}} = {float(v):.6g}  (derived)")
-    for combo in result.non_identifiable:
-        lines.append("  not identifiable (the fit is flat along): "
-                     + " ".join(f"{w:+.3g}*z({n})" for n, w in combo.items()) + "  (z: ln value or value/scale)")
-    for label, err in (("fit", result.fit), ("holdout", result.holdout)):
+    """The text report of a drop-test identification (the sections of
+    :data:`~droptower.identify.result.SUMMARY_SECTIONS`); ``verbose``: a line per test."""
+    data = (f"drop tests ({len(result.tests_used)} fitted, {len(result.tests_held_out)} held out, "
+            f"{len(result.tests_excluded)} excluded)")
+    errors = []
+    for label, err in (("fit", result.fit_error), ("holdout", result.holdout_error)):
         if err:
-            lines.append(f"{label + ':':<8} angle nRMSE {100 * err['angle_nrmse']:.3f} % (max {100 * err['angle_nrmse_max']:.3f} %)"
-                         + (f", torque nRMSE {100 * err['torque_nrmse']:.3f} %" if "torque_nrmse" in err else "")
-                         + f" over {err['tests']} test(s)")
-    sources = sorted({r["rate_source"] for r in result.fit["per_test"]})
-    lines.append(f"initial rate from: {', '.join(sources)} (impact_force: L * impulse / J; angle_slope: the angle's "
-                 "slope after the onset)")
-    lines.append(f"effort:  {result.evaluations} model evaluations, {result.nfev} optimiser steps, {result.time_s:.2f} s")
-    if result.search:
-        lines.append(f"global search: {result.search['candidates']} candidates over the bounds, least squares from "
-                     f"the best {result.search['local_fits']}")
-    if result.verdict:
-        lines.append(result.verdict.text())
-    per_test = result.fit["per_test"] + (result.holdout["per_test"] if result.holdout else [])
+            errors.append(f"{label + ':':<8} angle nRMSE {100 * err['angle_nrmse']:.3f} % (max {100 * err['angle_nrmse_max']:.3f} %)"
+                          + (f", torque nRMSE {100 * err['torque_nrmse']:.3f} %" if "torque_nrmse" in err else "")
+                          + f" over {err['tests']} test(s)")
+    if not result.holdout_error:
+        errors.append("holdout: none (no held-out tests)")
+    sources = sorted({r["rate_source"] for r in result.fit_error["per_test"]})
+    details = [f"initial rate from: {', '.join(sources)} (impact_force: L * impulse / J; angle_slope: the angle's "
+               "slope after the onset)"]
+    per_test = result.fit_error["per_test"] + (result.holdout_error["per_test"] if result.holdout_error else [])
     if not verbose:
         worst = max(per_test, key=lambda r: r["angle_nrmse"])
-        lines.append(f"per test: {len(per_test)} test(s), worst angle nRMSE {100 * worst['angle_nrmse']:.3f} % "
-                     f"({worst['file']}); `verbose` lists every test")
-        return "\n".join(lines)
-    lines.append("per test (angle nRMSE %):")
-    for r in per_test:
-        held = " (held out)" if r["file"] in result.tests_held_out else ""
-        lines.append(f"  {r['file']}: J {r['inertia_kgm2']:.4g} kg*m^2, {r['amplitude_deg']:.3g} deg, "
-                     f"{r['frequency_hz']:.3g} Hz: {100 * r['angle_nrmse']:.3f}{held}")
-    for e in result.tests_excluded:
-        lines.append(f"  excluded {e['file']}: {e['reason']}")
-    return "\n".join(lines)
+        details.append(f"per test: {len(per_test)} test(s), worst angle nRMSE {100 * worst['angle_nrmse']:.3f} % "
+                       f"({worst['file']}); `verbose` lists every test")
+    else:
+        details.append("per test (angle nRMSE %):")
+        for r in per_test:
+            held = " (held out)" if r["file"] in result.tests_held_out else ""
+            details.append(f"  {r['file']}: J {r['inertia_kgm2']:.4g} kg*m^2, {r['amplitude_deg']:.3g} deg, "
+                           f"{r['frequency_hz']:.3g} Hz: {100 * r['angle_nrmse']:.3f}{held}")
+        for e in result.tests_excluded:
+            details.append(f"  excluded {e['file']}: {e['reason']}")
+    return report_text(result, data, errors, details)
 
 
 def servo_prediction(result: Identification, campaign: DropCampaign) -> tuple[pd.DataFrame, str]:

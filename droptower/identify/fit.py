@@ -182,19 +182,22 @@ class FitResult:
     def params(self) -> dict[str, float]:
         return dict(zip(self.names, map(float, self.values)))
 
-    def summary(self) -> dict:
-        """Deprecated: :meth:`to_dict` (``summary()`` is a text report elsewhere; removed in the
-        next release)."""
-        from droptower.identify.result import deprecated
+    def summary(self) -> str:
+        """One line of text: the stage, its error, effort and the optimiser's word (as every
+        ``summary()``; :meth:`to_dict` for the data). Read as the dict it returned in release
+        0.1, it still answers with a DeprecationWarning for this release."""
+        from droptower.deprecation import TextReport
 
-        deprecated("FitResult.summary()", "FitResult.to_dict()")
-        return self.to_dict()
+        text = (f"stage {self.stage}: nRMSE {100 * self.metrics.nrmse:.3f} %, {self.nfev} steps, "
+                f"{self.evaluations} evaluations, {self.time_s:.2f} s, "
+                + ("converged" if self.converged else f"not converged: {self.message}"))
+        return TextReport(text, self.to_dict(), "FitResult")
 
     def to_dict(self) -> dict:
         """JSON-ready: the stage, its free parameters, error, evaluations, time and the optimiser's word."""
         return {"stage": self.stage, "free": [n for n, f in zip(self.names, self.free) if f],
                 "nrmse": self.metrics.nrmse, "nfev": self.nfev, "njev": self.njev,
-                "evaluations": self.evaluations, "time_s": self.time_s, "converged": self.converged,
+                "evaluations": self.evaluations, "wall_s": self.time_s, "converged": self.converged,
                 "message": self.message, "non_identifiable": self.non_identifiable}
 
 

@@ -17,89 +17,60 @@ import pandas as pd
 from droptower.errors import make_folder
 from droptower.identify.data import Segment
 from droptower.identify.result import Identification, metrics, servo_residual
-from droptower.identify.result import SERVO, register_format
+from droptower.identify.result import SERVO, register_format, report_text, result_skeleton
 from droptower.io.droptower_log import save_figure
 from droptower.io.fields import field_name, translate_fields
 from droptower.jsonsafe import json_safe
 
 
 def result_dict(ident: Identification) -> dict[str, Any]:
-    """Everything an identification reports, JSON-ready, fields named for the records' units
+    """Everything an identification from servo records reports, JSON-ready, with the keys of
+    :data:`~droptower.identify.result.RESULT_KEYS`, fields named for the records' units
     (parameter names given as values, in ``at_bounds`` and a stage's ``free``, too)."""
     units = ident.coupling.units
 
     def named(names: list[str]) -> list[str]:
         return [field_name(n, units) for n in names]
 
-    return translate_fields(json_safe({
-        "model": ident.family,
-        "converged": ident.converged,
-        **(ident.verdict.to_dict() if ident.verdict else {}),
-        "n_parameters": ident.n_parameters,
-        "parameters": {n: {"value": v, "std_error": ident.std_error.get(n)} for n, v in ident.parameters.items()},
-        "derived": ident.derived,
-        "at_bounds": named(ident.at_bounds),
-        "fit": ident.fit.to_dict(),
-        "holdout": ident.holdout.to_dict() if ident.holdout else None,
-        "evaluations": ident.evaluations,
-        "nfev": ident.nfev,
-        "time_s": ident.time_s,
-        "stages": [s.to_dict() | {"free": named(s.to_dict()["free"])} for s in ident.stages],
-        "coupling_note": ident.coupling_note,
-        "details": ident.extra,
-    }), units) | {"units": units}
+    doc = result_skeleton(ident)
+    doc.update(
+        at_bounds=named(ident.at_bounds),
+        non_identifiable=ident.non_identifiable or (ident.stages[-1].non_identifiable if ident.stages else []),
+        fit_error=ident.fit_error.to_dict(),
+        holdout_error=ident.holdout_error.to_dict() if ident.holdout_error else None,
+        stages=[s.to_dict() | {"free": named(s.to_dict()["free"])} for s in ident.stages])
+    return translate_fields(json_safe(doc), units) | {"units": units}
 
 
 def result_text(ident: Identification) -> str:
-    """A human-readable report of one identification (names for the records' units)."""
+    """The text report of an identification from servo records (the sections of
+    :data:`~droptower.identify.result.SUMMARY_SECTIONS`; names for the records' units)."""
     units = ident.coupling.units
     load, unit = ("force", "N") if units == "translational" else ("torque", "N*m")
-    lines = [f"model {ident.family}: {ident.n_parameters} parameters, "
-             f"{'converged' if ident.converged else 'NOT CONVERGED'}"
-             + (" (translational: displacement in m, force in N)" if units == "translational" else "")]
-    values = translate_fields({"parameters": ident.parameters, "std_error": ident.std_error,
-                               "derived": ident.derived}, units)
-    at_bounds = {field_name(n, units) for n in ident.at_bounds}
-    width = max(len(n) for n in list(values["parameters"]) + list(values["derived"]) + ["x"])
-    for name, value in values["parameters"].items():
-        std = values["std_error"].get(name, float("nan"))
-        flag = "  (at bound)" if name in at_bounds else ""
-        unc = f" +- {std:.3g}" if math.isfinite(std) else ""
-        lines.append(f"  {name:<{width}} = {value:.6g}{unc}{flag}")
-    for name, value in values["derived"].items():
-        lines.append(f"  {name:<{width}} = {float(value):.6g}  (derived)")
-    lines.append(f"fit:     nRMSE {100 * ident.fit.nrmse:.3f} % of max |{load}| {ident.fit.max_torque_nm:.4g} {unit} "
-                 f"(RMSE {ident.fit.rmse_nm:.4g} {unit}), residual lag-1 correlation {ident.fit.residual_lag1:.3f}")
-    if ident.holdout:
-        h = ident.holdout
-        lines.append(f"holdout: nRMSE {100 * h.nrmse:.3f} % of max |{load}| {h.max_torque_nm:.4g} {unit} "
-                     f"(RMSE {h.rmse_nm:.4g} {unit}), residual lag-1 correlation {h.residual_lag1:.3f}")
-    lines.append(f"effort:  {ident.evaluations} model evaluations, {ident.nfev} optimiser steps, "
-                 f"{ident.time_s:.2f} s")
-    for s in ident.stages:
-        lines.append(f"  stage {s.stage}: nRMSE {100 * s.metrics.nrmse:.3f} %, {s.nfev} steps, "
-                     f"{s.evaluations} evaluations, {s.time_s:.2f} s, "
-                     f"{'converged' if s.converged else 'not converged: ' + s.message}")
+    data = "servo records" + (" (translational: displacement in m, force in N)" if units == "translational" else "")
+    errors = []
+    for label, m in (("fit", ident.fit_error), ("holdout", ident.holdout_error)):
+        if m:
+            errors.append(f"{label + ':':<8} nRMSE {100 * m.nrmse:.3f} % of max |{load}| {m.max_torque_nm:.4g} {unit} "
+                          f"(RMSE {m.rmse_nm:.4g} {unit}), residual lag-1 correlation {m.residual_lag1:.3f}")
+    if not ident.holdout_error:
+        errors.append("holdout: none (no hold-out records)")
+    details = [f"stage {s.stage}: nRMSE {100 * s.metrics.nrmse:.3f} %, {s.nfev} steps, {s.evaluations} evaluations, "
+               f"{s.time_s:.2f} s, {'converged' if s.converged else 'not converged: ' + s.message}" for s in ident.stages]
     if ident.coupling_note:
-        lines.append(f"coupling: {ident.coupling_note}")
+        details.append(f"coupling: {ident.coupling_note}")
     if "start" in ident.extra:
         st = ident.extra["start"]
-        lines.append(f"start: the {st['family']} fit (nRMSE {100 * st['nrmse']:.3f} %"
-                     + (", its global search included" if st["global_search"] else "")
-                     + (f", {st['evaluations']} evaluations, counted above" if "evaluations" in st else "") + ")")
-    if "global_search" in ident.extra:
-        g = ident.extra["global_search"]
-        lines.append(f"global search{' of ' + g['through'] + ', then this model from it' if 'through' in g else ''}: "
-                     f"{g['candidates']} candidates over the bounds, least squares from the best "
-                     f"{g['local_fits']}" + (f" (the staged fit: nRMSE {100 * ident.extra['staged_fit']['nrmse']:.3f} %)"
-                                             if "staged_fit" in ident.extra else ""))
-    if ident.verdict:
-        lines.append(ident.verdict.text())
+        details.append(f"start: the {st['family']} fit (nRMSE {100 * st['nrmse']:.3f} %"
+                       + (", its global search included" if st["global_search"] else "")
+                       + (f", {st['evaluations']} evaluations, counted above" if "evaluations" in st else "") + ")")
+    if "staged_fit" in ident.extra:
+        details.append(f"staged fit before the global search: nRMSE {100 * ident.extra['staged_fit']['nrmse']:.3f} %")
     extra = translate_fields(ident.extra, units)
     for key in ("analytic", "loading_curve", "p_walk", "amplitude_functions", "frequency_functions"):
         if key in extra:
-            lines.append(f"{key.replace('_', ' ')}: {_brief(extra[key])}")
-    return "\n".join(lines)
+            details.append(f"{key.replace('_', ' ')}: {_brief(extra[key])}")
+    return report_text(ident, data, errors, details, name_of=lambda n: field_name(n, units))
 
 
 register_format(SERVO, result_dict, result_text)
@@ -131,11 +102,11 @@ def ranking_table(results: dict[str, Identification], segments: list[Segment]) -
     sigma = noise.sigma if math.isfinite(noise.sigma) else math.sqrt(min(rss.values()) / max(noise.n_samples, 1))
     rows = []
     for kind, r in results.items():
-        rows.append({"model": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit.nrmse,
-                     "holdout_nrmse_percent": 100 * r.holdout.nrmse if r.holdout else np.nan,
+        rows.append({"family": kind, "n_parameters": r.n_parameters, "fit_nrmse_percent": 100 * r.fit_error.nrmse,
+                     "holdout_nrmse_percent": 100 * r.holdout_error.nrmse if r.holdout_error else np.nan,
                      "bic": bic(rss[kind], noise.n_samples, noise.n_eff, sigma, r.n_parameters),
                      "verdict": r.verdict.verdict if r.verdict else None,
-                     "fit_time_s": r.time_s, "evaluations": r.evaluations, "converged": r.converged})
+                     "wall_s": r.wall_s, "evaluations": r.evaluations, "converged": r.converged})
     return ranked(pd.DataFrame(rows), {"noise_floor_nm": sigma, "n_eff": noise.n_eff})
 
 
@@ -153,25 +124,25 @@ def drop_ranking_table(results: dict[str, Any]) -> pd.DataFrame:
     for kind, r in results.items():
         if r.angle_samples != n:
             raise ValueError("drop-test fits ranked together must share their fitting tests")
-        rows.append({"model": kind, "n_parameters": r.n_parameters,
-                     "fit_angle_nrmse_percent": 100 * r.fit["angle_nrmse"],
-                     "holdout_angle_nrmse_percent": 100 * r.holdout["angle_nrmse"] if r.holdout else np.nan,
+        rows.append({"family": kind, "n_parameters": r.n_parameters,
+                     "fit_angle_nrmse_percent": 100 * r.fit_error["angle_nrmse"],
+                     "holdout_angle_nrmse_percent": 100 * r.holdout_error["angle_nrmse"] if r.holdout_error else np.nan,
                      "bic": bic(r.angle_rss_rad2, n, float(n), sigma, r.n_parameters),
-                     "verdict": r.verdict.verdict, "fit_time_s": r.time_s, "evaluations": r.evaluations,
+                     "verdict": r.verdict.verdict, "wall_s": r.wall_s, "evaluations": r.evaluations,
                      "converged": r.converged})
     return ranked(pd.DataFrame(rows), {"noise_allowance_rad": sigma, "n_eff": float(n)})
 
 
 def ranked(table: pd.DataFrame, common: dict[str, float]) -> pd.DataFrame:
-    """``table`` (columns model, n_parameters, bic, converged) best first by the criterion's
+    """``table`` (columns family, n_parameters, bic, converged) best first by the criterion's
     rule, with ``delta_bic`` and the ``common`` columns (the noise model, the effective sample size)."""
     from droptower.identify.criterion import order
 
     if table.empty:
         return table
     names = [m for ok in (True, False) for m in
-             order(list(zip(*(table.loc[table["converged"] == ok, c] for c in ("model", "n_parameters", "bic")))))]
-    table = table.set_index("model").loc[names].reset_index()
+             order(list(zip(*(table.loc[table["converged"] == ok, c] for c in ("family", "n_parameters", "bic")))))]
+    table = table.set_index("family").loc[names].reset_index()
     best = table["bic"][table["converged"]].min() if table["converged"].any() else table["bic"].min()
     table.insert(table.columns.get_loc("bic") + 1, "delta_bic", table["bic"] - best)
     for key, value in common.items():
@@ -190,7 +161,7 @@ def record_table(results: dict[str, Identification], segments: list[Segment]) ->
         predictions = r.predict(segments)
         for seg, pred in zip(segments, predictions):
             m = metrics([seg], [pred])
-            rows.append({"record": seg.name, "model": kind, "rmse_nm": m.rmse_nm, "nrmse_percent": 100 * m.rmse_nm / peak})
+            rows.append({"record": seg.name, "family": kind, "rmse_nm": m.rmse_nm, "nrmse_percent": 100 * m.rmse_nm / peak})
     table = pd.DataFrame(rows)
     if not table.empty:
         table["rmse_over_max_rmse"] = table["rmse_nm"] / table.groupby("record")["rmse_nm"].transform("max")
@@ -273,7 +244,7 @@ def plot_comparison(results: dict[str, Identification], records: pd.DataFrame, s
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
     for ax, col, title in ((axes[0], "rmse_over_max_rmse", "RMSE / max RMSE of the record"),
                            (axes[1], "nrmse_percent", "RMSE (% of max |torque|)")):
-        pivot = records.pivot(index="record", columns="model", values=col)
+        pivot = records.pivot(index="record", columns="family", values=col)
         pivot.plot.bar(ax=ax, rot=30)
         ax.set_title(title)
         ax.set_xlabel("")

@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
 
 import numpy as np
 
+from droptower.deprecation import warn_deprecated
 from droptower.errors import DroptowerError
 
 if TYPE_CHECKING:
@@ -61,11 +62,8 @@ class Metrics:
 
 def deprecated(old: str, new: str) -> None:
     """Warn that ``old`` is deprecated in favour of ``new`` (a DeprecationWarning at the caller's
-    caller: the line that used the old name)."""
-    import warnings
-
-    warnings.warn(f"{old} is deprecated and will be removed in the next release: use {new}", DeprecationWarning,
-                  stacklevel=3)
+    caller: the line that used the old name); :func:`droptower.deprecation.warn_deprecated`."""
+    warn_deprecated(old, new, stacklevel=4)
 
 
 def lag1_correlation(residuals: list[np.ndarray], compared: list[np.ndarray] | None = None) -> float:
@@ -109,8 +107,24 @@ def metrics(segments: list["Segment"], predictions: list[np.ndarray]) -> Metrics
 
 
 #: how each kind of identification reports itself: data -> (to_dict, summary), registered by the
-#: report modules (:mod:`.report` for servo records, :mod:`.dropreport` for drop tests)
+#: report modules (:mod:`.report` for servo records, :mod:`.dropreport` for drop tests); both
+#: build on :func:`result_skeleton` and :func:`report_text`, so the keys and the sections are one
 FORMATS: dict[str, tuple[Callable[["Identification"], dict[str, Any]], Callable[["Identification"], str]]] = {}
+
+#: the keys of :meth:`Identification.to_dict`, the same for servo records and drop tests (a value
+#: that does not apply to one kind of data is empty: ``stages`` of drop tests, ``tests_used`` of
+#: servo records). ``noise`` holds the verdict's noise floor and allowance with their unit in
+#: their names (``noise_floor_nm``, ``noise_floor_rad``); ``fit_error`` / ``holdout_error`` the
+#: errors of the data (both with ``nrmse``, the fit's normalised RMS error, a fraction);
+#: ``uncertainty`` the parameters' budget where the command line computes one (else None).
+RESULT_KEYS = ("family", "data", "units", "converged", "message", "verdict", "reasons", "error_over_noise",
+               "noise_ratio_limit", "noise", "n_parameters", "parameters", "derived", "at_bounds", "non_identifiable",
+               "fit_error", "holdout_error", "evaluations", "nfev", "wall_s", "search", "stages", "tests_used",
+               "tests_held_out", "tests_excluded", "coupling_note", "coupling_file", "uncertainty", "details")
+
+#: the section headers of :meth:`Identification.summary`, in order, for both kinds of data (as
+#: lmfit's ``fit_report``: a header per section, indented lines under it)
+SUMMARY_SECTIONS = ("[[Identification]]", "[[Errors]]", "[[Parameters]]", "[[Search]]", "[[Effort]]", "[[Details]]")
 
 
 def register_format(data: str, to_dict: Callable[["Identification"], dict[str, Any]],
@@ -118,6 +132,75 @@ def register_format(data: str, to_dict: Callable[["Identification"], dict[str, A
     """Register how identifications from ``data`` (:data:`SERVO`, :data:`DROPS`) convert to a
     dict and a text report."""
     FORMATS[data] = (to_dict, summary)
+
+
+def result_skeleton(ident: "Identification") -> dict[str, Any]:
+    """Every key of :data:`RESULT_KEYS` with what the result holds whatever its data (not yet
+    JSON-safe); the report modules fill in the errors, stages and details of their data."""
+    v = ident.verdict.to_dict() if ident.verdict is not None else {}
+    noise = {k: val for k, val in v.items() if k.startswith(("noise_floor_", "noise_allowance_"))}
+    params = ident.params.to_dict()
+    for name, entry in params.items():
+        entry["at_bound"] = name in ident.at_bounds
+    return {
+        "family": ident.family, "data": ident.data,
+        "units": getattr(ident.coupling, "units", "torsional") or "torsional",
+        "converged": ident.converged, "message": ident.message,
+        "verdict": v.get("verdict"), "reasons": v.get("reasons", []), "error_over_noise": v.get("error_over_noise"),
+        "noise_ratio_limit": v.get("noise_ratio_limit"), "noise": noise,
+        "n_parameters": ident.n_parameters, "parameters": params, "derived": ident.derived,
+        "at_bounds": list(ident.at_bounds), "non_identifiable": ident.non_identifiable,
+        "fit_error": None, "holdout_error": None,
+        "evaluations": ident.evaluations, "nfev": ident.nfev, "wall_s": ident.wall_s,
+        "search": ident.search, "stages": [], "tests_used": ident.tests_used, "tests_held_out": ident.tests_held_out,
+        "tests_excluded": ident.tests_excluded, "coupling_note": ident.coupling_note,
+        "coupling_file": ident.coupling_file, "uncertainty": None, "details": {k: val for k, val in ident.extra.items() if k != "global_search"},
+    }
+
+
+def report_text(ident: "Identification", data_line: str, error_lines: list[str], details: list[str],
+                name_of: Callable[[str], str] = str) -> str:
+    """The text report of :meth:`Identification.summary`, the sections of
+    :data:`SUMMARY_SECTIONS`: what was identified from what and the verdict, the fit's and the
+    hold-out's error (``error_lines``, the data's own wording), the parameters (value, stderr,
+    min, max, at-bound and held marks; the derived quantities), the search, the effort, and the
+    data's ``details``. ``name_of`` names a parameter for the data's units."""
+    rows = [(name_of(n), p.value, p.stderr, p.min, p.max,
+             "at bound" if n in ident.at_bounds else ("held" if not p.vary else ""),
+             p.unit if name_of(n) == n else unit_of(name_of(n)))
+            for n, p in ident.params.items()]
+    width = max([len(r[0]) for r in rows] + [len(name_of(n)) for n in ident.derived] + [4])
+    lines = [SUMMARY_SECTIONS[0],
+             f"    family      = {ident.family}",
+             f"    data        = {data_line}",
+             f"    converged   = {'yes' if ident.converged else 'NOT CONVERGED' + (': ' + ident.message if ident.message else '')}"]
+    if ident.verdict is not None:
+        lines += ["    " + line for line in ident.verdict.text().splitlines()]
+    lines += [SUMMARY_SECTIONS[1]] + ["    " + line for line in error_lines]
+    lines += [SUMMARY_SECTIONS[2],
+              f"    {'name':<{width}}  {'value':>12}  {'stderr':>10}  {'min':>10}  {'max':>10}  unit"]
+    for name, value, err, lo, hi, mark, unit in rows:
+        lines.append(f"    {name:<{width}}  {value:>12.6g}  {err:>10.3g}  {lo:>10.3g}  {hi:>10.3g}  {unit}"
+                     + (f"  ({mark})" if mark else ""))
+    for name, value in ident.derived.items():
+        lines.append(f"    {name_of(name):<{width}}  {float(value):>12.6g}  (derived)")
+    for combo in ident.non_identifiable:
+        lines.append("    not identifiable (the fit is flat along): "
+                     + " ".join(f"{w:+.3g}*z({name_of(n)})" for n, w in combo.items()) + "  (z: ln value or value/scale)")
+    search = ident.search
+    lines.append(SUMMARY_SECTIONS[3])
+    if search:
+        through = f" of {search['through']}, then this family from it" if "through" in search else ""
+        lines.append(f"    global search{through}: {search.get('candidates', '?')} candidates over the bounds, least "
+                     f"squares from the best {search.get('local_fits', '?')}")
+    else:
+        lines.append("    none")
+    lines += [SUMMARY_SECTIONS[4],
+              f"    evaluations = {ident.evaluations} (parameter sets simulated)",
+              f"    nfev        = {ident.nfev} (optimiser steps)",
+              f"    wall_s      = {ident.wall_s:.2f}"]
+    lines += [SUMMARY_SECTIONS[5]] + (["    " + line for line in details] or ["    none"])
+    return "\n".join(lines)
 
 
 def unit_of(name: str) -> str:
@@ -320,76 +403,122 @@ def place_guesses(kind: str, names: list[str], x0: np.ndarray, guesses: Mapping[
     """Write the first guesses ``guesses`` (name -> value) into the start vector ``x0`` in place."""
     for name, value in guesses.items():
         if name not in names:
-            raise DroptowerError(f"model {kind} has no parameter {name} (its parameters: {', '.join(names)})")
+            raise DroptowerError(f"family {kind} has no parameter {name} (its parameters: {', '.join(names)})")
         x0[names.index(name)] = value
 
 
-@dataclass(eq=False)
+#: the old constructor arguments and attributes of :class:`Identification` -> their names now
+#: (accepted for one release with a DeprecationWarning)
+RENAMED_ARGUMENTS = {"fit": "fit_error", "holdout": "holdout_error", "time_s": "wall_s", "_converged": "converged",
+                     "_evaluations": "evaluations", "_nfev": "nfev"}
+
+
 class Identification:
-    """The result of identifying one model family, from servo records or from drop tests.
+    """The result of identifying one model family, from servo records or from drop tests: one
+    type, one schema (:meth:`to_dict`), one text report (:meth:`summary`) for both.
+
+    The constructor takes each attribute below by its name (the first six also by position).
 
     Attributes
     ----------
     family : str
         The family's name (``zerodim6``, ``template``, ...).
     params : Parameters
-        The identified parameters: value, standard error, bounds, ``vary`` (False: held at a
-        given value), unit.
+        The identified parameters: value, standard error ``stderr``, bounds, ``vary`` (False:
+        held at a given value), unit.
     at_bounds : list of str
         Fitted parameters that ended on a bound.
-    fit, holdout
+    fit_error, holdout_error
         The error on the fitting and on the held-out data: servo records,
-        :class:`~droptower.identify.fit.Metrics` (torque RMSE, ``nrmse``); drop tests, a dict
-        (``angle_nrmse``, ``torque_nrmse``, ``tests``, ``per_test``). ``holdout`` is None
-        without held-out data.
+        :class:`Metrics` (torque RMSE, ``nrmse``); drop tests, a dict (``angle_nrmse``,
+        ``torque_nrmse``, ``tests``, ``per_test``). ``holdout_error`` is None without held-out
+        data. :attr:`nrmse` is the fit's normalised error of either.
     coupling : Coupling
         The single coupling that stands for the fit (the one written out).
     data : str
         :data:`SERVO` or :data:`DROPS`: what it was identified from.
-    converged : bool
-        Every least-squares stage met a tolerance (not its evaluation limit).
-    verdict : Verdict or None
-        The fit against the data's noise floor (:mod:`droptower.identify.verdict`).
+    stages : list of FitResult
+        Servo records: one :class:`~droptower.identify.fit.FitResult` per stage.
+    predict : callable or None
+        Servo records: the model's torque on other segments.
     derived : dict
         Quantities computed from the parameters (e.g. dashpot coefficients).
-    time_s : float
+    coupling_note : str
+        What the coupling represents where the parameters depend on amplitude or frequency.
+    extra : dict
+        The family's report (its analytic start, its stages' notes, ...).
+    wall_s : float
         Wall time of the identification (s).
-    stages, predict, coupling_note, extra
-        Servo records: one :class:`~droptower.identify.fit.FitResult` per stage, the model's
-        torque on other segments, what the coupling represents where the parameters depend on
-        amplitude or frequency, the family's report.
+    verdict : Verdict or None
+        The fit against the data's noise floor (:mod:`droptower.identify.verdict`).
     family_model
         The family bound to the data's scale (its parameter specs, couplings and derived
         quantities), where known.
+    message : str
+        The optimiser's last word (drop tests).
+    non_identifiable : list of dict
+        Directions along which the fit is flat (parameter name -> weight).
+    tests_used, tests_held_out, tests_excluded
+        Drop tests: the fitting tests, the held-out tests, the excluded ones with the reason.
+    search : dict
+        The global search's summary (candidates, local fits, ...), empty where none ran.
+    coupling_file : str or None
+        Where :meth:`write_coupling` wrote the coupling.
+    angle_rss_rad2, angle_samples
+        Drop tests: the angle residual's sum of squares (rad^2) and its sample count.
+    converged : bool or None
+        Given: whether the fit converged; None: every stage in :attr:`stages` did.
+    evaluations, nfev : int or None
+        Given: the parameter sets simulated and the optimiser's steps; None: the stages' sums.
+
+    The names of release 0.1 (``fit``, ``holdout``, ``time_s``, ``std_error``, ``_converged``,
+    ``_evaluations``, ``_nfev``) still work for this release with a DeprecationWarning.
     """
 
-    family: str
-    params: Parameters
-    at_bounds: list[str]
-    fit: Any
-    coupling: "Coupling"
-    data: str = SERVO
-    stages: list[Any] = field(default_factory=list)  # FitResult of droptower.identify.fit, one per stage
-    predict: Callable[[list], list[np.ndarray]] | None = field(default=None, repr=False)
-    derived: dict[str, float] = field(default_factory=dict)
-    coupling_note: str = ""
-    extra: dict = field(default_factory=dict)
-    holdout: Any = None
-    time_s: float = 0.0
-    verdict: Any = None
-    family_model: Any = field(default=None, repr=False)
-    message: str = ""
-    non_identifiable: list[dict[str, float]] = field(default_factory=list)
-    tests_used: list[str] = field(default_factory=list)
-    tests_held_out: list[str] = field(default_factory=list)
-    tests_excluded: list[dict[str, str]] = field(default_factory=list)
-    search: dict[str, Any] = field(default_factory=dict)
-    coupling_file: str | None = None
-    angle_rss_rad2: float = math.nan
-    angle_samples: int = 0
-    _converged: bool | None = field(default=None, repr=False)
-    _evaluations: int | None = field(default=None, repr=False)
-    _nfev: int | None = field(default=None, repr=False)
+    def __init__(self, family: str, params: Parameters, at_bounds: list[str], fit_error: Any = None,
+                 coupling: "Coupling" = None, data: str = SERVO, *, stages: list[Any] | None = None,
+                 predict: Callable[[list], list[np.ndarray]] | None = None, derived: dict[str, float] | None = None,
+                 coupling_note: str = "", extra: dict | None = None, holdout_error: Any = None, wall_s: float = 0.0,
+                 verdict: Any = None, family_model: Any = None, message: str = "",
+                 non_identifiable: list[dict[str, float]] | None = None, tests_used: list[str] | None = None,
+                 tests_held_out: list[str] | None = None, tests_excluded: list[dict[str, str]] | None = None,
+                 search: dict[str, Any] | None = None, coupling_file: str | None = None,
+                 angle_rss_rad2: float = math.nan, angle_samples: int = 0, converged: bool | None = None,
+                 evaluations: int | None = None, nfev: int | None = None, **old: Any) -> None:
+        given = {"fit_error": fit_error, "holdout_error": holdout_error, "wall_s": wall_s, "converged": converged,
+                 "evaluations": evaluations, "nfev": nfev}
+        for name, value in old.items():
+            if name not in RENAMED_ARGUMENTS:
+                raise TypeError(f"Identification() got an unexpected keyword argument {name!r}")
+            deprecated(f"Identification({name}=...)", f"Identification({RENAMED_ARGUMENTS[name]}=...)")
+            given[RENAMED_ARGUMENTS[name]] = value
+        self.family = family
+        self.params = params
+        self.at_bounds = at_bounds
+        self.fit_error = given["fit_error"]
+        self.coupling = coupling
+        self.data = data
+        self.stages = list(stages or [])
+        self.predict = predict
+        self.derived = dict(derived or {})
+        self.coupling_note = coupling_note
+        self.extra = dict(extra or {})
+        self.holdout_error = given["holdout_error"]
+        self.wall_s = float(given["wall_s"])
+        self.verdict = verdict
+        self.family_model = family_model
+        self.message = message
+        self.non_identifiable = list(non_identifiable or [])
+        self.tests_used = list(tests_used or [])
+        self.tests_held_out = list(tests_held_out or [])
+        self.tests_excluded = list(tests_excluded or [])
+        self._search = dict(search or {})
+        self.coupling_file = coupling_file
+        self.angle_rss_rad2 = angle_rss_rad2
+        self.angle_samples = angle_samples
+        self._converged = given["converged"]
+        self._evaluations = given["evaluations"]
+        self._nfev = given["nfev"]
 
     # ------------------------------------------------------------------ views
     @property
@@ -397,8 +526,13 @@ class Identification:
         """Every least-squares stage converged (drop tests: the final fit did)."""
         return bool(self._converged) if self._converged is not None else all(s.converged for s in self.stages)
 
+    @converged.setter
+    def converged(self, value: bool | None) -> None:
+        self._converged = value
+
     @property
     def n_parameters(self) -> int:
+        """The number of parameters (fitted and held)."""
         return len(self.params)
 
     @property
@@ -407,14 +541,25 @@ class Identification:
         return self.params.valuesdict()
 
     @property
-    def std_error(self) -> dict[str, float]:
-        """name -> standard error (NaN: not estimated); assigning a dict sets the parameters'."""
+    def stderr(self) -> dict[str, float]:
+        """name -> standard error (NaN: not estimated), as each :attr:`Parameter.stderr`;
+        assigning a dict sets the parameters'."""
         return {n: p.stderr for n, p in self.params.items()}
 
-    @std_error.setter
-    def std_error(self, values: Mapping[str, float]) -> None:
+    @stderr.setter
+    def stderr(self, values: Mapping[str, float]) -> None:
         for n, v in values.items():
             self.params[n].stderr = float(v)
+
+    @property
+    def search(self) -> dict[str, Any]:
+        """The global search's summary (candidates over the bounds, local fits, ...); empty where
+        none ran. Servo records keep it in their family's report (``extra``): one name here."""
+        return self._search or dict(self.extra.get("global_search", {}))
+
+    @search.setter
+    def search(self, value: Mapping[str, Any]) -> None:
+        self._search = dict(value or {})
 
     @property
     def evaluations(self) -> int:
@@ -425,23 +570,85 @@ class Identification:
         start = int(self.extra.get("start", {}).get("evaluations", 0))
         return sum(s.evaluations for s in self.stages) + int(self.extra.get("search_evaluations", 0)) + start
 
+    @evaluations.setter
+    def evaluations(self, value: int | None) -> None:
+        self._evaluations = value
+
     @property
     def nfev(self) -> int:
         """Optimiser steps."""
         return self._nfev if self._nfev is not None else sum(s.nfev for s in self.stages)
 
+    @nfev.setter
+    def nfev(self, value: int | None) -> None:
+        self._nfev = value
+
     @property
     def nrmse(self) -> float:
         """The fit's normalised RMS error (a fraction): of the torque (servo records) or of the
         angle (drop tests)."""
-        return float(self.fit["angle_nrmse"]) if self.data == DROPS else float(self.fit.nrmse)
+        return float(self.fit_error["angle_nrmse"]) if self.data == DROPS else float(self.fit_error.nrmse)
 
+    @property
+    def holdout_nrmse(self) -> float:
+        """The held-out data's normalised RMS error (a fraction; NaN without held-out data)."""
+        h = self.holdout_error
+        if not h:
+            return math.nan
+        return float(h["angle_nrmse"]) if self.data == DROPS else float(h.nrmse)
+
+    # ------------------------------------------------------------------ the names of release 0.1
+    @property
+    def fit(self) -> Any:
+        """Deprecated: :attr:`fit_error` (removed in the next release)."""
+        deprecated("Identification.fit", "Identification.fit_error")
+        return self.fit_error
+
+    @fit.setter
+    def fit(self, value: Any) -> None:
+        deprecated("Identification.fit", "Identification.fit_error")
+        self.fit_error = value
+
+    @property
+    def holdout(self) -> Any:
+        """Deprecated: :attr:`holdout_error` (removed in the next release)."""
+        deprecated("Identification.holdout", "Identification.holdout_error")
+        return self.holdout_error
+
+    @holdout.setter
+    def holdout(self, value: Any) -> None:
+        deprecated("Identification.holdout", "Identification.holdout_error")
+        self.holdout_error = value
+
+    @property
+    def time_s(self) -> float:
+        """Deprecated: :attr:`wall_s` (removed in the next release)."""
+        deprecated("Identification.time_s", "Identification.wall_s")
+        return self.wall_s
+
+    @time_s.setter
+    def time_s(self, value: float) -> None:
+        deprecated("Identification.time_s", "Identification.wall_s")
+        self.wall_s = float(value)
+
+    @property
+    def std_error(self) -> dict[str, float]:
+        """Deprecated: :attr:`stderr` (removed in the next release)."""
+        deprecated("Identification.std_error", "Identification.stderr")
+        return self.stderr
+
+    @std_error.setter
+    def std_error(self, values: Mapping[str, float]) -> None:
+        deprecated("Identification.std_error", "Identification.stderr")
+        self.stderr = values
+
+    # ------------------------------------------------------------------ actions
     def evaluate_holdout(self, segments: list) -> Metrics:
-        """The error on held-out servo records (stored as :attr:`holdout`)."""
+        """The error on held-out servo records (stored as :attr:`holdout_error`)."""
         if self.predict is None:
-            raise DroptowerError(f"model {self.family}: this identification cannot predict servo records")
-        self.holdout = metrics(segments, self.predict(segments))
-        return self.holdout
+            raise DroptowerError(f"family {self.family}: this identification cannot predict servo records")
+        self.holdout_error = metrics(segments, self.predict(segments))
+        return self.holdout_error
 
     def write_coupling(self, path: str | Path, sources: list[str] | None = None) -> Path:
         """Write the fitted coupling as TOML, its description naming the fit's quality (and its
@@ -451,14 +658,14 @@ class Identification:
 
         c = copy.copy(self.coupling)
         if self.data == DROPS:
-            quality = f"angle nRMSE {100 * self.fit['angle_nrmse']:.2f} % on {len(self.tests_used)} drop tests"
-            if self.holdout:
-                quality += f", {100 * self.holdout['angle_nrmse']:.2f} % on {self.holdout['tests']} held out"
+            quality = f"angle nRMSE {100 * self.fit_error['angle_nrmse']:.2f} % on {len(self.tests_used)} drop tests"
+            if self.holdout_error:
+                quality += f", {100 * self.holdout_error['angle_nrmse']:.2f} % on {self.holdout_error['tests']} held out"
             c.description = f"{c.description}. Identified by droptower from drop tests as {self.family} ({quality})."
         else:
-            quality = f"nRMSE {100 * self.fit.nrmse:.2f} % on the fitting data"
-            if self.holdout:
-                quality += f", {100 * self.holdout.nrmse:.2f} % on hold-out data"
+            quality = f"nRMSE {100 * self.fit_error.nrmse:.2f} % on the fitting data"
+            if self.holdout_error:
+                quality += f", {100 * self.holdout_error.nrmse:.2f} % on hold-out data"
             c.description = (f"{c.description}. Identified by droptower from servo records as {self.family} ({quality}). "
                              f"{self.coupling_note}").strip()
         if sources:
@@ -472,8 +679,12 @@ class Identification:
 
     # ------------------------------------------------------------------ conversions
     def to_dict(self) -> dict[str, Any]:
-        """Everything it reports, JSON-ready (also what the ``identify`` command prints as JSON)."""
-        return FORMATS[self.data][0](self)
+        """Everything it reports, JSON-ready, with the same keys for servo records and drop tests
+        (:data:`RESULT_KEYS`; also what the ``identify`` command prints as JSON)."""
+        doc = FORMATS[self.data][0](self)
+        if list(doc) != list(RESULT_KEYS):  # one schema: a format that adds or drops a key is a bug here
+            raise RuntimeError(f"the {self.data} report's keys differ from RESULT_KEYS: {sorted(set(doc) ^ set(RESULT_KEYS))}")
+        return doc
 
     def to_frame(self) -> "pd.DataFrame":
         """The parameters as a table (:meth:`Parameters.to_frame`) with an ``at_bound`` column."""
@@ -482,7 +693,8 @@ class Identification:
         return table
 
     def summary(self) -> str:
-        """The text report (what ``droptower identify`` prints)."""
+        """The text report, the same sections for servo records and drop tests
+        (:data:`SUMMARY_SECTIONS`; what ``droptower identify`` prints)."""
         return FORMATS[self.data][1](self)
 
     def __repr__(self) -> str:

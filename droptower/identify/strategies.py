@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError, expects
 from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
@@ -42,13 +43,15 @@ MIN_CANDIDATES = 64
 SEARCH_THROUGH = {"zerodim20": "zerodim6"}
 
 
+@renamed_keywords(kind="family")
 @one_blas_thread
-@expects(kind="builtins.str", segments=["droptower.identify.data.Segment"])
-def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Parameters | None = None,
+@expects(family="builtins.str", segments=["droptower.identify.data.Segment"])
+def identify(family: str, segments: list[Segment], *, init: dict[str, float] | Parameters | None = None,
              bounds: dict[str, tuple[float, float]] | None = None, options: dict[str, Any] | None = None,
              holdout: list[Segment] | None = None, previous: dict[str, Identification] | None = None,
              file: str | None = None, search: str = "auto", seed: int = 0) -> Identification:
-    """Identify model family ``kind`` from ``segments``.
+    """Identify model family ``family`` from ``segments`` (``kind``, its name in release 0.1, is
+    deprecated).
 
     init, bounds, options: parameter name -> initial value (the strategy starts from it instead
     of its own estimate; the fit refines it), or :class:`~droptower.identify.result.Parameters`
@@ -70,10 +73,10 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
     units = common_units(segments + list(holdout or []), "fitting and hold-out records")
     init, bounds = servo_given(init, bounds)
     init, bounds, options = (torsional_fields(given or {}, units) for given in (init, bounds, options))
-    s = setup(family_class(kind), segments, init, bounds, options, file)
+    s = setup(family_class(family), segments, init, bounds, options, file)
     if search not in SEARCH_MODES:
         raise DroptowerError(f"search must be one of {', '.join(SEARCH_MODES)}, got {search!r}")
-    inner = SEARCH_THROUGH.get(kind)
+    inner = SEARCH_THROUGH.get(family)
     start_here = bool(inner) and not (previous or {}).get(inner) and not s.given.all()
     if start_here:
         # the start: the contained family identified as the command line does, its global
@@ -81,27 +84,27 @@ def identify(kind: str, segments: list[Segment], *, init: dict[str, float] | Par
         # larger model's local fit crawl until its evaluation limit)
         previous = {**(previous or {}), inner: identify(inner, segments, options=_common_options(s.family),
                                                         search=search, seed=seed)}
-    result = STRATEGIES[kind](s, segments, start, previous=previous)
+    result = STRATEGIES[family](s, segments, start, previous=previous)
     noise = servo_noise(segments)
     result.verdict = servo_verdict(result, noise, s.family.parameters, _idle(s.family, result))
     first = (previous or {}).get(inner) if inner else None
     # a start that the contained family's global search gave already: searching through it again repeats it
     searched_start = first is not None and "global_search" in first.extra
-    if search == "always" or (search == "auto" and result.verdict.poor and kind in SEARCHABLE and not searched_start):
+    if search == "always" or (search == "auto" and result.verdict.poor and family in SEARCHABLE and not searched_start):
         searched = global_search(s, segments, start, seed, staged=np.array(list(result.parameters.values())))
         searched.verdict = servo_verdict(searched, noise, s.family.parameters, _idle(s.family, searched))
-        searched.extra["staged_fit"] = {"nrmse": result.fit.nrmse, "verdict": result.verdict.verdict}
-        if searched.fit.rmse_nm < result.fit.rmse_nm:
+        searched.extra["staged_fit"] = {"nrmse": result.fit_error.nrmse, "verdict": result.verdict.verdict}
+        if searched.fit_error.rmse_nm < result.fit_error.rmse_nm:
             result = searched
         else:
             result.extra["global_search"] = searched.extra["global_search"]
     if first is not None:
-        result.extra["start"] = {"family": inner, "nrmse": first.fit.nrmse, "global_search": searched_start,
+        result.extra["start"] = {"family": inner, "nrmse": first.fit_error.nrmse, "global_search": searched_start,
                                  **({"staged_fit": first.extra["staged_fit"]} if "staged_fit" in first.extra else {}),
                                  **({"evaluations": first.evaluations} if start_here else {})}
     if holdout:
         result.evaluate_holdout(holdout)
-    result.time_s = time.perf_counter() - start
+    result.wall_s = time.perf_counter() - start
     return result
 
 
@@ -118,7 +121,7 @@ def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[Fi
     parameters of a switched-off part, whose bounds are not bound hits."""
     step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
     hits = bound_hits(parameters, [n for n in result.at_bounds if n not in set(idle or ())])
-    return judge(result.fit.rmse_nm, noise.sigma, "nm", hits, accuracy=step,
+    return judge(result.fit_error.rmse_nm, noise.sigma, "nm", hits, accuracy=step,
                  converged=result.converged)
 
 

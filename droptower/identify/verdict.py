@@ -20,7 +20,7 @@ without a model: :mod:`.noise`) and looks at the parameters:
   A linear parameter on a lower bound of 0 is a term switched off, not a bound hit.
 
 A poor fit is exit code :data:`EXIT_POOR_FIT` of ``identify`` and ``compare-models`` unless it is accepted
-(``accept_poor``, e.g. :meth:`~droptower.identify.compare.Comparison.exit_code`).
+(``accept_poor``, e.g. :meth:`~droptower.identify.ranking.Comparison.exit_code`).
 """
 from __future__ import annotations
 

@@ -120,7 +120,35 @@ class DropResult:
         supplied = self.test.drop_mass_kg * self.rig.gravity_m_per_s2 * self.test.drop_height_m
         return float(np.max(np.abs(total - supplied)) / supplied)
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> str:
+        """The test as text (what ``droptower simulate`` prints), as every ``summary()``; the
+        figures are :meth:`to_dict`. Read as the dict it returned in release 0.1 (``["key"]``,
+        ``.get``, ``.items``), it still answers with a DeprecationWarning for this release."""
+        from droptower.deprecation import TextReport
+
+        s = self.to_dict()
+        t = self.test
+        later = [1e3 * (c - s["impact_time_s"]) for c in s["contact_times_s"][1:]]
+        lines = [
+            f"{self.coupling_name} on {self.rig.name}: J = {t.inertia_kgm2:g} kg*m^2, m1 = {t.drop_mass_kg:g} kg, "
+            f"h = {t.drop_height_m:g} m, preload {t.preload_nm:g} N*m (twist {s['pretwist_deg']:.3f} deg)",
+            f"  after impact: drop mass {s['drop_mass_velocity_after_m_per_s']:+.4f} m/s "
+            f"(impact law {s['predicted_drop_mass_velocity_after_m_per_s']:+.4f}), lever tip "
+            f"{s['lever_tip_velocity_after_m_per_s']:+.4f} m/s (impact law "
+            f"{s['predicted_lever_tip_velocity_after_m_per_s']:+.4f}), restitution {s['effective_restitution']:.4f}",
+            f"  impact energy {s['impact_energy_j']:.4g} J, impulse {s['impact_impulse_n_s']:.4g} N*s",
+            f"  {s['contacts']} contact(s) of drop mass and lever"
+            + (f" (later ones at {', '.join(f'{x:.1f}' for x in later[:5])}{', ...' if len(later) > 5 else ''} ms "
+               f"after the impact)" if later else "")
+            + f"; double impact (a second contact within the first period, "
+              f"{1e3 * s['first_period_s']:.1f} ms): {'yes' if s['double_impact'] else 'no'}",
+            f"  max angle {s['max_angle_deg']:.3f} deg, max torque {s['max_torque_nm']:.1f} N*m, "
+            f"first period {1e3 * s['first_period_s']:.2f} ms ({s['first_period_frequency_hz']:.2f} Hz), "
+            f"energy balance error {100 * s['energy_balance_error_fraction']:.3f} %"]
+        lines += [f"warning: {w}" for w in s["warnings"]]
+        return TextReport("\n".join(lines), s, "DropResult")
+
+    def to_dict(self) -> dict[str, Any]:
         """The figures of the test, every key with its unit (what ``droptower simulate`` prints as JSON)."""
         from droptower.rig.scene import Contact  # pymunk, loaded when a simulation runs
 

@@ -87,7 +87,7 @@ AGREEMENT_QUANTITIES: tuple[str, ...] = ("stiffness_nm_per_deg", "damping_ratio"
 def route_agreement(table: pd.DataFrame, map_u95: dict[str, ArrayLike], *, servo_u95: dict[str, ArrayLike] | None = None,
                     u95_ref_rel: float | None = None) -> pd.DataFrame:
     """E_n per servo point of one route (a validation table: ``map_<q>`` and ``servo_<q>`` per
-    point, :func:`droptower.compare.map_vs_servo.validate_map`).
+    point, :func:`droptower.compare.map_vs_servo.compare_with_servo`).
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 5.2; docs/guide/uncertainty.md#the-model-route).
 
 The model route identifies a coupling from the drop tests (a lever re-simulated against each
-decay; :func:`~droptower.identify.drops.identify_from_drop_tests`) and runs the identified
+decay; :func:`~droptower.identify.drop_campaign.identify_from_drop_tests`) and runs the identified
 coupling on the virtual servo bench. The extraction took every input of the rig as known; an
 input off by u moves the decays it enters, the same way for every decay that shares it (one J per
 fixture, one lever, laser, flange, force sensor and clock for all), so its share does not average
@@ -144,7 +144,7 @@ def route_input_sets(ident: Any, decays: list, settings: Any, uncertainty: RigUn
     Parameters
     ----------
     ident : Identification
-        A drop-test identification (:func:`~droptower.identify.drops.identify_from_drop_tests`).
+        A drop-test identification (:func:`~droptower.identify.drop_campaign.identify_from_drop_tests`).
     decays : list of DropDecay
         The decays it was fitted to (its ``tests_used`` among them).
     settings : DropFitSettings

@@ -39,7 +39,7 @@ class Family:
         unknown = set(options) - set(self.OPTIONS) - set(COMMON_OPTIONS)
         if unknown:
             known = sorted(set(self.OPTIONS) | set(COMMON_OPTIONS))
-            raise DroptowerError(f"unknown option(s) {', '.join(sorted(unknown))} for model {self.kind} "
+            raise DroptowerError(f"unknown option(s) {', '.join(sorted(unknown))} for family {self.kind} "
                                  f"(known: {', '.join(known)})")
         self.options = {**COMMON_OPTIONS, **self.OPTIONS, **options}
         self.parameters: list[FitVariable] = self._parameters()

@@ -460,12 +460,12 @@ def identify_filled_rubber(s: Setup, segments: list[Segment], start: float, **_)
     kept = (s.family, s.x0, s.given, s.bounded)
     _with_large_strain(s)
     rich = _large_strain_fit(s, segments, start, (amp, freq, stiffness), stage,
-                             {**extra, "four_parts": {"nrmse": plain.fit.nrmse, "verdict": "poor fit"}})
-    if rich.fit.rmse_nm < LARGE_STRAIN_GAIN * plain.fit.rmse_nm:
+                             {**extra, "four_parts": {"nrmse": plain.fit_error.nrmse, "verdict": "poor fit"}})
+    if rich.fit_error.rmse_nm < LARGE_STRAIN_GAIN * plain.fit_error.rmse_nm:
         return rich
     # no clear gain: the family stays as it was (and so does the global search that may follow)
     s.family, s.x0, s.given, s.bounded = kept
-    plain.extra["large_strain"] = {"nrmse": rich.fit.nrmse, "kept": False}
+    plain.extra["large_strain"] = {"nrmse": rich.fit_error.nrmse, "kept": False}
     return plain
 
 
@@ -476,7 +476,7 @@ def _poor(result: Identification, segments: list[Segment], fam: FilledRubberFami
     step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
     values = np.array(list(result.parameters.values()), float)
     hits = bound_hits(fam.parameters, [n for n in result.at_bounds if n not in fam.idle_parameters(values)])
-    return judge(result.fit.rmse_nm, servo_noise(segments).sigma, "nm", hits, accuracy=step,
+    return judge(result.fit_error.rmse_nm, servo_noise(segments).sigma, "nm", hits, accuracy=step,
                  converged=result.converged).poor
 
 

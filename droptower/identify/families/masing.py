@@ -232,7 +232,7 @@ def identify_masing(s: Setup, segments: list[Segment], start: float, **_) -> Ide
     written = metrics(segments, simulate(fam, v_out[None], segments)[0])
     result = result_of(s, segments, v_out, stages, start, extra=extra, coupling_note=note, fit=written)
     # standard errors: the global fit's for the global set, else per level (in the report)
-    result.std_error = dict(zip(fam.names, map(float, glob.std_error))) if v_out is x else \
+    result.stderr = dict(zip(fam.names, map(float, glob.std_error))) if v_out is x else \
         {n: float("nan") for n in fam.names}
     result.at_bounds = at_bounds(fam.parameters, v_out)
     return result

@@ -88,7 +88,7 @@ def setup_family(family: Family, init: dict[str, float] | None = None,
         if unknown:
             units = family.scale.units  # named as the user names them for these records
             raise DroptowerError(f"unknown parameter(s) {', '.join(field_name(n, units) for n in unknown)} in the "
-                                 f"{what} for model {kind} (parameters: "
+                                 f"{what} for family {kind} (parameters: "
                                  f"{', '.join(field_name(n, units) for n in names)})", file=file)
     bounded = np.zeros(len(names), bool)
     for name, (lo, hi) in (bounds or {}).items():
@@ -119,7 +119,7 @@ def result_of(s: Setup, segments: list[Segment], x: np.ndarray, stages: list[Fit
 
     return Identification(fam.kind, fitted_parameters(fam.parameters, x, final.std_error, final.free), final.at_bounds,
                           fit or final.metrics, fam.coupling(x), stages=stages, predict=predict,
-                          derived=fam.derived(x), time_s=time.perf_counter() - start, family_model=fam, **kw)
+                          derived=fam.derived(x), wall_s=time.perf_counter() - start, family_model=fam, **kw)
 
 
 # ---------------------------------------------------------------------------- helpers

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError
 from droptower.identify.dropfit import FIT_OPTIONS, HOLDOUT_FRACTION, DropFitSettings, identify_drops
 from droptower.identify.droplogs import DropDecay, ReadSettings, read_decays
@@ -52,7 +53,8 @@ def log_paths(data: Iterable[str | Path]) -> list[Path]:
     return files
 
 
-def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | None = None,
+@renamed_keywords(model="family")
+def read_drop_tests(data: str | Path | Iterable[str | Path], *, family: str | None = None,
                     options: Mapping[str, Any] | None = None, template: str | None = None,
                     holdout_fraction: float = HOLDOUT_FRACTION, rig: Any = None, inertia_kgm2: float | None = None,
                     lever_length_m: float | None = None, roles: Mapping[str, str] | None = None,
@@ -61,29 +63,32 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
 
     Parameters
     ----------
-    data
+    data : str, path or list
         Log files, folders of logs or campaign folders.
-    model
-        The family to be fitted (``template`` needs ``template``).
-    options
+    family : str, optional
+        The family to be fitted (``template`` needs ``template``; ``model`` in release 0.1:
+        deprecated).
+    options : dict, optional
         The family's options; the fit's (``substeps``, ``torque_weight``, ``max_nfev``,
         ``seed``, ``conditioning``) and the reading's (``cycles``: periods compared after the
         impact; ``initial_rate``: auto, impulse or slope) are taken out.
-    template
+    template : str, optional
         The coupling (preset name or TOML) whose structure ``template`` fits.
-    holdout_fraction
+    holdout_fraction : float
         Share of the tests held out and predicted.
-    rig
+    rig : str or RigConfig, optional
         Rig TOML, preset or :class:`~droptower.rig.config.RigConfig`: its lever length (m),
         sensor radius (m), inertia (kg*m^2, when it has one lever fixture) and preload
         conditioning fill what the logs do not say.
-    inertia_kgm2, lever_length_m
-        Overrides of the logs' inertia (kg*m^2) and lever length (m).
-    roles
+    inertia_kgm2 : float, optional
+        Override of the logs' inertia (kg*m^2).
+    lever_length_m : float, optional
+        Override of the logs' lever length (m).
+    roles : dict, optional
         Channel role -> ``NAME[:UNIT]`` (e.g. ``{"angle": "Winkel:deg"}``).
-    sensor_radius_m
+    sensor_radius_m : float, optional
         Laser spot radius (m) for a distance channel, over the logs' and the rig's.
-    conditions
+    conditions : Conditions, optional
         Per-file test conditions (:class:`~droptower.io.conditions.Conditions`): each log's
         fixture or inertia, drop mass and height, preload, temperature.
 
@@ -95,8 +100,8 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
     options = dict(options or {})
     if template is not None:
         options["template"] = template
-    if model == "template" and "template" not in options:
-        raise DroptowerError("`model=template` needs `template` (a preset name or a coupling TOML)")
+    if family == "template" and "template" not in options:
+        raise DroptowerError("`family=template` needs `template` (a preset name or a coupling TOML)")
     defaults: dict[str, float] = {}
     conditioning: tuple[float, float] | None = DropFitSettings.conditioning
     fixtures = None
@@ -135,7 +140,8 @@ def read_drop_tests(data: str | Path | Iterable[str | Path], *, model: str | Non
     return DropCampaign(decays, excluded, settings, options, read, [str(p) for p in log_paths(paths)])
 
 
-def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Path], model: str, *,
+@renamed_keywords(model="family")
+def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Path], family: str, *,
                              init: Mapping[str, float] | Parameters | None = None,
                              bounds: Mapping[str, tuple[float, float]] | None = None,
                              options: Mapping[str, Any] | None = None, template: str | None = None,
@@ -150,8 +156,9 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
     data : paths or DropCampaign
         Log files, folders or campaign folders, or a :class:`DropCampaign` already read (then
         the reading's parameters below do not apply).
-    model : str
-        The family (:data:`~droptower.identify.dropfit.DROP_KINDS`).
+    family : str
+        The family (:data:`~droptower.identify.dropfit.DROP_KINDS`; ``model`` in release 0.1:
+        deprecated).
     init : dict or Parameters, optional
         Held values or parameters, as for :func:`~droptower.identify.dropfit.identify_drops`.
     bounds : dict, optional
@@ -159,7 +166,7 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
     options : dict, optional
         The family's options and the fit's and the reading's (see :func:`read_drop_tests`).
     template : str, optional
-        With ``model="template"``: the coupling (preset or TOML) whose structure is fitted.
+        With ``family="template"``: the coupling (preset or TOML) whose structure is fitted.
     holdout_fraction : float
         Share of the tests held out and predicted.
     rig : str or RigConfig, optional
@@ -189,9 +196,9 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
     if isinstance(data, DropCampaign):
         campaign = data
     else:
-        campaign = read_drop_tests(data, model=model, options=options, template=template,
+        campaign = read_drop_tests(data, family=family, options=options, template=template,
                                    holdout_fraction=holdout_fraction, rig=rig, inertia_kgm2=inertia_kgm2,
                                    lever_length_m=lever_length_m, roles=roles, sensor_radius_m=sensor_radius_m,
                                    conditions=conditions)
-    return identify_drops(model, campaign.decays, excluded=campaign.excluded, settings=campaign.settings,
+    return identify_drops(family, campaign.decays, excluded=campaign.excluded, settings=campaign.settings,
                           init=init, bounds=bounds, options=campaign.options)

@@ -28,6 +28,7 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
+from droptower.deprecation import renamed_keywords
 from droptower.errors import DroptowerError, expects
 from droptower.identify.budget import BudgetExceeded, now, time_budget
 from droptower.identify.criterion import RULE
@@ -52,8 +53,8 @@ CONVERGED, NOT_CONVERGED = "converged", "not converged"
 class Comparison:
     """The result of :func:`compare_models`.
 
-    ranking: one row per fitted family, best first (columns ``model``, ``status``,
-    ``n_parameters``, the errors, ``bic``, ``delta_bic``, ``verdict``, ``fit_time_s``, ...);
+    ranking: one row per fitted family, best first (columns ``family``, ``status``,
+    ``n_parameters``, the errors, ``bic``, ``delta_bic``, ``verdict``, ``wall_s``, ...);
     records: servo records only, the per-record error table (the zero-dimensional model paper,
     Fig. 8), else None; results: the identifications of the families that ended (converged or
     not) by name; skipped: family -> why its data requirement is not met; not_converged:
@@ -75,7 +76,7 @@ class Comparison:
     def best(self) -> str | None:
         """The best-ranked family that converged (None: none did)."""
         ok = self.ranking[self.ranking["status"] == CONVERGED]
-        return None if ok.empty else str(ok["model"].iloc[0])
+        return None if ok.empty else str(ok["family"].iloc[0])
 
     def exit_code(self, accept_poor: bool = False) -> int:
         """0: the best family converged with a good fit (or ``accept_poor``); 3: it is a poor fit;
@@ -84,7 +85,7 @@ class Comparison:
 
         if self.best is None:
             return EXIT_NONE_FITS
-        verdict = self.ranking.loc[self.ranking["model"] == self.best, "verdict"].iloc[0]
+        verdict = self.ranking.loc[self.ranking["family"] == self.best, "verdict"].iloc[0]
         return EXIT_POOR_FIT if verdict == POOR and not accept_poor else 0
 
     def to_frame(self) -> pd.DataFrame:
@@ -93,9 +94,9 @@ class Comparison:
 
     def as_dict(self) -> dict[str, Any]:
         """Deprecated: :meth:`to_dict` (removed in the next release)."""
-        from droptower.identify.result import deprecated
+        from droptower.deprecation import warn_deprecated
 
-        deprecated("Comparison.as_dict()", "Comparison.to_dict()")
+        warn_deprecated("Comparison.as_dict()", "Comparison.to_dict()")
         return self.to_dict()
 
     def __repr__(self) -> str:
@@ -119,23 +120,25 @@ class Comparison:
         return out
 
 
-@expects(data=[("droptower.identify.data.Segment", "droptower.identify.droplogs.DropDecay")], kinds=["builtins.str"])
-def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
+@renamed_keywords(kinds="families")
+@expects(data=[("droptower.identify.data.Segment", "droptower.identify.droplogs.DropDecay")], families=["builtins.str"])
+def compare_models(data: list, families: list[str], *, holdout: list | None = None,
                    budget_s: float | dict[str, float | None] | None = DEFAULT_BUDGET_S,
                    total_budget_s: float | None = DEFAULT_TOTAL_BUDGET_S, excluded: list[dict[str, str]] | None = None,
                    settings: Any = None, options: dict[str, dict[str, Any]] | None = None,
                    on_family: Callable[[str], None] | None = None,
                    on_skip: Callable[[str, str], None] | None = None) -> Comparison:
-    """Fit every family of ``kinds`` to ``data`` and rank them (see the module docstring).
+    """Fit every family of ``families`` to ``data`` and rank them (see the module docstring).
 
     Parameters
     ----------
     data : list of Segment or list of DropDecay
         Servo records (:class:`~droptower.identify.data.Segment`) or drop-test decays
         (:class:`~droptower.identify.droplogs.DropDecay`), not mixed.
-    kinds : list of str
-        Family names; they are fitted in the order of their number of parameters (the cheaper
-        first, ties in the order given), so a budget runs out on the costliest.
+    families : list of str
+        Family names (``kinds`` in release 0.1: deprecated); they are fitted in the order of
+        their number of parameters (the cheaper first, ties in the order given), so a budget
+        runs out on the costliest.
     holdout : list of Segment, optional
         Servo records kept out of every fit: the families are ranked by their error on them
         (:data:`HOLDOUT_RULE`), the information criterion on the fitting data reported beside it.
@@ -173,8 +176,9 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
 
     if not data:
         raise DroptowerError("compare_models: no data")
-    if not kinds:
+    if not families:
         raise DroptowerError("compare_models: no model family given")
+    kinds = list(families)
     drops = isinstance(data[0], DropDecay)
     if any(isinstance(d, DropDecay) != drops for d in data):
         raise DroptowerError("compare_models: servo records and drop-test decays cannot be ranked together")
@@ -210,7 +214,7 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
                 on_skip(kind, exc.message)
             continue
         if not drops:
-            results[kind].time_s = now() - start
+            results[kind].wall_s = now() - start
     if not results and not over:
         raise DroptowerError(f"no model family could be fitted to these "
                              f"{'drop tests' if drops else 'records'} ({'; '.join(f'{k}: {v}' for k, v in skipped.items())})")
@@ -220,8 +224,8 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
     rows = []
     for kind, (reason, seconds) in over.items():
         not_converged[kind] = reason
-        rows.append({"model": kind, "n_parameters": sizes[kind],
-                     "bic": math.nan, "verdict": NOT_CONVERGED, "fit_time_s": seconds, "converged": False})
+        rows.append({"family": kind, "n_parameters": sizes[kind],
+                     "bic": math.nan, "verdict": NOT_CONVERGED, "wall_s": seconds, "converged": False})
     by_holdout = bool(holdout) and not drops and not ranking.empty
     if by_holdout:
         ranking = by_holdout_error(ranking)
@@ -231,7 +235,7 @@ def compare_models(data: list, kinds: list[str], *, holdout: list | None = None,
 
 
 def by_holdout_error(ranking: pd.DataFrame, tie: float = HOLDOUT_TIE_PERCENT) -> pd.DataFrame:
-    """``ranking`` (columns ``model``, ``n_parameters``, ``holdout_nrmse_percent``, ``converged``)
+    """``ranking`` (columns ``family``, ``n_parameters``, ``holdout_nrmse_percent``, ``converged``)
     re-ordered best first by the hold-out error (:data:`HOLDOUT_RULE`): the converged families
     by their hold-out nRMSE (%), errors within ``tie`` percentage points of the best remaining
     one a group ordered by parameters, then the others in the same way; numbered from 1."""
@@ -239,9 +243,9 @@ def by_holdout_error(ranking: pd.DataFrame, tie: float = HOLDOUT_TIE_PERCENT) ->
 
     names = [m for ok in (True, False) for m in order(
         [(m, int(k), float(e) if np.isfinite(e) else math.inf) for m, k, e, c in
-         zip(ranking["model"], ranking["n_parameters"], ranking["holdout_nrmse_percent"], ranking["converged"])
+         zip(ranking["family"], ranking["n_parameters"], ranking["holdout_nrmse_percent"], ranking["converged"])
          if bool(c) == ok], tie)]
-    table = ranking.set_index("model").loc[names].reset_index()
+    table = ranking.set_index("family").loc[names].reset_index()
     table.index = np.arange(1, len(table) + 1)
     return table
 
@@ -286,7 +290,7 @@ def _n_parameters(kind: str, data: list, drops: bool, options: dict[str, Any] | 
 
 
 def _complete(ranking: pd.DataFrame, rows: list[dict[str, Any]], not_converged: dict[str, str]) -> pd.DataFrame:
-    """The ranking with a ``status`` column (after ``model``) and the families that ran out of
+    """The ranking with a ``status`` column (after ``family``) and the families that ran out of
     time appended (ranked last, their scores NaN), numbered from 1."""
     table = pd.concat([ranking, pd.DataFrame(rows)], ignore_index=True) if rows else ranking.reset_index(drop=True)
     if "delta_bic" in table.columns:
@@ -296,6 +300,6 @@ def _complete(ranking: pd.DataFrame, rows: list[dict[str, Any]], not_converged: 
             table[key] = table[key].ffill()
     status = [CONVERGED if bool(c) else NOT_CONVERGED for c in table["converged"]]
     table.insert(1, "status", status)
-    table["note"] = [not_converged.get(m, "") for m in table["model"]]
+    table["note"] = [not_converged.get(m, "") for m in table["family"]]
     table.index = np.arange(1, len(table) + 1)
     return table
