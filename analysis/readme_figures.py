@@ -888,7 +888,7 @@ def filled_rubber(stored: dict[str, Any]) -> Block:
         f"Measured there (the newest run, {run['date']}, load average {run['load']:g} at its start on 2 cores): on the "
         f"Table-2 campaign of `rapp2022_nr60` ({run['tests']} tests) the identified coupling's bench K' is within "
         "{k} % and its loss factor within {eta} % RMS at validate's " + f"{run['points']}" + " bench points inside the "
-        f"hull (the paper's map: " + "{pk} % and {pe} %), a " + fr["verdict"] + " ({noise}× the noise), in {wall} s "
+        "hull (the paper's map: " + "{pk} % and {pe} %), a " + fr["verdict"] + " ({noise}× the noise), in {wall} s "
         "wall / {cpu} s CPU ({ratio}× the wall time of the preset's own structure, `template`, in the same run; {evals} "
         f"evaluations). On 12-drop campaigns of other structures ({draws} seeded draw{'s' if draws > 1 else ''} each) "
         "K' is within 5 % and the loss factor within 10 % RMS for the Masing banks beside a fractional band ("
