@@ -27,6 +27,7 @@ MOVED_MODULES: dict[str, str] = {
     "droptower.extract.impact": "droptower.extract.impact_detection",
     "droptower.maps.fit": "droptower.maps.fitting",
     "droptower.rig.lever": "droptower.rig.lever_decay",
+    "droptower.identify.search": "droptower.identify.engine.search",
 }
 
 

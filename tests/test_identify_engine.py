@@ -13,6 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import droptower.identify.dropfit as dropfit
+import droptower.identify.engine.problem as engine_problem
+import droptower.identify.engine.search as engine_search
 from droptower.errors import DroptowerError
 from droptower.identify.data import DataScale
 from droptower.identify.dropfit import DropFitSettings, identify_drops
@@ -51,15 +53,15 @@ def _decays(kind: str, seed: int = 0, n_tests: int = 3, duration_s: float = 0.04
 def local_fits(monkeypatch):
     """Every local fit of the drop engine (its bounds, evaluation limit and outcome), recorded."""
     calls = []
-    original = dropfit.fit_rows
+    original = engine_search.local_fit
 
-    def spy(parameters, x0, objective, **kw):
-        out = original(parameters, x0, objective, **kw)
-        calls.append({"bounds": {p.name: (p.lower, p.upper) for p in parameters}, "max_nfev": kw.get("max_nfev"),
-                      "values": np.array(out.values, float)})
+    def spy(problem, x0, free=None, **kw):
+        out = original(problem, x0, free, **kw)
+        calls.append({"bounds": {p.name: (p.lower, p.upper) for p in problem.parameters},
+                      "max_nfev": kw.get("max_nfev"), "values": np.array(out.values, float)})
         return out
 
-    monkeypatch.setattr(dropfit, "fit_rows", spy)
+    monkeypatch.setattr(engine_search, "local_fit", spy)
     return calls
 
 
@@ -125,16 +127,16 @@ def test_every_reported_value_lies_in_its_printed_bounds(kind, positions):
     of every search (first, wider, hops, loose prior) stays inside them, and so does every
     reported value inside its printed min/max."""
     calls = []
-    original = dropfit.fit_rows
+    original = engine_search.local_fit
 
-    def spy(parameters, x0, objective, **kw):
-        out = original(parameters, x0, objective, **kw)
-        calls.append(({p.name: (p.lower, p.upper) for p in parameters}, np.array(out.values, float)))
+    def spy(problem, x0, free=None, **kw):
+        out = original(problem, x0, free, **kw)
+        calls.append(({p.name: (p.lower, p.upper) for p in problem.parameters}, np.array(out.values, float)))
         return out
 
     bounds = _narrow_bounds(kind, positions)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(dropfit, "fit_rows", spy)
+        mp.setattr(engine_search, "local_fit", spy)
         result = identify_drops(kind, _decays(kind), settings=QUICK, bounds=bounds, options=FAMILIES[kind])
     for searched, values in calls:
         assert not _inside(values, list(searched), bounds)
@@ -148,13 +150,13 @@ def test_the_fits_options_set_the_searches_evaluation_limit_and_step(local_fits,
     """``options={"max_nfev": 7, "substeps": 2}`` reach every local fit and every re-simulation
     (half the step; the bias estimate's at a quarter)."""
     steps = []
-    original = dropfit.free_decay
+    original = engine_problem.free_decay
 
     def spy(coupling, inertia, rate0, n_steps, h, *args, **kw):
         steps.append(h)
         return original(coupling, inertia, rate0, n_steps, h, *args, **kw)
 
-    monkeypatch.setattr(dropfit, "free_decay", spy)
+    monkeypatch.setattr(engine_problem, "free_decay", spy)
     identify_drops("zerodim6", _decays("zerodim6"), settings=DropFitSettings(holdout_fraction=0.0, conditioning=None),
                    options={"max_nfev": 7, "substeps": 2})
     assert local_fits and {c["max_nfev"] for c in local_fits} == {7}
@@ -207,7 +209,7 @@ def test_rows_the_core_refuses_have_one_policy_everywhere(monkeypatch):
     a wholly refused row cost 0)."""
     import droptower.identify.fit as fit
     from droptower.identify.data import make_segment
-    from droptower.identify.search import costs
+    from droptower.identify.engine.search import costs
 
     r = np.array([[1.0, 2.0], [np.nan, 0.0], [np.inf, np.nan], [0.5, 0.5]])
     assert fit.row_costs(r).tolist() == [5.0, math.inf, math.inf, 0.5]

@@ -26,13 +26,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from droptower.identify.fit import FitVariable
+import numpy as np
+
 from droptower.units import printed_unit
+
+if TYPE_CHECKING:
+    from droptower.identify.engine.problem import DropProblem, FitVariable
+    from droptower.identify.noise import NoiseFloor
+    from droptower.identify.result import Identification
 
 #: A fit error above this multiple of the noise allowance is a poor fit.
 NOISE_RATIO = 2.0
+#: The re-simulation's own accuracy against the rig, relative to a test's amplitude (tested:
+#: within 0.2 %; the integration step's first-order part): the drop-test verdict's allowance beside the noise.
+RESIMULATION_ACCURACY = 1e-3
 #: Exit code of ``identify`` / ``compare-models`` on a poor fit (2: bad input or no convergence).
 EXIT_POOR_FIT = 3
 GOOD, POOR = "good fit", "poor fit"
@@ -105,3 +114,43 @@ def judge(error_rms: float, noise_floor: float, unit: str, at_bound: list[str], 
     if not converged:
         reasons.append("the optimiser did not converge")
     return Verdict(POOR if reasons else GOOD, ratio, noise_floor, allowance, unit, reasons)
+
+
+def servo_verdict(result: "Identification", noise: "NoiseFloor", parameters: list["FitVariable"],
+                  idle: list[str] | None = None) -> Verdict:
+    """The verdict on a fit to servo records: its RMS torque error against the records' noise
+    floor (N*m), with the model's discretisation error at the sample step (the last stage's
+    ``step_error_nm``) added in quadrature; ``idle``: parameters of a switched-off part, whose
+    bounds are not bound hits."""
+    step = float(result.stages[-1].step_error_nm) if result.stages else 0.0
+    hits = bound_hits(parameters, [n for n in result.at_bounds if n not in set(idle or ())])
+    return judge(result.fit.rmse_nm, noise.sigma, "nm", hits, accuracy=step, converged=result.converged)
+
+
+def drop_verdict(problem: "DropProblem", values: np.ndarray, at_bound: list[str], converged: bool,
+                 fine_angle: np.ndarray | None = None) -> tuple[Verdict, float, int]:
+    """The verdict on a fit to drop tests: its RMS angle error over the fitting tests (rad)
+    against the allowance: the logs' pre-trigger noise, the re-simulation's accuracy against
+    the rig (:data:`RESIMULATION_ACCURACY` of each test's amplitude) and the fitted model's own
+    integration error at the logs' step, in quadrature; and the sum of squared angle errors
+    (rad^2) over the compared samples and their number (the ranking's likelihood term).
+
+    The integration error is what the re-simulation cannot reach at that step: the fitted
+    model's angle re-simulated on half the step (``fine_angle`` (T, N), computed here when not
+    given), twice the RMS change (Richardson, first order: docs/theory.md#verdict). A fit at
+    the truth differs from the rig's logs by the noise and that error, so it is never judged
+    poor for the step's sake; stiff rate laws (an elastoslide of high p at a fast decay) have
+    it far above the noise."""
+    a, _ = problem.simulate(values[None])
+    if fine_angle is None:
+        fine_angle = problem.simulate(values[None], 2 * problem.settings.substeps)[0][0]
+    err = ((a[0] - problem.angle) ** 2)[problem.mask]
+    noise = np.array([d.angle_noise_rad for d in problem.decays])
+    counts = problem.mask.sum(axis=1)
+    sigma = float(np.sqrt(np.sum(noise ** 2 * counts) / counts.sum()))
+    resim = float(np.sqrt(np.sum((RESIMULATION_ACCURACY * np.array([d.amplitude_rad for d in problem.decays])) ** 2
+                                 * counts) / counts.sum()))
+    step = 2.0 * float(np.sqrt(np.mean(((fine_angle - a[0]) ** 2)[problem.mask])))
+    accuracy = math.hypot(resim, step if math.isfinite(step) else 0.0)
+    verdict = judge(float(np.sqrt(np.mean(err))), sigma, "rad", at_bound, accuracy=accuracy, converged=converged)
+    return verdict, float(np.sum(err)), int(err.size)
