@@ -90,6 +90,9 @@ DROP_POLICY = SearchPolicy(starts_per_parameter=STARTS_PER_PARAMETER, min_starts
                            screen_tests=SEARCH_TESTS, tol=TOL, prior_weight=PRIOR_WEIGHT, escalation=ESCALATION,
                            hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, loose_prior_weight=LOOSE_PRIOR_WEIGHT)
 
+#: The fit's settings where none are given (frozen: one instance serves every call).
+DEFAULT_SETTINGS = DropFitSettings()
+
 #: Options of the fit among a family's options: each sets the :class:`DropFitSettings` field of
 #: its name (``conditioning``: False for a virgin coupling).
 FIT_OPTIONS = ("substeps", "torque_weight", "max_nfev", "seed", "conditioning")
@@ -179,7 +182,7 @@ def holdout_split(decays: list[DropDecay], fraction: float) -> tuple[list[int], 
 
 @one_blas_thread
 def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[str, str]] | None = None,
-                   settings: DropFitSettings = DropFitSettings(), init: dict[str, float] | Parameters | None = None,
+                   settings: DropFitSettings = DEFAULT_SETTINGS, init: dict[str, float] | Parameters | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    options: dict[str, Any] | None = None) -> Identification:
     """Fit family ``kind`` (:data:`DROP_KINDS`) to the free decays ``decays``.

@@ -1,7 +1,8 @@
 """Identify one model family: bind it to the data and run its staged strategy (docs/theory.md#elements).
 
 Every strategy ends in (or consists of) bounded least squares on the torque error
-(:func:`~droptower.identify.fit.least_squares_fit`); the stages before it are the papers' own
+(:func:`~droptower.identify.fit.least_squares_fit`, the engine's one
+:func:`~droptower.identify.engine.local.local_fit`); the stages before it are the papers' own
 routes to good starting values. Each family's strategy lives beside its parameters in
 :mod:`droptower.identify.families` (one module per family).
 """

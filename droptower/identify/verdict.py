@@ -26,16 +26,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from droptower.units import printed_unit
-
-if TYPE_CHECKING:
-    from droptower.identify.engine.problem import DropProblem, FitVariable
-    from droptower.identify.noise import NoiseFloor
-    from droptower.identify.result import Identification
 
 #: A fit error above this multiple of the noise allowance is a poor fit.
 NOISE_RATIO = 2.0
@@ -84,7 +79,7 @@ class Verdict:
         return head + "".join(f"\n  - {r}" for r in self.reasons)
 
 
-def bound_hits(parameters: list[FitVariable], at_bounds: list[str]) -> list[str]:
+def bound_hits(parameters: list[Any], at_bounds: list[str]) -> list[str]:
     """Parameters on a bound that count against a fit (not a linear term switched off at 0)."""
     by_name = {p.name: p for p in parameters}
     out = []
@@ -116,10 +111,11 @@ def judge(error_rms: float, noise_floor: float, unit: str, at_bound: list[str], 
     return Verdict(POOR if reasons else GOOD, ratio, noise_floor, allowance, unit, reasons)
 
 
-def servo_verdict(result: "Identification", noise: "NoiseFloor", parameters: list["FitVariable"],
+def servo_verdict(result: Any, noise: Any, parameters: list[Any],
                   idle: list[str] | None = None) -> Verdict:
-    """The verdict on a fit to servo records: its RMS torque error against the records' noise
-    floor (N*m), with the model's discretisation error at the sample step (the last stage's
+    """The verdict on a fit to servo records (an :class:`~droptower.identify.result.Identification`
+    with the last stage's :class:`~droptower.identify.fit.FitResult`): its RMS torque error
+    against the records' noise floor (``noise``, :class:`~droptower.identify.noise.NoiseFloor`, N*m), with the model's discretisation error at the sample step (the last stage's
     ``step_error_nm``) added in quadrature; ``idle``: parameters of a switched-off part, whose
     bounds are not bound hits."""
     step = float(result.stages[-1].step_error_nm) if result.stages else 0.0
@@ -127,9 +123,10 @@ def servo_verdict(result: "Identification", noise: "NoiseFloor", parameters: lis
     return judge(result.fit.rmse_nm, noise.sigma, "nm", hits, accuracy=step, converged=result.converged)
 
 
-def drop_verdict(problem: "DropProblem", values: np.ndarray, at_bound: list[str], converged: bool,
+def drop_verdict(problem: Any, values: np.ndarray, at_bound: list[str], converged: bool,
                  fine_angle: np.ndarray | None = None) -> tuple[Verdict, float, int]:
-    """The verdict on a fit to drop tests: its RMS angle error over the fitting tests (rad)
+    """The verdict on a fit to drop tests (``problem``: the fitting tests,
+    :class:`~droptower.identify.engine.problem.DropProblem`): its RMS angle error over the fitting tests (rad)
     against the allowance: the logs' pre-trigger noise, the re-simulation's accuracy against
     the rig (:data:`RESIMULATION_ACCURACY` of each test's amplitude) and the fitted model's own
     integration error at the logs' step, in quadrature; and the sum of squared angle errors

@@ -100,9 +100,14 @@ class Model(Protocol):
     """What the engine needs of a model family."""
 
     parameters: list[FitVariable]
+    #: Integration steps per data sample.
+    substeps: int
 
     def batch(self, values: np.ndarray) -> Coupling:
         """One coupling whose parameter sets are the rows of ``values`` (M, n)."""
+
+    def move_choice(self, v: np.ndarray, index: int, value: float, rate_rad_per_s: float) -> np.ndarray:
+        """``v`` with a parameter of a few values moved to ``value``."""
 
     def coupling(self, v: np.ndarray) -> Coupling:
         """The coupling of one parameter vector."""
@@ -340,7 +345,7 @@ def simulate_rows(model: Model, values: np.ndarray, segments: list, which: np.nd
     """
     values = np.atleast_2d(np.asarray(values, dtype=float))
     which = np.asarray(which, dtype=np.int64)
-    substeps = int(substeps or getattr(model, "substeps", 1))
+    substeps = int(substeps or model.substeps)
     unique, inverse = np.unique(values, axis=0, return_inverse=True)
     coupling, good = admissible_couplings(model, unique)
     out: list[np.ndarray | None] = [None] * len(which)
@@ -413,7 +418,7 @@ class ServoProblem(Problem):
 
     @property
     def substeps(self) -> int:
-        return int(getattr(self.model, "substeps", 1))
+        return int(self.model.substeps)
 
     @property
     def typical_rate_rad_per_s(self) -> float:

@@ -398,8 +398,8 @@ class _Search:
                 if swapped_costs[-1] < best.cost:
                     best = other
         refined = self.refine(problem, screen, best.values, free, beat)
-        if refined is not None or incumbent is not None:
-            best = refined
+        if incumbent is not None or refined is not None:
+            best = refined  # with an incumbent, None: the search found nothing better
         return best, {"candidates": int(len(rows)), "best_candidate_cost": float(np.min(cost)),
                       "local_fits": len(fits), "local_costs": local_costs, "role_swapped_costs": swapped_costs,
                       **({"search_tests": screen.n_clusters} if policy.screen_tests is not None else {})}
