@@ -287,3 +287,38 @@ def test_compare_models_refuses_options_of_a_family_it_does_not_rank():
 
     with pytest.raises(DroptowerError, match="options given for zerodim7, which is not among the families ranked"):
         compare_models(_decays("zerodim6"), ["zerodim6"], options={"zerodim7": {"max_nfev": 3}})
+
+
+def test_a_row_the_core_refuses_is_nan_in_every_problem_and_never_stops_a_fit():
+    """The one fallback for parameter sets the core refuses: the servo records' problem and the
+    drop tests' give NaN residuals for that row (the others as alone), the search's costs inf,
+    and a local fit whose trial step lands there goes on (it sees REFUSED_RESIDUAL) instead of
+    raising, in both problems alike."""
+    from droptower.identify.data import make_segment
+    from droptower.identify.engine import DropProblem, ServoProblem, local_fit
+    from droptower.identify.families.zerodim6 import ZeroDim6
+
+    class Refusing(ZeroDim6):
+        """zerodim6 whose couplings the core refuses above k1 = 2 x the scale's stiffness."""
+
+        def coupling(self, v, **kw):
+            if v[0] > 2 * SCALE.stiffness_nm_per_rad:
+                raise DroptowerError("refused")
+            return super().coupling(v, **kw)
+
+    fam = Refusing(SCALE)
+    good = fam.initial()
+    bad = good.copy()
+    bad[0] = 3 * SCALE.stiffness_nm_per_rad
+    t = np.arange(200) * DT
+    angle = 0.01 * np.sin(2 * np.pi * 30 * t)
+    seg = make_segment(t, angle, fam.coupling(good).respond(angle, DT), name="s")
+    for problem in (ServoProblem(fam, [seg]), DropProblem(fam, _decays("zerodim6", n_tests=2), QUICK)):
+        both = problem.residuals(np.array([good, bad]))
+        assert np.isnan(both[1]).all() and np.isfinite(both[0]).all()
+        np.testing.assert_array_equal(both[0], problem.residuals(good[None])[0])
+        assert problem.costs(np.array([good, bad])).tolist()[1] == math.inf
+        near = good.copy()
+        near[0] = 1.999 * SCALE.stiffness_nm_per_rad  # the first trial steps cross into the refused region
+        fit = local_fit(problem, near, max_nfev=5)
+        assert np.isfinite(fit.cost) and fit.values[0] <= 2 * SCALE.stiffness_nm_per_rad

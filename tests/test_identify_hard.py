@@ -252,7 +252,7 @@ def test_basin_hops_leave_a_local_minimum_a_local_fit_stays_in():
     alone = local_fit(FunctionProblem(params, residuals), np.array([3.1, 1.0]), tol=1e-10, max_nfev=200)
     assert abs(alone.values[0] - 3.1) < 0.6
     moves = np.array([[a, 1.0] for a in (1.0, 5.0, 7.0, 11.0)])
-    from droptower.identify.search import basin_hops  # the old path and name, for one release
+    from droptower.identify.engine.search import basin_hops  # the old name, for one release
 
     with pytest.warns(DeprecationWarning, match="basin_hops is deprecated"):
         best, summary = basin_hops(params, moves, residuals, tol=1e-10, max_nfev=200)
