@@ -102,3 +102,27 @@ def test_the_count_sees_a_callback_that_comes_back():
         del sys.modules[b.__name__]
     assert worst == {a.__name__: 2, b.__name__: 2}
     assert [p.rsplit(".", 1)[1] for p in path] == ["drive", "loop", "back", "leaf"]
+
+
+def test_the_families_hooks_are_declared_and_never_looked_up():
+    """Every optional hook a family may offer is declared on the base class with a default
+    (the engine calls it on every family), so no module of the room asks whether a family has
+    one: no ``hasattr`` at all, no ``getattr`` of a hook's name."""
+    import ast
+    import inspect
+    from pathlib import Path
+
+    from droptower.identify.families.base import Family
+
+    hooks = {"DEFERRED", "without_branch", "branch_off", "guess_from_readings", "basin_moves", "idle_parameters",
+             "choices", "move_choice", "derived", "substeps"}
+    assert hooks <= set(dir(Family))
+    room = Path(inspect.getfile(Family)).parents[1]
+    found = []
+    for path in room.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("hasattr", "getattr"):
+                name = node.args[1].value if len(node.args) > 1 and isinstance(node.args[1], ast.Constant) else None
+                if node.func.id == "hasattr" or name in hooks:
+                    found.append(f"{path.relative_to(room)}:{node.lineno} {node.func.id}({name!r})")
+    assert not found, found

@@ -322,3 +322,38 @@ def test_a_row_the_core_refuses_is_nan_in_every_problem_and_never_stops_a_fit():
         near[0] = 1.999 * SCALE.stiffness_nm_per_rad  # the first trial steps cross into the refused region
         fit = local_fit(problem, near, max_nfev=5)
         assert np.isfinite(fit.cost) and fit.values[0] <= 2 * SCALE.stiffness_nm_per_rad
+
+
+def test_the_engines_old_names_keep_working_for_one_release_with_a_warning():
+    """``fit_rows``, ``RowsFit``, ``global_fit``, ``walk_p`` (now the engine's ``local_fit``,
+    ``LocalFit``, ``run_search``, ``walk_choice``) give what the new names give, each with a
+    DeprecationWarning; a linear least-squares problem (closed form: the normal equations) is
+    solved by both."""
+    import droptower.identify.engine.search as engine_search_module
+    import droptower.identify.families.elastoslide as elastoslide
+    import droptower.identify.fit as fit
+    from droptower.identify.engine import FitVariable, FunctionProblem, LocalFit, local_fit
+
+    t = np.linspace(0.0, 1.0, 50)
+    a = np.stack([np.ones_like(t), t], axis=1)
+    y = 2.0 + 3.0 * t + 0.01 * np.sin(40 * t)
+    exact = np.linalg.lstsq(a, y, rcond=None)[0]
+    params = [FitVariable("c0", -10.0, 10.0, log=False), FitVariable("c1", -10.0, 10.0, log=False)]
+
+    def residuals(rows):
+        return np.atleast_2d(rows) @ a.T - y
+
+    new = local_fit(FunctionProblem(params, residuals), np.array([0.5, 0.5]), tol=1e-12)
+    np.testing.assert_allclose(new.values, exact, rtol=1e-8)
+    with pytest.warns(DeprecationWarning, match="fit_rows is deprecated"):
+        old = fit.fit_rows(params, np.array([0.5, 0.5]), residuals, tol=1e-12)
+    np.testing.assert_array_equal(old.values, new.values)
+    with pytest.warns(DeprecationWarning, match="RowsFit is deprecated"):
+        assert fit.RowsFit is LocalFit
+    with pytest.warns(DeprecationWarning, match="global_fit is deprecated"):
+        best, summary = engine_search_module.global_fit(params, np.array([0.5, 0.5]), residuals,
+                                                        free=np.ones(2, bool), n_candidates=8, tol=1e-12)
+    np.testing.assert_allclose(best.values, exact, rtol=1e-8)
+    assert summary["candidates"] == 8 and summary["local_fits"] == 3
+    with pytest.warns(DeprecationWarning, match="walk_p is deprecated"):
+        assert elastoslide.walk_p is engine_search_module.walk_choice
