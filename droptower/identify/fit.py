@@ -31,7 +31,7 @@ __all__ = ["Counter", "FitResult", "FitVariable", "Metrics", "Model", "NON_IDENT
 
 def simulate(model: Model, values: np.ndarray, segments: list[Segment], counter: Counter | None = None
              ) -> list[list[np.ndarray]]:
-    """Torque of each parameter set (rows of ``values``) on every segment: out[m][s] (N_s,)."""
+    """Torque of each parameter set (rows of ``values``) on every segment: ``out[m][s]`` (N_s,)."""
     values = np.atleast_2d(values)
     m, s = values.shape[0], len(segments)
     # one evaluation = one parameter set over all the data

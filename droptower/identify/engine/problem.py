@@ -431,7 +431,7 @@ class ServoProblem(Problem):
 
     def torques(self, rows: np.ndarray, substeps: int | None = None) -> list[list[np.ndarray]]:
         """Torque (N*m) of each parameter set ``rows`` (M, n) on every segment, one core call:
-        out[m][s] (N_s,)."""
+        ``out[m][s]`` (N_s,)."""
         rows = np.atleast_2d(rows)
         n_seg, m = len(self.segments), rows.shape[0]
         if self.per_segment is None:

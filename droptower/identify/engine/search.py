@@ -30,11 +30,23 @@ Three rules keep the search from missing the family's own optimum (each one a me
 - given starts (a staged strategy's result) compete with the hypercube's candidates and their
   own role-swapped copies on cost: a staged result that locked a branch out is one start
   among others, never the only one.
+
+:func:`run_search` owns the whole loop, as lmfit's ``Minimizer`` owns its: screen the
+candidates on a few clusters of the problem (:meth:`~droptower.identify.engine.problem.Problem.screening`)
+-> local fits from the best (the elastoslide's odd p walked) -> the winner refined on the whole
+problem (only when it beats an incumbent) -> the family's moves into neighbouring basins while
+the fit is a few times its allowance -> a wider search when it is poor -> a looser prior when
+it is still poor. Every setting is a field of a :class:`SearchPolicy` (the drop tests':
+:data:`droptower.identify.dropfit.DROP_POLICY`; the servo records':
+:data:`droptower.identify.strategies.SERVO_POLICY`); no callback decides anything. A family
+contributes only the hooks its base class declares (``choices``, ``move_choice``,
+``basin_moves``, ``DEFERRED``), which the problem passes on; the verdict that steers the loop
+is the problem's (:meth:`~droptower.identify.engine.problem.Problem.error_over_allowance`).
 """
 from __future__ import annotations
 
-import re
 import math
+import re
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable
