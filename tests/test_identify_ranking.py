@@ -116,7 +116,7 @@ def test_exchangeable_branches_are_ordered_by_relaxation_time():
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_global_fit_finds_an_oscillation_a_local_fit_misses(seed):
+def test_the_global_search_finds_an_oscillation_a_local_fit_misses(seed):
     """An oscillation of random frequency (15-80 Hz, the drop tower's band) over 0.2 s: least
     squares from a first guess of the frequency far off stalls in a side minimum (the amplitude
     at its lower bound); the Latin-hypercube search over the bounds finds the truth."""

@@ -23,6 +23,7 @@ from droptower.identify.engine.problem import (PAD_FACTOR, REFUSED_RESIDUAL, Cou
                                                Model, ServoProblem, at_bounds, check_in_bounds, clip_to_bounds,
                                                finite_residuals, one_blas_thread, row_costs, simulate_rows)
 from droptower.identify.result import Metrics, metrics, servo_residual
+from droptower.identify.verdict import step_error
 
 __all__ = ["Counter", "FitResult", "FitVariable", "Metrics", "Model", "NON_IDENTIFIABLE", "PAD_FACTOR",
            "REFUSED_RESIDUAL", "at_bounds", "batch_search", "check_in_bounds", "clip_to_bounds", "finite_residuals",
@@ -90,13 +91,12 @@ class FitResult:
                 "message": self.message, "non_identifiable": self.non_identifiable}
 
 
-def stage_result(problem: ServoProblem, sol: LocalFit, stage: str, started: float,
-                 evaluations: int | None = None) -> FitResult:
+def stage_result(problem: ServoProblem, sol: LocalFit, stage: str, started: float) -> FitResult:
     """The :class:`FitResult` of the local fit ``sol`` of ``problem`` (the stage ``stage``,
     begun at ``started``, :func:`time.perf_counter` s): the metrics on the fitting data, the
     standard errors (lag-1 inflated, the integration step's bias added) and the model's own
-    discretisation error at its step. ``evaluations``: the stage's (default: every evaluation
-    ``problem`` counted, these included)."""
+    discretisation error at its step (:func:`~droptower.identify.verdict.step_error`); its
+    evaluations: every one ``problem`` counted, these included."""
     segments = problem.segments
     m = metrics(segments, problem.torques(sol.values[None, :])[0])
     # the integration step's bias (the zero-dimensional model paper's records are sampled coarser than the bench
@@ -104,14 +104,11 @@ def stage_result(problem: ServoProblem, sol: LocalFit, stage: str, started: floa
     # Richardson-scaled for the first-order error of the core's rate-dependent elements
     fine = problem.residuals(sol.values[None, :], 2 * problem.substeps)[0]
     std = sol.std_error(m.residual_lag1, extra_z=sol.step_bias_z(fine))
-    # the model's own discretisation error at the step it is fitted on: twice its change on
-    # half the step (first order), RMS over the compared samples
-    step_error = 2.0 * float(np.sqrt(np.mean((fine - sol.residual) ** 2))) if fine.size else 0.0
     counter = problem.counter
     return FitResult(stage, [p.name for p in problem.parameters], sol.values, sol.free, std, sol.at_bounds, m,
-                     sol.nfev, sol.njev, counter.evaluations if evaluations is None else evaluations,
+                     sol.nfev, sol.njev, counter.evaluations,
                      counter.core_calls, time.perf_counter() - started, sol.converged, sol.message,
-                     sol.non_identifiable, step_error if np.isfinite(step_error) else 0.0)
+                     sol.non_identifiable, step_error(fine, sol.residual))
 
 
 @one_blas_thread

@@ -111,6 +111,16 @@ def judge(error_rms: float, noise_floor: float, unit: str, at_bound: list[str], 
     return Verdict(POOR if reasons else GOOD, ratio, noise_floor, allowance, unit, reasons)
 
 
+def step_error(fine: np.ndarray, coarse: np.ndarray) -> float:
+    """The model's own integration error at its step: twice the RMS change of its output
+    (``coarse``, on the step; ``fine``, on half of it) over the compared samples (Richardson,
+    first order: docs/theory.md#verdict), in their unit; 0 where there is nothing to compare or
+    the half-step run was refused (not finite)."""
+    fine, coarse = np.asarray(fine, float), np.asarray(coarse, float)
+    error = 2.0 * float(np.sqrt(np.mean((fine - coarse) ** 2))) if fine.size else 0.0
+    return error if math.isfinite(error) else 0.0
+
+
 def servo_verdict(result: Any, noise: Any, parameters: list[Any],
                   idle: list[str] | None = None) -> Verdict:
     """The verdict on a fit to servo records (an :class:`~droptower.identify.result.Identification`
@@ -147,7 +157,6 @@ def drop_verdict(problem: Any, values: np.ndarray, at_bound: list[str], converge
     sigma = float(np.sqrt(np.sum(noise ** 2 * counts) / counts.sum()))
     resim = float(np.sqrt(np.sum((RESIMULATION_ACCURACY * np.array([d.amplitude_rad for d in problem.decays])) ** 2
                                  * counts) / counts.sum()))
-    step = 2.0 * float(np.sqrt(np.mean(((fine_angle - a[0]) ** 2)[problem.mask])))
-    accuracy = math.hypot(resim, step if math.isfinite(step) else 0.0)
+    accuracy = math.hypot(resim, step_error(fine_angle[problem.mask], a[0][problem.mask]))
     verdict = judge(float(np.sqrt(np.mean(err))), sigma, "rad", at_bound, accuracy=accuracy, converged=converged)
     return verdict, float(np.sum(err)), int(err.size)
