@@ -44,7 +44,8 @@ def target(package: str, name: str) -> str | None:
 #: documented in full on the first one's page and linked from the others
 PACKAGES = ("droptower.rheology", "droptower.rig", "droptower.servo", "droptower.io", "droptower.extract",
             "droptower.maps", "droptower.campaign", "droptower.compare", "droptower.design", "droptower.planner",
-            "droptower.identify", "droptower.identify.families", "droptower.fmu", "droptower.uncertainty", "droptower.data",
+            "droptower.identify", "droptower.identify.families", "droptower.identify.engine",
+            "droptower.fmu", "droptower.uncertainty", "droptower.data",
             "droptower")
 
 

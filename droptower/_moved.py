@@ -31,6 +31,7 @@ MOVED_MODULES: dict[str, str] = {
     "droptower.identify.compare": "droptower.identify.ranking",
     # the campaign read for an identification and the one call, beside the fit (dropfit)
     "droptower.identify.drops": "droptower.identify.drop_campaign",
+    "droptower.identify.search": "droptower.identify.engine.search",
 }
 
 

@@ -13,6 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import droptower.identify.dropfit as dropfit
+import droptower.identify.engine.problem as engine_problem
+import droptower.identify.engine.search as engine_search
 from droptower.errors import DroptowerError
 from droptower.identify.data import DataScale
 from droptower.identify.dropfit import DropFitSettings, identify_drops
@@ -51,15 +53,15 @@ def _decays(kind: str, seed: int = 0, n_tests: int = 3, duration_s: float = 0.04
 def local_fits(monkeypatch):
     """Every local fit of the drop engine (its bounds, evaluation limit and outcome), recorded."""
     calls = []
-    original = dropfit.fit_rows
+    original = engine_search.local_fit
 
-    def spy(parameters, x0, objective, **kw):
-        out = original(parameters, x0, objective, **kw)
-        calls.append({"bounds": {p.name: (p.lower, p.upper) for p in parameters}, "max_nfev": kw.get("max_nfev"),
-                      "values": np.array(out.values, float)})
+    def spy(problem, x0, free=None, **kw):
+        out = original(problem, x0, free, **kw)
+        calls.append({"bounds": {p.name: (p.lower, p.upper) for p in problem.parameters},
+                      "max_nfev": kw.get("max_nfev"), "values": np.array(out.values, float)})
         return out
 
-    monkeypatch.setattr(dropfit, "fit_rows", spy)
+    monkeypatch.setattr(engine_search, "local_fit", spy)
     return calls
 
 
@@ -125,16 +127,16 @@ def test_every_reported_value_lies_in_its_printed_bounds(kind, positions):
     of every search (first, wider, hops, loose prior) stays inside them, and so does every
     reported value inside its printed min/max."""
     calls = []
-    original = dropfit.fit_rows
+    original = engine_search.local_fit
 
-    def spy(parameters, x0, objective, **kw):
-        out = original(parameters, x0, objective, **kw)
-        calls.append(({p.name: (p.lower, p.upper) for p in parameters}, np.array(out.values, float)))
+    def spy(problem, x0, free=None, **kw):
+        out = original(problem, x0, free, **kw)
+        calls.append(({p.name: (p.lower, p.upper) for p in problem.parameters}, np.array(out.values, float)))
         return out
 
     bounds = _narrow_bounds(kind, positions)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(dropfit, "fit_rows", spy)
+        mp.setattr(engine_search, "local_fit", spy)
         result = identify_drops(kind, _decays(kind), settings=QUICK, bounds=bounds, options=FAMILIES[kind])
     for searched, values in calls:
         assert not _inside(values, list(searched), bounds)
@@ -148,13 +150,13 @@ def test_the_fits_options_set_the_searches_evaluation_limit_and_step(local_fits,
     """``options={"max_nfev": 7, "substeps": 2}`` reach every local fit and every re-simulation
     (half the step; the bias estimate's at a quarter)."""
     steps = []
-    original = dropfit.free_decay
+    original = engine_problem.free_decay
 
     def spy(coupling, inertia, rate0, n_steps, h, *args, **kw):
         steps.append(h)
         return original(coupling, inertia, rate0, n_steps, h, *args, **kw)
 
-    monkeypatch.setattr(dropfit, "free_decay", spy)
+    monkeypatch.setattr(engine_problem, "free_decay", spy)
     identify_drops("zerodim6", _decays("zerodim6"), settings=DropFitSettings(holdout_fraction=0.0, conditioning=None),
                    options={"max_nfev": 7, "substeps": 2})
     assert local_fits and {c["max_nfev"] for c in local_fits} == {7}
@@ -207,7 +209,7 @@ def test_rows_the_core_refuses_have_one_policy_everywhere(monkeypatch):
     a wholly refused row cost 0)."""
     import droptower.identify.fit as fit
     from droptower.identify.data import make_segment
-    from droptower.identify.search import costs
+    from droptower.identify.engine.search import costs
 
     r = np.array([[1.0, 2.0], [np.nan, 0.0], [np.inf, np.nan], [0.5, 0.5]])
     assert fit.row_costs(r).tolist() == [5.0, math.inf, math.inf, 0.5]
@@ -289,3 +291,73 @@ def test_compare_models_refuses_options_of_a_family_it_does_not_rank():
 
     with pytest.raises(DroptowerError, match="options given for zerodim7, which is not among the families ranked"):
         compare_models(_decays("zerodim6"), ["zerodim6"], options={"zerodim7": {"max_nfev": 3}})
+
+
+def test_a_row_the_core_refuses_is_nan_in_every_problem_and_never_stops_a_fit():
+    """The one fallback for parameter sets the core refuses: the servo records' problem and the
+    drop tests' give NaN residuals for that row (the others as alone), the search's costs inf,
+    and a local fit whose trial step lands there goes on (it sees REFUSED_RESIDUAL) instead of
+    raising, in both problems alike."""
+    from droptower.identify.data import make_segment
+    from droptower.identify.engine import DropProblem, ServoProblem, local_fit
+    from droptower.identify.families.zerodim6 import ZeroDim6
+
+    class Refusing(ZeroDim6):
+        """zerodim6 whose couplings the core refuses above k1 = 2 x the scale's stiffness."""
+
+        def coupling(self, v, **kw):
+            if v[0] > 2 * SCALE.stiffness_nm_per_rad:
+                raise DroptowerError("refused")
+            return super().coupling(v, **kw)
+
+    fam = Refusing(SCALE)
+    good = fam.initial()
+    bad = good.copy()
+    bad[0] = 3 * SCALE.stiffness_nm_per_rad
+    t = np.arange(200) * DT
+    angle = 0.01 * np.sin(2 * np.pi * 30 * t)
+    seg = make_segment(t, angle, fam.coupling(good).respond(angle, DT), name="s")
+    for problem in (ServoProblem(fam, [seg]), DropProblem(fam, _decays("zerodim6", n_tests=2), QUICK)):
+        both = problem.residuals(np.array([good, bad]))
+        assert np.isnan(both[1]).all() and np.isfinite(both[0]).all()
+        np.testing.assert_array_equal(both[0], problem.residuals(good[None])[0])
+        assert problem.costs(np.array([good, bad])).tolist()[1] == math.inf
+        near = good.copy()
+        near[0] = 1.999 * SCALE.stiffness_nm_per_rad  # the first trial steps cross into the refused region
+        fit = local_fit(problem, near, max_nfev=5)
+        assert np.isfinite(fit.cost) and fit.values[0] <= 2 * SCALE.stiffness_nm_per_rad
+
+
+def test_the_engines_old_names_keep_working_for_one_release_with_a_warning():
+    """``fit_rows``, ``RowsFit``, ``global_fit``, ``walk_p`` (now the engine's ``local_fit``,
+    ``LocalFit``, ``run_search``, ``walk_choice``) give what the new names give, each with a
+    DeprecationWarning; a linear least-squares problem (closed form: the normal equations) is
+    solved by both."""
+    import droptower.identify.engine.search as engine_search_module
+    import droptower.identify.families.elastoslide as elastoslide
+    import droptower.identify.fit as fit
+    from droptower.identify.engine import FitVariable, FunctionProblem, LocalFit, local_fit
+
+    t = np.linspace(0.0, 1.0, 50)
+    a = np.stack([np.ones_like(t), t], axis=1)
+    y = 2.0 + 3.0 * t + 0.01 * np.sin(40 * t)
+    exact = np.linalg.lstsq(a, y, rcond=None)[0]
+    params = [FitVariable("c0", -10.0, 10.0, log=False), FitVariable("c1", -10.0, 10.0, log=False)]
+
+    def residuals(rows):
+        return np.atleast_2d(rows) @ a.T - y
+
+    new = local_fit(FunctionProblem(params, residuals), np.array([0.5, 0.5]), tol=1e-12)
+    np.testing.assert_allclose(new.values, exact, rtol=1e-8)
+    with pytest.warns(DeprecationWarning, match="fit_rows is deprecated"):
+        old = fit.fit_rows(params, np.array([0.5, 0.5]), residuals, tol=1e-12)
+    np.testing.assert_array_equal(old.values, new.values)
+    with pytest.warns(DeprecationWarning, match="RowsFit is deprecated"):
+        assert fit.RowsFit is LocalFit
+    with pytest.warns(DeprecationWarning, match="global_fit is deprecated"):
+        best, summary = engine_search_module.global_fit(params, np.array([0.5, 0.5]), residuals,
+                                                        free=np.ones(2, bool), n_candidates=8, tol=1e-12)
+    np.testing.assert_allclose(best.values, exact, rtol=1e-8)
+    assert summary["candidates"] == 8 and summary["local_fits"] == 3
+    with pytest.warns(DeprecationWarning, match="walk_p is deprecated"):
+        assert elastoslide.walk_p is engine_search_module.walk_choice

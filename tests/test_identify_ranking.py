@@ -10,10 +10,11 @@ import pytest
 
 from droptower.identify.criterion import TIE, bic, order
 from droptower.identify.data import make_segment
-from droptower.identify.fit import FitVariable, Metrics, fit_rows
+from droptower.identify.engine import FunctionProblem, SearchPolicy, local_fit, run_search
+from droptower.identify.fit import FitVariable, Metrics
 from droptower.identify.noise import servo_noise
 from droptower.identify.report import ranking_table
-from droptower.identify.search import candidates, exchangeable_branches, global_fit, order_branches
+from droptower.identify.engine.search import candidates, exchangeable_branches, order_branches
 from droptower.identify.verdict import GOOD, NOISE_RATIO, POOR, bound_hits, judge
 from shared_fits import share_fits
 
@@ -115,7 +116,7 @@ def test_exchangeable_branches_are_ordered_by_relaxation_time():
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_global_fit_finds_an_oscillation_a_local_fit_misses(seed):
+def test_the_global_search_finds_an_oscillation_a_local_fit_misses(seed):
     """An oscillation of random frequency (15-80 Hz, the drop tower's band) over 0.2 s: least
     squares from a first guess of the frequency far off stalls in a side minimum (the amplitude
     at its lower bound); the Latin-hypercube search over the bounds finds the truth."""
@@ -129,8 +130,11 @@ def test_global_fit_finds_an_oscillation_a_local_fit_misses(seed):
 
     params = [FitVariable("c_nm_per_rad", 1e-2, 1e2), FitVariable("f_hz", 1.0, 300.0)]
     x0, free = np.array([1.0, 200.0]), np.ones(2, bool)
-    local = fit_rows(params, x0, residuals, free=free, max_nfev=200)
-    best, summary = global_fit(params, x0, residuals, free=free, n_candidates=256, seed=seed, max_nfev=200)
+    local = local_fit(FunctionProblem(params, residuals), x0, free, max_nfev=200)
+    policy = SearchPolicy(starts_per_parameter=0, min_starts=256, near_share=0.0, screen_tests=None, tol=1e-7,
+                          prior_weight=None, escalation=1, hop_rounds=0, loose_prior_weight=None)
+    found = run_search(FunctionProblem(params, residuals), policy, x0, free, seed=seed, max_nfev=200)
+    best, summary = found.fit, found.summary
     assert np.allclose(best.values, truth, rtol=1e-6)
     assert float(local.residual @ local.residual) > 100.0 and abs(local.values[1] - truth[1]) > 50.0
     assert summary["local_fits"] == 3 and summary["candidates"] == 256

@@ -337,7 +337,7 @@ def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4)
     whatever the correlation within a test. The identification's reported standard errors add the
     integration step's bias, which does not shrink with more tests and is not in the bands."""
     from droptower.identify.dropfit import DropProblem
-    from droptower.identify.fit import RowsFit
+    from droptower.identify.engine.local import LocalFit
 
     used = set(ident.tests_used)
     fitting = [d for d in decays if d.name in used]
@@ -357,7 +357,7 @@ def drop_covariance(ident: Any, decays: list, settings: Any, step: float = 1e-4)
     per_call = max(1, MAX_DECAYS_PER_CALL // len(fitting))
     res = np.concatenate([problem.residuals(rows[i:i + per_call]) for i in range(0, len(rows), per_call)])
     jac = ((res[1:] - res[0]) / step).T
-    sol = RowsFit(params, values, free, res[0], jac, [], 0, 0, True, "")
+    sol = LocalFit(params, values, free, res[0], jac, [], 0, 0, True, "")
     return free, sol.covariance_z_clustered(problem.test_of_residual)
 
 

@@ -2,7 +2,10 @@
 
 - :mod:`.data`: records -> :class:`Segment` (SI, constant step, checked);
 - :mod:`.cycles`: turning points, steady sine blocks, their lab evaluation;
-- :mod:`.fit`: bounded trust-region-reflective least squares with batched Jacobians;
+- :mod:`.engine`: the one engine of servo and drop-test identification: a problem (batched
+  residuals), one local fit (bounded trust-region-reflective least squares with batched
+  Jacobians), one search with a declared policy; :mod:`.verdict` judges its fits;
+- :mod:`.fit`: the servo records' least-squares stages on the engine's local fit;
 - :mod:`.families`: one module per model family (parameters, bounds, coupling, and its staged
   strategy), the shared stages in :mod:`.families.stages`;
 - :mod:`.strategies`: :func:`identify` binds a family to the data and runs its strategy;

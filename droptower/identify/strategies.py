@@ -1,7 +1,8 @@
 """Identify one model family: bind it to the data and run its staged strategy (docs/theory.md#elements).
 
 Every strategy ends in (or consists of) bounded least squares on the torque error
-(:func:`~droptower.identify.fit.least_squares_fit`); the stages before it are the papers' own
+(:func:`~droptower.identify.fit.least_squares_fit`, the engine's one
+:func:`~droptower.identify.engine.local.local_fit`); the stages before it are the papers' own
 routes to good starting values. Each family's strategy lives beside its parameters in
 :mod:`droptower.identify.families` (one module per family).
 """
@@ -18,12 +19,12 @@ from droptower.identify.data import Segment, common_units
 from droptower.identify.families import STRATEGIES, family_class
 from droptower.identify.families.base import COMMON_OPTIONS
 from droptower.identify.families.stages import Setup, result_of, setup
-from droptower.identify.fit import FitVariable, least_squares_fit, one_blas_thread, simulate
-from droptower.identify.result import Identification
-from droptower.identify.noise import NoiseFloor, servo_noise
-from droptower.identify.result import Parameters, servo_given
-from droptower.identify.search import global_fit
-from droptower.identify.verdict import Verdict, bound_hits, judge
+from droptower.identify.engine.problem import ServoProblem, one_blas_thread
+from droptower.identify.engine.search import SearchPolicy, run_search
+from droptower.identify.fit import stage_result
+from droptower.identify.noise import servo_noise
+from droptower.identify.result import Identification, Parameters, servo_given
+from droptower.identify.verdict import servo_verdict
 from droptower.io.fields import torsional_fields
 
 #: Values of ``identify(search=...)``.
@@ -34,6 +35,12 @@ SEARCHABLE = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "temp
 #: Candidates of the servo global search per free parameter, at least MIN_CANDIDATES.
 CANDIDATES_PER_PARAMETER = 16
 MIN_CANDIDATES = 64
+#: The servo records' global search (:func:`global_search`), every setting declared: every
+#: record in the screening, no prior (servo records pin every direction they fit), no walk of
+#: the odd exponent (the staged strategy walks it), no escalation, no basin moves.
+SERVO_POLICY = SearchPolicy(starts_per_parameter=CANDIDATES_PER_PARAMETER, min_starts=MIN_CANDIDATES,
+                            screen_tests=None, tol=1e-7, prior_weight=None, walk_choices=False, escalation=1,
+                            hop_rounds=0, loose_prior_weight=None)
 #: Families whose global search is that of a family they contain exactly, followed by their
 #: own strategy from its result: the six-parameter model holds the 20-parameter model's
 #: structure (its relaxation times, the branch's level and slope), which a search decides; a
@@ -109,55 +116,34 @@ def identify(family: str, segments: list[Segment], *, init: dict[str, float] | P
 
 
 def _idle(family: Any, result: Identification) -> list[str]:
-    """The parameters of a switched-off part of ``result`` (a family's ``idle_parameters``, if it
-    has them): their bounds are not bound hits."""
+    """The parameters of a switched-off part of ``result`` (the family's ``idle_parameters``):
+    their bounds are not bound hits."""
     return list(family.idle_parameters(np.array(list(result.parameters.values()), float)))
-
-
-def servo_verdict(result: Identification, noise: NoiseFloor, parameters: list[FitVariable],
-                  idle: list[str] | None = None) -> Verdict:
-    """The fit's RMS torque error against the records' noise floor (N*m), with the model's
-    discretisation error at the sample step (the last stage's) added in quadrature; ``idle``:
-    parameters of a switched-off part, whose bounds are not bound hits."""
-    step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
-    hits = bound_hits(parameters, [n for n in result.at_bounds if n not in set(idle or ())])
-    return judge(result.fit_error.rmse_nm, noise.sigma, "nm", hits, accuracy=step,
-                 converged=result.converged)
 
 
 def global_search(s: Setup, segments: list[Segment], start: float, seed: int = 0,
                   staged: np.ndarray | None = None) -> Identification:
-    """Latin-hypercube candidates over the whole bounds (every batch in one core call), then the
-    joint least squares from the best three distinct ones (:func:`~droptower.identify.search.global_fit`);
-    for the families of :data:`SEARCH_THROUGH`, :func:`search_through`. ``staged``: the staged
-    strategy's result, one more candidate (with its branches' roles swapped, another): it
-    competes with the others on cost instead of fixing which branch plays which role."""
+    """The engine's search (:func:`~droptower.identify.engine.search.run_search` with
+    :data:`SERVO_POLICY`) on the servo records: Latin-hypercube candidates over the whole
+    bounds (every batch in one core call), then the joint least squares from the best three
+    distinct ones; for the families of :data:`SEARCH_THROUGH`, :func:`search_through`.
+    ``staged``: the staged strategy's result, one more candidate (with its branches' roles
+    swapped, another): it competes with the others on cost instead of fixing which branch plays
+    which role."""
     fam = s.family
     if fam.kind in SEARCH_THROUGH:
         return search_through(s, segments, start, seed)
+    started = time.perf_counter()
     free = ~s.given
-    masks = [seg.compared for seg in segments]
-
-    def residuals(rows: np.ndarray) -> np.ndarray:
-        try:
-            per_row = simulate(fam, rows, segments)
-        except DroptowerError:  # a candidate the core refuses: evaluate one by one
-            return np.array([residuals(r[None])[0] if _admissible(fam, r) else np.full(sum(m.sum() for m in masks), np.inf)
-                             for r in rows])
-        return np.array([np.concatenate([(t - seg.torque_nm)[m] for t, seg, m in zip(per, segments, masks)])
-                         for per in per_row])
-
-    def local(x: np.ndarray, tol: float):
-        return least_squares_fit(fam, segments, x, free=free, stage="global search: joint", max_nfev=s.max_nfev,
-                                 tol=tol)
-
-    n = max(MIN_CANDIDATES, CANDIDATES_PER_PARAMETER * int(free.sum()))
+    problem = ServoProblem(fam, segments)
     choices = {i: values for i, values in fam.choices().items() if free[i]}  # the elastoslide's odd p
-    best, summary = global_fit(fam.parameters, s.x0, residuals, free=free, n_candidates=n, seed=seed, local=local,
-                               cost_of=lambda f: f.metrics.rmse_nm, near=n // 4, choices=choices,
-                               starts=None if staged is None else staged[None, :])
-    return result_of(s, segments, best.values.copy(), [best], start,
-                     extra={"global_search": summary, "search_evaluations": n})
+    found = run_search(problem, SERVO_POLICY, s.x0, free, seed=seed, max_nfev=s.max_nfev, choices=choices,
+                       starts=None if staged is None else staged[None, :])
+    searched = problem.counter.evaluations
+    final = stage_result(problem, found.fit, "global search: joint", started)
+    final.evaluations -= searched
+    return result_of(s, segments, found.fit.values.copy(), [final], start,
+                     extra={"global_search": found.summary, "search_evaluations": searched})
 
 
 def search_through(s: Setup, segments: list[Segment], start: float, seed: int = 0) -> Identification:
@@ -179,11 +165,3 @@ def search_through(s: Setup, segments: list[Segment], start: float, seed: int = 
 def _common_options(family) -> dict[str, Any]:
     """The options of ``family`` every family takes (for the family it contains)."""
     return {k: v for k, v in family.options.items() if k in COMMON_OPTIONS}
-
-
-def _admissible(fam, row: np.ndarray) -> bool:
-    try:
-        fam.coupling(row)
-        return True
-    except DroptowerError:
-        return False

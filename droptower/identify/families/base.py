@@ -14,7 +14,7 @@ import numpy as np
 
 from droptower.errors import DroptowerError
 from droptower.identify.data import DataScale
-from droptower.identify.fit import FitVariable, clip_to_bounds
+from droptower.identify.engine.problem import FitVariable, clip_to_bounds
 from droptower.rheology import Coupling, parse_coupling
 
 
@@ -88,6 +88,14 @@ class Family:
         """Parameter sets (rows) near the fit ``v`` in the basins beside it, tried when a fit is a
         few times the noise allowance (none by default: shape (0, n))."""
         return np.empty((0, len(self.parameters)))
+
+    def move_choice(self, v: np.ndarray, index: int, value: float, rate_rad_per_s: float) -> np.ndarray:
+        """``v`` with parameter ``index``, one of a few values (:meth:`choices`), moved to
+        ``value`` where a search walks it; ``rate_rad_per_s``: the data's typical rate, for a
+        family whose rate law moves with it. By default only that parameter changes."""
+        out = np.array(v, float)
+        out[index] = value
+        return out
 
     def idle_parameters(self, v: np.ndarray) -> list[str]:
         """Parameters of a part switched off in ``v``, whose bounds are not bound hits (none by default)."""

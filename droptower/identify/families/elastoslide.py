@@ -7,7 +7,7 @@ candidates while the error falls. phi0 and v_r are identifiable only together (s
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -17,6 +17,8 @@ from droptower.identify.cycles import turning_points
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
+from droptower.identify.engine.problem import ServoProblem
+from droptower.identify.engine.search import walk_choice
 from droptower.identify.fit import Counter, FitResult, FitVariable, batch_search, clip_to_bounds
 from droptower.identify.result import Identification
 
@@ -72,6 +74,12 @@ class ElastoslideFamily(Family):
     def choices(self) -> dict[int, list[float]]:
         """p among its odd candidates (the option ``p_candidates``)."""
         return {self.names.index("p"): [float(v) for v in self.options["p_candidates"]]}
+
+    def move_choice(self, v: np.ndarray, index: int, value: float, rate_rad_per_s: float) -> np.ndarray:
+        """The odd exponent p moved to ``value`` with v_r moved along (:func:`rate_at_exponent`)."""
+        if index != self.names.index("p"):
+            return super().move_choice(v, index, value, rate_rad_per_s)
+        return rate_at_exponent(v, self.names, int(value), rate_rad_per_s)
 
     def elements(self, v):
         phi0, k, k0, v_r, p = v[:5]
@@ -144,30 +152,6 @@ def rate_at_exponent(values: np.ndarray, names: list[str], p_new: int, rate_rad_
     return out
 
 
-def walk_p(start: Any, p_of: Callable[[Any], int], fit_at: Callable[[Any, int], Any], cost: Callable[[Any], float],
-           candidates: list[int]) -> dict[int, Any]:
-    """The odd exponent p chosen by a walk, never by the gradient: from the fit ``start``, over
-    the neighbouring ``candidates`` in each direction while the cost falls. ``fit_at(fit, p)``
-    fits at exponent p from ``fit``; a start whose p is not a candidate does not walk.
-    Returns every fit made, by its p (the caller keeps the cheapest)."""
-    cands = sorted(int(c) for c in candidates)
-    fits = {p_of(start): start}
-    for direction in (-1, 1):
-        here = start
-        while True:
-            p_old = p_of(here)
-            i = cands.index(p_old) + direction if p_old in cands else -1
-            if not 0 <= i < len(cands):
-                break
-            p_new = cands[i]
-            if p_new not in fits:
-                fits[p_new] = fit_at(here, p_new)
-            if cost(fits[p_new]) >= cost(here):
-                break
-            here = fits[p_new]
-    return fits
-
-
 def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
     """The elastoslide paper's route. Any angle history gives the same torque for (phi0, v_r) and
     (phi0 / a, v_r a^p), so phi0 is taken from the loop-tip loading curve (eq. 24, as the elastoslide paper
@@ -206,13 +190,13 @@ def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -
     if not s.given[ip]:
         # walk p over the odd candidates while the cost falls. Moving to p', v_r is moved so
         # that the slip-rate law (v / v_r)^(1/p) keeps its value at the data's rms rate.
-        v_typ = float(np.sqrt(np.mean(np.concatenate([np.diff(g.angle_rad) ** 2 / g.dt_s ** 2 for g in segments]))))
+        v_typ = ServoProblem(fam, segments).typical_rate_rad_per_s
 
         def try_p(frm: FitResult, p_new: int) -> FitResult:
-            start_x = rate_at_exponent(frm.values, fam.names, p_new, v_typ)
+            start_x = fam.move_choice(frm.values, ip, p_new, v_typ)
             return s.fit(segments, clip_to_bounds(fam.parameters, start_x), continuous, f"joint at p = {p_new}")
 
-        fits = walk_p(fits[int(x[ip])], lambda r: int(r.values[ip]), try_p, lambda r: r.metrics.rmse_nm, p_list)
+        fits = walk_choice(fits[int(x[ip])], lambda r: int(r.values[ip]), try_p, lambda r: r.metrics.rmse_nm, p_list)
     best = min(fits.values(), key=lambda r: r.metrics.rmse_nm)
     extra["p_walk"] = {int(p): r.metrics.nrmse for p, r in sorted(fits.items())}
     stages = [r for _, r in sorted(fits.items())]
@@ -222,3 +206,15 @@ def identify_elastoslide(s: Setup, segments: list[Segment], start: float, **_) -
 
 FAMILY = ElastoslideFamily
 strategy = identify_elastoslide
+
+
+def __getattr__(name: str) -> object:
+    """``walk_p``: deprecated, it is :func:`droptower.identify.engine.search.walk_choice`
+    (removed in the next release)."""
+    if name == "walk_p":
+        import warnings
+
+        warnings.warn("droptower.identify.families.elastoslide.walk_p is deprecated: use "
+                      "droptower.identify.engine.search.walk_choice", DeprecationWarning, stacklevel=2)
+        return walk_choice
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -39,7 +39,7 @@ from droptower.identify.families.stages import Setup, result_of, steady_blocks
 from droptower.identify.fit import FitVariable, clip_to_bounds
 from droptower.identify.result import Identification
 from droptower.identify.noise import servo_noise
-from droptower.identify.verdict import bound_hits, judge
+from droptower.identify.verdict import servo_verdict
 from droptower.rheology.elements import (filler_network_complex_stiffness, power_law_complex_stiffness,
                                          power_law_exponent)
 from droptower.rheology.numba_cache import cache_available, compile_once_across_processes
@@ -473,11 +473,8 @@ def _poor(result: Identification, segments: list[Segment], fam: FilledRubberFami
     """Whether the servo verdict on ``result`` is "poor fit" (as the servo strategies' caller
     judges it: the RMS error against the records' noise floor with the last stage's step error
     in quadrature, the parameters on a bound that count)."""
-    step = float(getattr(result.stages[-1], "step_error_nm", 0.0)) if result.stages else 0.0
     values = np.array(list(result.parameters.values()), float)
-    hits = bound_hits(fam.parameters, [n for n in result.at_bounds if n not in fam.idle_parameters(values)])
-    return judge(result.fit_error.rmse_nm, servo_noise(segments).sigma, "nm", hits, accuracy=step,
-                 converged=result.converged).poor
+    return servo_verdict(result, servo_noise(segments), fam.parameters, fam.idle_parameters(values)).poor
 
 
 def _large_strain_fit(s: Setup, segments: list[Segment], start: float, readings: tuple, stage: str,
