@@ -48,12 +48,12 @@ def _check(regression, result, cost: float) -> None:
                                          ("masing", "never"), ("masing", "always")])
 def test_servo_fit_is_unchanged(regression, kind, search):
     result = identify(kind, _servo_records(kind), search=search)
-    _check(regression, result, result.fit.rmse_nm)
+    _check(regression, result, result.fit_error.rmse_nm)
 
 
 def test_servo_global_search_with_the_exponent_drawn_is_unchanged(regression):
     result = identify("elastoslide", _servo_records("elastoslide"), search="always")
-    _check(regression, result, result.fit.rmse_nm)
+    _check(regression, result, result.fit_error.rmse_nm)
     regression.check("global search candidates", result.extra["global_search"]["candidates"], 0.0)
 
 
