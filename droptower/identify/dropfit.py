@@ -30,6 +30,7 @@ inertias and amplitudes) is held out and predicted.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -363,18 +364,26 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     # a family's deferred parameters (a part it switches off first): held off in the first
     # search, freed in the wider one after a poor verdict
     deferred = np.isin(family.names, family.DEFERRED) & free
-    x_off = family.branch_off(x0) if deferred.any() else x0
     # a family whose closed form reads a first guess off the first cycles (Family.guess_from_readings)
     readings = first_cycle_readings([decays[i] for i in fit_idx])
-    x0 = family.guess_from_readings(*readings, x0, given)
-    # the first search's guess from the closed form without the deferred part
-    x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
-             if deferred.any() else x0)
-    if guesses:  # the user's first guesses over the closed form's, in both starts
-        for x in (x0, x_off):
-            place_guesses(kind, family.names, x, guesses)
-        x0 = np.where(given, x0, clip_to_bounds(params, x0))
-        x_off = np.where(given | deferred, x_off, clip_to_bounds(params, x_off)) if deferred.any() else x0
+
+    def first_guess(fam: Family, x: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """The closed form's first guess from ``x`` (``held`` kept), the user's guesses over it."""
+        x = np.array(fam.guess_from_readings(*readings, x, held), float)
+        if guesses:
+            place_guesses(kind, fam.names, x, guesses)
+            x = np.where(held, x, clip_to_bounds(fam.parameters, x))
+        return x
+
+    if deferred.any():
+        # the first search's guess from the closed form without the deferred part; the whole
+        # family's only where that search ends poor (the wider search starts there): the closed
+        # form's fit costs seconds per call on a large campaign (its readings, one per test)
+        x_off = first_guess(family.without_branch(), family.branch_off(x0), given | deferred)
+        whole_guess = functools.partial(first_guess, family, x0.copy(), given.copy())
+    else:
+        x0 = x_off = first_guess(family, x0, given)
+        whole_guess = functools.partial(np.array, x0)
     choose_p = "p" in family.names and not given[family.names.index("p")]
     # the first search on the family without the deferred part (where it has one): a good fit
     # keeps that structure, a poor one searches again with the whole family
@@ -394,7 +403,8 @@ def identify_drops(kind: str, decays: list[DropDecay], *, excluded: list[dict[st
     if drop_verdict(problem, sol.values, [], True, fine_angle=fine[0][0])[0].poor:
         # the error is many times the noise: search again, wider (more candidates, more local
         # fits, other draws, the deferred parameters free), and keep the better fit
-        wider, more = drop_search(problem, family, x0, free, settings, choose_p, escalate=True, incumbent=sol.values)
+        wider, more = drop_search(problem, family, whole_guess(), free, settings, choose_p, escalate=True,
+                                  incumbent=sol.values)
         if wider is not None:
             wider = problem.without_prior(wider)
         if wider is not None and float(wider.residual @ wider.residual) < float(sol.residual @ sol.residual):
