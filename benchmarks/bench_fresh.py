@@ -198,7 +198,7 @@ def main() -> None:
 
         def route(name: str, model: list[str], out: Path, data: list[Path] | None = None) -> list[str]:
             return ["-m", "droptower", "identify", "--from-drop-tests", *map(str, data or [campaigns[name]]), *model,
-                    "--out", str(out), "--quiet"]
+                    "--out", str(out), "--accept-poor", "--quiet"]
 
         template = ["--model", "template", "--template", COUPLING]
         record("route_template", best(roots, lambda name, i: route(name, template, tmp / f"template_{name}.toml"),
@@ -206,8 +206,11 @@ def main() -> None:
         model = ["--model", ROUTE_MODEL]
         logs = sorted((campaigns["new"] / "logs").iterdir())
         fresh(ROOT, route("new", model, tmp / "warm_up.toml", logs[::len(logs) // ROUTE_WARM_UP_TESTS]), tmp)
-        wall, cpu, _ = fresh(ROOT, route("new", model, tmp / "fitted.toml"), tmp)
+        wall, cpu, report = fresh(ROOT, route("new", model, tmp / "fitted.toml"), tmp)
+        verdict = next((line.split(":", 1)[1].split("(")[0].strip() for line in report.splitlines()
+                        if line.startswith("verdict:")), "none printed")
         figures.update({"route_model": ROUTE_MODEL, "route_tests": len(logs), "route_wall_s": wall, "route_cpu_s": cpu,
+                        "route_verdict": verdict,
                         **route_accuracy(campaigns["new"], tmp / "fitted.toml"),
                         "route_baseline": f"{figures['baseline_label']} fits no {ROUTE_MODEL} to drop tests: the "
                                           "ratio is the template route's"})
