@@ -7,7 +7,8 @@ the best-of-N wall time of a fresh ``python`` process (``subprocess``) and the C
 (user + system) of that process and its workers (``RUSAGE_CHILDREN``), which other jobs on the
 machine hardly stretch, for this checkout and for the baseline, a copy of the previous release
 (``git archive`` of ``--baseline``, default :data:`RELEASE`) run the same way in the same run,
-interleaved. Each command runs once untimed first (the numba cache of each copy is filled then).
+interleaved. Each command runs once untimed first (the numba cache of each copy is filled then; the
+routes' first run reads a few logs only).
 
 1. ``python -m droptower extract ONE_FILE --out r.csv``, one 10 000-sample log
    (target <= 1.0 s wall);
@@ -28,7 +29,8 @@ interleaved. Each command runs once untimed first (the numba cache of each copy 
    and loss factor against the virtual bench's on the same coupling, RMS deviation at
    validate's points inside the paper map's hull. The previous release fits no filled_rubber
    to drop tests, so the ratio is that of the ``template`` route (``--model template
-   --template rapp2022_nr60``), which both copies run on their own campaigns.
+   --template rapp2022_nr60``), which both copies run on their own campaigns, likewise once
+   after an untimed run on a few logs.
 
     python benchmarks/bench_fresh.py [--repeat 5] [--campaign-repeat 3] [--map-repeat 3] [--baseline REF] [--large]
     python benchmarks/bench_fresh.py --large --json benchmarks/results/fresh.json
@@ -200,12 +202,19 @@ def main() -> None:
             return ["-m", "droptower", "identify", "--from-drop-tests", *map(str, data or [campaigns[name]]), *model,
                     "--out", str(out), "--accept-poor", "--quiet"]
 
+        def warm_up(name: str, model: list[str]) -> list[str]:
+            """The route on a few of the campaign's logs: the fit's kernels loaded into the numba cache."""
+            logs = sorted((campaigns[name] / "logs").iterdir())
+            return route(name, model, tmp / f"warm_up_{name}.toml", logs[::len(logs) // ROUTE_WARM_UP_TESTS])
+
         template = ["--model", "template", "--template", COUPLING]
-        record("route_template", best(roots, lambda name, i: route(name, template, tmp / f"template_{name}.toml"),
-                                      tmp, 1))
+        for name, root in roots.items():
+            fresh(root, warm_up(name, template), tmp)
+        record("route_template", {name: fresh(root, route(name, template, tmp / f"template_{name}.toml"), tmp)[:2]
+                                  for name, root in roots.items()})
         model = ["--model", ROUTE_MODEL]
         logs = sorted((campaigns["new"] / "logs").iterdir())
-        fresh(ROOT, route("new", model, tmp / "warm_up.toml", logs[::len(logs) // ROUTE_WARM_UP_TESTS]), tmp)
+        fresh(ROOT, warm_up("new", model), tmp)
         wall, cpu, report = fresh(ROOT, route("new", model, tmp / "fitted.toml"), tmp)
         verdict = next((line.split(":", 1)[1].split("(")[0].strip() for line in report.splitlines()
                         if line.startswith("verdict:")), "none printed")
