@@ -510,21 +510,21 @@ def fresh_table(stored: dict[str, Any]) -> Block:
     f, m = run["figures"], run["machine"]
     base = f["baseline_label"]
     rows, figures = [], {}
-    for key, what, target in (
-            ("import", "`python -c \"from droptower.extract import extract_file\"`", "≤ 0.5 s"),
-            ("extract", "`droptower extract ONE_FILE --out r.csv` (one 10 000-sample log)", "≤ 1.0 s"),
-            ("campaign", "`droptower campaign --out DIR --workers 2` (Table 2, 450 tests)", "≤ 5 s")):
+
+    def compared(key: str, what: str, target: str) -> None:
+        """A command both versions run: each one's wall and CPU time, the ratio."""
+        if f"{key}_wall_s" not in f:  # a figure an older run of the benchmark did not measure
+            return
         rows.append(f"| {what} | {{{key}_w}} s ({{{key}_c}} s CPU) | {{{key}_bw}} s ({{{key}_bc}} s CPU) "
                     f"| {{{key}_r}}× ({{{key}_rc}}× on CPU) | {target} |\n")
         figures.update({f"{key}_w": timed(f[f"{key}_wall_s"], ".2f"), f"{key}_c": on_cpu(f[f"{key}_cpu_s"], ".2f"),
                         f"{key}_bw": timed(f[f"{key}_baseline_wall_s"], ".2f"),
                         f"{key}_bc": on_cpu(f[f"{key}_baseline_cpu_s"], ".2f"),
                         f"{key}_r": timed(f[f"{key}_speed_up_wall"], ".1f"), f"{key}_rc": on_cpu(f[f"{key}_speed_up_cpu"], ".1f")})
-    rows.append("| core, `rapp2022_nr60` driven 1 s at 38.4 kHz (1 deg, 10 Hz), fresh process | {core_rt}× real time "
-                "({core_rtc}× on CPU time) | {core_brt}× ({core_brtc}×) | | ≥ 200× |\n")
-    figures.update({"core_rt": timed(f["core_real_time_factor"], ".0f"), "core_rtc": on_cpu(f["core_real_time_factor_cpu"], ".0f"),
-                    "core_brt": timed(f["core_baseline_real_time_factor"], ".0f"),
-                    "core_brtc": on_cpu(f["core_baseline_real_time_factor_cpu"], ".0f")})
+
+    compared("import", "`python -c \"from droptower.extract import extract_file\"`", "≤ 0.5 s")
+    compared("extract", "`droptower extract ONE_FILE --out r.csv` (one 10 000-sample log)", "≤ 1.0 s")
+    compared("campaign", "`droptower campaign --out DIR --workers 2` (Table 2, 450 tests)", "≤ 5 s")
     if "campaign_large_wall_s" in f:
         n = f"{f['campaign_large_tests']:,}".replace(",", " ")
         rows.append(f"| the same campaign, {n} tests | " + "{large_w} s ({large_c} s CPU): {large_r}× the 450-test run "
@@ -532,6 +532,27 @@ def fresh_table(stored: dict[str, Any]) -> Block:
         figures.update({"large_w": timed(f["campaign_large_wall_s"], ".1f"), "large_c": on_cpu(f["campaign_large_cpu_s"], ".1f"),
                         "large_r": timed(f["campaign_large_over_450"], ".1f"),
                         "large_rc": on_cpu(f["campaign_large_over_450_cpu"], ".1f")})
+    compared("map", "`droptower map DIR --plot DIR/map` (the README's first command, its second step; 450 tests)", "")
+    rows.append("| core, `rapp2022_nr60` driven 1 s at 38.4 kHz (1 deg, 10 Hz), fresh process | {core_rt}× real time "
+                "({core_rtc}× on CPU time) | {core_brt}× ({core_brtc}×) | | ≥ 200× |\n")
+    figures.update({"core_rt": timed(f["core_real_time_factor"], ".0f"), "core_rtc": on_cpu(f["core_real_time_factor_cpu"], ".0f"),
+                    "core_brt": timed(f["core_baseline_real_time_factor"], ".0f"),
+                    "core_brtc": on_cpu(f["core_baseline_real_time_factor_cpu"], ".0f")})
+    if "route_wall_s" in f:
+        model, tests = f["route_model"], f["route_tests"]
+        route = stored["routes"]["figures"]["routes"][f"model-based map, {model}"]["inside"]
+        rows.append(f"| the model route: `droptower identify --from-drop-tests DIR --model {model}` ({tests} tests) | "
+                    "{route_w} s ({route_c} s CPU), " + f"{f['route_verdict']}; " + "K' {route_k} %, loss factor "
+                    "{route_eta} % RMS against the bench at " + f"{f['route_inside_points']} servo points inside the hull "
+                    "(in process, `bench_routes.py`: {routes_k} %, {routes_eta} %) | " + f"fits no {model} to drop tests "
+                    "| | ≤ 30 s |\n")
+        figures.update({"route_w": timed(f["route_wall_s"], ".1f"), "route_c": on_cpu(f["route_cpu_s"], ".1f"),
+                        "route_k": exact(f["route_inside_stiffness_rms_pct"], ".2f"),
+                        "route_eta": exact(f["route_inside_loss_factor_rms_pct"], ".2f"),
+                        "routes_k": exact(route["stiffness_rms_pct"], ".2f"),
+                        "routes_eta": exact(route["loss_factor_rms_pct"], ".2f")})
+    compared("route_template", "the template route, which both fit: `droptower identify --from-drop-tests DIR --model "
+                               "template --template rapp2022_nr60` (450 tests)", "")
     return fill(
         f"Fresh processes, as a user runs the commands (`bench_fresh.py --large`, measured {m['date']} on "
         f"{m['cores']} shared cores at load average " + "{lo}–{hi}): best-of-N wall time and the CPU time of the "

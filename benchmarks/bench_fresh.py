@@ -7,7 +7,8 @@ the best-of-N wall time of a fresh ``python`` process (``subprocess``) and the C
 (user + system) of that process and its workers (``RUSAGE_CHILDREN``), which other jobs on the
 machine hardly stretch, for this checkout and for the baseline, a copy of the previous release
 (``git archive`` of ``--baseline``, default :data:`RELEASE`) run the same way in the same run,
-interleaved. Each command runs once untimed first (the numba cache of each copy is filled then).
+interleaved. Each command runs once untimed first (the numba cache of each copy is filled then; the
+routes' first run reads a few logs only).
 
 1. ``python -m droptower extract ONE_FILE --out r.csv``, one 10 000-sample log
    (target <= 1.0 s wall);
@@ -18,9 +19,20 @@ interleaved. Each command runs once untimed first (the numba cache of each copy 
    450-test run);
 4. the core in a fresh process: 1 s at 38.4 kHz of the reference coupling ``rapp2022_nr60``
    driven by a 10 Hz sine of 1 deg, best of 15 calls after a first one (target >= 200x real
-   time).
+   time);
+5. ``python -m droptower map DIR --plot DIR/map``, the README's first command's second step, on
+   each copy's own 450-test campaign (the last of item 3's runs);
+6. the model route, ``python -m droptower identify --from-drop-tests DIR --model filled_rubber
+   --out fitted.toml`` on this checkout's 450-test campaign (target <= 30 s wall), once after an
+   untimed run on :data:`ROUTE_WARM_UP_TESTS` of its logs (which loads the fit's kernels into the
+   numba cache); its accuracy as ``bench_routes.py`` defines it: the fitted coupling's servo K'
+   and loss factor against the virtual bench's on the same coupling, RMS deviation at
+   validate's points inside the paper map's hull. The previous release fits no filled_rubber
+   to drop tests, so the ratio is that of the ``template`` route (``--model template
+   --template rapp2022_nr60``), which both copies run on their own campaigns, likewise once
+   after an untimed run on a few logs.
 
-    python benchmarks/bench_fresh.py [--repeat 5] [--campaign-repeat 3] [--baseline REF] [--large]
+    python benchmarks/bench_fresh.py [--repeat 5] [--campaign-repeat 3] [--map-repeat 3] [--baseline REF] [--large]
     python benchmarks/bench_fresh.py --large --json benchmarks/results/fresh.json
 """
 from __future__ import annotations
@@ -43,7 +55,12 @@ ROOT = Path(__file__).resolve().parents[1]
 RELEASE = "91d64c0"
 RELEASE_LABEL = "0.1.0"
 TARGETS = {"extract_wall_s": 1.0, "import_wall_s": 0.5, "campaign_wall_s": 5.0, "campaign_large_over_450": 10.0,
-           "core_real_time_factor": 200.0}
+           "core_real_time_factor": 200.0, "route_wall_s": 30.0}
+#: the model route's family (the README's route table) and the coupling the campaign simulates
+ROUTE_MODEL = "filled_rubber"
+COUPLING = "rapp2022_nr60"
+#: logs of the untimed first run of the model route (it fills the numba cache of the fit's kernels)
+ROUTE_WARM_UP_TESTS = 12
 LARGE_REPEATS = 50  # Table 2's 90 conditions x 50 = 4 500 tests
 CORE = """
 import json, time
@@ -112,10 +129,31 @@ def large_plan(folder: Path) -> Path:
     return path
 
 
+def route_accuracy(campaign: Path, coupling_file: Path) -> dict[str, float]:
+    """The fitted coupling's servo K' and loss factor against the virtual bench's on
+    :data:`COUPLING`, as ``bench_routes.py`` judges a model route: RMS deviation (%) at
+    validate's points inside (and outside) the hull of the paper map fitted to ``campaign``."""
+    from droptower.compare import run_sweeps
+    from droptower.compare.map_vs_servo import validate_routes
+    from droptower.compare.model_map import model_map_from_coupling, route_name
+    from droptower.maps import fit_map, read_results
+    from droptower.rheology import load_coupling
+
+    paper = fit_map(read_results(campaign), source="campaign")
+    name = route_name(ROUTE_MODEL)
+    mm = model_map_from_coupling(load_coupling(str(coupling_file)), paper.range, family=ROUTE_MODEL)
+    summary = validate_routes({name: mm}, run_sweeps(COUPLING), hull=paper)[name].summary
+    return {f"route_{region}_{key}": summary[region][f"{what}_rms_deviation_pct"]
+            for region in ("inside", "outside") for key, what in (("stiffness_rms_pct", "stiffness"),
+                                                                  ("loss_factor_rms_pct", "loss_factor"))} | {
+        "route_inside_points": summary["inside"]["n_points"]}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5, help="runs of each short command per copy (best of)")
     parser.add_argument("--campaign-repeat", type=int, default=3, help="runs of the 450-test campaign per copy")
+    parser.add_argument("--map-repeat", type=int, default=3, help="runs of the map of the 450 tests per copy")
     parser.add_argument("--baseline", default=RELEASE, help=f"git ref of the baseline (default {RELEASE}, "
                         f"release {RELEASE_LABEL})")
     parser.add_argument("--large", action="store_true", help="also the 4 500-test campaign (this checkout, once)")
@@ -155,6 +193,40 @@ def main() -> None:
             shutil.rmtree(out, ignore_errors=True)
             return ["-m", "droptower", "campaign", "--out", str(out), "--workers", "2", "--quiet"]
         record("campaign", best(roots, campaign, tmp, args.campaign_repeat))
+        campaigns = {name: tmp / f"campaign_{name}_{args.campaign_repeat}" for name in roots}  # each copy's last
+
+        record("map", best(roots, lambda name, i: ["-m", "droptower", "map", str(campaigns[name]), "--plot",
+                                                   str(campaigns[name] / "map"), "--quiet"], tmp, args.map_repeat))
+
+        def route(name: str, model: list[str], out: Path, data: list[Path] | None = None) -> list[str]:
+            return ["-m", "droptower", "identify", "--from-drop-tests", *map(str, data or [campaigns[name]]), *model,
+                    "--out", str(out), "--accept-poor", "--quiet"]
+
+        def warm_up(name: str, model: list[str]) -> list[str]:
+            """The route on a few of the campaign's logs: the fit's kernels loaded into the numba cache."""
+            logs = sorted((campaigns[name] / "logs").iterdir())
+            return route(name, model, tmp / f"warm_up_{name}.toml", logs[::len(logs) // ROUTE_WARM_UP_TESTS])
+
+        template = ["--model", "template", "--template", COUPLING]
+        for name, root in roots.items():
+            fresh(root, warm_up(name, template), tmp)
+        record("route_template", {name: fresh(root, route(name, template, tmp / f"template_{name}.toml"), tmp)[:2]
+                                  for name, root in roots.items()})
+        model = ["--model", ROUTE_MODEL]
+        logs = sorted((campaigns["new"] / "logs").iterdir())
+        fresh(ROOT, warm_up("new", model), tmp)
+        wall, cpu, report = fresh(ROOT, route("new", model, tmp / "fitted.toml"), tmp)
+        verdict = next((line.split(":", 1)[1].split("(")[0].strip() for line in report.splitlines()
+                        if line.startswith("verdict:")), "none printed")
+        figures.update({"route_model": ROUTE_MODEL, "route_tests": len(logs), "route_wall_s": wall, "route_cpu_s": cpu,
+                        "route_verdict": verdict,
+                        **route_accuracy(campaigns["new"], tmp / "fitted.toml"),
+                        "route_baseline": f"{figures['baseline_label']} fits no {ROUTE_MODEL} to drop tests: the "
+                                          "ratio is the template route's"})
+        print(f"    route: {ROUTE_MODEL} on {len(logs)} tests {wall:6.2f} s wall, {cpu:6.2f} s CPU; K' "
+              f"{figures['route_inside_stiffness_rms_pct']:.3f} %, loss factor "
+              f"{figures['route_inside_loss_factor_rms_pct']:.3f} % RMS against the bench "
+              f"({figures['route_inside_points']} points inside the hull)", flush=True)
 
         core = {}
         for name, root in roots.items():

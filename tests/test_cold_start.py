@@ -73,3 +73,14 @@ def test_simulate_keeps_its_name_when_its_module_is_imported() -> None:
                  "print(json.dumps([callable(simulate), simulate is rig.simulate, droptower.simulate is simulate, "
                  "type(module).__name__, sorted(set(rig.__all__) - set(dir(rig)))]))")
     assert out == [True, True, True, "function", []]
+
+
+def test_the_drop_test_route_imports_no_signal_processing_it_does_not_use() -> None:
+    """``identify --from-drop-tests`` (the model route) reads logs and fits decays: its modules, the
+    servo bench's evaluation and the noise floor's smoothing among them, load neither
+    scipy.signal nor matplotlib until a step needs them (a servo record smoothed, a plot drawn)."""
+    loaded = _fresh("import sys, json; import droptower.cli.identify_cmd, droptower.cli.identify_drops_cmd, "
+                    "droptower.identify.drops, droptower.identify.dropreport, droptower.identify.noise, "
+                    "droptower.servo.evaluate, droptower.servo.histories; "
+                    f"print(json.dumps({_loaded(('scipy.signal', 'matplotlib'))}))")
+    assert loaded == []

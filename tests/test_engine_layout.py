@@ -19,7 +19,7 @@ import pytest
 
 from droptower.identify.droplogs import ReadSettings
 from droptower.identify.dropfit import DropFitSettings
-from droptower.identify.drops import DropCampaign, identify_from_drop_tests
+from droptower.identify.drop_campaign import DropCampaign, identify_from_drop_tests
 from droptower.identify.strategies import identify
 
 from test_engine_regression import _servo_records

@@ -2,6 +2,7 @@
 round trips on couplings the fit does not know (noisy rig logs), exclusions, angle-only logs, CLI."""
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 import math
@@ -175,6 +176,25 @@ def test_angle_only_logs(logs):
     result = identify_drops("zerodim6", decays, settings=DropFitSettings(holdout_fraction=0.0))
     agree = servo_agreement(result.coupling, parse_coupling(TRUTHS["zerodim6"]), decays, 3, 2)
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10
+
+
+def test_logs_read_in_threads_give_the_decays_of_a_serial_read(logs, tmp_path):
+    """read_decays' threads (READ_THREADS) change only when each log is read: the same decays, in
+    the order given, and the same excluded logs with the same reasons (an unreadable one among
+    them), as reading one log after the other."""
+    broken = tmp_path / "broken.csv"
+    broken.write_text("not,a,log\n1,2\n")
+    paths = [*logs["zerodim6"][:3], broken, *logs["zerodim6"][3:]]
+    serial, parallel = (read_decays(paths, ReadSettings(), threads=n) for n in (1, 2))
+    assert parallel[1] == serial[1] and [e["file"] for e in serial[1]] == [str(broken)]
+    assert [d.name for d in parallel[0]] == [d.name for d in serial[0]] == [p.name for p in logs["zerodim6"]]
+    for a, b in zip(serial[0], parallel[0]):
+        for field in dataclasses.fields(a):
+            x, y = getattr(a, field.name), getattr(b, field.name)
+            if isinstance(x, np.ndarray):
+                np.testing.assert_array_equal(x, y)
+            else:
+                assert x == y or (x != x and y != y), field.name  # equal, or both NaN
 
 
 def test_double_impact_is_excluded_and_named(tmp_path):

@@ -201,9 +201,6 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
       droptower identify --from-drop-tests runs/table2 --family template \\
           --template rapp2022_nr60 --out fitted.toml --predict-servo servo.csv
     """
-    from droptower.identify.report import plot_identification
-    from droptower.identify.strategies import identify as run
-
     init = _read_init(params_path)
     check_positive(inertia_kgm2, "--inertia-kgm2")
     check_positive(lever_length_m, "--lever-length-m")
@@ -222,6 +219,9 @@ def identify(data: tuple[str, ...], kind: str, channels: tuple[str, ...], params
     if conditions is not None or conditions_pattern is not None:
         raise DroptowerError("--conditions and --conditions-from-names give drop tests' conditions: use them with "
                              "--from-drop-tests")
+    from droptower.identify.report import plot_identification
+    from droptower.identify.strategies import identify as run
+
     if template is not None:
         init.options["template"] = template
     skip_s = float(init.options.get("skip_s", 0.0))

@@ -31,9 +31,10 @@ is held out and predicted.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -242,10 +243,11 @@ def identify_drops(family: str, decays: list[DropDecay], *, excluded: list[dict[
 
 def drop_starts(family: Family, decays: list[DropDecay], init: dict[str, float] | None,
                 bounds: dict[str, tuple[float, float]] | None, guesses: dict[str, float]
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The search's starts on the fitting tests ``decays``: (the first guess, the first search's
-    guess without the family's deferred part, the free parameters, the deferred ones, the given
-    ones). The family's closed form reads its guess off the first cycles
+                ) -> tuple[np.ndarray | Callable[[], np.ndarray], np.ndarray | None, np.ndarray, np.ndarray,
+                           np.ndarray]:
+    """The search's starts on the fitting tests ``decays``: (the first guess, or for a family
+    with a deferred part the function that makes it; the first search's guess without that part
+    (None without one); the free parameters; the deferred ones; the given ones). The family's closed form reads its guess off the first cycles
     (``guess_from_readings``), the user's guesses override it; the elastoslide's odd p is
     chosen by the search, never fitted."""
     s = setup_family(family, init, bounds)
@@ -256,18 +258,24 @@ def drop_starts(family: Family, decays: list[DropDecay], init: dict[str, float] 
     # a family's deferred parameters (a part it switches off first): held off in the first
     # search, freed in the wider one after a poor verdict
     deferred = np.isin(family.names, family.DEFERRED) & free
-    x_off = family.branch_off(x0) if deferred.any() else x0
     readings = first_cycle_readings(decays)
-    x0 = family.guess_from_readings(*readings, x0, given)
-    # the first search's guess from the closed form without the deferred part
-    x_off = (family.without_branch().guess_from_readings(*readings, x_off, given | deferred)
-             if deferred.any() else x0)
-    if guesses:  # the user's first guesses over the closed form's, in both starts
-        for x in (x0, x_off):
-            place_guesses(family.kind, family.names, x, guesses)
-        x0 = np.where(given, x0, clip_to_bounds(params, x0))
-        x_off = np.where(given | deferred, x_off, clip_to_bounds(params, x_off)) if deferred.any() else x0
-    return x0, x_off, free, deferred, given
+
+    def guess(fam: Family, x: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """The closed form's first guess from ``x`` (``held`` kept), the user's guesses over it."""
+        x = np.array(fam.guess_from_readings(*readings, x, held), float)
+        if guesses:
+            place_guesses(family.kind, fam.names, x, guesses)
+            x = np.where(held, x, clip_to_bounds(fam.parameters, x))
+        return x
+
+    if not deferred.any():
+        x0 = guess(family, x0, given)
+        return x0, None, free, deferred, given
+    # the first search's guess from the closed form without the deferred part; the whole
+    # family's only where that search ends poor (the escalated search starts there): the
+    # closed form's fit costs seconds per call on a large campaign (its readings, one per test)
+    x_off = guess(family.without_branch(), family.branch_off(x0), given | deferred)
+    return functools.partial(guess, family, x0.copy(), given.copy()), x_off, free, deferred, given
 
 
 def drop_result(found: SearchResult, parameters: list, varied: np.ndarray, hold: DropProblem | None

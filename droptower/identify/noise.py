@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from droptower.identify.data import Segment
 
@@ -42,6 +41,8 @@ class NoiseFloor:
 
 
 def _centre_weight(window: int, order: int) -> float:
+    from scipy.signal import savgol_filter
+
     impulse = np.zeros(window)
     impulse[window // 2] = 1.0
     return float(savgol_filter(impulse, window, order, mode="interp")[window // 2])
@@ -49,6 +50,9 @@ def _centre_weight(window: int, order: int) -> float:
 
 def servo_noise(segments: list[Segment]) -> NoiseFloor:
     """The torque's noise floor (N*m) over the compared runs of every segment."""
+    # scipy.signal here, not at the top: the drop-test route imports this module and never smooths
+    from scipy.signal import savgol_filter
+
     h0 = _centre_weight(WINDOW, ORDER)
     residuals = []
     n_all = 0

@@ -35,8 +35,6 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.signal import savgol_filter
 
 from droptower.errors import DroptowerError, expects, finite_values
 from droptower.sdof import drop_tower_equivalent_damping_ratio
@@ -212,6 +210,11 @@ def evaluate_cycles(time_s: np.ndarray, angle_rad: np.ndarray, torque_nm: np.nda
     if i0 < 0 or i1 > time_s.size:
         raise DroptowerError(f"the record ({time_s[0]:g} to {time_s[-1]:g} s) does not cover the evaluation window "
                              f"{start_s:g} to {stop_s:g} s with a margin of {margin} samples")
+    # imported here: every importer of the bench (the identification's drop-test route among them)
+    # would pay ~1 s for scipy.signal and scipy.interpolate
+    from scipy.interpolate import CubicSpline
+    from scipy.signal import savgol_filter
+
     t, x, y = time_s[i0:i1], angle[i0:i1], torque[i0:i1]
     if window:
         x = savgol_filter(x, window, SG_POLYORDER)

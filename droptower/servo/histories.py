@@ -20,7 +20,6 @@ from fractions import Fraction
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy import signal
 
 from droptower.errors import DroptowerError
 from droptower.limits import require_memory
@@ -322,6 +321,8 @@ def random_profile(rms_rad: float, band_hz: tuple[float, float], duration_s: flo
     fade = fade_s if fade_s is not None else (1.0 / lo if lo > 0 else 0.1 * duration_s)
     if not 0 < 2 * fade < duration_s:
         raise DroptowerError(f"fade-in/out of {fade:g} s does not fit into {duration_s:g} s")
+    from scipy import signal  # here, not at the top: every importer of the bench would pay ~1 s for it
+
     n = int(round(duration_s * sample_rate_hz))
     noise = np.random.default_rng(seed).standard_normal(n)
     if lo > 0:

@@ -464,7 +464,8 @@ class _Search:
         return sol, half, summary
 
 
-def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray, free: np.ndarray, *, seed: int = 0,
+def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray | Callable[[], np.ndarray], free: np.ndarray, *,
+               seed: int = 0,
            max_nfev: int | None = None, first: np.ndarray | None = None, deferred: np.ndarray | None = None,
            choices: dict[int, list[float]] | None = None, starts: np.ndarray | None = None) -> SearchResult:
     """A global search that owns its whole loop: screen -> local fits -> refine -> the family's
@@ -476,8 +477,10 @@ def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray, free: np.
         The identification's problem (all fitting data).
     policy : SearchPolicy
         Every setting of the search.
-    x0 : ndarray
-        The first guess (all parameters, their units); the fixed ones stay there.
+    x0 : ndarray or callable
+        The first guess (all parameters, their units); the fixed ones stay there. With
+        ``first`` given, it may be a function that makes it: called only where the escalated
+        search needs it (a family's closed-form guess can cost seconds on a large campaign).
     free : ndarray of bool
         The parameters fitted.
     seed : int
@@ -505,7 +508,9 @@ def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray, free: np.
     whole = problem
     if deferred.any():
         problem = problem.without_deferred()
-    sol, summary = run.global_fit(problem, x0 if first is None else first, free & ~deferred, starts=starts)
+    if first is None:
+        x0 = first = x0() if callable(x0) else x0
+    sol, summary = run.global_fit(problem, first, free & ~deferred, starts=starts)
     sol = sol.without_prior()
     judged = policy.hop_rounds > 0 or policy.escalation > 1 or policy.loose_prior_weight is not None
     if not judged:
@@ -520,7 +525,7 @@ def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray, free: np.
     if policy.escalation > 1 and problem.poor(sol.values, half):
         # the error is many times the allowance: search again, wider (more candidates, more local
         # fits, other draws, the deferred parameters free), and keep the better fit
-        wider, more = run.global_fit(problem, x0, free, escalate=True, incumbent=sol.values)
+        wider, more = run.global_fit(problem, x0() if callable(x0) else x0, free, escalate=True, incumbent=sol.values)
         if wider is not None:
             wider = wider.without_prior()
         if wider is not None and wider.cost < sol.cost:
