@@ -80,7 +80,7 @@ def test_the_drop_test_route_imports_no_signal_processing_it_does_not_use() -> N
     servo bench's evaluation and the noise floor's smoothing among them, load neither
     scipy.signal nor matplotlib until a step needs them (a servo record smoothed, a plot drawn)."""
     loaded = _fresh("import sys, json; import droptower.cli.identify_cmd, droptower.cli.identify_drops_cmd, "
-                    "droptower.identify.drops, droptower.identify.dropreport, droptower.identify.noise, "
+                    "droptower.identify.drop_campaign, droptower.identify.dropreport, droptower.identify.noise, "
                     "droptower.servo.evaluate, droptower.servo.histories; "
                     f"print(json.dumps({_loaded(('scipy.signal', 'matplotlib'))}))")
     assert loaded == []
