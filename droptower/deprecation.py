@@ -23,6 +23,21 @@ def warn_deprecated(old: str, new: str, stacklevel: int = 3) -> None:
                   stacklevel=stacklevel)
 
 
+def renamed_attribute(owner: str, old: str, new: str) -> property:
+    """A property ``old`` that reads and writes attribute ``new``, warning on each use
+    (``owner``: the class's name in the message)."""
+
+    def get(self: Any) -> Any:
+        warn_deprecated(f"{owner}.{old}", f"{owner}.{new}")
+        return getattr(self, new)
+
+    def put(self: Any, value: Any) -> None:
+        warn_deprecated(f"{owner}.{old}", f"{owner}.{new}")
+        setattr(self, new, value)
+
+    return property(get, put, doc=f"Deprecated: :attr:`{new}` (removed in the next release).")
+
+
 def renamed_keywords(**old_to_new: str) -> Callable[[F], F]:
     """Accept each old keyword ``old`` of the decorated function as its new name, with a
     :class:`DeprecationWarning`; both given at once is a :class:`TypeError` (as Python says of a

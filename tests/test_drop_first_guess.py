@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 import droptower.identify.dropfit as dropfit
+from test_identify_engine import _decays as engine_decays
 import droptower.identify.engine.search as engine_search
 from droptower.identify.engine.problem import DropProblem
 from droptower.identify.droplogs import DropDecay, first_cycle_readings
 from droptower.identify.families import family_class
 from droptower.identify.families.filled_rubber import FilledRubberFamily
 from droptower.identify.families.stages import setup_family
-from droptower.identify.lever import free_decay
 from droptower.identify.verdict import GOOD, POOR
 
 DT = 1 / 4800
@@ -27,20 +27,9 @@ OPTIONS = {"n": 8}
 QUICK = dropfit.DropFitSettings(holdout_fraction=0.0, conditioning=None, max_nfev=3)
 
 
-def _decays(n_tests: int = 3, duration_s: float = 0.04) -> list[DropDecay]:
-    """Free decays of the family's first-guess coupling (0.1 % white angle noise, seeded)."""
-    fam = family_class("filled_rubber")(dropfit.DataScale(0.02, 0.02, 200.0, 1e4, 1.0, 30.0), OPTIONS)
-    inertia, rate = np.resize([0.1557, 0.359, 0.5233], n_tests), np.resize([0.5, 2.0, 4.0], n_tests)
-    n = int(duration_s / DT)
-    angle, _ = free_decay(fam.coupling(fam.initial()), inertia, rate, n, DT)
-    rng = np.random.default_rng(0)
-    out = []
-    for i in range(n_tests):
-        amp = float(np.max(np.abs(angle[i])))
-        out.append(DropDecay(f"test_{i}", np.arange(1, n + 1) * DT, angle[i, 1:] + 1e-3 * amp * rng.standard_normal(n),
-                             None, float(inertia[i]), float(rate[i]), "impact_force", 30.0, amp, DT,
-                             angle_noise_rad=1e-3 * amp))
-    return out
+def _decays() -> list[DropDecay]:
+    """Three free decays of the family's first-guess coupling (tests/test_identify_engine.py's maker)."""
+    return engine_decays("filled_rubber")
 
 
 @pytest.mark.parametrize("poor", [False, True], ids=["good first search", "poor first search"])

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
 
 import numpy as np
 
-from droptower.deprecation import warn_deprecated
+from droptower.deprecation import renamed_attribute, warn_deprecated
 from droptower.errors import DroptowerError
 
 if TYPE_CHECKING:
@@ -598,49 +598,10 @@ class Identification:
         return float(h["angle_nrmse"]) if self.data == DROPS else float(h.nrmse)
 
     # ------------------------------------------------------------------ the names of release 0.1
-    @property
-    def fit(self) -> Any:
-        """Deprecated: :attr:`fit_error` (removed in the next release)."""
-        deprecated("Identification.fit", "Identification.fit_error")
-        return self.fit_error
-
-    @fit.setter
-    def fit(self, value: Any) -> None:
-        deprecated("Identification.fit", "Identification.fit_error")
-        self.fit_error = value
-
-    @property
-    def holdout(self) -> Any:
-        """Deprecated: :attr:`holdout_error` (removed in the next release)."""
-        deprecated("Identification.holdout", "Identification.holdout_error")
-        return self.holdout_error
-
-    @holdout.setter
-    def holdout(self, value: Any) -> None:
-        deprecated("Identification.holdout", "Identification.holdout_error")
-        self.holdout_error = value
-
-    @property
-    def time_s(self) -> float:
-        """Deprecated: :attr:`wall_s` (removed in the next release)."""
-        deprecated("Identification.time_s", "Identification.wall_s")
-        return self.wall_s
-
-    @time_s.setter
-    def time_s(self, value: float) -> None:
-        deprecated("Identification.time_s", "Identification.wall_s")
-        self.wall_s = float(value)
-
-    @property
-    def std_error(self) -> dict[str, float]:
-        """Deprecated: :attr:`stderr` (removed in the next release)."""
-        deprecated("Identification.std_error", "Identification.stderr")
-        return self.stderr
-
-    @std_error.setter
-    def std_error(self, values: Mapping[str, float]) -> None:
-        deprecated("Identification.std_error", "Identification.stderr")
-        self.stderr = values
+    fit = renamed_attribute("Identification", "fit", "fit_error")
+    holdout = renamed_attribute("Identification", "holdout", "holdout_error")
+    time_s = renamed_attribute("Identification", "time_s", "wall_s")
+    std_error = renamed_attribute("Identification", "std_error", "stderr")
 
     # ------------------------------------------------------------------ actions
     def evaluate_holdout(self, segments: list) -> Metrics:
