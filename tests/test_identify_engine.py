@@ -361,3 +361,23 @@ def test_the_engines_old_names_keep_working_for_one_release_with_a_warning():
     assert summary["candidates"] == 8 and summary["local_fits"] == 3
     with pytest.warns(DeprecationWarning, match="walk_p is deprecated"):
         assert elastoslide.walk_p is engine_search_module.walk_choice
+
+
+def test_a_diverging_simulation_is_refused_not_a_crash_of_the_solver():
+    """A parameter set whose simulation diverges without overflowing (residuals of 1e298, as a
+    pfeffer coupling with a stiff beta gave on narrowed bounds) counts as refused: its squares
+    would overflow inside the trust-region solver, whose SVD then raised ValueError ("array
+    must not contain infs or NaNs") out of identify_drops."""
+    from droptower.identify.engine import local_fit
+    from droptower.identify.engine.problem import REFUSED_RESIDUAL, FitVariable, FunctionProblem, finite_residuals
+
+    r = np.array([1.0, -2.0, 1e298, -1e298, np.nan, np.inf])
+    np.testing.assert_array_equal(finite_residuals(r), [1.0, -2.0] + [REFUSED_RESIDUAL] * 4)
+    target = np.linspace(0.0, 1.0, 50)
+
+    def residuals(rows):  # a least-squares slope, diverging beyond 2
+        out = rows[:, :1] * target[None, :] - target[None, :]
+        return np.where(rows[:, :1] > 2.0, 1e298, out)
+
+    fit = local_fit(FunctionProblem([FitVariable("a", 0.1, 10.0, log=False)], residuals), np.array([1.99]))
+    assert np.isfinite(fit.cost) and abs(fit.values[0] - 1.0) < 1e-6

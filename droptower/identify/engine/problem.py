@@ -144,8 +144,11 @@ def at_bounds(parameters: list[FitVariable], values: np.ndarray, rel: float = 1e
 
 
 def finite_residuals(r: np.ndarray) -> np.ndarray:
-    """``r`` with every non-finite sample replaced by :data:`REFUSED_RESIDUAL`."""
-    return np.where(np.isfinite(r), r, REFUSED_RESIDUAL)
+    """``r`` with every non-finite sample, and every sample beyond :data:`REFUSED_RESIDUAL` (a
+    simulation that diverged without overflowing), replaced by :data:`REFUSED_RESIDUAL`: the
+    squares of 1e300 overflow inside the trust-region solver."""
+    with np.errstate(invalid="ignore"):
+        return np.where(np.isfinite(r) & (np.abs(r) < REFUSED_RESIDUAL), r, REFUSED_RESIDUAL)
 
 
 def row_costs(r: np.ndarray) -> np.ndarray:
