@@ -101,12 +101,9 @@ def test_filled_rubbers_first_search_keeps_the_users_bounds():
 
 
 @pytest.mark.slow
-def test_filled_rubbers_drop_fit_keeps_the_users_bounds_in_every_search(local_fits, monkeypatch):
+def test_filled_rubbers_drop_fit_keeps_the_users_bounds_in_every_search(local_fits):
     """Bounds far from the first guess: every local fit (the first search's without the branch
-    included) searches inside them, and the reported values lie inside the printed min/max.
-    (The first guess from one Latin-hypercube start of the bounded box, as in the property test
-    below.)"""
-    monkeypatch.setattr(filled_rubber_module, "GUESS_STARTS", 1)
+    included) searches inside them, and the reported values lie inside the printed min/max."""
     k = SCALE.stiffness_nm_per_rad
     bounds = {"k_nm_per_rad": (2.0 * k, 3.0 * k), "kf_nm_per_rad": (0.01 * k, 0.02 * k), "tau_v_s": (1e-3, 2e-3)}
     result = identify_drops("filled_rubber", _decays("filled_rubber"), settings=QUICK, bounds=bounds,
