@@ -18,7 +18,6 @@ from droptower.identify.data import DataScale
 from droptower.identify.dropfit import DropFitSettings, identify_drops
 from droptower.identify.droplogs import DropDecay
 from droptower.identify.families import family_class
-from droptower.identify.families import filled_rubber as filled_rubber_module
 from droptower.identify.families.filled_rubber import FilledRubberFamily
 from droptower.identify.families.stages import setup_family
 from droptower.identify.lever import free_decay
@@ -124,10 +123,7 @@ def test_filled_rubbers_drop_fit_keeps_the_users_bounds_in_every_search(local_fi
 def test_every_reported_value_lies_in_its_printed_bounds(kind, positions):
     """Random bounds inside the defaults, on random parameters of every family: every local fit
     of every search (first, wider, hops, loose prior) stays inside them, and so does every
-    reported value inside its printed min/max. filled_rubber's first guess from the harmonic
-    readings runs from one Latin-hypercube start of the bounded box instead of twelve (every
-    start is drawn inside the same box and the guess is clipped to it; the twelve were 40 % of
-    the test's time)."""
+    reported value inside its printed min/max."""
     calls = []
     original = dropfit.fit_rows
 
@@ -139,7 +135,6 @@ def test_every_reported_value_lies_in_its_printed_bounds(kind, positions):
     bounds = _narrow_bounds(kind, positions)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(dropfit, "fit_rows", spy)
-        mp.setattr(filled_rubber_module, "GUESS_STARTS", 1)
         result = identify_drops(kind, _decays(kind), settings=QUICK, bounds=bounds, options=FAMILIES[kind])
     for searched, values in calls:
         assert not _inside(values, list(searched), bounds)
