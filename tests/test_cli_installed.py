@@ -43,12 +43,37 @@ def test_top_level_help_lists_every_command(args):
         assert name in proc.stdout
 
 
+#: Commands that run for real as installed below (or, extract, in
+#: test_hardening.py::test_installed_extract_ends_with_its_own_exit_code): a fresh interpreter
+#: imports each one's module there, so its help is read in this process; the others' help is
+#: their one run as installed.
+RUN_AS_INSTALLED = {"servo", "simulate", "channels", "extract", "plan", "campaign", "report", "map", "validate",
+                    "identify", "compare-models"}
+
+
 @pytest.mark.parametrize("name", list(COMMANDS))
-def test_every_subcommand_help_has_examples_and_quiet(name):
-    proc = _run(name, "--help")
-    assert proc.returncode == 0, proc.stderr
-    assert "Usage:" in proc.stdout and "Traceback" not in proc.stderr
-    assert "Examples:" in proc.stdout and "--quiet" in proc.stdout
+def test_every_subcommand_help_has_examples_and_quiet(name, capsys):
+    if name in RUN_AS_INSTALLED:
+        code, out, err = main([name, "--help"]), *capsys.readouterr()
+    else:
+        proc = _run(name, "--help")
+        code, out, err = proc.returncode, proc.stdout, proc.stderr
+    assert code == 0, err
+    assert "Usage:" in out and "Traceback" not in err
+    assert "Examples:" in out and "--quiet" in out
+
+
+def test_every_command_whose_help_is_read_in_process_runs_as_installed():
+    """The in-process help above stands only where a real run as installed imports the command."""
+    import inspect
+    import re
+
+    import test_hardening
+
+    runs = Path(__file__).read_text() + inspect.getsource(test_hardening.test_installed_extract_ends_with_its_own_exit_code)
+    assert RUN_AS_INSTALLED <= set(COMMANDS)
+    for name in RUN_AS_INSTALLED:
+        assert re.search(rf'_(ok|run)\("{name}"', runs), name
 
 
 # ---- one real run of every command, as installed ------------------------------------------------

@@ -311,14 +311,20 @@ def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled
     with one parameter set by far (BIC); on the six-parameter model's own records (a simpler family
     exact) it does not rank first. The filled-rubber records and their fit are the recovery
     test's seed 1 (the same data and call: ``previous`` and the hold-out do not change a
-    filled_rubber fit or its BIC)."""
+    filled_rubber fit or its BIC). On the six-parameter records filled_rubber runs with option
+    ``large_strain`` False: by default its four parts' poor fit there is refitted once with the
+    large-strain network, which gains nothing and is discarded (measured: the same fit after
+    the global search, BIC 17881.0 either way), so the ranking sees the same result for 9 s of
+    fitting instead of 44 s."""
     filled, fitted = servo_case(1)
     six = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 2)
     for data, first, kinds in ((filled, "filled_rubber", ("zerodim6", "elastoslide", "masing", "pfeffer", "filled_rubber")),
                                (six, "zerodim6", ("zerodim6", "filled_rubber"))):
         results = {}
         for kind in kinds:
-            results[kind] = fitted if data is filled and kind == "filled_rubber" else identify(kind, data, previous=results)
+            options = {"large_strain": False} if data is six and kind == "filled_rubber" else None
+            results[kind] = (fitted if data is filled and kind == "filled_rubber"
+                             else identify(kind, data, previous=results, options=options))
         table = ranking_table(results, data)
         assert table["family"].iloc[0] == first, table[["family", "bic", "verdict"]]
         if "elastoslide" in results:  # its global search draws p among the odd candidates (it once sampled 1-99)

@@ -18,6 +18,7 @@ from droptower.campaign import run_campaign
 from droptower.cli.main import main
 from droptower.compare.model_map import PAPER_ROUTE, ModelMap
 from droptower.rheology import coupling_to_toml, parse_coupling
+from shared_fits import share_fits
 from test_report import PLAN, shared_chrome
 
 K, K_M, TAU = 20000.0, 6000.0, 1 / (2 * math.pi * 3.0)
@@ -27,6 +28,15 @@ ROUTE = "model-based map, template"
 def maxwell_coupling(k: float, k_m: float, tau: float):
     return parse_coupling({"name": "spring_maxwell", "element": [
         {"kind": "spring", "stiffness": k}, {"kind": "maxwell", "stiffness": k_m, "damping": k_m * tau}]})
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fits(request):
+    """One fit per distinct call in this module (tests/shared_fits.py): the poor fit refused and
+    then accepted is one identification, and so is the template's fit with and without the
+    rig's input uncertainties (their shifted fits are their own)."""
+    with share_fits(request.module) as cache:
+        yield cache
 
 
 @pytest.fixture(scope="module")
