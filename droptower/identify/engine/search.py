@@ -464,10 +464,10 @@ class _Search:
         return sol, half, summary
 
 
-def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray | Callable[[], np.ndarray], free: np.ndarray, *,
-               seed: int = 0,
-           max_nfev: int | None = None, first: np.ndarray | None = None, deferred: np.ndarray | None = None,
-           choices: dict[int, list[float]] | None = None, starts: np.ndarray | None = None) -> SearchResult:
+def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray | Callable[[], np.ndarray], free: np.ndarray,
+               *, seed: int = 0, max_nfev: int | None = None, first: np.ndarray | None = None,
+               deferred: np.ndarray | None = None, choices: dict[int, list[float]] | None = None,
+               starts: np.ndarray | None = None) -> SearchResult:
     """A global search that owns its whole loop: screen -> local fits -> refine -> the family's
     basin moves -> escalate -> loose prior, as ``policy`` declares.
 
