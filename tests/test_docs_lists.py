@@ -1,6 +1,6 @@
 """Every list in the docs that the code also holds is complete and names nothing the code does
 not have: the identification families (``droptower.identify.families.FAMILIES``, those fitted
-from drop tests ``droptower.identify.dropfit.DROP_KINDS``), the coupling element kinds
+from drop tests ``droptower.identify.dropfit.DROP_FAMILIES``), the coupling element kinds
 (``droptower.rheology.elements.ELEMENT_KINDS``), the flags ``extract`` raises (the report's
 ``FLAG_REASONS``) and the options of ``extract`` and ``servo``.
 
@@ -16,7 +16,7 @@ import click
 import pytest
 
 from droptower.cli.identify_cmd import DROP_FAMILY_NAMES, FAMILY_NAMES
-from droptower.identify.dropfit import DROP_KINDS
+from droptower.identify.dropfit import DROP_FAMILIES
 from droptower.identify.families import FAMILIES
 from droptower.report.run import FLAG_REASONS
 from droptower.rheology.elements import ELEMENT_KINDS
@@ -44,15 +44,15 @@ LISTS = {
     "identify's families": ("guide/identification.md", "The family (`--family`, `family=` in Python): `zerodim6`", "Every fit is bounded",
                             set(FAMILIES), {"rapp2022_nr60"}),
     "identify --from-drop-tests' families": ("guide/identification.md", "The family: `elastoslide`",
-                                             "(e.g. the composition", set(DROP_KINDS), set()),
+                                             "(e.g. the composition", set(DROP_FAMILIES), set()),
     "the families fitted from servo records only": ("guide/identification.md", "or `template` (e.g.",
-                                                    "fit servo records only", set(FAMILIES) - set(DROP_KINDS),
+                                                    "fit servo records only", set(FAMILIES) - set(DROP_FAMILIES),
                                                     {"template", "rapp2022_nr60"}),
     "compare-models --from-drop-tests' families": ("guide/identification.md",
                                                    "`droptower compare-models --from-drop-tests", "to the same",
-                                                   set(DROP_KINDS), {"droptower"}),
+                                                   set(DROP_FAMILIES), {"droptower"}),
     "design --for-identification's families": ("guide/design.md", "`--for-identification MODEL`",
-                                               "first fitted to the coupling's", set(DROP_KINDS), set()),
+                                               "first fitted to the coupling's", set(DROP_FAMILIES), set()),
     "the coupling element kinds": ("guide/couplings.md", "Element kinds:", "`droptower.servo.steady",
                                    set(ELEMENT_KINDS), {"constriction"}),
 }
@@ -68,7 +68,7 @@ def test_docs_list_matches_the_code(what):
 
 def test_the_command_lines_family_choices_are_the_registries():
     assert set(FAMILY_NAMES) | {"template"} == set(FAMILIES)
-    assert set(DROP_FAMILY_NAMES) | {"template"} == set(DROP_KINDS)
+    assert set(DROP_FAMILY_NAMES) | {"template"} == set(DROP_FAMILIES)
 
 
 def test_every_element_kind_has_its_theory():

@@ -36,11 +36,11 @@ def _random_values(fam: FilledRubberFamily, rng) -> np.ndarray:
 
 def test_the_family_is_registered_for_servo_records_and_drop_tests():
     from droptower.cli.identify_cmd import DROP_FAMILY_NAMES, FAMILY_NAMES
-    from droptower.identify.dropfit import DROP_KINDS
+    from droptower.identify.dropfit import DROP_FAMILIES
     from droptower.identify.strategies import SEARCHABLE
 
     assert FAMILIES["filled_rubber"] is FilledRubberFamily
-    assert {"filled_rubber"} <= set(DROP_KINDS) & set(DROP_FAMILY_NAMES) & set(FAMILY_NAMES) & set(SEARCHABLE)
+    assert {"filled_rubber"} <= set(DROP_FAMILIES) & set(DROP_FAMILY_NAMES) & set(FAMILY_NAMES) & set(SEARCHABLE)
 
 
 @pytest.mark.parametrize("seed", range(3))

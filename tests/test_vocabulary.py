@@ -364,3 +364,11 @@ def test_no_warning_from_the_library_itself_on_the_new_names():
         for r in (servo_result(), drop_result()):
             r.to_dict(), r.summary(), r.to_frame(), repr(r)
             assert math.isfinite(r.nrmse)
+
+
+def test_drop_kinds_is_drop_families_with_a_warning():
+    """``dropfit.DROP_KINDS`` (release 0.1) is the tuple now named ``DROP_FAMILIES``."""
+    from droptower.identify import dropfit
+
+    with pytest.warns(DeprecationWarning, match="DROP_KINDS is deprecated.*DROP_FAMILIES"):
+        assert dropfit.DROP_KINDS is dropfit.DROP_FAMILIES

@@ -31,7 +31,7 @@ from droptower.cli.flags import cli_text
 
 #: the model families (droptower.identify.families.FAMILIES, named here so --help needs no import)
 FAMILY_NAMES = ("zerodim6", "zerodim20", "elastoslide", "pfeffer", "masing", "overlay", "filled_rubber")
-#: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_KINDS)
+#: the families compare-models --from-drop-tests fits by default (droptower.identify.dropfit.DROP_FAMILIES)
 DROP_FAMILY_NAMES = ("elastoslide", "zerodim6", "masing", "pfeffer", "filled_rubber")
 
 

@@ -157,7 +157,7 @@ def identify_from_drop_tests(data: DropCampaign | str | Path | Iterable[str | Pa
         Log files, folders or campaign folders, or a :class:`DropCampaign` already read (then
         the reading's parameters below do not apply).
     family : str
-        The family (:data:`~droptower.identify.dropfit.DROP_KINDS`; ``model`` in release 0.1:
+        The family (:data:`~droptower.identify.dropfit.DROP_FAMILIES`; ``model`` in release 0.1:
         deprecated).
     init : dict or Parameters, optional
         Held values or parameters, as for :func:`~droptower.identify.dropfit.identify_drops`.

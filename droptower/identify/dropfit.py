@@ -38,7 +38,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from droptower.deprecation import renamed_keywords
+from droptower.deprecation import moved_names, renamed_keywords
 from droptower.errors import DroptowerError
 from droptower.fit_defaults import HOLDOUT_FRACTION
 from droptower.identify.data import DataScale
@@ -55,13 +55,15 @@ from droptower.identify.verdict import RESIMULATION_ACCURACY, bound_hits, drop_v
 from droptower.rates import SERVO_SAMPLE_RATE_HZ
 from droptower.rheology import Coupling
 
-__all__ = ["DROP_KINDS", "DROP_POLICY", "DropFitSettings", "DropProblem", "FIT_OPTIONS", "HOLDOUT_FRACTION",
+__all__ = ["DROP_FAMILIES", "DROP_POLICY", "DropFitSettings", "DropProblem", "FIT_OPTIONS", "HOLDOUT_FRACTION",
            "READ_OPTIONS", "RESIMULATION_ACCURACY", "SERVO_GRID", "drop_scale", "drop_verdict", "holdout_split",
            "identify_drops", "per_test_errors", "servo_agreement", "servo_grid", "split_options", "summarise",
            "tested_grid", "tested_range"]
 
-#: Model kinds a drop-test campaign can identify (the servo-only families need steady sine blocks).
-DROP_KINDS = ("elastoslide", "zerodim6", "masing", "template", "pfeffer", "filled_rubber")
+#: The families a drop-test campaign can identify (the servo-only families need steady sine blocks).
+DROP_FAMILIES = ("elastoslide", "zerodim6", "masing", "template", "pfeffer", "filled_rubber")
+#: the release-0.1 name of :data:`DROP_FAMILIES`, answered with a DeprecationWarning (module ``__getattr__``)
+_renamed = moved_names(__name__, {"DROP_KINDS": "DROP_FAMILIES"}, globals())
 #: Relative tolerance of the fit (cost, step): far below the sensors' noise on the angle.
 TOL = 1e-6
 #: Weight of the prior of the last refinement of a fit still poor after the escalated search.
@@ -188,7 +190,7 @@ def identify_drops(family: str, decays: list[DropDecay], *, excluded: list[dict[
                    settings: DropFitSettings = DEFAULT_SETTINGS, init: dict[str, float] | Parameters | None = None,
                    bounds: dict[str, tuple[float, float]] | None = None,
                    options: dict[str, Any] | None = None) -> Identification:
-    """Fit family ``family`` (:data:`DROP_KINDS`) to the free decays ``decays``.
+    """Fit family ``family`` (:data:`DROP_FAMILIES`) to the free decays ``decays``.
 
     Parameters
     ----------
@@ -220,8 +222,8 @@ def identify_drops(family: str, decays: list[DropDecay], *, excluded: list[dict[
     start = time.perf_counter()
     kind = family  # the name; ``family`` below is the family bound to the data's scale
     init, bounds, guesses = split_given(init, bounds)
-    if kind not in DROP_KINDS:
-        raise DroptowerError(f"family {kind!r} cannot be identified from drop tests (families: {', '.join(DROP_KINDS)})")
+    if kind not in DROP_FAMILIES:
+        raise DroptowerError(f"family {kind!r} cannot be identified from drop tests (families: {', '.join(DROP_FAMILIES)})")
     if len(decays) < 2:
         raise DroptowerError(f"{len(decays)} usable drop test(s): at least 2 are needed"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
@@ -348,9 +350,11 @@ def servo_agreement(fitted: Coupling, truth: Coupling, decays: list[DropDecay], 
 def __getattr__(name: str) -> object:
     """Deprecated names of the drop-test search, which the engine's
     :func:`~droptower.identify.engine.search.run_search` now runs whole (removed in the next release):
-    ``drop_hops`` (the search's basin moves from a fit)."""
+    ``drop_hops`` (the search's basin moves from a fit); ``DROP_KINDS`` is :data:`DROP_FAMILIES`."""
     import warnings
 
+    if name == "DROP_KINDS":
+        return _renamed(name)
     if name == "drop_hops":
         warnings.warn("droptower.identify.dropfit.drop_hops is deprecated: the engine's search runs the family's "
                       "basin_moves", DeprecationWarning, stacklevel=2)
