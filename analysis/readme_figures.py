@@ -645,12 +645,14 @@ def report_size(stored: dict[str, Any]) -> Block:
 def core_step(stored: dict[str, Any]) -> Block:
     """The coupling kernel's cost per step (docs/benchmarks.md), from bench_core's CPU time."""
     core = stored["core"]
-    cpu_ms = core["figures"]["coupling_single_1s_cpu_ms"]  # 1 s at 38.4 kHz
+    from droptower.rates import RIG_SAMPLE_RATE_HZ
+
+    cpu_ms = core["figures"]["coupling_single_1s_cpu_ms"]  # 1 s at the rig's sample rate
     return fill("What remains is the coupling kernel itself in flight (about {ns} ns per step for "
                 f"`{core['figures']['coupling']}`, " + "~{test_ms} ms per 0.25 s test: `bench_core.py`'s CPU time, "
                 f"measured {core['machine']['date']}), writing and reading the logs, and the fixed costs of a run (the "
                 "plan, worker start-up, the results table).\n",
-                ns=on_cpu(cpu_ms * 1e6 / 38_400, ".0f"), test_ms=on_cpu(cpu_ms / 4, ".1f"))
+                ns=on_cpu(cpu_ms * 1e6 / RIG_SAMPLE_RATE_HZ, ".0f"), test_ms=on_cpu(cpu_ms / 4, ".1f"))
 
 
 def report_at_scale(stored: dict[str, Any]) -> Block:

@@ -13,7 +13,7 @@ the one fallback), which costs inf where costs are compared (:func:`row_costs`) 
 
 Two problems of the package: :class:`ServoProblem` (servo records: the torque under imposed
 angle histories, :func:`~droptower.identify.result.servo_residual`) and :class:`DropProblem`
-(drop tests: each test's free decay re-simulated from its impact, docs/theory.md#drop-tests);
+(drop tests: each test's free decay re-simulated from its impact, docs/theory.md#decay);
 :class:`FunctionProblem` wraps any batched residual function. :meth:`Problem.with_prior` adds
 a weak prior toward a start, :meth:`Problem.screening` the few tests a search screens on.
 """
