@@ -3,7 +3,9 @@
 Other ranges and seeds than the stored hard draws (``random_couplings.hard_truth``,
 ``bench_identify.py --hard``): slow elastoslides (p = 7 for most draws, v_r 0.03-0.3 rad/s,
 where the slip-rate law is stiffest) and zerodim6 couplings whose two Maxwell branches relax
-within a factor 1.2-3 of each other (the branches' roles nearly interchangeable). Each draw: the
+within a factor 1.2-3 of each other (the branches' roles nearly interchangeable), and masing
+couplings of broad yield spreads (alpha 2-8, yield limits over a decade and a half: the hard
+draws' ranges, other seeds). Each draw: the
 12-test virtual campaign of ``bench_identify.py`` (rig ``rapp2022``, sensor noise, three
 inertias x four heights), the family's own fit, its servo-grid agreement with the truth, and the
 verdict: a false alarm is "poor fit" on a recovered fit (K' <= 1 %, loss factor <= 3 % RMS), a
@@ -26,10 +28,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from random_couplings import K_RANGE, _log_uniform, _within_loss_window  # noqa: E402
+from random_couplings import K_RANGE, _log_uniform, _masing, _within_loss_window  # noqa: E402
 
 #: Families of these draws and the first seed of each (far from the hard draws' 27_000 + ...).
-SEEDS = {"elastoslide": 91_000, "zerodim6": 92_000}
+SEEDS = {"elastoslide": 91_000, "zerodim6": 92_000, "masing": 93_000}
 #: Recovered / missed limits (K' RMS, loss factor RMS), as ``bench_identify.py --hard``.
 RECOVERY_LIMITS = (0.01, 0.03)
 MISS_LIMITS = (0.03, 0.10)
@@ -56,6 +58,9 @@ def _draw(kind: str, rng) -> dict:
                 f"{'faster' if gain_on_a else 'slower'} branch", "element": [
             {"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": km, "damping": km * tm},
             {"kind": "variable_maxwell", "stiffness": kv, "stiffness_gain": gain, "damping": kv * tv}]}
+    if kind == "masing":
+        data = _masing(rng, k, "alarm_masing", (0.001, 0.03), (2.0, 8.0))
+        return {**data, "description": f"alpha {data['element'][1]['alpha']:.2f}"}
     raise ValueError(kind)
 
 
