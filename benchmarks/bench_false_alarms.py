@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -123,16 +124,39 @@ def run(kind: str, n: int, first: int) -> list[dict]:
 
 
 def summary(kind: str, rows: list[dict]) -> dict:
+    cpu = [r["cpu_s"] for r in rows]
     fig = {"draws": len(rows), "false_alarms": int(sum(r["false_alarm"] for r in rows)),
            "false_alarm_pct": 100.0 * float(np.mean([r["false_alarm"] for r in rows])),
            "misses": int(sum(r["miss"] for r in rows)),
            "recovered_pct": 100.0 * float(np.mean([r["recovered"] for r in rows])),
            "worst_k_pct": 100.0 * max(r["k_rms"] for r in rows), "worst_eta_pct": 100.0 * max(r["eta_rms"] for r in rows),
-           "median_cpu_s": float(np.median([r["cpu_s"] for r in rows])), "rows": rows}
-    print(f"  {kind}: {fig['draws']} draws: false alarms {fig['false_alarm_pct']:.1f} % ({fig['false_alarms']}), "
-          f"misses {fig['misses']}, recovered {fig['recovered_pct']:.0f} %; worst K' {fig['worst_k_pct']:.2f} % / "
-          f"loss factor {fig['worst_eta_pct']:.2f} % RMS; median {fig['median_cpu_s']:.1f} s CPU per fit", flush=True)
+           "median_cpu_s": float(np.median(cpu)), "p90_cpu_s": float(np.percentile(cpu, 90)), "max_cpu_s": float(max(cpu)),
+           "rows": rows}
+    print(f"## {kind}: {fig['draws']} draws: false alarms {fig['false_alarm_pct']:.1f} % ({fig['false_alarms']}), "
+          f"misses {fig['misses']}, recovered {fig['recovered_pct']:.0f} % ({sum(r['recovered'] for r in rows)}/{len(rows)}); "
+          f"worst K' {fig['worst_k_pct']:.2f} % / loss factor {fig['worst_eta_pct']:.2f} % RMS; error over allowance "
+          f"median {np.median([r['error_over_noise'] for r in rows]):.2f}, max {max(r['error_over_noise'] for r in rows):.2f}; "
+          f"CPU per fit median {fig['median_cpu_s']:.1f} s, p90 {fig['p90_cpu_s']:.1f} s, max {fig['max_cpu_s']:.1f} s",
+          flush=True)
     return fig
+
+
+def merge(paths: list[str]) -> dict:
+    """The figures of several runs (``--json`` files of disjoint draws, e.g. run side by side),
+    their rows joined per family in draw order and summarised again; every row printed."""
+    rows: dict[str, list[dict]] = {}
+    for path in paths:
+        data = json.loads(Path(path).read_text())
+        for kind, fig in data.get("figures", data).items():
+            rows.setdefault(kind, []).extend(fig["rows"])
+    out = {}
+    for kind, rs in rows.items():
+        rs = sorted(rs, key=lambda r: r["case"])
+        out[kind] = summary(kind, rs)
+        for r in rs:
+            print(f"  {kind} #{r['case']}: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                                                       for k, v in r.items() if k != "case"))
+    return out
 
 
 def main() -> None:
@@ -141,10 +165,16 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=100)
     parser.add_argument("--first", type=int, default=0)
     parser.add_argument("--json", default=None, help="write the figures (with every row) here")
+    parser.add_argument("--merge", nargs="+", metavar="JSON", help="join the figures of these runs instead of running")
     args = parser.parse_args()
-    figures = {kind: summary(kind, run(kind, args.n, args.first)) for kind in args.families.split(",")}
+    if args.merge:
+        figures = merge(args.merge)
+    else:
+        figures = {kind: summary(kind, run(kind, args.n, args.first)) for kind in args.families.split(",")}
     if args.json:
-        Path(args.json).write_text(json.dumps(figures, indent=1, default=float))
+        Path(args.json).write_text(json.dumps({"benchmark": "bench_false_alarms", "machine": {
+            "cores": os.cpu_count(), "date": time.strftime("%Y-%m-%d"), "note": "shared; CPU times (time.process_time)"},
+            "figures": figures}, indent=1, default=float))
 
 
 if __name__ == "__main__":
