@@ -199,9 +199,9 @@ def test_the_issues_elastoslide_is_not_called_poor(tmp_path):
 @given(alpha=st.floats(0.0, 30.0), r=st.floats(1e-3, 1e3), free_r=st.booleans())
 @settings(max_examples=60, deadline=None, derandomize=True)
 def test_masing_moves_keep_the_full_slip_torque_and_leave_the_fits_own_exponent(alpha, r, free_r):
-    """Each move sets alpha to one of the family's exponents (none within the gap of the fit's)
-    and rescales R so that the bank's full-slip torque sum_i R e^(alpha (eta_i - 1)) is the
-    fit's (closed form); nothing else changes; no move where R is given."""
+    """Each spread move sets alpha to one of the family's exponents (none within the gap of the
+    fit's) and rescales R so that the bank's full-slip torque sum_i R e^(alpha (eta_i - 1)) is the
+    fit's (closed form); the last moves scale R alone; nothing else changes; no move where R is given."""
     fam = MasingFamily(SCALE)
     v = fam.guess()
     ia, ir = fam.names.index("alpha"), fam.names.index("r_nm")
@@ -213,6 +213,11 @@ def test_masing_moves_keep_the_full_slip_torque_and_leave_the_fits_own_exponent(
         assert moves.shape == (0, len(v))
         return
     expected = [a for a in fam.MOVE_ALPHAS if abs(a - alpha) >= fam.MOVE_ALPHA_GAP]
+    # last the yield limits scaled, the exponent and everything else as fitted
+    moves, slips = moves[:-len(fam.MOVE_SLIP_FACTORS)], moves[-len(fam.MOVE_SLIP_FACTORS):]
+    assert np.allclose(slips[:, ir], r * np.array(fam.MOVE_SLIP_FACTORS), rtol=1e-12)
+    rest = np.arange(len(v)) != ir
+    assert np.array_equal(slips[:, rest], np.repeat(v[None, rest], len(slips), axis=0))
     assert moves[:, ia].tolist() == expected * 2 and len(expected) >= len(fam.MOVE_ALPHAS) - 2
     eta = np.arange(7) / 6.0
     slip = moves[:, ir] * np.exp(np.outer(moves[:, ia], eta - 1.0)).sum(axis=1)
