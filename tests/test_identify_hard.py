@@ -204,9 +204,9 @@ def test_the_issues_elastoslide_is_not_called_poor(tmp_path):
 @given(alpha=st.floats(0.0, 30.0), r=st.floats(1e-3, 1e3), free_r=st.booleans())
 @settings(max_examples=60, deadline=None, derandomize=True)
 def test_masing_moves_keep_the_full_slip_torque_and_leave_the_fits_own_exponent(alpha, r, free_r):
-    """Each move sets alpha to one of the family's exponents (none within the gap of the fit's)
-    and rescales R so that the bank's full-slip torque sum_i R e^(alpha (eta_i - 1)) is the
-    fit's (closed form); nothing else changes; no move where R is given."""
+    """Each spread move sets alpha to one of the family's exponents (none within the gap of the
+    fit's) and rescales R so that the bank's full-slip torque sum_i R e^(alpha (eta_i - 1)) is the
+    fit's (closed form); the last moves scale R alone; nothing else changes; no move where R is given."""
     fam = MasingFamily(SCALE)
     v = fam.guess()
     ia, ir = fam.names.index("alpha"), fam.names.index("r_nm")
@@ -218,6 +218,11 @@ def test_masing_moves_keep_the_full_slip_torque_and_leave_the_fits_own_exponent(
         assert moves.shape == (0, len(v))
         return
     expected = [a for a in fam.MOVE_ALPHAS if abs(a - alpha) >= fam.MOVE_ALPHA_GAP]
+    # last the yield limits scaled, the exponent and everything else as fitted
+    moves, slips = moves[:-len(fam.MOVE_SLIP_FACTORS)], moves[-len(fam.MOVE_SLIP_FACTORS):]
+    assert np.allclose(slips[:, ir], r * np.array(fam.MOVE_SLIP_FACTORS), rtol=1e-12)
+    rest = np.arange(len(v)) != ir
+    assert np.array_equal(slips[:, rest], np.repeat(v[None, rest], len(slips), axis=0))
     assert moves[:, ia].tolist() == expected * 2 and len(expected) >= len(fam.MOVE_ALPHAS) - 2
     eta = np.arange(7) / 6.0
     slip = moves[:, ir] * np.exp(np.outer(moves[:, ia], eta - 1.0)).sum(axis=1)
@@ -289,3 +294,41 @@ def test_a_masing_fit_stuck_at_a_neighbouring_spread_is_moved_to_the_truths_cost
     hopped, summary = drop_hops(problem, fam, STUCK_33, free, DropFitSettings())
     assert cost(hopped.values) < 1.05 * truth, summary
     assert drop_verdict(problem, hopped.values, [], True)[0].verdict == "good fit"
+
+
+# ---------------------------------------------------------------------------- zerodim6's near-exchangeable branches
+#: Draws of ``benchmarks/bench_false_alarms.py`` (zerodim6 #22 and #58: Maxwell branches relaxing
+#: within a factor 1.5 / 2.1 of each other, the gain on the faster one) and the fits the search
+#: ended in, called poor at 3.7 / 2.7 x the allowance (the truth at 0.23 / 0.25 x) though K'
+#: was within 0.7 % / 0.6 %: (K1, K2, tau2, K3, gain, tau3) of the truth, then of the fit.
+NEAR_EXCHANGEABLE = {
+    "merged": ([8074.0662, 3646.9281, 4.2522083e-3, 3042.6918, 215838.76, 2.8397299e-3],
+               [6995.9516, 1137.5659, 0.62861055, 6698.9019, 70688.518, 3.4377305e-3]),
+    "swapped": ([10273.640, 4490.4048, 5.5678028e-3, 2683.1735, 90115.642, 2.6272991e-3],
+                [10320.133, 2408.2933, 1.5089583e-3, 5374.3541, 12981.798, 5.1465368e-3]),
+}
+
+
+@pytest.mark.parametrize("case", ["merged", "swapped"])
+def test_a_zerodim6_fit_with_its_branches_roles_swapped_or_merged_hops_to_the_truth(case, tmp_path):
+    """A 12-test campaign of each stored false alarm: from the fit the search ended in, a local
+    fit stays poor; the hops (:meth:`ZeroDim6.basin_moves`: the roles exchanged, the faster branch
+    split) reach a good verdict, the truth's cost within 5 % and K' within 1 %, loss factor within 3 %."""
+    from droptower.identify.dropfit import drop_hops, holdout_split
+
+    x_true, stuck = (np.array(v) for v in NEAR_EXCHANGEABLE[case])
+    k1, k2, tau2, k3, gain, tau3 = x_true
+    truth = {"element": [{"kind": "spring", "stiffness": k1}, {"kind": "maxwell", "stiffness": k2, "damping": k2 * tau2},
+                         {"kind": "variable_maxwell", "stiffness": k3, "stiffness_gain": gain, "damping": k3 * tau3}]}
+    decays = _decays(truth, tmp_path)
+    fam = ZeroDim6(drop_scale(decays))
+    problem = DropProblem(fam, [decays[i] for i in holdout_split(decays, 0.2)[0]], DropFitSettings())  # as fitted
+    free = np.ones(6, bool)
+    cost = lambda v: float(np.sum(problem.residuals(v[None])[0] ** 2))  # noqa: E731
+    alone = fit_rows(fam.parameters, stuck, problem.with_prior(stuck, free), free=free, tol=1e-6)
+    assert drop_verdict(problem, alone.values, [], True)[0].poor
+    hopped, summary = drop_hops(problem, fam, stuck, free, DropFitSettings())
+    assert cost(hopped.values) < 1.05 * cost(x_true), summary
+    assert drop_verdict(problem, hopped.values, [], True)[0].verdict == "good fit"
+    agree = servo_agreement(fam.coupling(hopped.values), parse_coupling(truth), decays)
+    assert agree["storage_stiffness_rms"] <= 0.01 and agree["loss_factor_rms"] <= 0.03

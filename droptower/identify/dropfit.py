@@ -80,8 +80,10 @@ ESCALATION = 3
 #: times the noise allowance (measured 2-9 x on masing's broad yield spreads, the truth 0.2-0.3 x):
 #: the family's moves into other basins (its ``basin_moves``) run while the error over the
 #: allowance lies in this range; above it (tens of times) the family misses structure in
-#: the data, which no move into a neighbouring basin mends.
-HOP_RANGE = (1.0, 20.0)
+#: the data, which no move into a neighbouring basin mends. From the verdict's limit
+#: (:data:`~droptower.identify.verdict.NOISE_RATIO`): the moves cannot change a good verdict,
+#: and on a good fit they took a third of masing's slowest fits' time.
+HOP_RANGE = (2.0, 20.0)
 #: Rounds of moves at most (each from the previous round's better fit).
 HOP_ROUNDS = 2
 #: Tests the global search's candidates are evaluated on (spread over inertias and amplitudes):

@@ -87,6 +87,8 @@ class MasingFamily(Family):
     #: omega tau of the slow relaxation the faster Maxwell branch is moved to (:meth:`basin_moves`),
     #: omega the data's typical angular frequency: a branch that acts almost as a spring.
     MOVE_SLOW_OMEGA_TAU = 30.0
+    #: Factors the yield limits R are scaled by, the exponent kept (:meth:`basin_moves`).
+    MOVE_SLIP_FACTORS = (1.0 / 3.0, 0.5)
 
     def basin_moves(self, v: np.ndarray, free: np.ndarray) -> np.ndarray:
         """Parameter sets (rows) near the fit ``v`` in other basins: the spread exponent moved to
@@ -102,7 +104,12 @@ class MasingFamily(Family):
         then mimicked by a spurious fast branch and another spread. Fits of broad spreads
         (alpha 2-8) were measured ending in such a basin at 2-9 x the noise allowance (the truth
         at 0.2 x), which no local step leaves; local fits from these moves reach the truth's
-        cost. Empty when alpha or R is not free; no branch moves unless its c, tau are free."""
+        cost. Last, the yield limits R scaled by each of :data:`MOVE_SLIP_FACTORS` (the bank's
+        full-slip torque with them): a fit was measured at 3.5 x the allowance (the truth 0.3 x)
+        with R three times the truth's, the yield limits then elastic where the truth slips and
+        the slow Maxwell branch's stiffness taken over by b; the spread moves keep the full-slip
+        torque and never leave that basin, local fits from R / 3 and R / 2 end at 1.1-1.7 x.
+        Empty when alpha or R is not free; no branch moves unless its c, tau are free."""
         v = np.asarray(v, float)
         ia, ir, ib = self.names.index("alpha"), self.names.index("r_nm"), self.names.index("b_nm_per_rad")
         if not (free[ia] and free[ir]):
@@ -131,7 +138,12 @@ class MasingFamily(Family):
                 if free[ib]:
                     slow[ib] = max(v[ib] + storage(v[ic], v[ic + 1]) - storage(v[ic], slow[ic + 1]), 0.0)
                 slowed.append(slow)
-        return np.array(spread + slowed).reshape(-1, v.size)
+        slips = []
+        for factor in self.MOVE_SLIP_FACTORS:
+            row = v.copy()
+            row[ir] = factor * v[ir]
+            slips.append(row)
+        return np.array(spread + slowed + slips).reshape(-1, v.size)
 
 
 def fit_function(x: np.ndarray, y: np.ndarray, std: np.ndarray | None = None, form: str = "auto") -> dict[str, Any]:
