@@ -314,7 +314,7 @@ def test_a_zerodim6_fit_with_its_branches_roles_swapped_or_merged_hops_to_the_tr
     """A 12-test campaign of each stored false alarm: from the fit the search ended in, a local
     fit stays poor; the hops (:meth:`ZeroDim6.basin_moves`: the roles exchanged, the faster branch
     split) reach a good verdict, the truth's cost within 5 % and K' within 1 %, loss factor within 3 %."""
-    from droptower.identify.dropfit import drop_hops, holdout_split
+    from droptower.identify.dropfit import holdout_split
 
     x_true, stuck = (np.array(v) for v in NEAR_EXCHANGEABLE[case])
     k1, k2, tau2, k3, gain, tau3 = x_true
@@ -325,8 +325,10 @@ def test_a_zerodim6_fit_with_its_branches_roles_swapped_or_merged_hops_to_the_tr
     problem = DropProblem(fam, [decays[i] for i in holdout_split(decays, 0.2)[0]], DropFitSettings())  # as fitted
     free = np.ones(6, bool)
     cost = lambda v: float(np.sum(problem.residuals(v[None])[0] ** 2))  # noqa: E731
-    alone = fit_rows(fam.parameters, stuck, problem.with_prior(stuck, free), free=free, tol=1e-6)
+    alone = local_fit(problem, stuck, free, prior_weight=1e-3, tol=1e-6)
     assert drop_verdict(problem, alone.values, [], True)[0].poor
+    with pytest.warns(DeprecationWarning, match="drop_hops is deprecated"):
+        from droptower.identify.dropfit import drop_hops
     hopped, summary = drop_hops(problem, fam, stuck, free, DropFitSettings())
     assert cost(hopped.values) < 1.05 * cost(x_true), summary
     assert drop_verdict(problem, hopped.values, [], True)[0].verdict == "good fit"
