@@ -483,8 +483,11 @@ def hard_summary(kind: str, rows: list[dict]) -> dict:
            "worst_k_pct": 100 * max(r["k_rms"] for r in rows),
            "worst_eta_pct": 100 * max(r["eta_rms"] for r in rows),
            "median_wall_s": float(np.median([r["wall_s"] for r in rows])),
+           "p90_wall_s": float(np.percentile([r["wall_s"] for r in rows], 90)),
            "max_wall_s": max(r["wall_s"] for r in rows),
            "median_cpu_s": float(np.median([r["cpu_s"] for r in rows])),
+           "p90_cpu_s": float(np.percentile([r["cpu_s"] for r in rows], 90)),
+           "max_cpu_s": max(r["cpu_s"] for r in rows),
            "median_rig_s": float(np.median([r["rig_s"] for r in rows])),
            "compare_runs": len(cmp_rows),
            "compare_max_wall_s": max((r["compare_wall_s"] for r in cmp_rows), default=float("nan")),
@@ -493,7 +496,8 @@ def hard_summary(kind: str, rows: list[dict]) -> dict:
           f"({sum(r['recovered'] for r in rows)}/{n_rows}), false alarms {fig['false_alarm_pct']:.0f} % "
           f"({sum(r['false_alarm'] for r in rows)}), misses {fig['misses']}; worst K' {fig['worst_k_pct']:.2f} % / "
           f"loss factor {fig['worst_eta_pct']:.2f} % RMS; time per fit median {fig['median_wall_s']:.1f} s wall / "
-          f"{fig['median_cpu_s']:.1f} s CPU, max {fig['max_wall_s']:.1f} s wall; baseline the rig's campaign "
+          f"{fig['median_cpu_s']:.1f} s CPU, 90th percentile {fig['p90_wall_s']:.1f} s wall / {fig['p90_cpu_s']:.1f} s CPU, "
+          f"max {fig['max_wall_s']:.1f} s wall / {fig['max_cpu_s']:.1f} s CPU; baseline the rig's campaign "
           f"{fig['median_rig_s']:.1f} s -> ratio {fig['median_wall_s'] / fig['median_rig_s']:.1f}; "
           f"compare-models {fig['compare_runs']} run(s), max {fig['compare_max_wall_s']:.1f} s wall, "
           f"table complete {fig['compare_complete']}", flush=True)
