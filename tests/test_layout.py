@@ -133,3 +133,18 @@ def test_map_validation_summary_dict_is_deprecated():
     object.__setattr__(validation, "validation", SimpleNamespace(summary={"all": {"points": 3}}))
     with pytest.warns(DeprecationWarning, match="to_dict"):
         assert validation.summary_dict == {"all": {"points": 3}}
+
+
+def test_every_package_ships_in_the_wheel():
+    """Every package folder of ``droptower/`` (an ``__init__.py``) is listed in pyproject.toml's
+    ``[tool.setuptools] packages``: a missing one installs without its modules, so a fresh
+    ``pip install .`` (not the editable checkout) fails on import."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(droptower.__file__).resolve().parent
+    listed = set(tomllib.loads((root.parent / "pyproject.toml").read_text(encoding="utf-8"))
+                 ["tool"]["setuptools"]["packages"])
+    found = {".".join(("droptower", *p.parent.relative_to(root).parts)) for p in root.rglob("__init__.py")
+             if "__pycache__" not in p.parts}
+    assert found - listed == set()
