@@ -86,24 +86,16 @@ def truth_error_over_noise(kind: str, data: dict, decays: list) -> float:
 
 
 def run(kind: str, n: int, first: int) -> list[dict]:
-    from bench_identify import campaign_decays
+    from bench_identify import drawn_campaign
 
-    from droptower.errors import DroptowerError
     from droptower.identify.dropfit import identify_drops, servo_agreement
-    from droptower.rheology import parse_coupling
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(first, first + n):
             rng = np.random.default_rng(SEEDS[kind] + i)
-            while True:  # a draw the rig refuses (too stiff for its step) is redrawn
-                data = alarm_truth(kind, rng)
-                truth = parse_coupling(data)
-                try:
-                    decays, excluded, _ = campaign_decays(truth, Path(tmp), f"{kind}_{i}")
-                    break
-                except DroptowerError:
-                    continue
+            data, truth, decays, excluded, _ = drawn_campaign(lambda r: alarm_truth(kind, r), rng, Path(tmp),
+                                                              f"{kind}_{i}")
             c0 = time.process_time()
             result = identify_drops(kind, decays, excluded=excluded)
             cpu = time.process_time() - c0

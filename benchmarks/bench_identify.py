@@ -194,6 +194,18 @@ def campaign_decays(truth, folder: Path, prefix: str):
     return (*read_decays(paths, ReadSettings()), t_rig)
 
 
+def drawn_campaign(draw, rng, folder: Path, prefix: str):
+    """A coupling drawn by ``draw(rng)`` (its TOML table) and its campaign (:func:`campaign_decays`),
+    redrawn while the rig refuses it (too stiff for its step): (data, truth, decays, excluded, rig seconds)."""
+    while True:
+        data = draw(rng)
+        truth = parse_coupling(data)
+        try:
+            return (data, truth, *campaign_decays(truth, folder, prefix))
+        except DroptowerError as exc:
+            print(f"  {prefix}: redrawn ({exc.message})", flush=True)
+
+
 def drops() -> dict[str, dict[str, float]]:
     import tempfile
     from pathlib import Path
@@ -437,14 +449,8 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
             rows = []
             for i in range(first, first + n):
                 rng = np.random.default_rng(27_000 + 1000 * HARD_FAMILIES.index(kind) + i)
-                while True:  # a draw the rig refuses (too stiff for its step) is redrawn
-                    data = hard_truth(kind, rng)
-                    truth = parse_coupling(data)
-                    try:
-                        decays, excluded, rig_s = campaign_decays(truth, Path(tmp), f"hard_{kind}_{i}")
-                        break
-                    except DroptowerError as exc:
-                        print(f"  {kind} #{i}: redrawn ({exc.message})", flush=True)
+                data, truth, decays, excluded, rig_s = drawn_campaign(lambda r: hard_truth(kind, r), rng, Path(tmp),
+                                                                      f"hard_{kind}_{i}")
                 w0, c0 = time.perf_counter(), time.process_time()
                 result = identify_drops(kind, decays, excluded=excluded)
                 wall, cpu = time.perf_counter() - w0, time.process_time() - c0
