@@ -45,11 +45,18 @@ def propagate(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, cov: np.nd
     """Values ``fun(x)`` and their standard uncertainties sqrt(diag(G·cov·Gᵀ)) (GUM 5.2.2).
 
     G by :func:`sensitivities` with steps of :data:`STEP_IN_U` standard uncertainties
-    (sqrt(diag(cov))); a parameter of zero variance steps by 1e-8 of its size instead.
+    (sqrt(diag(cov))); a parameter less certain than its own size (u > |x|) steps by
+    :data:`STEP_IN_U` of its size instead (not below 1e-9 u), and one of zero variance by 1e-8
+    of its size.
     """
     x = np.asarray(x, dtype=float)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    steps = np.where(sd > 0, STEP_IN_U * sd, 1e-8 * np.maximum(np.abs(x), 1.0))
+    # the derivative is taken where the function is linear: a step of 1e-3 u is that for a
+    # parameter known to better than its size, but not for one known to 10⁶ times its size (a
+    # map's loosely determined decay exponent, u = 2.5e6 on 1.68: 10^(-e·a) overflows over the
+    # step, and the "band" came out 700 times the value). The step then scales with the value.
+    scale = np.minimum(sd, np.maximum(np.abs(x), 1e-9 * sd))
+    steps = np.where(sd > 0, STEP_IN_U * scale, 1e-8 * np.maximum(np.abs(x), 1.0))
     value, grad = sensitivities(fun, x, steps, vectorised=vectorised)
     var = np.einsum("ij,jk,ik->i", grad, cov, grad)
     return value, np.sqrt(np.clip(var, 0.0, None))

@@ -37,3 +37,26 @@ def test_vectorised_and_per_column_evaluations_agree():
     np.testing.assert_allclose(v1, v2)
     np.testing.assert_allclose(g1, g2, rtol=1e-9)
     np.testing.assert_allclose(g1, [[np.cos(0.3) * -1.2, np.sin(0.3)], [3 * 0.3 ** 2, np.exp(-1.2)]], rtol=1e-6)
+
+
+def test_a_parameter_known_to_a_million_times_its_size_gets_its_derivative_not_an_overflow():
+    """A map's loosely determined decay exponent (u = 2.5e6 on e = 1.68, a tutorial's eq. 20):
+    y = k·10^(−e·a) has ∂y/∂e = −a·ln10·y, so u(y) = a·ln10·y·u_e exactly to first order. A step
+    of 1e-3 u (2 500 on 1.68) overflowed 10^(−e·a) and gave bands hundreds of times the value;
+    the step now scales with the value where u exceeds it."""
+    k, e, a, ue = 5.83, 1.68, 0.3, 2.5e6
+    with np.errstate(over="raise", invalid="raise"):
+        value, u = propagate(lambda v: np.array([v[0] * 10.0 ** (-v[1] * a)]), np.array([k, e]),
+                             np.diag([0.01 ** 2, ue ** 2]))
+    y = k * 10.0 ** (-e * a)
+    np.testing.assert_allclose(u[0], np.hypot(0.01 * y / k, a * np.log(10) * y * ue), rtol=1e-6)
+
+
+@settings(derandomize=True, max_examples=30, deadline=None)
+@given(st.floats(-3.0, 3.0), st.floats(-5.0, 7.0))
+def test_the_steps_give_the_closed_form_whatever_the_uncertainty_against_the_value(log_x, log_u_over_x):
+    """y = x³ at any x and any u from 1e-5 to 1e7 times x: u(y) = 3x²·u to first order."""
+    x = 10.0 ** log_x
+    ux = x * 10.0 ** log_u_over_x
+    value, u = propagate(lambda v: v ** 3, np.array([x]), np.array([[ux ** 2]]))
+    np.testing.assert_allclose(u[0], 3 * x ** 2 * ux, rtol=1e-5)
