@@ -68,15 +68,18 @@ def _given_options(kind: str, segments: list, options: dict[str, Any] | None) ->
 
 class FitCache:
     """Memoised :func:`~droptower.identify.strategies.identify` and
-    :func:`~droptower.identify.dropfit.identify_drops`; ``calls`` / ``fits`` count them."""
+    :func:`~droptower.identify.dropfit.identify_drops`; ``calls`` / ``fits`` count them, ``keys``
+    lists every call's key."""
 
     def __init__(self, servo: Callable[..., Any], drop: Callable[..., Any]):
         self._servo, self._drop = servo, drop
         self._store: dict[Any, Any] = {}
         self.calls = self.fits = 0
+        self.keys: list[Any] = []  # every call's key, in order (two calls of equal keys read the same data)
 
     def _get(self, key: Any, fit: Callable[[], Any]) -> Any:
         self.calls += 1
+        self.keys.append(key)
         if key not in self._store:
             self.fits += 1
             self._store[key] = fit()
