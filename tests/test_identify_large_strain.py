@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from droptower.identify import compare_models, identify, make_segment, segments_from_files
+from droptower.identify import compare_models, identify, segments_from_files
 from droptower.identify.ranking import HOLDOUT_RULE, by_holdout_error
 from droptower.identify.families import FilledRubberFamily
 from droptower.identify.data import DataScale

@@ -42,7 +42,7 @@ import pandas as pd
 import pytest
 
 from droptower.cli.main import main
-from labfolder import FIXTURES, GERMAN, HEIGHTS_MM, MASSES, REPEATS, LabFolder, write_lab_folder
+from labfolder import FIXTURES, HEIGHTS_MM, MASSES, REPEATS, LabFolder
 
 pytestmark = pytest.mark.slow
 
@@ -82,8 +82,9 @@ def _flags(value: object) -> set[str]:
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory) -> LabFolder:
-    return write_lab_folder(tmp_path_factory.mktemp("lab") / "lab", GERMAN, coupling=COUPLING)
+def lab(lab_folder) -> LabFolder:
+    """The 54-file folder (tests/conftest.py, shared with test_extract_lab.py: only read here)."""
+    return lab_folder  # write_lab_folder's defaults: GERMAN, COUPLING
 
 
 @pytest.fixture(scope="module")
