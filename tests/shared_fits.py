@@ -117,3 +117,60 @@ def share_fits(*modules: Any) -> Iterator[FitCache]:
             if getattr(target, "identify_drops", None) is drop:
                 mp.setattr(target, "identify_drops", cache.drop)
         yield cache
+
+
+def table_fingerprint(table: Any) -> Any:
+    """A hashable value equal for equal tables (columns, dtypes, index and values)."""
+    import pickle
+
+    import pandas as pd
+
+    try:
+        content = pd.util.hash_pandas_object(table, index=True).to_numpy().tobytes()
+    except TypeError:  # cells pandas cannot hash (lists): their pickled values
+        content = pickle.dumps([table.index.tolist(), table.to_numpy(dtype=object).tolist()])
+    return ("table", tuple(map(str, table.columns)), tuple(map(str, table.dtypes)), hashlib.sha1(content).hexdigest())
+
+
+class MapCache:
+    """Memoised :func:`~droptower.maps.fitting.fit_map` for results given as a table (a path is
+    read and fitted every time); ``calls`` / ``fits`` count the tables' calls and fits."""
+
+    def __init__(self, fit_map: Callable[..., Any]):
+        self._fit_map = fit_map
+        self._store: dict[Any, Any] = {}
+        self.calls = self.fits = 0
+
+    def fit_map(self, results: Any, source: Any = None, form: Any = "paper") -> Any:
+        import pandas as pd
+
+        if not isinstance(results, pd.DataFrame):
+            return self._fit_map(results, source, form)
+        key = (table_fingerprint(results), None if source is None else str(source), fingerprint(form))
+        self.calls += 1
+        if key not in self._store:
+            self.fits += 1
+            self._store[key] = self._fit_map(results, source, form)
+        return copy.deepcopy(self._store[key])
+
+
+@contextmanager
+def share_maps(*modules: Any) -> Iterator[MapCache]:
+    """Route every call of ``fit_map`` (the library's: ``droptower.maps``, the report's, the
+    command line's, and the names the test ``modules`` imported) through one :class:`MapCache`.
+    A characteristic map is a deterministic fit of its table (the same table, source and form
+    give the same coefficients), so the map, report and validate commands of a module's tests
+    that read one campaign fit its map once."""
+    import droptower
+    import droptower.maps as maps_package
+    import droptower.report as report_package  # bound to the library's fit_map before it is routed
+    from droptower.maps import fitting
+
+    original = fitting.fit_map
+    assert droptower.fit_map is original  # the top-level name is resolved (and kept) before routing
+    cache = MapCache(original)
+    with pytest.MonkeyPatch.context() as mp:
+        for target in (fitting, maps_package, report_package, *modules):
+            if getattr(target, "fit_map", None) is original:
+                mp.setattr(target, "fit_map", cache.fit_map)
+        yield cache
