@@ -47,7 +47,7 @@ def fits(request):
         yield cache
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def logs(tmp_path_factory):
     """Noisy rig logs (the rig's sensor noise, seeded) of every truth: 6 tests over the three inertias."""
     root = tmp_path_factory.mktemp("drops")
