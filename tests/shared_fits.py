@@ -66,14 +66,18 @@ def _given_options(kind: str, segments: list, options: dict[str, Any] | None) ->
     return fingerprint({k: v for k, v in options.items() if k not in defaults or defaults[k] != v})
 
 
+#: The fits :func:`share_fits` keeps per test file (``keep``), for this process.
+_KEPT: dict[str, dict[Any, Any]] = {}
+
+
 class FitCache:
     """Memoised :func:`~droptower.identify.strategies.identify` and
     :func:`~droptower.identify.dropfit.identify_drops`; ``calls`` / ``fits`` count them, ``keys``
     lists every call's key."""
 
-    def __init__(self, servo: Callable[..., Any], drop: Callable[..., Any]):
+    def __init__(self, servo: Callable[..., Any], drop: Callable[..., Any], store: dict[Any, Any] | None = None):
         self._servo, self._drop = servo, drop
-        self._store: dict[Any, Any] = {}
+        self._store: dict[Any, Any] = {} if store is None else store
         self.calls = self.fits = 0
         self.keys: list[Any] = []  # every call's key, in order (two calls of equal keys read the same data)
 
@@ -103,12 +107,14 @@ class FitCache:
 
 
 @contextmanager
-def share_fits(*modules: Any) -> Iterator[FitCache]:
+def share_fits(*modules: Any, keep: str | None = None) -> Iterator[FitCache]:
     """Route every call of ``identify`` / ``identify_drops`` (the library's own, the command
     line's, ``compare_models``'s, and the names the test ``modules`` imported) through one
-    :class:`FitCache`."""
+    :class:`FitCache`. With ``keep`` (a test file's module name) its fits outlive the context
+    in this process: when worksteal splits the file into two blocks of one worker, the second
+    block's fixture finds the first's fits (the same keys, so the same fits)."""
     servo, drop = strategies.identify, dropfit.identify_drops
-    cache = FitCache(servo, drop)
+    cache = FitCache(servo, drop, None if keep is None else _KEPT.setdefault(keep, {}))
     with pytest.MonkeyPatch.context() as mp:
         for target in (strategies, identify_package, *modules):
             if getattr(target, "identify", None) is servo:

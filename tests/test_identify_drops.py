@@ -43,7 +43,7 @@ def _campaign(coupling, folder, heights=(0.2, 3.0), duration_s=0.1):
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the command line's runs
     of a fit a test already made (same family, logs and settings) report that fit."""
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 

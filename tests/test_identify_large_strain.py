@@ -70,7 +70,7 @@ def fits(request):
     compare_models and for both commands."""
     from shared_fits import share_fits
 
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 

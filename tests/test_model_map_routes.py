@@ -36,7 +36,7 @@ def fits(request):
     then accepted is one identification, and so is the template's fit with and without the
     rig's input uncertainties (their shifted fits are their own); the campaign's paper map,
     which the map, report and validate commands each fit from the same table, is one fit too."""
-    with share_fits(request.module) as cache, share_maps(request.module):
+    with share_fits(request.module, keep=__name__) as cache, share_maps(request.module):
         yield cache
 
 
