@@ -39,6 +39,16 @@ def regression(request: pytest.FixtureRequest) -> Regression:
     return Regression(request.node, request.config.getoption("--regenerate"))
 
 
+@pytest.fixture(scope="session")
+def lab_folder(tmp_path_factory: pytest.TempPathFactory):
+    """The lab's 54-file folder (``write_lab_folder``'s defaults: the German dialect, the
+    ``rapp2022_nr60`` drops, the lab's rig file and conditions sheet), written once per process
+    for the tests that only read it (tests/test_lab_folder_e2e.py, tests/test_extract_lab.py)."""
+    from labfolder import write_lab_folder
+
+    return write_lab_folder(tmp_path_factory.mktemp("lab54") / "lab")
+
+
 @pytest.hookimpl(trylast=True)  # after pytest's own ordering by fixture scope, which this keeps
 def pytest_collection_modifyitems(config, items) -> None:
     """Tests that store figures are marked ``regression`` (what ``tests/regenerate.py`` selects);

@@ -66,17 +66,24 @@ def _given_options(kind: str, segments: list, options: dict[str, Any] | None) ->
     return fingerprint({k: v for k, v in options.items() if k not in defaults or defaults[k] != v})
 
 
+#: The fits :func:`share_fits` keeps per test file (``keep``), for this process.
+_KEPT: dict[str, dict[Any, Any]] = {}
+
+
 class FitCache:
     """Memoised :func:`~droptower.identify.strategies.identify` and
-    :func:`~droptower.identify.dropfit.identify_drops`; ``calls`` / ``fits`` count them."""
+    :func:`~droptower.identify.dropfit.identify_drops`; ``calls`` / ``fits`` count them, ``keys``
+    lists every call's key."""
 
-    def __init__(self, servo: Callable[..., Any], drop: Callable[..., Any]):
+    def __init__(self, servo: Callable[..., Any], drop: Callable[..., Any], store: dict[Any, Any] | None = None):
         self._servo, self._drop = servo, drop
-        self._store: dict[Any, Any] = {}
+        self._store: dict[Any, Any] = {} if store is None else store
         self.calls = self.fits = 0
+        self.keys: list[Any] = []  # every call's key, in order (two calls of equal keys read the same data)
 
     def _get(self, key: Any, fit: Callable[[], Any]) -> Any:
         self.calls += 1
+        self.keys.append(key)
         if key not in self._store:
             self.fits += 1
             self._store[key] = fit()
@@ -100,12 +107,14 @@ class FitCache:
 
 
 @contextmanager
-def share_fits(*modules: Any) -> Iterator[FitCache]:
+def share_fits(*modules: Any, keep: str | None = None) -> Iterator[FitCache]:
     """Route every call of ``identify`` / ``identify_drops`` (the library's own, the command
     line's, ``compare_models``'s, and the names the test ``modules`` imported) through one
-    :class:`FitCache`."""
+    :class:`FitCache`. With ``keep`` (a test file's module name) its fits outlive the context
+    in this process: when worksteal splits the file into two blocks of one worker, the second
+    block's fixture finds the first's fits (the same keys, so the same fits)."""
     servo, drop = strategies.identify, dropfit.identify_drops
-    cache = FitCache(servo, drop)
+    cache = FitCache(servo, drop, None if keep is None else _KEPT.setdefault(keep, {}))
     with pytest.MonkeyPatch.context() as mp:
         for target in (strategies, identify_package, *modules):
             if getattr(target, "identify", None) is servo:
@@ -113,4 +122,61 @@ def share_fits(*modules: Any) -> Iterator[FitCache]:
         for target in (dropfit, drop_campaign, *modules):
             if getattr(target, "identify_drops", None) is drop:
                 mp.setattr(target, "identify_drops", cache.drop)
+        yield cache
+
+
+def table_fingerprint(table: Any) -> Any:
+    """A hashable value equal for equal tables (columns, dtypes, index and values)."""
+    import pickle
+
+    import pandas as pd
+
+    try:
+        content = pd.util.hash_pandas_object(table, index=True).to_numpy().tobytes()
+    except TypeError:  # cells pandas cannot hash (lists): their pickled values
+        content = pickle.dumps([table.index.tolist(), table.to_numpy(dtype=object).tolist()])
+    return ("table", tuple(map(str, table.columns)), tuple(map(str, table.dtypes)), hashlib.sha1(content).hexdigest())
+
+
+class MapCache:
+    """Memoised :func:`~droptower.maps.fitting.fit_map` for results given as a table (a path is
+    read and fitted every time); ``calls`` / ``fits`` count the tables' calls and fits."""
+
+    def __init__(self, fit_map: Callable[..., Any]):
+        self._fit_map = fit_map
+        self._store: dict[Any, Any] = {}
+        self.calls = self.fits = 0
+
+    def fit_map(self, results: Any, source: Any = None, form: Any = "paper") -> Any:
+        import pandas as pd
+
+        if not isinstance(results, pd.DataFrame):
+            return self._fit_map(results, source, form)
+        key = (table_fingerprint(results), None if source is None else str(source), fingerprint(form))
+        self.calls += 1
+        if key not in self._store:
+            self.fits += 1
+            self._store[key] = self._fit_map(results, source, form)
+        return copy.deepcopy(self._store[key])
+
+
+@contextmanager
+def share_maps(*modules: Any) -> Iterator[MapCache]:
+    """Route every call of ``fit_map`` (the library's: ``droptower.maps``, the report's, the
+    command line's, and the names the test ``modules`` imported) through one :class:`MapCache`.
+    A characteristic map is a deterministic fit of its table (the same table, source and form
+    give the same coefficients), so the map, report and validate commands of a module's tests
+    that read one campaign fit its map once."""
+    import droptower
+    import droptower.maps as maps_package
+    import droptower.report as report_package  # bound to the library's fit_map before it is routed
+    from droptower.maps import fitting
+
+    original = fitting.fit_map
+    assert droptower.fit_map is original  # the top-level name is resolved (and kept) before routing
+    cache = MapCache(original)
+    with pytest.MonkeyPatch.context() as mp:
+        for target in (fitting, maps_package, report_package, *modules):
+            if getattr(target, "fit_map", None) is original:
+                mp.setattr(target, "fit_map", cache.fit_map)
         yield cache

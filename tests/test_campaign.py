@@ -45,7 +45,7 @@ J = 0.359
 SETTINGS = dict(duration_s=0.07, chunk_size=3, progress=False)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def inputs(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("inputs")
     files = {"coupling": root / "linear.toml", "stiffer": root / "stiffer.toml", "doe": root / "small.toml"}
@@ -55,7 +55,7 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     return files
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def reference(inputs, tmp_path_factory):
     """The uninterrupted campaign, in this process."""
     out = tmp_path_factory.mktemp("reference") / "campaign"
@@ -198,7 +198,7 @@ N_SIGNALLED = 100
 SIGNALLED_SETTINGS = dict(duration_s=0.07, chunk_size=1, progress=False)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def signalled(inputs, tmp_path_factory) -> tuple[Path, CampaignRun]:
     """The signal tests' plan, and its campaign run without a stop in this process, first: every
     kernel the campaign calls is then in numba's cache, so a signalled process's first record

@@ -32,7 +32,7 @@ def _regenerate_module():
     return module
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def fresh(tmp_path_factory) -> list[dict]:
     return _regenerate_module().campaign_values(tmp_path_factory.mktemp("reference") / "campaign", workers=1)
 

@@ -61,7 +61,7 @@ def test_repeats_reach_the_target_uncertainty_and_no_fewer_do():
 
 
 # ------------------------------------------------------------------ on the shipped rig and coupling
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def designed():
     rig, coupling = load_rig("rapp2022"), load_coupling("rapp2022_nr60")
     return rig, coupling, design_campaign(rig, coupling, TARGET, repeats=1)

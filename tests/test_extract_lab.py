@@ -150,11 +150,12 @@ def test_malformed_conditions_tables(small, lab, data, capsys, tmp_path):
 
 
 @pytest.mark.slow
-def test_full_lab_folder_and_table2_campaign_no_false_flags(tmp_path, capsys):
+def test_full_lab_folder_and_table2_campaign_no_false_flags(lab_folder, tmp_path, capsys):
     """Calibration of the geometry flags: the 54-file lab folder with its own rig and the 450
     Table-2 campaign logs with the rapp2022 rig raise none; the same folder with the preset rig
-    flags every drop it can judge (the 18 without a double impact)."""
-    lab = write_lab_folder(tmp_path / "lab")
+    flags every drop it can judge (the 18 without a double impact). The folder is
+    ``write_lab_folder``'s default (tests/conftest.py, shared with test_lab_folder_e2e.py)."""
+    lab = lab_folder
     args = [*map(str, lab.logs), "--conditions", str(lab.sheet)]
     code, err, right = _extract([*args, "--rig", str(lab.rig)], capsys, tmp_path, "right.csv")
     assert code == 0 and len(right) == 54

@@ -24,7 +24,7 @@ from shared_fits import share_fits
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the command line's run with
     --accept-poor writes the fit its run without it refused."""
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 

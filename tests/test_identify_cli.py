@@ -21,7 +21,7 @@ from shared_fits import share_fits
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): compare-models ranks the fits
     the single-family runs made (same family, records and options)."""
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 TRUTH = "seed000_six_parameter"

@@ -43,11 +43,11 @@ def _campaign(coupling, folder, heights=(0.2, 3.0), duration_s=0.1):
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the command line's runs
     of a fit a test already made (same family, logs and settings) report that fit."""
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def logs(tmp_path_factory):
     """Noisy rig logs (the rig's sensor noise, seeded) of every truth: 6 tests over the three inertias."""
     root = tmp_path_factory.mktemp("drops")

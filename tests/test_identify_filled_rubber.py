@@ -278,7 +278,7 @@ def test_first_guess_reproduces_the_readings_of_its_own_closed_form(seed):
                                                        np.zeros(len(x0), bool)) is x0
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def servo_case():
     """``servo_case(seed)``: a seeded random coupling of the family's structure (not the family's
     discretisation of the band), its test-type records (0.5 % noise), a hold-out record and the

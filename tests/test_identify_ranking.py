@@ -23,7 +23,7 @@ from shared_fits import share_fits
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the first zerodim6 draw's fit is
     ranked in one test and followed by zerodim20 in another."""
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 

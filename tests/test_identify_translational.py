@@ -25,7 +25,7 @@ from shared_fits import share_fits
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the command line's and
     compare-models' fits of the exports the library calls fitted already are those fits."""
-    with share_fits(request.module) as cache:
+    with share_fits(request.module, keep=__name__) as cache:
         yield cache
 
 FS = 512.0

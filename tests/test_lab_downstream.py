@@ -28,7 +28,7 @@ DURATION_S = 0.12
 CHANNEL = {GERMAN.name: "distance=Weg", IMPERIAL.name: "distance=Disp"}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def lab(tmp_path_factory: pytest.TempPathFactory):
     """Three fixtures, the lightest of which strikes twice on every drop."""
     folder = tmp_path_factory.mktemp("lab")
@@ -255,7 +255,7 @@ def test_report_on_a_lab_folder_fails_loudly_or_draws_every_decay(lab, tmp_path,
 
 
 # ------------------------------------------------------------------------------ malformed conditions tables
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def small(lab, tmp_path_factory: pytest.TempPathFactory):
     """Three logs (one per fixture) for the malformed tables, with the rig beside them."""
     import shutil
@@ -277,7 +277,7 @@ def _commands(folder: Path, lab, table: Path, tmp_path: Path, map_json: Path) ->
                          "--reference", str(table4_path()), "--results", str(folder), *flags]}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def map_json(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A map (the paper's Table 4's) and a bench table for validate, made once."""
     folder = tmp_path_factory.mktemp("validate")

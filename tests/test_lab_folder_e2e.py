@@ -23,7 +23,8 @@ The same folder with the preset rig ``rapp2022`` (0.2 m lever, 0.15 m laser radi
 flagged on every drop, and the preset's source is printed.
 
 Every step runs ``droptower`` in-process (``droptower.cli.main.main``), one as a subprocess.
-The folder and every step's outputs are built once for the module.
+The folder and every step's outputs are built once per process (session-scoped fixtures: when
+worksteal splits this file into two blocks of one worker, the second reuses them).
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ import pandas as pd
 import pytest
 
 from droptower.cli.main import main
-from labfolder import FIXTURES, GERMAN, HEIGHTS_MM, MASSES, REPEATS, LabFolder, write_lab_folder
+from labfolder import FIXTURES, HEIGHTS_MM, MASSES, REPEATS, LabFolder
 
 pytestmark = pytest.mark.slow
 
@@ -81,17 +82,18 @@ def _flags(value: object) -> set[str]:
     return {f.strip() for f in re.split(r"[;,|]", value) if f.strip()}
 
 
-@pytest.fixture(scope="module")
-def lab(tmp_path_factory) -> LabFolder:
-    return write_lab_folder(tmp_path_factory.mktemp("lab") / "lab", GERMAN, coupling=COUPLING)
+@pytest.fixture(scope="session")
+def lab(lab_folder) -> LabFolder:
+    """The 54-file folder (tests/conftest.py, shared with test_extract_lab.py: only read here)."""
+    return lab_folder  # write_lab_folder's defaults: GERMAN, COUPLING
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def work(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("work")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def usable(lab) -> pd.DataFrame:
     """The truth of the drops without a double impact (the 1 kg drops of L2 and L3)."""
     truth = lab.truth[~lab.truth["double_impact"]]
@@ -99,7 +101,7 @@ def usable(lab) -> pd.DataFrame:
     return truth.set_index("file")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def native(lab, usable, work) -> pd.DataFrame:
     """The usable drops simulated again (same tests, same seeds as tests/labfolder.py) and
     evaluated from droptower's own logs, whose metadata carry J, L and the laser radius: the
@@ -124,7 +126,7 @@ def native(lab, usable, work) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("file")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def bench(work) -> Path:
     """The lab's bench results: the virtual servo bench on the same coupling (``droptower servo``),
     written as the lab's software writes them (German names, ';', decimal commas)."""
@@ -137,31 +139,31 @@ def bench(work) -> Path:
     return path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def extracted(lab, work) -> tuple[Step, pd.DataFrame]:
     out = work / "results.csv"
     step = droptower("extract", *lab.logs, "--conditions", lab.sheet, "--rig", lab.rig, "--out", out)
     return step, pd.read_csv(out) if out.is_file() else pd.DataFrame()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def mapped(extracted, work) -> Step:
     return droptower("map", work / "results.csv", "--out", work / "map.json")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def model_mapped(lab, work) -> Step:
     return droptower("map", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--out", work / "map_folder.json",
                      "--family", "template", "--template", COUPLING, "--model-out", work / "model_map.json")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def validated(mapped, model_mapped, bench, work) -> Step:
     return droptower("validate", "--map", work / "map.json", "--model-map", work / "model_map.json",
                      "--servo-results", bench, "--out", work / "validation", "--json")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def reported(lab, model_mapped, bench, work) -> Step:
     return droptower("report", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--servo-results", bench,
                      "--model-map", work / "model_map.json", "--out", work / "report.html")

@@ -30,12 +30,12 @@ def _errors(m: MapFit, table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
             m.damping_ratio(a, f) / table["damping_ratio"].to_numpy() - 1)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def table4() -> pd.DataFrame:
     return read_table4()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def auto_map(table4: pd.DataFrame) -> MapFit:
     return fit_map(table4, form="auto")
 

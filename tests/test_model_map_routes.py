@@ -18,7 +18,7 @@ from droptower.campaign import run_campaign
 from droptower.cli.main import main
 from droptower.compare.model_map import PAPER_ROUTE, ModelMap
 from droptower.rheology import coupling_to_toml, parse_coupling
-from shared_fits import share_fits
+from shared_fits import share_fits, share_maps
 from test_report import PLAN, shared_chrome
 
 K, K_M, TAU = 20000.0, 6000.0, 1 / (2 * math.pi * 3.0)
@@ -34,8 +34,9 @@ def maxwell_coupling(k: float, k_m: float, tau: float):
 def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the poor fit refused and
     then accepted is one identification, and so is the template's fit with and without the
-    rig's input uncertainties (their shifted fits are their own)."""
-    with share_fits(request.module) as cache:
+    rig's input uncertainties (their shifted fits are their own); the campaign's paper map,
+    which the map, report and validate commands each fit from the same table, is one fit too."""
+    with share_fits(request.module, keep=__name__) as cache, share_maps(request.module):
         yield cache
 
 

@@ -32,7 +32,7 @@ PRELOADS = (0.0, 500.0)
 SMALL = {"amplitude_deg": [0.5, 0.7], "frequency_hz": [44.0, 47.0]}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def shipped():
     rig, coupling = load_rig("rapp2022"), load_coupling("rapp2022_nr60")
     return rig, coupling, predict_candidates(rig, coupling, PRELOADS)
@@ -62,7 +62,7 @@ def shipped_candidates(shipped):
         yield answered
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def page(tmp_path_factory, shipped) -> Path:
     """The page `droptower planner` writes for the shipped rig and coupling."""
     out = tmp_path_factory.mktemp("planner") / "planner.html"

@@ -47,7 +47,7 @@ drop_mass_kg = 2.0
 _CAMPAIGN: list[Path] = []
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def campaign(tmp_path_factory) -> Path:
     """A campaign on the calibrated coupling, then one test marked failed and one flagged in its
     results (as an extraction error and a second impact would leave them)."""
@@ -69,7 +69,7 @@ def _report_campaign(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def report(campaign: Path) -> Path:
     return write_report(campaign)
 

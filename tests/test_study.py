@@ -55,7 +55,7 @@ def _finite_numbers(value) -> bool:
     return not isinstance(value, float) or math.isfinite(value)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def reduced(tmp_path_factory) -> tuple[Path, str]:
     """The reduced study (15 tests, fewer servo steps; ~6 s on two quiet cores), run once: its folder and printout."""
     out = tmp_path_factory.mktemp("study") / "report"
