@@ -85,7 +85,11 @@ ESCALATION = 3
 #: and on a good fit they took a third of masing's slowest fits' time.
 HOP_RANGE = (2.0, 20.0)
 #: Rounds of moves at most (each from the previous round's better fit).
-HOP_ROUNDS = 2
+HOP_ROUNDS = 4
+#: Evaluations of each move's local fit before the race's cuts (:meth:`~droptower.identify.engine.search._Search.race`).
+RACE_NFEV = 3
+#: The moves' local fits that run on to convergence after the race.
+RACE_FINALISTS = 1
 #: Tests the global search's candidates are evaluated on (spread over inertias and amplitudes):
 #: a large campaign adds no new information to the search, only cost.
 SEARCH_TESTS = 12
@@ -94,7 +98,8 @@ SEARCH_TESTS = 12
 #: The drop-test fit's search, every setting declared (:class:`~droptower.identify.engine.search.SearchPolicy`).
 DROP_POLICY = SearchPolicy(starts_per_parameter=STARTS_PER_PARAMETER, min_starts=MIN_STARTS, local_fits=LOCAL_FITS,
                            screen_tests=SEARCH_TESTS, tol=TOL, prior_weight=PRIOR_WEIGHT, escalation=ESCALATION,
-                           hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, loose_prior_weight=LOOSE_PRIOR_WEIGHT)
+                           hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, race_nfev=RACE_NFEV, race_finalists=RACE_FINALISTS,
+                           loose_prior_weight=LOOSE_PRIOR_WEIGHT)
 
 #: The fit's settings where none are given (frozen: one instance serves every call).
 DEFAULT_SETTINGS = DropFitSettings()
