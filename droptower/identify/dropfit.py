@@ -84,8 +84,16 @@ ESCALATION = 3
 #: (:data:`~droptower.identify.verdict.NOISE_RATIO`): the moves cannot change a good verdict,
 #: and on a good fit they took a third of masing's slowest fits' time.
 HOP_RANGE = (2.0, 20.0)
-#: Rounds of moves at most (each from the previous round's better fit).
+#: Rounds of moves at most (each from the previous round's better fit; they stop when a round finds
+#: nothing better or the fit leaves HOP_RANGE). Raced rounds cost a third to a half of full ones, so
+#: four fit in the time two took: masing's hard draw #38 went 5.7 -> 4.0 -> 3.7 -> 1.5 x its
+#: allowance (the truth 0.22 x), a false alarm after two rounds.
 HOP_ROUNDS = 4
+#: A further round of moves only where the last lowered the error over the allowance by this fraction:
+#: masing's hard draws #22, #31 and #41 took rounds that lowered it by 0.005-0.2 % (or raised it), 4-13 s
+#: each of which changed nothing (the escalated search found their fits); rounds that lead to a good fit
+#: gained 4-46 % each (#7: 6.6 -> 3.6 -> 2.2 -> 2.0 -> 1.9 x).
+HOP_GAIN = 0.02
 #: Evaluations of each move's local fit before the race's cuts (:meth:`~droptower.identify.engine.search._Search.race`).
 RACE_NFEV = 3
 #: The moves' local fits that run on to convergence after the race.
@@ -98,7 +106,8 @@ SEARCH_TESTS = 12
 #: The drop-test fit's search, every setting declared (:class:`~droptower.identify.engine.search.SearchPolicy`).
 DROP_POLICY = SearchPolicy(starts_per_parameter=STARTS_PER_PARAMETER, min_starts=MIN_STARTS, local_fits=LOCAL_FITS,
                            screen_tests=SEARCH_TESTS, tol=TOL, prior_weight=PRIOR_WEIGHT, escalation=ESCALATION,
-                           hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, race_nfev=RACE_NFEV, race_finalists=RACE_FINALISTS,
+                           hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, hop_gain=HOP_GAIN,
+                           race_nfev=RACE_NFEV, race_finalists=RACE_FINALISTS,
                            loose_prior_weight=LOOSE_PRIOR_WEIGHT)
 
 #: The fit's settings where none are given (frozen: one instance serves every call).

@@ -268,6 +268,10 @@ class SearchPolicy:
         over the allowance lies in this range.
     hop_rounds : int
         Rounds of those moves at most (0: none).
+    hop_gain : float
+        A further round of moves runs only where the previous one lowered the fit's error over
+        its allowance by at least this fraction (a round that found a cost lower by a hair
+        cannot change the verdict, and the next one from there seldom does).
     race_nfev : int
         The moves' local fits race (:meth:`_Search.race`): each runs this many evaluations,
         the better half this many more, and only the best ``race_finalists`` run on to
@@ -294,6 +298,7 @@ class SearchPolicy:
     escalation_seed: int = 1000
     hop_range: tuple[float, float] = (1.0, 20.0)
     hop_rounds: int = 2
+    hop_gain: float = 0.0
     race_nfev: int = 0
     race_finalists: int = 3
     loose_prior_weight: float | None = 1e-6
@@ -454,10 +459,13 @@ class _Search:
         2016): each runs the policy's ``race_nfev`` evaluations, the better half (by cost) that
         many more, and the best ``race_finalists`` on to convergence; a fit that converged
         within its share keeps its cost. Returns every fit, where it stopped (the finalists
-        converged). Why: a move's local fit takes 7-60 Jacobians to converge, but after a few
-        steps its cost already ranks it (measured on masing's moves: the round's best fit was
-        among the best half after four evaluations and among the best four after eight), and
-        the fits that lose the race were most of the moves' time."""
+        converged). Why: a move's local fit takes 7-60 Jacobians to converge, and the fits that
+        lose were most of a round's time (masing's hard draws: 14-16 moves, 700-2000
+        evaluations a round, 4-36 s); after a few steps a fit's cost mostly ranks it (both
+        rounds of masing's hard draw #38 and the second of #41: the round's best fit was the
+        best after three evaluations; #41's first: it overtook late, from the seventh). A fit
+        that would have overtaken late is lost; the next round starts from the winner, and the
+        rounds run while they gain (:meth:`hop_rounds`)."""
         nfev, finalists = self.policy.race_nfev, self.policy.race_finalists
         if not nfev or len(starts) <= finalists:
             return [self.local(problem, s, free, tol) for s in starts]
@@ -475,16 +483,19 @@ class _Search:
 
     def hop_rounds(self, problem: Problem, sol: LocalFit, half: Any, free: np.ndarray, summary: dict[str, Any]
                    ) -> tuple[LocalFit, Any, dict[str, Any]]:
-        """While the fit's error over its allowance lies in the policy's ``hop_range`` (at most
-        ``hop_rounds`` times), ``sol`` replaced by the best of :meth:`hops` where its cost is
-        lower (else stop); the half-step re-simulation and the summary (its ``hops``) updated."""
+        """While the fit's error over its allowance lies in the policy's ``hop_range`` and the
+        last round lowered it by the policy's ``hop_gain`` (at most ``hop_rounds`` times),
+        ``sol`` replaced by the best of :meth:`hops` where its cost is lower (else stop); the
+        half-step re-simulation and the summary (its ``hops``) updated."""
         lo, hi = self.policy.hop_range
         if not self.policy.hop_rounds or not len(problem.basin_moves(sol.values, free)):
             return sol, half, summary
+        before = math.inf
         for _ in range(self.policy.hop_rounds):
             ratio = problem.error_over_allowance(sol.values, half)
-            if not lo < ratio < hi:
+            if not lo < ratio < hi or not ratio <= (1.0 - self.policy.hop_gain) * before:
                 break
+            before = ratio
             hopped, hop = self.hops(problem, sol.values, free)
             hop = {**hop, "error_over_noise": ratio}
             summary = {**summary, "hops": summary.get("hops", []) + [hop]}
