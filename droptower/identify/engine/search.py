@@ -269,9 +269,9 @@ class SearchPolicy:
     hop_rounds : int
         Rounds of those moves at most (0: none).
     hop_gain : float
-        A further round of moves runs only where the previous one lowered the fit's error over
-        its allowance by at least this fraction (a round that found a cost lower by a hair
-        cannot change the verdict, and the next one from there seldom does).
+        A further round of moves runs only where the previous one lowered the fit's cost by at
+        least this fraction (a round that found a cost lower by a hair changed nothing, and
+        the next one from there seldom does).
     race_nfev : int
         The moves' local fits race (:meth:`_Search.race`): each runs this many evaluations,
         the better half this many more, and only the best ``race_finalists`` run on to
@@ -484,7 +484,7 @@ class _Search:
     def hop_rounds(self, problem: Problem, sol: LocalFit, half: Any, free: np.ndarray, summary: dict[str, Any]
                    ) -> tuple[LocalFit, Any, dict[str, Any]]:
         """While the fit's error over its allowance lies in the policy's ``hop_range`` and the
-        last round lowered it by the policy's ``hop_gain`` (at most ``hop_rounds`` times),
+        last round lowered its cost by the policy's ``hop_gain`` (at most ``hop_rounds`` times),
         ``sol`` replaced by the best of :meth:`hops` where its cost is lower (else stop); the
         half-step re-simulation and the summary (its ``hops``) updated."""
         lo, hi = self.policy.hop_range
@@ -493,9 +493,9 @@ class _Search:
         before = math.inf
         for _ in range(self.policy.hop_rounds):
             ratio = problem.error_over_allowance(sol.values, half)
-            if not lo < ratio < hi or not ratio <= (1.0 - self.policy.hop_gain) * before:
+            if not lo < ratio < hi or not sol.cost <= (1.0 - self.policy.hop_gain) * before:
                 break
-            before = ratio
+            before = sol.cost
             hopped, hop = self.hops(problem, sol.values, free)
             hop = {**hop, "error_over_noise": ratio}
             summary = {**summary, "hops": summary.get("hops", []) + [hop]}
