@@ -463,7 +463,11 @@ def hard_acceptance(n: int, families: list[str], first: int = 0, compare: int = 
                        "error_over_noise": result.verdict.error_over_noise,
                        "false_alarm": recovered and not good,
                        "miss": good and (k_err > MISS_LIMITS[0] or eta_err > MISS_LIMITS[1]),
-                       "escalated": bool(result.search.get("escalated")), "note": data.get("description", "")}
+                       "escalated": bool(result.search.get("escalated")),
+                       "escalation_taken": bool(result.search.get("escalation_taken")),
+                       "hop_rounds": len(result.search.get("hops", [])),
+                       "hops_taken": sum(bool(h.get("taken")) for h in result.search.get("hops", [])),
+                       "note": data.get("description", "")}
                 if i - first < compare:
                     c0w = time.perf_counter()
                     cmp = compare_models(decays, list(COMPARE_FAMILIES), budget_s=budget_s,

@@ -84,8 +84,22 @@ ESCALATION = 3
 #: (:data:`~droptower.identify.verdict.NOISE_RATIO`): the moves cannot change a good verdict,
 #: and on a good fit they took a third of masing's slowest fits' time.
 HOP_RANGE = (2.0, 20.0)
-#: Rounds of moves at most (each from the previous round's better fit).
-HOP_ROUNDS = 2
+#: Rounds of moves at most (each from the previous round's better fit; they stop when a round finds
+#: nothing better or the fit leaves HOP_RANGE). Raced rounds cost a third to a half of full ones, so
+#: four fit in the time two took: masing's hard draw #38 went 5.7 -> 4.0 -> 3.65 -> 3.67 -> 0.8 x its
+#: allowance (the truth 0.22 x), a false alarm after two rounds.
+HOP_ROUNDS = 4
+#: A further round of moves only where the last lowered the cost by this fraction: masing's hard draws
+#: #22, #31 and #41 took rounds that lowered it by 0.02-0.5 %, 4-13 s of rounds that changed nothing
+#: (the escalated search found their fits); rounds on the way to a good fit lowered it by 1.4-44 %
+#: (#38: 44, 12, 1.5 %, then 14 % to 0.8 x the allowance; its third round RAISED the error over the
+#: allowance 3.65 -> 3.67 x, the torque's part of the cost falling: the cost, not that ratio, measures
+#: a round's gain).
+HOP_GAIN = 0.01
+#: Evaluations of each move's local fit before the race's cuts (:meth:`~droptower.identify.engine.search._Search.race`).
+RACE_NFEV = 3
+#: The moves' local fits that run on to convergence after the race.
+RACE_FINALISTS = 1
 #: Tests the global search's candidates are evaluated on (spread over inertias and amplitudes):
 #: a large campaign adds no new information to the search, only cost.
 SEARCH_TESTS = 12
@@ -94,7 +108,9 @@ SEARCH_TESTS = 12
 #: The drop-test fit's search, every setting declared (:class:`~droptower.identify.engine.search.SearchPolicy`).
 DROP_POLICY = SearchPolicy(starts_per_parameter=STARTS_PER_PARAMETER, min_starts=MIN_STARTS, local_fits=LOCAL_FITS,
                            screen_tests=SEARCH_TESTS, tol=TOL, prior_weight=PRIOR_WEIGHT, escalation=ESCALATION,
-                           hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, loose_prior_weight=LOOSE_PRIOR_WEIGHT)
+                           hop_range=HOP_RANGE, hop_rounds=HOP_ROUNDS, hop_gain=HOP_GAIN,
+                           race_nfev=RACE_NFEV, race_finalists=RACE_FINALISTS,
+                           loose_prior_weight=LOOSE_PRIOR_WEIGHT)
 
 #: The fit's settings where none are given (frozen: one instance serves every call).
 DEFAULT_SETTINGS = DropFitSettings()

@@ -268,6 +268,16 @@ class SearchPolicy:
         over the allowance lies in this range.
     hop_rounds : int
         Rounds of those moves at most (0: none).
+    hop_gain : float
+        A further round of moves runs only where the previous one lowered the fit's cost by at
+        least this fraction (a round that found a cost lower by a hair changed nothing, and
+        the next one from there seldom does).
+    race_nfev : int
+        The moves' local fits race (:meth:`_Search.race`): each runs this many evaluations,
+        the better half this many more, and only the best ``race_finalists`` run on to
+        convergence (0: every move's fit runs to convergence).
+    race_finalists : int
+        The moves' local fits that run to convergence after the race.
     loose_prior_weight : float or None
         A fit still poor after the escalated search is fitted once more with this far weaker
         prior (None: not).
@@ -288,6 +298,9 @@ class SearchPolicy:
     escalation_seed: int = 1000
     hop_range: tuple[float, float] = (1.0, 20.0)
     hop_rounds: int = 2
+    hop_gain: float = 0.0
+    race_nfev: int = 0
+    race_finalists: int = 3
     loose_prior_weight: float | None = 1e-6
 
     def starts(self, n_free: int, escalate: bool = False) -> int:
@@ -341,12 +354,14 @@ class _Search:
     def __init__(self, policy: SearchPolicy, seed: int, max_nfev: int | None, choices: dict[int, list[float]]):
         self.policy, self.seed, self.max_nfev, self.choices = policy, seed, max_nfev, choices
 
-    def local(self, problem: Problem, start: np.ndarray, free: np.ndarray, tol: float, walk: bool = False) -> LocalFit:
+    def local(self, problem: Problem, start: np.ndarray, free: np.ndarray, tol: float, walk: bool = False,
+              max_nfev: int | None = None) -> LocalFit:
         """A local fit with the policy's prior toward ``start``; with ``walk``, the parameters of
-        a few values walked from its end (:func:`walk_choice`), the prior kept where it was."""
+        a few values walked from its end (:func:`walk_choice`), the prior kept where it was;
+        ``max_nfev``: evaluations at most (None: the search's limit)."""
         prior = problem if self.policy.prior_weight is None else problem.with_prior(start, free,
                                                                                      self.policy.prior_weight)
-        sol = local_fit(prior, start, free, tol=tol, max_nfev=self.max_nfev)
+        sol = local_fit(prior, start, free, tol=tol, max_nfev=self.max_nfev if max_nfev is None else max_nfev)
         if not (walk and self.choices and self.policy.walk_choices and tol > self.policy.tol):
             return sol
 
@@ -434,23 +449,54 @@ class _Search:
                                    else float("inf"), "local_costs": []}
         if not len(firsts):
             return None, summary
-        fits = [self.local(screen, s, free, max(self.policy.tol, self.policy.screen_tol)) for s in firsts]
+        fits = self.race(screen, firsts, free, max(self.policy.tol, self.policy.screen_tol))
         summary["local_costs"] = [f.cost for f in fits]
         best = fits[int(np.argmin(summary["local_costs"]))]
         return self.refine(problem, screen, best.values, free, beat), summary
 
+    def race(self, problem: Problem, starts: np.ndarray, free: np.ndarray, tol: float) -> list[LocalFit]:
+        """Local fits from ``starts`` (rows), raced as successive halving (Jamieson & Talwalkar
+        2016): each runs the policy's ``race_nfev`` evaluations, the better half (by cost) that
+        many more, and the best ``race_finalists`` on to convergence; a fit that converged
+        within its share keeps its cost, and each share after the first is a new local fit
+        from where the last stopped (its prior centred there). Returns every fit, where it
+        stopped (the finalists converged). Why: a move's local fit takes 7-60 Jacobians to converge, and the fits that
+        lose were most of a round's time (masing's hard draws: 14-16 moves, 700-2000
+        evaluations a round, 4-36 s); after a few steps a fit's cost mostly ranks it (both
+        rounds of masing's hard draw #38 and the second of #41: the round's best fit was the
+        best after three evaluations; #41's first: it overtook late, from the seventh). A fit
+        that would have overtaken late is lost; the next round starts from the winner, and the
+        rounds run while they gain (:meth:`hop_rounds`)."""
+        nfev, finalists = self.policy.race_nfev, self.policy.race_finalists
+        if not nfev or len(starts) <= finalists:
+            return [self.local(problem, s, free, tol) for s in starts]
+        fits = [self.local(problem, s, free, tol, max_nfev=nfev) for s in starts]
+
+        def go_on(keep: int, max_nfev: int | None) -> None:
+            order = np.argsort([f.cost for f in fits])
+            for i in order[:keep]:
+                if not fits[i].converged:
+                    fits[i] = self.local(problem, fits[i].values, free, tol, max_nfev=max_nfev)
+
+        go_on(max(finalists, -(-len(starts) // 2)), nfev)
+        go_on(finalists, None)
+        return fits
+
     def hop_rounds(self, problem: Problem, sol: LocalFit, half: Any, free: np.ndarray, summary: dict[str, Any]
                    ) -> tuple[LocalFit, Any, dict[str, Any]]:
-        """While the fit's error over its allowance lies in the policy's ``hop_range`` (at most
-        ``hop_rounds`` times), ``sol`` replaced by the best of :meth:`hops` where its cost is
-        lower (else stop); the half-step re-simulation and the summary (its ``hops``) updated."""
+        """While the fit's error over its allowance lies in the policy's ``hop_range`` and the
+        last round lowered its cost by the policy's ``hop_gain`` (at most ``hop_rounds`` times),
+        ``sol`` replaced by the best of :meth:`hops` where its cost is lower (else stop); the
+        half-step re-simulation and the summary (its ``hops``) updated."""
         lo, hi = self.policy.hop_range
         if not self.policy.hop_rounds or not len(problem.basin_moves(sol.values, free)):
             return sol, half, summary
+        before = math.inf
         for _ in range(self.policy.hop_rounds):
             ratio = problem.error_over_allowance(sol.values, half)
-            if not lo < ratio < hi:
+            if not lo < ratio < hi or not sol.cost <= (1.0 - self.policy.hop_gain) * before:
                 break
+            before = sol.cost
             hopped, hop = self.hops(problem, sol.values, free)
             hop = {**hop, "error_over_noise": ratio}
             summary = {**summary, "hops": summary.get("hops", []) + [hop]}
@@ -529,7 +575,7 @@ def run_search(problem: Problem, policy: SearchPolicy, x0: np.ndarray | Callable
         if wider is not None:
             wider = wider.without_prior()
         if wider is not None and wider.cost < sol.cost:
-            sol, summary = wider, {**more, **{k: summary[k] for k in ("hops",) if k in summary}}
+            sol, summary = wider, {**more, **{k: summary[k] for k in ("hops",) if k in summary}, "escalation_taken": True}
             half = problem.half_step(sol.values)
             sol, half, summary = run.hop_rounds(problem, sol, half, free, summary)
         names = [p.name for p in problem.parameters]
