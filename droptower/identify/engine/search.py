@@ -460,8 +460,10 @@ class _Search:
         many more, and the best ``race_finalists`` on to convergence; a fit that converged
         within its share keeps its cost, and each share after the first is a new local fit
         from where the last stopped (its prior centred there). Returns every fit, where it
-        stopped (the finalists converged). Why: a move's local fit takes 7-60 Jacobians to converge, and the fits that
-        lose were most of a round's time (masing's hard draws: 14-16 moves, 700-2000
+        stopped (the finalists converged).
+
+        Why: a move's local fit takes 7-60 Jacobians to converge, and the fits that lose were
+        most of a round's time (masing's hard draws: 14-16 moves, 700-2000
         evaluations a round, 4-36 s); after a few steps a fit's cost mostly ranks it (both
         rounds of masing's hard draw #38 and the second of #41: the round's best fit was the
         best after three evaluations; #41's first: it overtook late, from the seventh). A fit
