@@ -270,9 +270,9 @@ def drop_starts(family: Family, decays: list[DropDecay], init: dict[str, float] 
                            np.ndarray]:
     """The search's starts on the fitting tests ``decays``: (the first guess, or for a family
     with a deferred part the function that makes it; the first search's guess without that part
-    (None without one); the free parameters; the deferred ones; the given ones). The family's closed form reads its guess off the first cycles
-    (``guess_from_readings``), the user's guesses override it; the elastoslide's odd p is
-    chosen by the search, never fitted."""
+    (None without one); the free parameters; the deferred ones; the given ones). The family's
+    closed form reads its guess off the first cycles (``guess_from_readings``), the user's
+    guesses override it; the elastoslide's odd p is chosen by the search, never fitted."""
     s = setup_family(family, init, bounds)
     params, x0, given = family.parameters, s.x0, s.given
     free = np.array([p.name != "p" for p in params]) & ~given
