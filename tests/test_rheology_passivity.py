@@ -237,6 +237,8 @@ def nonlinear_bound(el: dict, x: np.ndarray, dt: float) -> float:
         smooth = (0.77 * pc ** 2 * f_max + 2 * pc * k_tot) / (1 + kc)
         kinks = 2 * pc * f_max / (1 + kc) + k_tot
         return float(np.sum(smooth * np.abs(dx) ** 3 / 12 + kinks * dx ** 2 / 4))
+    if kind == "large_strain_network":
+        return _large_strain_bound(el, x)
     if kind == "variable_maxwell":
         df = _steps(single(el).respond(x, dt))          # the branch's force is its spring's force
         if "force_table" in el:                          # piecewise linear f, slopes s_min ... s_max
@@ -248,6 +250,36 @@ def nonlinear_bound(el: dict, x: np.ndarray, dt: float) -> float:
         k0, g = el["stiffness"], el["stiffness_gain"]    # f = (k0 + g|e|) e: f' >= k0, |f''| <= 2 g
         return float(np.sum(2 * g * (np.abs(df) / k0) ** 3 / 12))
     return 0.0
+
+
+def _large_strain_bound(el: dict, x: np.ndarray) -> float:
+    """The large-strain network's bound (J): the kernel books its dissipation as the step's
+    trapezoidal work minus the change of its stored energy, so what can turn it negative is
+    - the trapezoidal error of its elastic torques within a step: the spring's a x |x|^q
+      (|f''| = a q (q + 1) |x|^(q-1) for q >= 1; f monotone for any q: |err| <= |dx| |df| / 2)
+      and the sticking friction network's kn ((1 + g x^2) S1 + g x S2), S1 = sum e_i, S2 =
+      sum e_i^2, whose second derivative is at most kn g n (6 c + 6 |x|) with |e_i| <= c, the
+      travel so far (the linear parts have none);
+    - a softening within a step that crosses x = 0: a stiffness falling from k0 to k1 books
+      (k0 - k1) x0 x1 / 2 there (the travel's k e^(-f c^p), the damage's (1 - D) with
+      dD <= D_max |dx| / L).
+    A slider's onset books 1/2 k (lim + e0)(1 - s) dx >= 0 in its step (s: the share of the
+    step it still sticks), so the sliders add nothing to the bound."""
+    dx = _steps(x)
+    x0, x1 = np.r_[0.0, x[:-1]], x
+    reach = np.maximum(np.abs(x0), np.abs(x1))
+    travel = np.cumsum(np.abs(dx))
+    a, q, n = el["gain"], el["exponent"], el["n"]
+    spring_step = a * (x1 * np.abs(x1) ** q - x0 * np.abs(x0) ** q)
+    spring = np.abs(dx) * np.abs(spring_step) / 2
+    if q >= 1.0:
+        spring = np.minimum(spring, a * q * (q + 1) * reach ** (q - 1) * np.abs(dx) ** 3 / 12)
+    network = el["network_stiffness"] * el["friction_gain"] * n * 6 * (travel + reach) * np.abs(dx) ** 3 / 12
+    crossing = np.maximum(-x0 * x1, 0.0) / 2
+    k, f, p = el["stiffness"], el.get("travel_softening", 0.0), el.get("travel_exponent", 1.0)
+    k_travel = k * np.exp(-f * np.r_[0.0, travel] ** p)
+    softening = -np.diff(k_travel) + el["damage"] * np.abs(dx) / el["damage_travel"] * (k + a * reach ** q)
+    return float(np.sum(spring + network + crossing * softening))
 
 
 def roundoff_floor(el: dict) -> float:
