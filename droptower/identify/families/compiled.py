@@ -19,6 +19,7 @@ numbers to the last bit. Only accepted elements are kept; a refused row raises t
 """
 from __future__ import annotations
 
+import pickle
 from collections import OrderedDict
 from typing import Any
 
@@ -38,19 +39,12 @@ CACHE_SIZE = 4096
 HEADER = ("name", "description", "source", "units")
 
 
-def frozen(value: Any) -> Any:
-    """A hashable key of an element table's value that tells apart whatever validation or
-    compilation could tell apart: each number by its type and bits (0.0 and -0.0 differ), tables
-    and lists entry by entry, in order."""
-    if isinstance(value, dict):
-        return ("dict",) + tuple((k, frozen(v)) for k, v in value.items())
-    if isinstance(value, (list, tuple)):
-        return (type(value).__name__,) + tuple(frozen(v) for v in value)
-    if isinstance(value, (float, np.floating)):
-        return (type(value).__name__, float(value).hex())
-    if isinstance(value, np.ndarray):
-        return ("ndarray", value.dtype.str, value.shape, value.tobytes())
-    return (type(value).__name__, value)
+def frozen(value: Any) -> bytes:
+    """A key of an element table that tells apart whatever validation or compilation could tell
+    apart: its pickle, which holds each number's type and bits (0.0 and -0.0 differ) and the
+    fields in their order. (Two equal tables may have two keys, e.g. where one holds an object
+    twice: a second compilation of the same numbers, never a wrong one.)"""
+    return pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
 
 
 class ElementCache:
