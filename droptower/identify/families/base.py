@@ -131,8 +131,12 @@ class Family:
     def batch(self, values: np.ndarray) -> Coupling:
         """One coupling whose parameter sets are the rows of ``values`` (M, n): the stack of each
         row's :meth:`coupling`, each distinct element validated and compiled once
-        (:func:`~droptower.identify.families.compiled.stacked`: the same numbers)."""
-        return stacked([self.coupling_data(v) for v in np.atleast_2d(values)])
+        (:func:`~droptower.identify.families.compiled.stacked`: the same numbers). A family that
+        builds its couplings its own way (its own :meth:`coupling`) gets the stack of those."""
+        values = np.atleast_2d(values)
+        if type(self).coupling is not Family.coupling:
+            return Coupling.stack([self.coupling(v) for v in values])
+        return stacked([self.coupling_data(v) for v in values])
 
 
 #: Options every family takes: max_nfev (evaluation limit of each least-squares stage; 0: 20
