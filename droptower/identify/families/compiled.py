@@ -20,6 +20,7 @@ numbers to the last bit. Only accepted elements are kept; a refused row raises t
 from __future__ import annotations
 
 import pickle
+import threading
 from collections import OrderedDict
 from typing import Any
 
@@ -56,21 +57,24 @@ class ElementCache:
         self.size = size
         self._entries: OrderedDict[Any, tuple] = OrderedDict()
         self._headers: set[tuple] = set()
+        self._lock = threading.Lock()  # identifications may run on several threads of one process
 
     def __len__(self) -> int:
         return len(self._entries)
 
     def clear(self) -> None:
         """Forget every element and header."""
-        self._entries.clear()
-        self._headers.clear()
+        with self._lock:
+            self._entries.clear()
+            self._headers.clear()
 
     def get(self, key: Any) -> tuple | None:
         """The entry of ``key`` (marked as used), or None."""
-        entry = self._entries.get(key)
-        if entry is not None:
-            self._entries.move_to_end(key)
-        return entry
+        with self._lock:
+            entry = self._entries.get(key)
+            if entry is not None:
+                self._entries.move_to_end(key)
+            return entry
 
     def put(self, key: Any, spec: ElementSpec, kernels: list[KernelElement]) -> tuple:
         """Keep the compiled element ``spec`` (``kernels``: what its ``compile()`` returned) under ``key``."""
@@ -78,9 +82,10 @@ class ElementCache:
                   tuple(k.n_state for k in kernels))
         params = np.concatenate([k.params for k in kernels]) if kernels else np.zeros(0)
         entry = (spec, list(kernels), params, layout)
-        self._entries[key] = entry
-        if len(self._entries) > self.size:
-            self._entries.popitem(last=False)
+        with self._lock:
+            self._entries[key] = entry
+            if len(self._entries) > self.size:
+                self._entries.popitem(last=False)
         return entry
 
     def row(self, data: dict[str, Any]) -> list[tuple]:
