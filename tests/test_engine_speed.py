@@ -36,6 +36,8 @@ def _rows(fam, rng: np.random.Generator, m: int) -> np.ndarray:
     lo, hi = np.array([p.z_bounds() for p in fam.parameters]).T
     z = lo + rng.random((m, lo.size)) * (hi - lo)
     rows = np.array([[p.to_value(v) for p, v in zip(fam.parameters, r)] for r in z])
+    for i, values in fam.choices().items():  # a parameter of a few values (the elastoslide's odd p)
+        rows[:, i] = rng.choice(values, m)
     shifted = np.repeat(rows[:1], lo.size, axis=0)
     shifted[np.arange(lo.size), np.arange(lo.size)] *= 1.0 + 1e-6
     return np.concatenate([rows, shifted, rows[:2]])  # rows met before, again
@@ -53,9 +55,9 @@ def _old_batch(fam, rows: np.ndarray) -> Coupling:
 @pytest.mark.parametrize("kind,options", CASES)
 def test_a_batch_is_the_stack_of_each_rows_coupling_to_the_last_bit(kind, options):
     fam = family_class(kind)(SCALE, options)
-    rng = np.random.default_rng(7)
+    rows = np.array([r for r in _rows(fam, np.random.default_rng(7), 4) if _admissible(fam, r)])
+    assert len(rows) >= len(fam.parameters)
     for _ in range(2):  # the second time every element is kept from the first
-        rows = np.array([r for r in _rows(fam, rng, 4) if _admissible(fam, r)])
         old, new = _old_batch(fam, rows), fam.batch(rows)
         assert np.array_equal(_bits(new.params), _bits(old.params))
         for name in ("codes", "p_off", "s_off", "kernel_owner"):
