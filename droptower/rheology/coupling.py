@@ -115,6 +115,12 @@ class Coupling:
             compiled = el.compile()
             kernels += compiled
             owner += [i] * len(compiled)
+        self._lay_out(kernels, owner, params)
+
+    def _lay_out(self, kernels: list[KernelElement], owner: list[int], params: np.ndarray | None) -> None:
+        """The compiled layout of ``kernels`` (``owner``: the element of each), its parameter sets
+        ``params`` (None: the kernels' own, one set)."""
+        path = self.path
         self.kernels = kernels
         self.kernel_owner = np.asarray(owner)
         self.codes = np.array([k.code for k in kernels], dtype=np.int64)
@@ -128,6 +134,23 @@ class Coupling:
         self.params = default if params is None else np.ascontiguousarray(params, dtype=np.float64)
         if self.params.ndim != 2 or self.params.shape[1] != default.shape[1]:
             raise ValueError("params must have shape (n_sets, %d)" % default.shape[1])
+
+    @classmethod
+    def compiled(cls, elements: list[ElementSpec], kernels: list[list[KernelElement]], params: np.ndarray, *,
+                 name: str = "", description: str = "", source: str = "", units: str = "torsional",
+                 path: Path | None = None) -> "Coupling":
+        """The coupling of validated ``elements`` already compiled (``kernels``: each element's
+        kernel elements, what its ``compile()`` returned) with the parameter sets ``params``
+        (n_sets, P): what ``Coupling(elements, ..., params=params)`` builds, without compiling
+        the elements again (the identification builds one per core call from elements it
+        compiled before, :mod:`droptower.identify.families.compiled`)."""
+        if not elements:
+            raise DroptowerError("a coupling needs at least one element", file=path)
+        out = cls.__new__(cls)
+        out.elements, out.name, out.description, out.source, out.units, out.path = (
+            list(elements), name, description, source, units, path)
+        out._lay_out([k for ks in kernels for k in ks], [i for i, ks in enumerate(kernels) for _ in ks], params)
+        return out
 
     # ------------------------------------------------------------- structure
     @property
@@ -157,9 +180,10 @@ class Coupling:
             if not (np.array_equal(c.codes, first.codes) and np.array_equal(c.p_off, first.p_off)
                     and np.array_equal(c.s_off, first.s_off)):
                 raise DroptowerError("couplings to stack must have the same element structure", file=c.path)
-        return Coupling(first.elements, name=first.name, description=first.description, source=first.source,
-                        units=first.units, path=first.path,
-                        params=np.vstack([c.params for c in couplings]))
+        # the first's compiled layout, not its elements compiled again (the same numbers)
+        out = first.with_params(np.vstack([c.params for c in couplings]))
+        out.elements, out.kernels = list(first.elements), list(first.kernels)
+        return out
 
     def _check_batch(self, batch: int) -> None:
         if self.n_sets not in (1, batch):

@@ -367,11 +367,12 @@ def _bank_rate_dependent(scales, yield_angles, elong, trial, work, v_r, p_exp, n
                 trial[i] = (u if b > 0.0 else -u) * yield_angles[i]
 
 
-@njit(**JIT)
-def _bank_coulomb(ks, fs, elong, trial, n, dx):
-    """Return mapping of Coulomb sliders: the elongation is clipped to f_i / k_i."""
+@njit(inline="always", **JIT)
+def _bank_coulomb(yield_angles, elong, trial, n, dx):
+    """Return mapping of Coulomb sliders: the elongation is clipped to f_i / k_i (``yield_angles``,
+    the bank's table of those quotients: the same numbers, one division fewer per slider and step)."""
     for i in range(n):
-        lim = fs[i] / ks[i]
+        lim = yield_angles[i]
         trial[i] = min(max(elong[i] + dx, -lim), lim)
 
 
@@ -392,7 +393,7 @@ def _bank_commit(ks, elong, trial, n, dx):
     return force, energy, slider_work
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def slider_bank(p, po, s, so, x0, x1, h):
     """n springs k_i each in series with a slider of limit f_i, in parallel (Iwan / Masing).
 
@@ -408,11 +409,10 @@ def slider_bank(p, po, s, so, x0, x1, h):
     p_c = p[po + P_SLIDER_BANK_CONSTRICTION_P]
     k_c = p[po + P_SLIDER_BANK_CONSTRICTION_K]
     ko = po + P_SLIDER_BANK_TABLES          # spring stiffnesses k_i
-    fo = po + P_SLIDER_BANK_TABLES + n      # slider limits f_i
     eo = so + S_SLIDER_BANK_BLOCKS          # elongations e_i, then the scratch blocks
     dx = x1 - x0
     if p_exp == 0:
-        _bank_coulomb(p[ko:ko + n], p[fo:fo + n], s[eo:eo + n], s[eo + n:eo + 2 * n], n, dx)
+        _bank_coulomb(p[ko + 3 * n:ko + 4 * n], s[eo:eo + n], s[eo + n:eo + 2 * n], n, dx)
     else:
         # slices with offsets from 0 keep the loops free of index checks, so they vectorise
         _bank_rate_dependent(p[ko + 2 * n:ko + 3 * n], p[ko + 3 * n:ko + 4 * n],
@@ -529,7 +529,7 @@ def _vm_force_table_linear_dashpot(pv, nk, s, so, e0, dx, h):
     return t1
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def _vm_commit(pv, nk, s, so, e0, dx, e):
     """The variable Maxwell branch's state at its new elongation e: torque, stored energy and
     the dashpot's work over the stroke dx - (e - e0) (trapezoidal); returns the torque."""
@@ -541,7 +541,7 @@ def _vm_commit(pv, nk, s, so, e0, dx, e):
     return t1
 
 
-@njit(**JIT)
+@njit(inline="always", **JIT)
 def variable_maxwell(p, po, s, so, x0, x1, h):
     """Maxwell branch with deformation-dependent stiffness and rate-dependent damping (the zero-dimensional model paper).
 

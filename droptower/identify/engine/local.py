@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from droptower.identify.engine.problem import (FitVariable, PriorProblem, Problem, finite_residuals,
+from droptower.identify.engine.problem import (FitVariable, PriorProblem, Problem, Variables, finite_residuals,
                                                one_blas_thread)
 
 #: Singular values of the Jacobian below this fraction of the largest mark a non-identifiable combination.
@@ -171,10 +171,11 @@ def local_fit(problem: Problem, start: np.ndarray, free: np.ndarray | None = Non
     if idx.size == 0:
         raise ValueError("no free parameter")
     lo, hi = np.array([parameters[i].z_bounds() for i in idx]).T
+    variables = Variables(parameters, idx)
 
     def values_of(z: np.ndarray) -> np.ndarray:
         v = x_all.copy()
-        v[idx] = [parameters[i].to_value(zi) for i, zi in zip(idx, z)]
+        v[idx] = variables.values(z)
         return v
 
     def safe(rows: np.ndarray) -> np.ndarray:
@@ -193,10 +194,12 @@ def local_fit(problem: Problem, start: np.ndarray, free: np.ndarray | None = Non
         r0 = fun(z)
         h = 1e-6 * (1.0 + np.abs(z))
         h = np.where(z + h > hi, -h, h)  # step inward at an upper bound
-        rows = np.array([values_of(z + h[j] * np.eye(z.size)[j]) for j in range(z.size)])
+        # row j: z + h_j e_j, the same sums as one row at a time
+        rows = np.repeat(x_all[None, :], z.size, axis=0)
+        rows[:, idx] = variables.values(z[None, :] + h[:, None] * np.eye(z.size))
         return ((safe(rows) - r0) / h[:, None]).T
 
-    z0 = np.array([parameters[i].to_z(x_all[i]) for i in idx])
+    z0 = variables.z(x_all)
     res = least_squares(fun, z0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, ftol=tol, xtol=tol,
                         gtol=tol * 1e-2, max_nfev=int(max_nfev or 20 * idx.size + 20))
     hits = [parameters[i].name for i, a in zip(idx, res.active_mask) if a != 0]

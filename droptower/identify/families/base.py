@@ -15,6 +15,7 @@ import numpy as np
 from droptower.errors import DroptowerError
 from droptower.identify.data import DataScale
 from droptower.identify.engine.problem import FitVariable, clip_to_bounds
+from droptower.identify.families.compiled import stacked
 from droptower.rheology import Coupling, parse_coupling
 
 
@@ -117,16 +118,25 @@ class Family:
     def initial(self) -> np.ndarray:
         return clip_to_bounds(self.parameters, self.guess())
 
+    def coupling_data(self, v: np.ndarray, *, name: str = "", description: str = "") -> dict[str, Any]:
+        """The coupling file (the dict :func:`~droptower.rheology.parse_coupling` reads) of one
+        parameter vector."""
+        return {"name": name or f"identified_{self.kind}", "description": description or self.title,
+                "source": self.source, "units": self.scale.units, "element": self.elements(np.asarray(v, float))}
+
     def coupling(self, v: np.ndarray, *, name: str = "", description: str = "") -> Coupling:
         """The coupling of one parameter vector."""
-        data = {"name": name or f"identified_{self.kind}", "description": description or self.title,
-                "source": self.source, "units": self.scale.units, "element": self.elements(np.asarray(v, float))}
-        return parse_coupling(data)
+        return parse_coupling(self.coupling_data(v, name=name, description=description))
 
     def batch(self, values: np.ndarray) -> Coupling:
-        """One coupling whose parameter sets are the rows of ``values`` (M, n)."""
+        """One coupling whose parameter sets are the rows of ``values`` (M, n): the stack of each
+        row's :meth:`coupling`, each distinct element validated and compiled once
+        (:func:`~droptower.identify.families.compiled.stacked`: the same numbers). A family that
+        builds its couplings its own way (its own :meth:`coupling`) gets the stack of those."""
         values = np.atleast_2d(values)
-        return Coupling.stack([self.coupling(v) for v in values])
+        if type(self).coupling is not Family.coupling:
+            return Coupling.stack([self.coupling(v) for v in values])
+        return stacked([self.coupling_data(v) for v in values])
 
 
 #: Options every family takes: max_nfev (evaluation limit of each least-squares stage; 0: 20

@@ -36,6 +36,7 @@ from droptower.identify.cycles import evaluate_block
 from droptower.identify.data import Segment
 from droptower.identify.families.base import Family, stiffness_parameter
 from droptower.identify.families.stages import Setup, result_of, steady_blocks
+from droptower.identify.engine.problem import Variables
 from droptower.identify.fit import FitVariable, clip_to_bounds
 from droptower.identify.result import Identification
 from droptower.identify.noise import servo_noise
@@ -386,10 +387,13 @@ class FilledRubberFamily(Family):
             return x0
         lo, hi = np.array([params[i].z_bounds() for i in idx]).T
         weight = 1.0 / np.abs(k_obs)
+        variables = Variables(params, np.array(idx))
 
         def values(z: np.ndarray) -> np.ndarray:
-            v = np.array(x0, float)
-            v[idx] = [params[i].to_value(zi) for i, zi in zip(idx, z)]
+            """Every parameter of the optimised variables ``z`` (..., len(idx)): ``x0`` but ``idx``."""
+            z = np.asarray(z, float)
+            v = np.repeat(np.array(x0, float)[None, :], z.size // len(idx), axis=0).reshape(z.shape[:-1] + (-1,))
+            v[..., idx] = variables.values(z)
             return v
 
         def residuals(rows: np.ndarray) -> np.ndarray:
@@ -402,7 +406,7 @@ class FilledRubberFamily(Family):
         def jacobian_points(_fun: Any, points: Any) -> np.ndarray:
             """scipy's map over the forward-difference Jacobian's shifted points (``workers``):
             their residuals in one call of the batched closed form, not one call each."""
-            return residuals(np.array([values(z) for z in points]))
+            return residuals(values(np.array(list(points), float)))
 
         z0 = np.clip([params[i].to_z(x0[i]) for i in idx], lo, hi)
         starts = [z0] + list(lo + qmc.LatinHypercube(d=len(idx), seed=seed).random(GUESS_STARTS) * (hi - lo))

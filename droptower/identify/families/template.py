@@ -23,7 +23,7 @@ from droptower.identify.families.base import Family
 from droptower.identify.families.stages import Setup, result_of
 from droptower.identify.fit import FitVariable
 from droptower.identify.result import Identification
-from droptower.rheology import Coupling, load_coupling, parse_coupling
+from droptower.rheology import Coupling, load_coupling
 
 
 def _slug(text: str) -> str:
@@ -82,12 +82,11 @@ class TemplateFamily(Family):
                 out[i][key] = float(factor) * out[i][key]
         return out
 
-    def coupling(self, v: np.ndarray, *, name: str = "", description: str = "") -> Coupling:
-        data = {"name": name or f"identified_{self.template.name}",
+    def coupling_data(self, v: np.ndarray, *, name: str = "", description: str = "") -> dict[str, Any]:
+        return {"name": name or f"identified_{self.template.name}",
                 "description": description or f"{self.template.description} (scale factors fitted)",
                 "source": f"{self.template.source}; template {self.template.name}", "units": self.template.units,
                 "element": self.elements(np.asarray(v, float))}
-        return parse_coupling(data)
 
 
 def identify_template(s: Setup, segments: list[Segment], start: float, **_) -> Identification:
