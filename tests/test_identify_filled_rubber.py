@@ -278,17 +278,26 @@ def test_first_guess_reproduces_the_readings_of_its_own_closed_form(seed):
                                                        np.zeros(len(x0), bool)) is x0
 
 
+#: The test types fitted (:func:`random_couplings.servo_records`' first three: the slow ramps, the
+#: frequency and the amplitude sweep, 6.5 s of record); the band-limited random profile (5 s) is
+#: left out of the fits: of another noise draw it is the hold-out, a record of a kind the fit never
+#: saw (measured: the seeds' filled_rubber fits 3.9 and 3.3 s of CPU instead of 5.7 and 4.8, hold-out
+#: 0.50 % and 0.54 %; the compare-models ranking below 8.7 s instead of 16.6).
+FITTED = slice(0, 3)
+
+
 @pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def servo_case():
     """``servo_case(seed)``: a seeded random coupling of the family's structure (not the family's
-    discretisation of the band), its test-type records (0.5 % noise), a hold-out record and the
-    identification with it; made once per module (the ranking reuses seed 1's)."""
+    discretisation of the band), its test-type records (0.5 % noise; :data:`FITTED`), its random
+    profile of another noise draw as the hold-out and the identification with it; made once per
+    module (the ranking reuses seed 1's)."""
     made: dict[int, tuple] = {}
 
     def case(seed: int) -> tuple[list, Identification]:
         if seed not in made:
             truth = parse_coupling(random_truth("filled_rubber", np.random.default_rng(30_000 + seed)))
-            data = servo_records(truth, seed)
+            data = servo_records(truth, seed)[FITTED]
             made[seed] = data, identify("filled_rubber", data, holdout=servo_records(truth, 50 + seed)[-1:])
         return made[seed]
 
@@ -299,7 +308,8 @@ def servo_case():
 @pytest.mark.parametrize("seed", range(2))
 def test_servo_records_of_random_filled_rubber_are_recovered(seed, servo_case):
     """Seeded random couplings of the family's structure (not the family's discretisation of the
-    band): the test-type records (0.5 % noise) identified to a good fit, the hold-out within 1 %."""
+    band): the test-type records (0.5 % noise) identified to a good fit, the hold-out (the random
+    profile, a kind of record the fit never saw) predicted within 1 %."""
     _, result = servo_case(seed)
     assert result.converged and not result.verdict.poor
     assert result.holdout_error.nrmse < 0.01
@@ -309,22 +319,23 @@ def test_servo_records_of_random_filled_rubber_are_recovered(seed, servo_case):
 def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled_rubber(servo_case):
     """On a filled-rubber-like coupling's records filled_rubber beats every other servo family
     with one parameter set by far (BIC); on the six-parameter model's own records (a simpler family
-    exact) it does not rank first. The filled-rubber records and their fit are the recovery
-    test's seed 1 (the same data and call: ``previous`` and the hold-out do not change a
-    filled_rubber fit or its BIC). On the six-parameter records filled_rubber runs with option
-    ``large_strain`` False: by default its four parts' poor fit there is refitted once with the
-    large-strain network, which gains nothing and is discarded (measured: the same fit after
-    the global search, BIC 17881.0 either way), so the ranking sees the same result for 9 s of
-    fitting instead of 44 s."""
+    exact) it does not rank first, though it fits them well too (a good fit: the criterion's
+    parameter count decides). The filled-rubber records and their fit are the recovery test's
+    seed 1 (the same data and call: ``previous`` and the hold-out do not change a filled_rubber
+    fit or its BIC). Both sets are the test types of :data:`FITTED` (on the six-parameter model's
+    with its random profile too, filled_rubber's fit was poor, BIC 17881 against 903, and its
+    global search cost 8.8 s of the test's 16.6). The elastoslide runs its global search in any
+    case (``search="always"``; the better of it and the staged fit is kept, so the competitor is
+    at least as strong as the command line's): its draws of the exponent p are checked."""
     filled, fitted = servo_case(1)
-    six = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 2)
+    six = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 2)[FITTED]
     for data, first, kinds in ((filled, "filled_rubber", ("zerodim6", "elastoslide", "masing", "pfeffer", "filled_rubber")),
                                (six, "zerodim6", ("zerodim6", "filled_rubber"))):
         results = {}
         for kind in kinds:
-            options = {"large_strain": False} if data is six and kind == "filled_rubber" else None
+            search = "always" if kind == "elastoslide" else "auto"
             results[kind] = (fitted if data is filled and kind == "filled_rubber"
-                             else identify(kind, data, previous=results, options=options))
+                             else identify(kind, data, previous=results, search=search))
         table = ranking_table(results, data)
         assert table["family"].iloc[0] == first, table[["family", "bic", "verdict"]]
         if "elastoslide" in results:  # its global search draws p among the odd candidates (it once sampled 1-99)
@@ -332,6 +343,8 @@ def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled
             assert results["elastoslide"].parameters["p"] in (3, 5, 7, 9, 11)
         if first == "filled_rubber":
             assert table["delta_bic"].iloc[1] > 10
+        else:
+            assert not results["filled_rubber"].verdict.poor  # outranked though it fits
 
 
 def test_translational_records_name_parameters_in_metres_and_newtons(monkeypatch):
