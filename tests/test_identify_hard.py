@@ -340,8 +340,10 @@ def test_a_masing_fit_stuck_at_a_neighbouring_spread_is_moved_to_the_truths_cost
 
 #: Where the first search of ``identify_drops("masing", ...)`` on the bench's masing hard draw #38
 #: ended (5.7 x the allowance; the values the rounds of moves start from, to the last digit, in
-#: MasingFamily's parameter order): the global search before them took 4.5 s of the 17.5 s the
-#: whole fit took, and gives these numbers as long as the engine gives its stored regression figures.
+#: MasingFamily's parameter order; measured with the engine whose figures
+#: tests/data/regression/test_engine_regression.json stores): the global search before the rounds
+#: took 4.5 s of the 17.5 s the whole fit took. The test checks the stored fit's error over the
+#: allowance, so a change of the decays it is judged on shows.
 FIRST_SEARCH_38 = np.array([211519.72116224776, 6969.622792698694, 1120.2981158260545, 674.0081831007623,
                             6.2948836316354395, 2124.5898035836954, 0.00012747788330336602, 3514.6026981727027,
                             0.008010220039490345])
