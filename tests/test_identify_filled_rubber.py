@@ -278,17 +278,26 @@ def test_first_guess_reproduces_the_readings_of_its_own_closed_form(seed):
                                                        np.zeros(len(x0), bool)) is x0
 
 
+#: The test types fitted (:func:`random_couplings.servo_records`' first three: the slow ramps, the
+#: frequency and the amplitude sweep, 6.5 s of record); the band-limited random profile (5 s) is
+#: left out of the fits: of another noise draw it is the hold-out, a record of a kind the fit never
+#: saw (measured: the seeds' filled_rubber fits 3.9 and 3.3 s of CPU instead of 5.7 and 4.8, hold-out
+#: 0.50 % and 0.54 %; the compare-models ranking below 8.7 s instead of 16.6).
+FITTED = slice(0, 3)
+
+
 @pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
 def servo_case():
     """``servo_case(seed)``: a seeded random coupling of the family's structure (not the family's
-    discretisation of the band), its test-type records (0.5 % noise), a hold-out record and the
-    identification with it; made once per module (the ranking reuses seed 1's)."""
+    discretisation of the band), its test-type records (0.5 % noise; :data:`FITTED`), its random
+    profile of another noise draw as the hold-out and the identification with it; made once per
+    module (the ranking reuses seed 1's)."""
     made: dict[int, tuple] = {}
 
     def case(seed: int) -> tuple[list, Identification]:
         if seed not in made:
             truth = parse_coupling(random_truth("filled_rubber", np.random.default_rng(30_000 + seed)))
-            data = servo_records(truth, seed)
+            data = servo_records(truth, seed)[FITTED]
             made[seed] = data, identify("filled_rubber", data, holdout=servo_records(truth, 50 + seed)[-1:])
         return made[seed]
 
@@ -299,7 +308,8 @@ def servo_case():
 @pytest.mark.parametrize("seed", range(2))
 def test_servo_records_of_random_filled_rubber_are_recovered(seed, servo_case):
     """Seeded random couplings of the family's structure (not the family's discretisation of the
-    band): the test-type records (0.5 % noise) identified to a good fit, the hold-out within 1 %."""
+    band): the test-type records (0.5 % noise) identified to a good fit, the hold-out (the random
+    profile, a kind of record the fit never saw) predicted within 1 %."""
     _, result = servo_case(seed)
     assert result.converged and not result.verdict.poor
     assert result.holdout_error.nrmse < 0.01
@@ -309,22 +319,23 @@ def test_servo_records_of_random_filled_rubber_are_recovered(seed, servo_case):
 def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled_rubber(servo_case):
     """On a filled-rubber-like coupling's records filled_rubber beats every other servo family
     with one parameter set by far (BIC); on the six-parameter model's own records (a simpler family
-    exact) it does not rank first. The filled-rubber records and their fit are the recovery
-    test's seed 1 (the same data and call: ``previous`` and the hold-out do not change a
-    filled_rubber fit or its BIC). On the six-parameter records filled_rubber runs with option
-    ``large_strain`` False: by default its four parts' poor fit there is refitted once with the
-    large-strain network, which gains nothing and is discarded (measured: the same fit after
-    the global search, BIC 17881.0 either way), so the ranking sees the same result for 9 s of
-    fitting instead of 44 s."""
+    exact) it does not rank first, though it fits them well too (a good fit: the criterion's
+    parameter count decides). The filled-rubber records and their fit are the recovery test's
+    seed 1 (the same data and call: ``previous`` and the hold-out do not change a filled_rubber
+    fit or its BIC). Both sets are the test types of :data:`FITTED` (on the six-parameter model's
+    with its random profile too, filled_rubber's fit was poor, BIC 17881 against 903, and its
+    global search cost 8.8 s of the test's 16.6). The elastoslide runs its global search in any
+    case (``search="always"``; the better of it and the staged fit is kept, so the competitor is
+    at least as strong as the command line's): its draws of the exponent p are checked."""
     filled, fitted = servo_case(1)
-    six = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 2)
+    six = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 2)[FITTED]
     for data, first, kinds in ((filled, "filled_rubber", ("zerodim6", "elastoslide", "masing", "pfeffer", "filled_rubber")),
                                (six, "zerodim6", ("zerodim6", "filled_rubber"))):
         results = {}
         for kind in kinds:
-            options = {"large_strain": False} if data is six and kind == "filled_rubber" else None
+            search = "always" if kind == "elastoslide" else "auto"
             results[kind] = (fitted if data is filled and kind == "filled_rubber"
-                             else identify(kind, data, previous=results, options=options))
+                             else identify(kind, data, previous=results, search=search))
         table = ranking_table(results, data)
         assert table["family"].iloc[0] == first, table[["family", "bic", "verdict"]]
         if "elastoslide" in results:  # its global search draws p among the odd candidates (it once sampled 1-99)
@@ -332,6 +343,8 @@ def test_compare_models_ranks_filled_rubber_first_only_where_the_truth_is_filled
             assert results["elastoslide"].parameters["p"] in (3, 5, 7, 9, 11)
         if first == "filled_rubber":
             assert table["delta_bic"].iloc[1] > 10
+        else:
+            assert not results["filled_rubber"].verdict.poor  # outranked though it fits
 
 
 def test_translational_records_name_parameters_in_metres_and_newtons(monkeypatch):
@@ -420,10 +433,15 @@ DROP_OPTIONS = {"n": 8}
 DROP_CYCLES = 2.0
 
 
-def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int, heights: tuple[float, ...] = (0.2, 1.0, 3.0)):
+def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int, heights: tuple[float, ...] = (0.2, 1.0, 3.0),
+                        duration_s: float = 0.25):
     """Noisy rig logs of ``truth``, the drop ``heights`` (m) on each of the three inertias (noise
-    seeds from ``seed``), their first :data:`DROP_CYCLES` periods identified with filled_rubber
-    (:data:`DROP_OPTIONS`): (the fit, its bench agreement over the tested range)."""
+    seeds from ``seed``), ``duration_s`` long after the impact, their first :data:`DROP_CYCLES`
+    periods identified with filled_rubber (:data:`DROP_OPTIONS`): (the fit, its bench agreement
+    over the tested range). A log shorter than the rig's 0.25 s gives the same decays (the angle
+    and torque to the bit, the impact's rate to 1e-13) where every compared window ends inside it
+    (checked: 20 ms before its end), for a fraction of the rig's simulation (it runs on through
+    the drop mass's rebounds)."""
     from droptower.identify.dropfit import DropFitSettings, identify_drops, servo_agreement
     from droptower.identify.droplogs import ReadSettings, read_decays
     from droptower.rig.config import load_rig
@@ -434,9 +452,9 @@ def _drop_fit_agreement(truth: Coupling, tmp_path, seed: int, heights: tuple[flo
                                                                                       (0.5233, 2.0)])
              for k, h in enumerate(heights)]
     paths = [r.write_log(tmp_path / f"test_{k}.parquet")
-             for k, r in enumerate(rig_simulate(load_rig("rapp2022"), truth, tests, 0.25))]
+             for k, r in enumerate(rig_simulate(load_rig("rapp2022"), truth, tests, duration_s))]
     decays, excluded = read_decays(paths, ReadSettings(cycles=DROP_CYCLES))
-    assert not excluded
+    assert not excluded and max(d.time_s[-1] for d in decays) <= duration_s - 0.02  # no window cut by the log's end
     result = identify_drops("filled_rubber", decays, settings=DropFitSettings(holdout_fraction=0.0),
                             options=DROP_OPTIONS)
     return result, servo_agreement(result.coupling, truth, decays, n_amplitudes=3, n_frequencies=2)
@@ -454,7 +472,7 @@ def test_drop_tests_of_a_random_filled_rubber_coupling_predict_its_bench(seed, t
     issue's 12-drop figures: ``benchmarks/bench_identify.py --filled-rubber``."""
     data = random_truth("filled_rubber", np.random.default_rng(31_000 + seed))
     data["element"][1]["n"] = DROP_OPTIONS["n"]  # the family's network (a finer one is not the family's structure)
-    result, agree = _drop_fit_agreement(parse_coupling(data), tmp_path, 2000)
+    result, agree = _drop_fit_agreement(parse_coupling(data), tmp_path, 2000, duration_s=0.2)  # decays end by 0.147 s
     assert agree["storage_stiffness_rms"] <= 0.03 and agree["loss_factor_rms"] <= 0.10, agree
     assert not result.verdict.poor
 
@@ -475,7 +493,7 @@ def test_drop_tests_of_a_coupling_whose_viscous_loss_grows_with_the_amplitude_pr
     eta = run_grid(truth, np.radians([0.4, 2.6]), [30.0], cycles=2, run_in_cycles=3,
                    simulation_rate_hz=9600.0)["loss_factor"].to_numpy()
     assert eta[1] > 1.3 * eta[0]  # the draw has the mechanism under test
-    result, agree = _drop_fit_agreement(truth, tmp_path, 2100, heights=(0.2, 3.0))
+    result, agree = _drop_fit_agreement(truth, tmp_path, 2100, heights=(0.2, 3.0), duration_s=0.12)  # end by 0.088 s
     assert agree["storage_stiffness_rms"] <= 0.05 and agree["loss_factor_rms"] <= 0.10, agree
     assert result.verdict.error_over_noise < 4.0, result.verdict
     assert "kv_gain_nm_per_rad2" in result.search.get("deferred_freed", [])  # the first search, without it, was poor

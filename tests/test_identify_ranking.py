@@ -194,7 +194,8 @@ def test_a_poor_staged_start_gives_way_to_the_first_guess_and_zerodim20_follows_
     from droptower.identify import identify
     from droptower.rheology import parse_coupling
 
-    data = servo_records(parse_coupling(random_truth("zerodim6", np.random.default_rng(500))), 0)
+    truth = parse_coupling(random_truth("zerodim6", np.random.default_rng(500)))
+    data = servo_records(truth, 0)
     six = identify("zerodim6", data)
     assert six.extra["joint_start"] == "first guess" and six.converged and six.verdict.verdict == GOOD
     assert "global_search" not in six.extra
@@ -202,5 +203,12 @@ def test_a_poor_staged_start_gives_way_to_the_first_guess_and_zerodim20_follows_
     assert rich.extra["start"]["family"] == "zerodim6" and rich.extra["start"]["nrmse"] == pytest.approx(six.fit_error.nrmse)
     assert rich.evaluations > rich.extra["start"]["evaluations"] == six.evaluations
     assert rich.converged and rich.verdict.verdict == GOOD and rich.fit_error.nrmse <= six.fit_error.nrmse * (1 + 1e-9)
-    searched = identify("zerodim20", data[1:3], search="always")  # the two sweeps: a short search
+    # where the search goes is the claim, not what it finds: two short sweeps of the same coupling
+    # at 256 Hz (2.0 s of CPU; its two sweeps of the records above at 2048 Hz, 4.1 s)
+    from droptower.servo import histories as H
+    from test_identify_helpers import D, records
+
+    sweeps = {"amplitude_sweep": H.amplitude_sweep(D(np.array([0.3, 1.0, 2.5])), 8.0, 256.0, run_in_cycles=2, cycles=3),
+              "frequency_sweep": H.frequency_sweep([2.0, 8.0], D(1.0), 256.0, run_in_cycles=2, cycles=3)}
+    searched = identify("zerodim20", records(truth, sweeps)[0], search="always")
     assert searched.extra["global_search"]["through"] == "zerodim6" and searched.converged

@@ -63,26 +63,22 @@ def _coverage() -> dict[bool, dict[str, float]]:
 
 
 @pytest.mark.slow  # the 1000 drops (~4 s idle)
-def test_the_95_percent_intervals_cover_the_truth_and_the_fits_alone_under_cover():
+def test_the_coverage_is_stored(regression):
     """The budget's 95 % intervals hold the true stiffness and frequency (k = 2 on a near-normal
     output: 95.45 %; the binomial's standard deviation over 1000 drops is 0.66 %). The fit's own
     uncertainty (its *_std) is blind to J and the clock: its intervals miss the true stiffness in
-    almost every drop and the frequency in many. (One test for one set of drops: tests that
-    shared them through a cache ran them once per xdist worker when the workers split the module.)"""
+    almost every drop and the frequency in many. The shares are the ones docs/guide/uncertainty.md
+    states (analysis/readme_figures.py renders them): seeded drops, so the same counts; one drop's
+    interval ending on the other side of its truth under another machine's round-off moves a share
+    by 1/N_DROPS. (One test for one set of drops: two tests that each drew them paid for them twice,
+    and tests that shared them through a cache ran them once per xdist worker when the workers
+    split the module.)"""
     shares = _coverage()
     for name in ("stiffness_nm_per_rad", "frequency_hz"):
         assert shares[True][name] == pytest.approx(0.95, abs=0.025), name
     fit_only = shares[False]
     assert fit_only["stiffness_nm_per_rad"] < 0.5
     assert fit_only["frequency_hz"] < 0.925
-
-
-@pytest.mark.slow
-def test_the_coverage_is_stored(regression):
-    """The shares docs/guide/uncertainty.md states (analysis/readme_figures.py renders them): seeded
-    drops, so the same counts; one drop's interval ending on the other side of its truth under
-    another machine's round-off moves a share by 1/N_DROPS."""
-    shares = _coverage()
     for on, label in ((True, "with_inputs"), (False, "fit_only")):
         for name, share in shares[on].items():
             regression.check(f"{label}_{name}", share, rel=0.0, atol=1.0 / N_DROPS)
