@@ -40,13 +40,78 @@ def regression(request: pytest.FixtureRequest) -> Regression:
 
 
 @pytest.fixture(scope="session")
-def lab_folder(tmp_path_factory: pytest.TempPathFactory):
+def lab_folder_and_drops(tmp_path_factory: pytest.TempPathFactory):
     """The lab's 54-file folder (``write_lab_folder``'s defaults: the German dialect, the
-    ``rapp2022_nr60`` drops, the lab's rig file and conditions sheet), written once per process
-    for the tests that only read it (tests/test_lab_folder_e2e.py, tests/test_extract_lab.py)."""
+    ``rapp2022_nr60`` drops, the lab's rig file and conditions sheet), written once per process,
+    and the simulated drops it was written from (``DropResult``s in the order of its logs)."""
+    import importlib
+
     from labfolder import write_lab_folder
 
-    return write_lab_folder(tmp_path_factory.mktemp("lab54") / "lab")
+    simulation = importlib.import_module("droptower.rig.simulate")  # the module (the package's name is the function)
+    drops: list = []
+
+    def simulate_and_keep(*args, **kwargs):
+        results = simulate(*args, **kwargs)
+        drops.extend(results)
+        return results
+
+    simulate = simulation.simulate
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(simulation, "simulate", simulate_and_keep)
+        lab = write_lab_folder(tmp_path_factory.mktemp("lab54") / "lab")
+    assert len(drops) == len(lab.logs)
+    return lab, drops
+
+
+@pytest.fixture(scope="session")
+def lab_folder(lab_folder_and_drops):
+    """The lab's 54-file folder, for the tests that only read it (tests/test_lab_folder_e2e.py,
+    tests/test_extract_lab.py, tests/test_lab_downstream.py)."""
+    return lab_folder_and_drops[0]
+
+
+@pytest.fixture(scope="session")
+def lab_work(tmp_path_factory: pytest.TempPathFactory):
+    """Where the commands run on the lab's folder write (the session fixtures below)."""
+    return tmp_path_factory.mktemp("lab54_work")
+
+
+@pytest.fixture(scope="session")
+def lab_extracted(lab_folder, lab_work):
+    """``extract`` of the whole folder with the lab's rig file and sheet: the command's
+    :class:`labfolder.Step` and its ``--out`` table (results.csv)."""
+    from labfolder import droptower
+
+    out = lab_work / "results.csv"
+    return droptower("extract", *lab_folder.logs, "--conditions", lab_folder.sheet, "--rig", lab_folder.rig,
+                     "--out", out), out
+
+
+@pytest.fixture(scope="session")
+def lab_extracted_preset(lab_folder, lab_work):
+    """The same ``extract`` with the shipped preset rig ``rapp2022`` instead of the lab's rig file
+    (results_preset.csv)."""
+    from labfolder import droptower
+
+    out = lab_work / "results_preset.csv"
+    return droptower("extract", *lab_folder.logs, "--conditions", lab_folder.sheet, "--rig", "rapp2022",
+                     "--out", out), out
+
+
+@pytest.fixture(scope="session")
+def lab_model_mapped(lab_folder, lab_work):
+    """The model route on the folder: ``map FOLDER --family template --template rapp2022_nr60``
+    with the lab's rig and sheet, the paper's map (map_folder.json) and the model-based map
+    (model_map.json) beside it; the command's :class:`labfolder.Step`. The paper's map of these
+    tests is fitted once per process (tests/shared_map_fits.py)."""
+    from labfolder import droptower
+    from shared_map_fits import share_map_fits
+
+    with share_map_fits():  # its paper map is the extracted table's (test_lab_folder_e2e.py maps and reports it)
+        return droptower("map", lab_folder.folder, "--conditions", lab_folder.sheet, "--rig", lab_folder.rig,
+                         "--out", lab_work / "map_folder.json", "--family", "template", "--template",
+                         "rapp2022_nr60", "--model-out", lab_work / "model_map.json")
 
 
 @pytest.hookimpl(trylast=True)  # after pytest's own ordering by fixture scope, which this keeps

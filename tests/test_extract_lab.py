@@ -150,17 +150,18 @@ def test_malformed_conditions_tables(small, lab, data, capsys, tmp_path):
 
 
 @pytest.mark.slow
-def test_full_lab_folder_and_table2_campaign_no_false_flags(lab_folder, tmp_path, capsys):
+def test_full_lab_folder_and_table2_campaign_no_false_flags(lab_extracted, lab_extracted_preset, tmp_path, capsys):
     """Calibration of the geometry flags: the 54-file lab folder with its own rig and the 450
     Table-2 campaign logs with the rapp2022 rig raise none; the same folder with the preset rig
     flags every drop it can judge (the 18 without a double impact). The folder is
-    ``write_lab_folder``'s default (tests/conftest.py, shared with test_lab_folder_e2e.py)."""
-    lab = lab_folder
-    args = [*map(str, lab.logs), "--conditions", str(lab.sheet)]
-    code, err, right = _extract([*args, "--rig", str(lab.rig)], capsys, tmp_path, "right.csv")
-    assert code == 0 and len(right) == 54
+    ``write_lab_folder``'s default, extracted with either rig once per process (tests/conftest.py:
+    ``extract LOGS --conditions SHEET --rig RIG --out TABLE``, read by test_lab_folder_e2e.py too)."""
+    (step, out), (wrong_step, wrong_out) = lab_extracted, lab_extracted_preset
+    assert step.code == 0 and wrong_step.code == 0, step.err + wrong_step.err
+    right = pd.read_csv(out, keep_default_na=False, na_values=[""])
+    assert len(right) == 54
     assert not any(_geometry_flags(row) for row in right.to_dict(orient="records"))
-    code, err, wrong = _extract([*args, "--rig", "rapp2022"], capsys, tmp_path, "wrong.csv")
+    wrong = pd.read_csv(wrong_out, keep_default_na=False, na_values=[""])
     judged = wrong[~wrong["double_impact"]]
     assert len(judged) == 18 and all(_geometry_flags(row) == set(GEOMETRY_FLAGS)
                                      for row in judged.to_dict(orient="records"))
