@@ -39,6 +39,18 @@ def regression(request: pytest.FixtureRequest) -> Regression:
     return Regression(request.node, request.config.getoption("--regenerate"))
 
 
+@pytest.fixture(scope="module")
+def shared_map_fits():
+    """One characteristic-map fit per distinct input for the module that asks for it
+    (``pytestmark = pytest.mark.usefixtures("shared_map_fits")``; tests/shared_map_fits.py): its
+    commands and library calls that fit the same tests (Table 4's, one table in several formats,
+    one campaign) fit them once per process."""
+    from shared_map_fits import share_map_fits
+
+    with share_map_fits() as cache:
+        yield cache
+
+
 @pytest.fixture(scope="session")
 def lab_folder_and_drops(tmp_path_factory: pytest.TempPathFactory):
     """The lab's 54-file folder (``write_lab_folder``'s defaults: the German dialect, the

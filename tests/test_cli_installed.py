@@ -19,6 +19,9 @@ import pytest
 
 from droptower.cli.main import COMMANDS, main
 
+#: the same tests' map fitted once per process by this module's commands and calls (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("shared_map_fits")
+
 
 def _console_script() -> list[str]:
     """The ``droptower`` script beside this interpreter (a venv's bin/), else ``python -m``."""
