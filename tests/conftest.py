@@ -54,8 +54,10 @@ def shared_map_fits():
 @pytest.fixture(scope="session")
 def lab_folder_and_drops(tmp_path_factory: pytest.TempPathFactory):
     """The lab's 54-file folder (``write_lab_folder``'s defaults: the German dialect, the
-    ``rapp2022_nr60`` drops, the lab's rig file and conditions sheet), written once per process,
-    and the simulated drops it was written from (``DropResult``s in the order of its logs)."""
+    ``rapp2022_nr60`` drops, the lab's rig file and conditions sheet; records of 0.12 s after the
+    impact, as test_lab_downstream.py's folders: four periods and more of the slowest fixture),
+    written once per process, and the simulated drops it was written from (``DropResult``s in the
+    order of its logs)."""
     import importlib
 
     from labfolder import write_lab_folder
@@ -71,7 +73,7 @@ def lab_folder_and_drops(tmp_path_factory: pytest.TempPathFactory):
     simulate = simulation.simulate
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(simulation, "simulate", simulate_and_keep)
-        lab = write_lab_folder(tmp_path_factory.mktemp("lab54") / "lab")
+        lab = write_lab_folder(tmp_path_factory.mktemp("lab54") / "lab", duration_s=0.12)
     assert len(drops) == len(lab.logs)
     return lab, drops
 
