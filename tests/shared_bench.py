@@ -39,12 +39,17 @@ def _coupling_key(coupling: Any) -> Any:
         return None
 
 
+#: The runs :func:`share_bench` keeps per name (``keep``), for this process.
+_KEPT: dict[str, dict[Any, Any]] = {}
+
+
 class BenchCache:
     """Memoised sweeps and model-map bench evaluations; ``calls`` / ``runs`` count them."""
 
-    def __init__(self, run_sweeps: Callable[..., Any], first_harmonics: Callable[..., Any]):
+    def __init__(self, run_sweeps: Callable[..., Any], first_harmonics: Callable[..., Any],
+                 store: dict[Any, Any] | None = None):
         self._run_sweeps, self._first_harmonics = run_sweeps, first_harmonics
-        self._store: dict[Any, Any] = {}
+        self._store: dict[Any, Any] = {} if store is None else store
         self.calls = self.runs = 0
 
     def _get(self, key: Any, run: Callable[[], Any]) -> Any:
@@ -68,14 +73,17 @@ class BenchCache:
 
 
 @contextmanager
-def share_bench() -> Iterator[BenchCache]:
+def share_bench(keep: str | None = None) -> Iterator[BenchCache]:
     """Route every call of ``run_sweeps`` (``droptower.compare``'s and its module's, which
     ``validate`` and the report's routes section import when they run) and of the model map's
-    ``bench_first_harmonics`` through one :class:`BenchCache`."""
+    ``bench_first_harmonics`` through one :class:`BenchCache`. With ``keep`` (a name) its runs
+    outlive the context in this process: session fixtures that each open it under one name
+    (``validate`` and ``report`` of one model map against one bench) share them."""
     import droptower.compare as compare_package
     from droptower.compare import model_map, servo_points
 
-    cache = BenchCache(servo_points.run_sweeps, model_map.bench_first_harmonics)
+    cache = BenchCache(servo_points.run_sweeps, model_map.bench_first_harmonics,
+                       None if keep is None else _KEPT.setdefault(keep, {}))
     with pytest.MonkeyPatch.context() as mp:
         for target in (servo_points, compare_package):
             mp.setattr(target, "run_sweeps", cache.run_sweeps)

@@ -171,6 +171,7 @@ def test_temperature_span_is_said():
 
 
 # ------------------------------------------------------------------------------------------ the model route
+@pytest.mark.slow  # the first of this process's tests to read the folder's model route waits for it
 def test_model_route_on_a_lab_folder(lab_model_mapped, lab_work, tmp_path, capsys):
     """map FOLDER --family on a plain folder of logs with --conditions and --rig (the lab's
     54-file folder: tests/conftest.py runs it once per process, test_lab_folder_e2e.py checks the

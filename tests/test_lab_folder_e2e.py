@@ -39,6 +39,7 @@ import pandas as pd
 import pytest
 
 from labfolder import LabFolder, Step, droptower
+from shared_bench import share_bench
 from shared_map_fits import share_map_fits
 
 pytestmark = pytest.mark.slow
@@ -130,13 +131,14 @@ def model_mapped(lab_model_mapped) -> Step:
 
 @pytest.fixture(scope="session")
 def validated(mapped, model_mapped, bench, work) -> Step:
-    return droptower("validate", "--map", work / "map.json", "--model-map", work / "model_map.json",
-                     "--servo-results", bench, "--out", work / "validation", "--json")
+    with share_bench(keep=__name__):  # the model map at the bench's points: evaluated once for validate and report
+        return droptower("validate", "--map", work / "map.json", "--model-map", work / "model_map.json",
+                         "--servo-results", bench, "--out", work / "validation", "--json")
 
 
 @pytest.fixture(scope="session")
 def reported(lab, model_mapped, bench, work) -> Step:
-    with share_map_fits():
+    with share_map_fits(), share_bench(keep=__name__):
         return droptower("report", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--servo-results", bench,
                          "--model-map", work / "model_map.json", "--out", work / "report.html")
 
