@@ -4,7 +4,8 @@ simulated on the lab's rig, so each file's conditions and double impacts are kno
 Folders are built once per module and kept small: 3 fixtures x 1 kg x 3 heights x 2 repeats
 (every drop of the lightest fixture L1 strikes twice, as the impact law says: its equivalent mass
 J/L^2 = 1.92 kg is not enough above the 1 kg drop mass), and for the round trips one fixture
-x 12 drops in each of two dialects.
+x 12 drops in each of two dialects. The model route runs on the session's 54-file folder
+(tests/conftest.py: its map FOLDER --family step, which test_lab_folder_e2e.py reads too).
 """
 from __future__ import annotations
 
