@@ -140,18 +140,38 @@ def pytest_collection_modifyitems(config, items) -> None:
     if "PYTEST_XDIST_WORKER" in os.environ and not (config.getoption("failedfirst", False)
                                                     or config.getoption("newfirst", False)):
         slow = {item.nodeid for item in items if item.get_closest_marker("slow")}
-        position = {node: k for k, node in enumerate(heavy_files_first([item.nodeid for item in items], slow))}
+        groups = {item.nodeid.split("::")[0]: "lab folder" for item in items
+                  if LAB_FOLDER_STEPS & set(getattr(item, "fixturenames", ()))}
+        position = {node: k for k, node in enumerate(heavy_files_first([item.nodeid for item in items], slow, groups))}
         items.sort(key=lambda item: position[item.nodeid])
 
 
-def heavy_files_first(node_ids: list[str], slow: set[str]) -> list[str]:
+#: the session fixtures on the lab's 54-file folder: the files that read them run next to each
+#: other (:func:`heavy_files_first`'s groups), so one worker builds them for all
+LAB_FOLDER_STEPS = {"lab_folder", "lab_folder_and_drops", "lab_extracted", "lab_extracted_preset", "lab_model_mapped"}
+
+
+def heavy_files_first(node_ids: list[str], slow: set[str], groups: dict[str, str] | None = None) -> list[str]:
     """``node_ids`` with their test files by their number of ``slow`` tests, most first, each
     file's tests together and in their own order (module fixtures are set up once per worker).
+    The files of one of ``groups`` (test file -> group name: files that read the same session
+    fixtures) go together, at the place of their summed ``slow`` tests, the heaviest file first.
 
     Under ``--dist worksteal`` (pyproject's addopts) a worker that runs out of tests takes the
     second half of the other's queue, from its end: the long tests start first and the short ones
     fill the tail, so no worker waits at the end on a long test that started late
     (CONTRIBUTING.md#test-suite-timeline).
     """
-    count = Counter(node.split("::")[0] for node in node_ids if node in slow)
-    return sorted(node_ids, key=lambda node: -count[node.split("::")[0]])  # stable: their order among equals
+    def file(node: str) -> str:
+        return node.split("::")[0]
+
+    count = Counter(file(node) for node in node_ids if node in slow)
+    group = {file(node): (groups or {}).get(file(node), file(node)) for node in node_ids}
+    group_count: Counter = Counter()
+    for name, in_group in group.items():
+        group_count[in_group] += count[name]
+    first: dict[str, int] = {}  # a group's place among equals: its first file's in node_ids
+    for node in node_ids:
+        first.setdefault(group[file(node)], len(first))
+    return sorted(node_ids, key=lambda node: (-group_count[group[file(node)]], first[group[file(node)]],
+                                              -count[file(node)]))  # stable: their order among equals
