@@ -338,10 +338,10 @@ def test_scheduler_that_does_not_answer(inputs, tmp_path, capsys):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     out = tmp_path / "dask"
-    code = _cli(inputs, out, "--scheduler", f"tcp://127.0.0.1:{port}", "--scheduler-timeout-s", "1")
+    code = _cli(inputs, out, "--scheduler", f"tcp://127.0.0.1:{port}", "--scheduler-timeout-s", "0.2")
     assert code == 2
     line = _one_line_error(capsys.readouterr().err)
-    assert f"--scheduler: the Dask scheduler at tcp://127.0.0.1:{port} does not answer within 1 s" in line
+    assert f"--scheduler: the Dask scheduler at tcp://127.0.0.1:{port} does not answer within 0.2 s" in line
     assert not out.exists()
 
 

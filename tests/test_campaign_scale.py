@@ -109,7 +109,12 @@ def test_killed_client_resumes_on_the_cluster_to_the_same_results(inputs, refere
         proc.wait()
     done = _records(out)
     assert 1 <= done < N_TESTS, "the kill came too late to interrupt the campaign"
-    time.sleep(1.0)  # chunks the dead client left on the cluster are dropped with its futures
+    # the chunks the dead client left on the cluster are dropped with its futures: wait for that
+    # (the scheduler notices the closed connection at once; the limit is a hung cluster's, not a timing)
+    deadline = time.monotonic() + 60
+    while cluster.scheduler.tasks and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not cluster.scheduler.tasks, f"{len(cluster.scheduler.tasks)} chunks of the killed client still held"
     run = run_campaign(out, coupling=inputs["coupling"], doe=inputs["doe"], resume=True,
                        scheduler=cluster.scheduler_address, **SETTINGS)
     assert run.pending == 0 and _records(out) == N_TESTS

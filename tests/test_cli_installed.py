@@ -19,6 +19,9 @@ import pytest
 
 from droptower.cli.main import COMMANDS, main
 
+#: the same tests' map fitted once per process by this module's commands and calls (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("shared_map_fits")
+
 
 def _console_script() -> list[str]:
     """The ``droptower`` script beside this interpreter (a venv's bin/), else ``python -m``."""
@@ -44,9 +47,10 @@ def test_top_level_help_lists_every_command(args):
 
 
 #: Commands that run for real as installed below (or, extract, in
-#: test_hardening.py::test_installed_extract_ends_with_its_own_exit_code): a fresh interpreter
-#: imports each one's module there, so its help is read in this process; the others' help is
-#: their one run as installed.
+#: test_hardening.py::test_installed_extract_ends_with_its_own_exit_code, and map, on a lab's
+#: results table, in test_lab_folder_e2e.py::test_the_results_table_reads_back_in_a_fresh_process):
+#: a fresh interpreter imports each one's module there, so its help is read in this process; the
+#: others' help is their one run as installed.
 RUN_AS_INSTALLED = {"servo", "simulate", "channels", "extract", "plan", "campaign", "report", "map", "validate",
                     "identify", "compare-models"}
 
@@ -69,8 +73,10 @@ def test_every_command_whose_help_is_read_in_process_runs_as_installed():
     import re
 
     import test_hardening
+    import test_lab_folder_e2e
 
-    runs = Path(__file__).read_text() + inspect.getsource(test_hardening.test_installed_extract_ends_with_its_own_exit_code)
+    runs = (Path(__file__).read_text() + inspect.getsource(test_hardening.test_installed_extract_ends_with_its_own_exit_code)
+            + inspect.getsource(test_lab_folder_e2e.test_the_results_table_reads_back_in_a_fresh_process))
     assert RUN_AS_INSTALLED <= set(COMMANDS)
     for name in RUN_AS_INSTALLED:
         assert re.search(rf'_(ok|run)\("{name}"', runs), name
@@ -136,8 +142,8 @@ def test_run_plan_campaign_map_validate(folder):
     assert len(pd.read_csv(camp / "summary.csv")) == 2  # one row per condition
     _ok("report", str(camp))
     assert (camp / "report.html").stat().st_size > 100_000
-    map_file = folder / "map.json"
-    _ok("map", "rapp2022_table4", "--out", str(map_file))
+    map_file = folder / "map.json"  # map's run as installed: test_lab_folder_e2e.py, on a lab's results table
+    assert main(["map", "rapp2022_table4", "--out", str(map_file)]) == 0
     servo = folder / "servo.csv"
     pd.DataFrame({"amplitude_deg": [0.5, 1.5], "frequency_hz": [30.0, 30.0],
                   "storage_stiffness_nm_per_deg": [250.0, 200.0], "loss_factor": [0.2, 0.25]}).to_csv(servo, index=False)

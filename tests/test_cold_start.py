@@ -30,38 +30,53 @@ def _loaded(names: tuple[str, ...] = HEAVY) -> str:
     return f"[m for m in {names!r} if m in sys.modules]"
 
 
-@pytest.mark.parametrize("statement", ["import droptower.extract",
-                                       "import droptower; droptower.extract_file; droptower.ExtractSettings",
-                                       "from droptower.io import read_any, map_channels, DropSignals",
-                                       "import droptower.damped_cosine, droptower.sdof"])
-def test_reading_and_extraction_import_no_heavy_package(statement: str) -> None:
-    """The extractor's modules import none of the heavy packages: each is imported where it is
-    used (scipy.signal for the angle-only drop finder, the decay fit's kernels when a fit runs,
-    MINPACK where the compiled fit gives up, pandas for conditions tables and written tables)."""
-    assert _fresh(f"import sys, json; {statement}; print(json.dumps({_loaded()}))") == []
+#: What each light entry point may not load, in the order one fresh interpreter runs them (below).
+LIGHT = (("import droptower.extract", HEAVY),
+         ("import droptower; droptower.extract_file; droptower.ExtractSettings", HEAVY),
+         ("from droptower.io import read_any, map_channels, DropSignals", HEAVY),
+         ("import droptower.damped_cosine, droptower.sdof", HEAVY),
+         # droptower.rig.load_rig (every command that reads logs with a rig) and the decay fit's cache module
+         ("from droptower.rig import load_rig; load_rig('rapp2022'); import droptower.rheology.numba_cache",
+          ("pymunk", "numba", "droptower.rheology.coupling", "droptower.rig.simulate")))
+#: ``identify --from-drop-tests`` (the model route): its modules, the servo bench's evaluation and
+#: the noise floor's smoothing among them
+DROP_TEST_ROUTE = ("import droptower.cli.identify_cmd, droptower.cli.identify_drops_cmd, droptower.identify.drop_campaign, "
+                   "droptower.identify.dropreport, droptower.identify.noise, droptower.servo.evaluate, "
+                   "droptower.servo.histories")
 
 
-def test_reading_a_rig_file_imports_no_simulator() -> None:
-    """``droptower.rig.load_rig`` (every command that reads logs with a rig) loads neither pymunk
-    nor the compiled coupling; the decay fit's cache module loads no coupling."""
-    loaded = _fresh("import sys, json; from droptower.rig import load_rig; load_rig('rapp2022'); "
-                    "import droptower.rheology.numba_cache; "
-                    f"print(json.dumps({_loaded(('pymunk', 'numba', 'droptower.rheology.coupling', 'droptower.rig.simulate'))}))")
-    assert loaded == []
+def test_light_entry_points_load_no_heavy_package_and_a_fit_loads_its_kernels_on_first_use() -> None:
+    """One fresh interpreter runs each entry point after those before it, the lightest first, and
+    lists after each what it may not load. ``sys.modules`` only grows, so what is loaded after a
+    statement and those before it includes all that the statement loads alone: an empty list
+    clears the statement as if it had run alone (and the first list that is not empty names the
+    statement that pulled a package in).
 
-
-def test_a_fit_loads_its_kernels_on_first_use() -> None:
-    """The first fit imports the compiled kernels (from the package's cache) and gives the decay
-    it was made from; later fits reuse them (numba compiles or loads each kernel once per process)."""
-    out = _fresh("import sys, json; import numpy as np; from droptower.damped_cosine import fit_decay\n"
-                 "before = 'droptower.damped_cosine_kernels' in sys.modules\n"
-                 "t = np.arange(4000) / 38400.0; y = 0.01 * np.exp(-20.0 * t) * np.cos(200.0 * t - 0.3)\n"
-                 "fits = [fit_decay(t, y, 210.0, 15.0) for _ in range(3)]\n"
-                 "from droptower.damped_cosine_kernels import levenberg_marquardt as lm\n"
-                 "print(json.dumps({'before': before, 'params': [float(v) for v in fits[-1].params],"
-                 " 'signatures': len(lm.signatures)}))")
-    assert out["before"] is False and out["signatures"] == 1
-    assert out["params"] == pytest.approx([0.01, 20.0, 200.0, 0.3], rel=1e-9)
+    - The extractor's modules import none of the heavy packages: each is imported where it is
+      used (scipy.signal for the angle-only drop finder, the decay fit's kernels when a fit runs,
+      MINPACK where the compiled fit gives up, pandas for conditions tables and written tables).
+    - Reading a rig file loads neither pymunk nor the compiled coupling; the decay fit's cache
+      module loads no coupling.
+    - The first fit imports the compiled kernels (from the package's cache) and gives the decay
+      it was made from; later fits reuse them (numba compiles or loads each kernel once per process).
+    - The model route's modules load neither scipy.signal nor matplotlib until a step needs them
+      (a servo record smoothed, a plot drawn)."""
+    code = ["import sys, json", "said = []"]
+    for statement, names in LIGHT:
+        code += [statement, f"said.append({_loaded(names)})"]
+    code += ["import numpy as np", "from droptower.damped_cosine import fit_decay",
+             "before = 'droptower.damped_cosine_kernels' in sys.modules",
+             "t = np.arange(4000) / 38400.0; y = 0.01 * np.exp(-20.0 * t) * np.cos(200.0 * t - 0.3)",
+             "fits = [fit_decay(t, y, 210.0, 15.0) for _ in range(3)]",
+             "from droptower.damped_cosine_kernels import levenberg_marquardt as lm",
+             "fit = {'before': before, 'params': [float(v) for v in fits[-1].params], 'signatures': len(lm.signatures)}",
+             DROP_TEST_ROUTE, f"route = {_loaded(('scipy.signal', 'matplotlib'))}",
+             "print(json.dumps({'light': said, 'fit': fit, 'route': route}))"]
+    out = _fresh("\n".join(code))
+    assert dict(zip([s for s, _ in LIGHT], out["light"])) == {s: [] for s, _ in LIGHT}
+    assert out["fit"]["before"] is False and out["fit"]["signatures"] == 1
+    assert out["fit"]["params"] == pytest.approx([0.01, 20.0, 200.0, 0.3], rel=1e-9)
+    assert out["route"] == []
 
 
 def test_simulate_keeps_its_name_when_its_module_is_imported() -> None:
@@ -73,14 +88,3 @@ def test_simulate_keeps_its_name_when_its_module_is_imported() -> None:
                  "print(json.dumps([callable(simulate), simulate is rig.simulate, droptower.simulate is simulate, "
                  "type(module).__name__, sorted(set(rig.__all__) - set(dir(rig)))]))")
     assert out == [True, True, True, "function", []]
-
-
-def test_the_drop_test_route_imports_no_signal_processing_it_does_not_use() -> None:
-    """``identify --from-drop-tests`` (the model route) reads logs and fits decays: its modules, the
-    servo bench's evaluation and the noise floor's smoothing among them, load neither
-    scipy.signal nor matplotlib until a step needs them (a servo record smoothed, a plot drawn)."""
-    loaded = _fresh("import sys, json; import droptower.cli.identify_cmd, droptower.cli.identify_drops_cmd, "
-                    "droptower.identify.drop_campaign, droptower.identify.dropreport, droptower.identify.noise, "
-                    "droptower.servo.evaluate, droptower.servo.histories; "
-                    f"print(json.dumps({_loaded(('scipy.signal', 'matplotlib'))}))")
-    assert loaded == []

@@ -24,7 +24,7 @@ def kernel(x):
 '''
 
 # "second" imports everything and waits for "first" to miss the cache; "first", once "second" is
-# ready, calls the kernel, misses, says so (a file) and holds on 2 s before compiling. Each prints numba's count of cache misses (compilations).
+# ready, calls the kernel, misses, says so (a file) and holds on 1 s before compiling (a window a thousand times what the other needs to reach its cache). Each prints numba's count of cache misses (compilations).
 RACE = '''
 import sys, time
 from pathlib import Path
@@ -42,7 +42,7 @@ if role == "first":
         data = load(sig, context)
         if data is None:
             (folder / "first-missed").touch()
-            time.sleep(2.0)
+            time.sleep(1.0)
         return data
     cache.load_overload = load_then_linger
     while not (folder / "second-ready").exists():

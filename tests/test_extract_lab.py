@@ -11,6 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from droptower.cli.main import main
+from droptower.configs import preset_dir
 from droptower.extract.geometry import FLAGS as GEOMETRY_FLAGS
 from tests.labfolder import write_lab_folder
 from tests.malformed_conditions import check_outcome, malformed_tables
@@ -150,23 +151,31 @@ def test_malformed_conditions_tables(small, lab, data, capsys, tmp_path):
 
 
 @pytest.mark.slow
-def test_full_lab_folder_and_table2_campaign_no_false_flags(lab_folder, tmp_path, capsys):
-    """Calibration of the geometry flags: the 54-file lab folder with its own rig and the 450
-    Table-2 campaign logs with the rapp2022 rig raise none; the same folder with the preset rig
-    flags every drop it can judge (the 18 without a double impact). The folder is
-    ``write_lab_folder``'s default (tests/conftest.py, shared with test_lab_folder_e2e.py)."""
-    lab = lab_folder
-    args = [*map(str, lab.logs), "--conditions", str(lab.sheet)]
-    code, err, right = _extract([*args, "--rig", str(lab.rig)], capsys, tmp_path, "right.csv")
-    assert code == 0 and len(right) == 54
+def test_full_lab_folder_and_table2_campaign_no_false_flags(lab_extracted, lab_extracted_preset, tmp_path, capsys):
+    """Calibration of the geometry flags: the 54-file lab folder with its own rig and the logs of
+    every Table-2 condition (3 cases x 10 heights x 3 preloads, the campaign's rapp2022 rig) raise
+    none; the same folder with the preset rig flags every drop it can judge (the 18 without a
+    double impact). The folder is ``write_lab_folder``'s default, extracted with either rig once
+    per process (tests/conftest.py: ``extract LOGS --conditions SHEET --rig RIG --out TABLE``, read
+    by test_lab_folder_e2e.py too). The flags judge a drop's geometry (its M2/M1 deviation, laser
+    amplitude against torque, impact energy) against the rig's, which a condition's five repeats
+    share: one drop per condition, 90 rather than the plan's 450, covers every condition."""
+    (step, out), (wrong_step, wrong_out) = lab_extracted, lab_extracted_preset
+    assert step.code == 0 and wrong_step.code == 0, step.err + wrong_step.err
+    right = pd.read_csv(out, keep_default_na=False, na_values=[""])
+    assert len(right) == 54
     assert not any(_geometry_flags(row) for row in right.to_dict(orient="records"))
-    code, err, wrong = _extract([*args, "--rig", "rapp2022"], capsys, tmp_path, "wrong.csv")
+    wrong = pd.read_csv(wrong_out, keep_default_na=False, na_values=[""])
     judged = wrong[~wrong["double_impact"]]
     assert len(judged) == 18 and all(_geometry_flags(row) == set(GEOMETRY_FLAGS)
                                      for row in judged.to_dict(orient="records"))
-    assert main(["campaign", "--out", str(tmp_path / "t2"), "--workers", "1", "-q"]) == 0
+    table2 = (preset_dir("doe") / "rapp2022_table2.toml").read_text(encoding="utf-8")
+    assert "\nrepeats = 5\n" in table2
+    (tmp_path / "table2_once.toml").write_text(table2.replace("\nrepeats = 5\n", "\nrepeats = 1\n", 1), encoding="utf-8")
+    assert main(["campaign", "--doe", str(tmp_path / "table2_once.toml"), "--out", str(tmp_path / "t2"), "--workers", "1",
+                 "-q"]) == 0
     results = pd.read_csv(tmp_path / "t2" / "results.csv", keep_default_na=False)
-    assert len(results) == 450
+    assert len(results) == 90 and len(results.groupby(["inertia_kgm2", "drop_height_m", "preload_nm"])) == 90
     assert not any(set(flags.split(";")) & set(GEOMETRY_FLAGS) for flags in results["flags"])
 
 

@@ -17,6 +17,9 @@ from droptower.io.tables import TABLE_SUFFIXES, check_table_path, write_table
 from droptower.maps import MapFit
 from tests.test_maps import synthetic_table
 
+#: the same tests' map fitted once per process by this module's commands and calls (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("shared_map_fits")
+
 TABLE = pd.DataFrame({
     "case": [1, 2, 3],
     "stiffness_nm_per_deg": [812.5, 1e-5, math.nan],      # 1e-5: pandas' to_json would print 0.0

@@ -4,7 +4,8 @@ simulated on the lab's rig, so each file's conditions and double impacts are kno
 Folders are built once per module and kept small: 3 fixtures x 1 kg x 3 heights x 2 repeats
 (every drop of the lightest fixture L1 strikes twice, as the impact law says: its equivalent mass
 J/L^2 = 1.92 kg is not enough above the 1 kg drop mass), and for the round trips one fixture
-x 12 drops in each of two dialects.
+x 12 drops in each of two dialects. The model route runs on the session's 54-file folder
+(tests/conftest.py: its map FOLDER --family step, which test_lab_folder_e2e.py reads too).
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 from labfolder import GERMAN, IMPERIAL, write_lab_folder  # noqa: E402
+from shared_map_fits import share_map_fits  # noqa: E402
 
 from droptower.cli.main import main  # noqa: E402
 from droptower.maps import read_results, select_tests  # noqa: E402
@@ -26,6 +28,15 @@ from droptower.maps.coverage import TEMPERATURE_SPAN_K, coverage_notes, double_i
 
 DURATION_S = 0.12
 CHANNEL = {GERMAN.name: "distance=Weg", IMPERIAL.name: "distance=Disp"}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def map_fits():
+    """One map fit per distinct set of tests (tests/shared_map_fits.py): the tables of every
+    format extract writes read back into the same tests, and map, report and validate of one
+    folder fit the same map; each command still reads, selects, writes and prints."""
+    with share_map_fits() as cache:
+        yield cache
 
 
 @pytest.fixture(scope="session")  # kept when worksteal splits this file: a second block reuses it
@@ -161,25 +172,26 @@ def test_temperature_span_is_said():
 
 
 # ------------------------------------------------------------------------------------------ the model route
-@pytest.mark.slow
-def test_model_route_on_a_lab_folder(lab, tmp_path, capsys):
-    """map FOLDER --family on a plain folder of logs with --conditions and --rig: the model-based
-    map with bands and a verdict; its figure says the band is shaded, validate and report take
-    the lab's bench CSV (German column names) and validate both routes. The bench: the reduced
-    sweeps' amplitudes at 10, 30 and 60 Hz (12 points; the sweeps' 1 Hz points would cost the
-    model route's bench simulation ten times all the others, and a misread column, unit or route
-    shows at any point)."""
+@pytest.mark.slow  # the first of this process's tests to read the folder's model route waits for it
+def test_model_route_on_a_lab_folder(lab_model_mapped, lab_work, tmp_path, capsys):
+    """map FOLDER --family on a plain folder of logs with --conditions and --rig (the lab's
+    54-file folder: tests/conftest.py runs it once per process, test_lab_folder_e2e.py checks the
+    identified coupling against the truth and its report page): the model-based map with bands and
+    a verdict; its figure says the band is shaded; validate takes a bench CSV with the lab's German
+    column names and compares both routes. The bench: the reduced sweeps' amplitudes at 10, 30 and
+    60 Hz (12 points, most outside the drops' hull; the sweeps' 1 Hz points would cost the model
+    route's bench simulation ten times all the others, and a misread column, unit or route shows
+    at any point)."""
     from droptower.rheology import load_coupling
     from droptower.servo import run_grid
 
-    mm = tmp_path / "model_map.json"
-    code, out, err = _run(capsys, ["map", str(lab.folder), *_lab_flags(lab), "--family", "template", "--template",
-                                   "rapp2022_nr60", "--model-out", str(mm), "--out", str(tmp_path / "map.json")])
-    assert code == 0, err
-    assert "model-based map, template" in out and "good fit" in out and "bands: 95 %" in out
+    step = lab_model_mapped  # map FOLDER --rig --conditions --family template --template rapp2022_nr60 --model-out
+    assert step.code == 0, step.err
+    assert "model-based map, template" in step.out and "good fit" in step.out and "bands: 95 %" in step.out
     from droptower.compare.model_map import ModelMap
     from droptower.compare.model_map_plots import _stiffness
 
+    mm = lab_work / "model_map.json"
     banded = ModelMap.from_json(mm)
     grid = banded.grid if banded.grid is not None else banded.evaluate_grid()
     assert banded.has_bands and any(c.endswith("_band_lo") for c in grid.columns)
@@ -189,18 +201,12 @@ def test_model_route_on_a_lab_folder(lab, tmp_path, capsys):
     pd.DataFrame({"Amplitude [°]": points["amplitude_deg"], "Frequenz [Hz]": points["frequency_hz"],
                   "Speichersteifigkeit [Nm/°]": points["storage_stiffness_nm_per_deg"],
                   "Verlustfaktor": points["loss_factor"]}).to_csv(bench, sep=";", decimal=",", index=False)
-    code, out, err = _run(capsys, ["validate", "--map", str(tmp_path / "map.json"), "--servo-results", str(bench),
+    code, out, err = _run(capsys, ["validate", "--map", str(lab_work / "map_folder.json"), "--servo-results", str(bench),
                                    "--model-map", str(mm)])
     assert code == 0, err
     row = next(line for line in out.splitlines() if line.startswith("model-based map, template") and " all " in line)
     k_rms, eta_rms = (float(x) for x in row.split()[-3:-1])
     assert k_rms < 1.0 and eta_rms < 1.0  # the model route predicts the bench (the coupling simulated is the bench's)
-    page = tmp_path / "report.html"
-    code, _, err = _run(capsys, ["report", str(lab.folder), *_lab_flags(lab), "--model-map", str(mm),
-                                 "--servo-results", str(bench), "--out", str(page), "-q"])
-    assert code == 0, err
-    html = page.read_text(encoding="utf-8")
-    assert "routes-table" in html and "no decay plot" not in html
 
 
 def test_identify_from_a_lab_folder(lab, capsys):

@@ -24,26 +24,23 @@ flagged on every drop, and the preset's source is printed.
 
 Every step runs ``droptower`` in-process (``droptower.cli.main.main``), one as a subprocess.
 The folder and every step's outputs are built once per process (session-scoped fixtures: when
-worksteal splits this file into two blocks of one worker, the second reuses them).
+worksteal splits this file into two blocks of one worker, the second reuses them); the folder,
+its extraction with either rig and its model route are tests/conftest.py's, which
+test_extract_lab.py and test_lab_downstream.py read too.
 """
 from __future__ import annotations
 
-import contextlib
-import io
-import itertools
 import json
 import re
-import subprocess
-import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from droptower.cli.main import main
-from labfolder import FIXTURES, HEIGHTS_MM, MASSES, REPEATS, LabFolder
+from labfolder import LabFolder, Step, droptower
+from shared_bench import share_bench
+from shared_map_fits import share_map_fits
 
 pytestmark = pytest.mark.slow
 
@@ -59,23 +56,6 @@ BENCH_COLUMNS = {"amplitude_deg": "Amplitude [°]", "frequency_hz": "Frequenz [H
                  "storage_stiffness_nm_per_deg": "Speichersteifigkeit [Nm/°]", "loss_factor": "Verlustfaktor"}
 
 
-@dataclass
-class Step:
-    """One command: its exit code, stdout and stderr."""
-
-    code: int
-    out: str
-    err: str
-
-
-def droptower(*args: object) -> Step:
-    """``droptower ARGS`` in this process, its output captured."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in args])
-    return Step(code, out.getvalue(), err.getvalue())
-
-
 def _flags(value: object) -> set[str]:
     if not isinstance(value, str) or not value.strip():
         return set()
@@ -89,8 +69,8 @@ def lab(lab_folder) -> LabFolder:
 
 
 @pytest.fixture(scope="session")
-def work(tmp_path_factory) -> Path:
-    return tmp_path_factory.mktemp("work")
+def work(lab_work) -> Path:
+    return lab_work  # where tests/conftest.py's steps on the folder write
 
 
 @pytest.fixture(scope="session")
@@ -102,23 +82,16 @@ def usable(lab) -> pd.DataFrame:
 
 
 @pytest.fixture(scope="session")
-def native(lab, usable, work) -> pd.DataFrame:
-    """The usable drops simulated again (same tests, same seeds as tests/labfolder.py) and
-    evaluated from droptower's own logs, whose metadata carry J, L and the laser radius: the
-    numbers the lab's folder must give."""
+def native(lab, lab_folder_and_drops, usable, work) -> pd.DataFrame:
+    """The usable drops, the very simulations the lab's files were written from
+    (tests/conftest.py), evaluated from droptower's own logs, whose metadata carry J, L and the
+    laser radius: the numbers the lab's folder must give."""
     from droptower.extract.files import Settings, extract_file
-    from droptower.rheology import load_coupling
-    from droptower.rig.config import load_rig
-    from droptower.rig.simulate import DropTest, simulate
 
-    cases = list(itertools.product(FIXTURES.items(), MASSES.items(), HEIGHTS_MM, range(1, REPEATS + 1)))
-    names = {f"{f}_{m}_h{h:g}_rep{r}.csv": k for k, ((f, _), (m, _), h, r) in enumerate(cases)}
-    keys = [names[name] for name in usable.index]
-    tests = [DropTest(inertia_kgm2=cases[k][0][1], drop_mass_kg=cases[k][1][1], drop_height_m=cases[k][2] / 1e3,
-                      repeat=cases[k][3], seed=k) for k in keys]
-    drops = simulate(load_rig(lab.rig), load_coupling(COUPLING), tests, duration_s=0.2)
+    by_file = dict(zip(lab.truth["file"], lab_folder_and_drops[1]))
     rows = []
-    for name, drop in zip(usable.index, drops):
+    for name in usable.index:
+        drop = by_file[name]
         _, result = extract_file(drop.write_log(work / f"native_{Path(name).stem}.parquet"), Settings())
         rows.append({"file": name, "stiffness_nm_per_rad": result.stiffness_nm_per_rad,
                      "amplitude_ref_rad": result.amplitude_ref_rad, "frequency_hz": result.frequency_hz,
@@ -140,33 +113,34 @@ def bench(work) -> Path:
 
 
 @pytest.fixture(scope="session")
-def extracted(lab, work) -> tuple[Step, pd.DataFrame]:
-    out = work / "results.csv"
-    step = droptower("extract", *lab.logs, "--conditions", lab.sheet, "--rig", lab.rig, "--out", out)
+def extracted(lab_extracted) -> tuple[Step, pd.DataFrame]:
+    step, out = lab_extracted
     return step, pd.read_csv(out) if out.is_file() else pd.DataFrame()
 
 
 @pytest.fixture(scope="session")
 def mapped(extracted, work) -> Step:
-    return droptower("map", work / "results.csv", "--out", work / "map.json")
+    with share_map_fits():  # the tests' map, fitted once per process for map, map FOLDER and report
+        return droptower("map", work / "results.csv", "--out", work / "map.json")
 
 
 @pytest.fixture(scope="session")
-def model_mapped(lab, work) -> Step:
-    return droptower("map", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--out", work / "map_folder.json",
-                     "--family", "template", "--template", COUPLING, "--model-out", work / "model_map.json")
+def model_mapped(lab_model_mapped) -> Step:
+    return lab_model_mapped  # map FOLDER --family template --template rapp2022_nr60 --model-out model_map.json
 
 
 @pytest.fixture(scope="session")
 def validated(mapped, model_mapped, bench, work) -> Step:
-    return droptower("validate", "--map", work / "map.json", "--model-map", work / "model_map.json",
-                     "--servo-results", bench, "--out", work / "validation", "--json")
+    with share_bench(keep=__name__):  # the model map at the bench's points: evaluated once for validate and report
+        return droptower("validate", "--map", work / "map.json", "--model-map", work / "model_map.json",
+                         "--servo-results", bench, "--out", work / "validation", "--json")
 
 
 @pytest.fixture(scope="session")
 def reported(lab, model_mapped, bench, work) -> Step:
-    return droptower("report", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--servo-results", bench,
-                     "--model-map", work / "model_map.json", "--out", work / "report.html")
+    with share_map_fits(), share_bench(keep=__name__):
+        return droptower("report", lab.folder, "--conditions", lab.sheet, "--rig", lab.rig, "--servo-results", bench,
+                         "--model-map", work / "model_map.json", "--out", work / "report.html")
 
 
 def _drawn_decays(page: Path) -> set[str]:
@@ -292,6 +266,7 @@ def test_report_draws_every_usable_decay(lab, usable, reported, work):
     names = {Path(name).name for name in _drawn_decays(work / "report.html")}
     assert set(usable.index) <= names, sorted(set(usable.index) - names)
     assert len(names) == len(lab.logs)  # every drop's decay is drawn, the double impacts' too
+    assert "no decay plot" not in page and "id='routes-table'" in page
     # both routes validated against the lab's bench on the page: its 12 points, the model-based route on it
     text = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", re.sub(r"<script.*?</script>", "", page, flags=re.S)))
     assert "Two routes: paper map and model-based map" in text
@@ -302,9 +277,8 @@ def test_report_draws_every_usable_decay(lab, usable, reported, work):
     assert float(rows["model-based map, template"].split()[1]) < 1.0  # K' RMS, % (as validate's)
 
 
-def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, extracted, work):
-    out = work / "results_preset.csv"
-    step = droptower("extract", *lab.logs, "--conditions", lab.sheet, "--rig", "rapp2022", "--out", out)
+def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, extracted, lab_extracted_preset):
+    step, out = lab_extracted_preset  # extract FOLDER's logs --conditions SHEET --rig rapp2022
     assert step.code == 0, step.err
     from droptower.rig.config import load_rig
 
@@ -330,8 +304,10 @@ def test_the_preset_rig_is_flagged_on_every_drop_and_its_source_printed(lab, ext
 
 
 def test_the_results_table_reads_back_in_a_fresh_process(extracted, work):
-    """One step as a user types it: ``python -m droptower map results.csv`` in its own process."""
-    done = subprocess.run([sys.executable, "-m", "droptower", "map", str(work / "results.csv"), "--json", "-q"],
-                          capture_output=True, text=True, timeout=120, cwd=Path(__file__).resolve().parents[1])
-    assert done.returncode == 0, done.stderr
+    """One step as a user types it: ``droptower map results.csv``, the installed console script in
+    its own process (map's one run as installed, tests/test_cli_installed.py)."""
+    from test_cli_installed import _run
+
+    done = _run("map", str(work / "results.csv"), "--json", "-q")
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
     assert json.loads(done.stdout)["fit"]["n_tests"] == 18

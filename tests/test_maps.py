@@ -17,6 +17,9 @@ from droptower.maps.plots import plot_all
 from droptower.maps.results import select_tests
 from pictures import assert_drawn
 
+#: the same tests' map fitted once per process by this module's commands and calls (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("shared_map_fits")
+
 TABLE4 = table4_path()
 
 # Known map for the synthetic tests: the shape of the Table-4 fit with all exponents inside

@@ -16,6 +16,9 @@ from droptower.cli.main import main
 from droptower.extract.synthetic import SyntheticDrop
 from droptower.io.droptower_log import write_log
 
+#: the same tests' map fitted once per process by this module's commands and calls (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("shared_map_fits")
+
 SIMULATE = ["--inertia-kgm2", "0.359", "--drop-mass-kg", "2", "--height-m", "1"]
 
 

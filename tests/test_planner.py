@@ -24,7 +24,7 @@ from droptower.planner.grid import GRID_HEIGHTS, REFINE_TOLERANCE, _grid
 from droptower.rheology import load_coupling
 from droptower.rig.config import load_rig
 from droptower.rig.predictions import plan
-from test_report import _chrome  # Debian's chromium via selenium, or a skip naming what is missing
+from test_report import shared_chrome  # Debian's chromium via selenium, or a skip naming what is missing
 from droptower.cli.flags import cli_text
 
 PRELOADS = (0.0, 500.0)
@@ -133,18 +133,18 @@ def test_grid_is_refined_where_interpolation_misses(shipped) -> None:
 # ---- in the browser ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def chrome(page: Path, tmp_path_factory):
+    """The process's Chromium (test_report.py's, started once per process) on the planner page,
+    its downloads going to a folder of this module's."""
     downloads = tmp_path_factory.mktemp("downloads")
-    browser = _chrome()
+    browser = shared_chrome()
     browser.downloads = downloads
-    try:
-        browser.execute_cdp_cmd("Browser.setDownloadBehavior", {"behavior": "allow", "downloadPath": str(downloads)})
-        browser.get(page.as_uri())
-        browser.set_script_timeout(60)
-        assert browser.execute_async_script(
-            "const done = arguments[0]; window.planner.ready.then(() => done('ready'), e => done(String(e)))") == "ready"
-        yield browser
-    finally:
-        browser.quit()
+    browser.execute_cdp_cmd("Browser.setDownloadBehavior", {"behavior": "allow", "downloadPath": str(downloads)})
+    browser.get(page.as_uri())
+    browser.set_script_timeout(60)
+    assert browser.execute_async_script(
+        "const done = arguments[0]; window.planner.ready.then(() => done('ready'), e => done(String(e)))") == "ready"
+    yield browser
+    browser.get("about:blank")  # the next module's page starts from a blank one
 
 
 def wait_for(condition, seconds: float = 10.0) -> bool:

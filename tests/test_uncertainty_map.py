@@ -11,6 +11,9 @@ from droptower.rig.uncertainty import override_uncertainty
 from droptower.uncertainty import map_uncertainty
 from test_maps import synthetic_table
 
+#: the same tests' map fitted once per process by this module's commands and calls (tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("shared_map_fits")
+
 A = np.array([0.2, 0.5, 1.0, 2.0])
 F = np.array([40.0, 30.0, 25.0, 22.0])
 FIXTURES = (0.1557, 0.359, 0.5233)
