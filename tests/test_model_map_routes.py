@@ -19,7 +19,8 @@ from droptower.cli.main import main
 from droptower.compare.model_map import PAPER_ROUTE, ModelMap
 from droptower.rheology import coupling_to_toml, parse_coupling
 from shared_bench import share_bench
-from shared_fits import share_fits, share_maps
+from shared_fits import share_fits
+from shared_map_fits import share_map_fits
 from test_report import PLAN, shared_chrome
 
 K, K_M, TAU = 20000.0, 6000.0, 1 / (2 * math.pi * 3.0)
@@ -36,11 +37,12 @@ def fits(request):
     """One fit per distinct call in this module (tests/shared_fits.py): the poor fit refused and
     then accepted is one identification, and so is the template's fit with and without the
     rig's input uncertainties (their shifted fits are their own); the campaign's paper map,
-    which the map, report and validate commands each fit from the same table, is one fit too; and
+    which the map, report and validate commands each fit from the same tests, is one fit too
+    (tests/shared_map_fits.py); and
     the truth's sweeps on the servo bench, which validate --coupling and the report run on the
     same coupling, and the model map's bench evaluation at their points, are one run each
     (tests/shared_bench.py)."""
-    with share_fits(request.module, keep=__name__) as cache, share_maps(request.module), share_bench():
+    with share_fits(request.module, keep=__name__) as cache, share_map_fits(), share_bench():
         yield cache
 
 
