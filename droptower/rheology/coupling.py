@@ -101,6 +101,12 @@ class Coupling:
     def __init__(self, elements: list[ElementSpec], *, name: str = "", description: str = "",
                  source: str = "", units: str = "torsional", path: Path | None = None,
                  params: np.ndarray | None = None):
+        self._build(elements, [el.compile() for el in elements], params, name, description, source, units, path)
+
+    def _build(self, elements: list[ElementSpec], compiled: list[list[KernelElement]], params: np.ndarray | None,
+               name: str, description: str, source: str, units: str, path: Path | None) -> None:
+        """The coupling of ``elements`` compiled into ``compiled`` (each element's kernel
+        elements), with the parameter sets ``params`` (None: the kernels' own, one set)."""
         if not elements:
             raise DroptowerError("a coupling needs at least one element", file=path)
         self.elements = list(elements)
@@ -109,18 +115,8 @@ class Coupling:
         self.source = source
         self.units = units
         self.path = path
-        kernels: list[KernelElement] = []
-        owner: list[int] = []
-        for i, el in enumerate(self.elements):
-            compiled = el.compile()
-            kernels += compiled
-            owner += [i] * len(compiled)
-        self._lay_out(kernels, owner, params)
-
-    def _lay_out(self, kernels: list[KernelElement], owner: list[int], params: np.ndarray | None) -> None:
-        """The compiled layout of ``kernels`` (``owner``: the element of each), its parameter sets
-        ``params`` (None: the kernels' own, one set)."""
-        path = self.path
+        kernels = [k for ks in compiled for k in ks]
+        owner = [i for i, ks in enumerate(compiled) for _ in ks]
         self.kernels = kernels
         self.kernel_owner = np.asarray(owner)
         self.codes = np.array([k.code for k in kernels], dtype=np.int64)
@@ -144,12 +140,8 @@ class Coupling:
         (n_sets, P): what ``Coupling(elements, ..., params=params)`` builds, without compiling
         the elements again (the identification builds one per core call from elements it
         compiled before, :mod:`droptower.identify.families.compiled`)."""
-        if not elements:
-            raise DroptowerError("a coupling needs at least one element", file=path)
         out = cls.__new__(cls)
-        out.elements, out.name, out.description, out.source, out.units, out.path = (
-            list(elements), name, description, source, units, path)
-        out._lay_out([k for ks in kernels for k in ks], [i for i, ks in enumerate(kernels) for _ in ks], params)
+        out._build(elements, kernels, params, name, description, source, units, path)
         return out
 
     # ------------------------------------------------------------- structure

@@ -392,7 +392,7 @@ class FilledRubberFamily(Family):
         def values(z: np.ndarray) -> np.ndarray:
             """Every parameter of the optimised variables ``z`` (..., len(idx)): ``x0`` but ``idx``."""
             z = np.asarray(z, float)
-            v = np.repeat(np.array(x0, float)[None, :], z.size // len(idx), axis=0).reshape(z.shape[:-1] + (-1,))
+            v = np.broadcast_to(np.asarray(x0, float), z.shape[:-1] + (len(x0),)).copy()
             v[..., idx] = variables.values(z)
             return v
 
